@@ -1,0 +1,106 @@
+//! `kage info`: what a scene holds.
+
+use crate::scene_args::SceneArgs;
+use anyhow::Result;
+use kage_engine::scene::{
+    Camera, EnvironmentLight, InGroup, MeshRef, Name, NodeId, PolygonLight, PrimitiveId, RigidGroup, Transform,
+};
+use std::fmt::Write;
+
+/// Arguments of `kage info`.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    #[command(flatten)]
+    scene: SceneArgs,
+}
+
+/// Prints meshes, vertices, triangles, lights, groups, cameras and hashes.
+pub fn run(args: &Args) -> Result<()> {
+    let scene = args.scene.load()?;
+    crate::emit(&describe(&scene)?);
+    Ok(())
+}
+
+/// The report `kage info` prints.
+fn describe(scene: &kage_engine::scene::Scene) -> Result<String, std::fmt::Error> {
+    let mut out = String::new();
+    let w = &scene.world;
+    writeln!(out, "scene: {}", scene.source)?;
+    let mut groups: Vec<(u32, String, glam::Vec3)> = w
+        .query::<(&RigidGroup, &Name, &Transform)>()
+        .iter()
+        .map(|(g, n, t)| (g.index, n.0.clone(), t.world.translation.into()))
+        .collect();
+    groups.sort_by_key(|g| g.0);
+    writeln!(out, "groups: {}", groups.len())?;
+    for (i, name, p) in &groups {
+        writeln!(out, "  [{i}] {name} at ({:.3}, {:.3}, {:.3})", p.x, p.y, p.z)?;
+    }
+    writeln!(out, "meshes: {} unique", scene.meshes.len())?;
+    for (i, m) in scene.meshes.iter().enumerate() {
+        writeln!(
+            out,
+            "  [{i}] hash {}  {} vertices  {} triangles  area {:.4}",
+            m.hash,
+            m.positions.len(),
+            m.triangles.len(),
+            m.area()
+        )?;
+    }
+    let mut instances: Vec<(PrimitiveId, String, MeshRef, bool)> = w
+        .query::<(&PrimitiveId, &Name, &MeshRef, &Transform, &InGroup)>()
+        .iter()
+        .map(|(id, n, m, t, _)| (*id, n.0.clone(), *m, t.is_mirrored()))
+        .collect();
+    instances.sort_by_key(|i| (i.0.node, i.0.mesh, i.0.primitive));
+    let (mut verts, mut tris) = (0, 0);
+    writeln!(out, "instances: {}", instances.len())?;
+    for (id, name, m, mirrored) in &instances {
+        let mesh = &scene.meshes[m.index as usize];
+        verts += mesh.positions.len();
+        tris += mesh.triangles.len();
+        let mirror = if *mirrored { "  (mirrored)" } else { "" };
+        writeln!(
+            out,
+            "  node {} '{name}' mesh {} primitive {} → mesh [{}] {}{mirror}",
+            id.node, id.mesh, id.primitive, m.index, m.hash
+        )?;
+    }
+    writeln!(out, "totals: {verts} vertices, {tris} triangles (instanced, receivers)")?;
+    let mut lights: Vec<(u32, PolygonLight)> =
+        w.query::<(&PolygonLight, &NodeId)>().iter().map(|(l, n)| (n.0, l.clone())).collect();
+    lights.sort_by_key(|l| l.0);
+    writeln!(out, "lights: {} polygons", lights.len())?;
+    for (node, l) in lights.iter().take(16) {
+        let tex = l.texture.map_or(String::new(), |t| format!("  texture {t}"));
+        writeln!(
+            out,
+            "  node {node}: {} vertices, radiance ({:.3}, {:.3}, {:.3}){tex}",
+            l.points.len(),
+            l.radiance.x,
+            l.radiance.y,
+            l.radiance.z
+        )?;
+    }
+    if lights.len() > 16 {
+        writeln!(out, "  … {} more", lights.len() - 16)?;
+    }
+    let cameras: Vec<Camera> = w.query::<&Camera>().iter().cloned().collect();
+    writeln!(out, "cameras: {}", cameras.len())?;
+    for c in &cameras {
+        let e = c.eye();
+        writeln!(out, "  at ({:.3}, {:.3}, {:.3}) {:?}", e.x, e.y, e.z, c.projection)?;
+    }
+    for env in w.query::<&EnvironmentLight>().iter() {
+        writeln!(
+            out,
+            "environment: {} ({}×{}), intensity {}, rotation {:.1}°",
+            env.map.source,
+            env.map.width,
+            env.map.height,
+            env.intensity,
+            env.rotation.to_degrees()
+        )?;
+    }
+    Ok(out)
+}

@@ -1,0 +1,57 @@
+//! `kage`: bake and preview shadows for real-time rendering.
+//!
+//! Subcommands: `info` (what a scene holds) and `render` (images and per-vertex radiance with a
+//! chosen method). With no scene argument every command uses the built-in default scene.
+
+mod commands;
+mod progress;
+mod scene_args;
+
+use clap::{Parser, Subcommand};
+use std::process::ExitCode;
+
+/// kage (影): bakes and previews shadows from area and environment lights.
+#[derive(Parser)]
+#[command(name = "kage", version, about)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+    /// Worker threads (default: all cores).
+    #[arg(long, global = true)]
+    threads: Option<usize>,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Meshes, vertices, triangles, lights, groups, cameras and content hashes of a scene.
+    Info(commands::info::Args),
+    /// Render an image and/or per-vertex radiance.
+    Render(commands::render::Args),
+}
+
+/// Writes to stdout, ignoring a closed pipe (`kage info | head` is not an error).
+pub fn emit(text: &str) {
+    use std::io::Write;
+    let _ = std::io::stdout().lock().write_all(text.as_bytes());
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    if let Some(n) = cli.threads {
+        if let Err(e) = rayon::ThreadPoolBuilder::new().num_threads(n).build_global() {
+            eprintln!("error: cannot start {n} threads: {e}");
+            return ExitCode::FAILURE;
+        }
+    }
+    let result = match cli.command {
+        Command::Info(a) => commands::info::run(&a),
+        Command::Render(a) => commands::render::run(&a),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}

@@ -1,0 +1,161 @@
+//! Ray casting over triangles with a compressed wide BVH (`obvhs` CWBVH).
+//!
+//! [`SceneBvh`] answers closest-hit and any-hit queries; [`offset_ray_origin`] moves a ray's
+//! origin off the surface it leaves by a few ULPs (Wächter & Binder, *Ray Tracing Gems* ch. 6),
+//! which is robust at any distance from the origin without a scene-dependent epsilon.
+
+use glam::{Vec2, Vec3, Vec3A};
+use obvhs::{BvhBuildParams, cwbvh::CwBvh, ray::Ray, rt_triangle::RtTriangle, triangle::Triangle};
+use std::time::Duration;
+
+/// A closest hit.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Hit {
+    /// Index of the triangle in the array the BVH was built from.
+    pub triangle: u32,
+    /// Distance along the (unit) ray direction.
+    pub t: f32,
+    /// Barycentrics (b1, b2) of the hit point; b0 = 1 − b1 − b2.
+    pub bary: Vec2,
+}
+
+/// A BVH over a triangle soup.
+pub struct SceneBvh {
+    bvh: CwBvh,
+    /// Triangles in BVH leaf order (avoids an indirection in the hot loop).
+    tris: Vec<RtTriangle>,
+}
+
+impl SceneBvh {
+    /// Builds a BVH (deterministic: obvhs' single-threaded build).
+    pub fn new(triangles: &[[Vec3; 3]]) -> Self {
+        let tris: Vec<Triangle> =
+            triangles.iter().map(|t| Triangle { v0: t[0].into(), v1: t[1].into(), v2: t[2].into() }).collect();
+        if tris.is_empty() {
+            return Self { bvh: CwBvh::default(), tris: Vec::new() };
+        }
+        let bvh = obvhs::cwbvh::builder::build_cwbvh_from_tris(
+            &tris,
+            BvhBuildParams::medium_build(),
+            &mut Duration::default(),
+        );
+        let ordered = bvh.primitive_indices.iter().map(|&i| RtTriangle::from(&tris[i as usize])).collect();
+        Self { bvh, tris: ordered }
+    }
+
+    /// Number of triangles.
+    pub fn len(&self) -> usize {
+        self.tris.len()
+    }
+
+    /// True when the BVH holds no triangles.
+    pub fn is_empty(&self) -> bool {
+        self.tris.is_empty()
+    }
+
+    /// The closest hit along `dir` (unit) from `origin` within `(0, tmax)`.
+    pub fn closest_hit(&self, origin: Vec3, dir: Vec3, tmax: f32) -> Option<Hit> {
+        if self.tris.is_empty() {
+            return None;
+        }
+        let ray = Ray::new(origin.into(), dir.into(), 0.0, tmax);
+        let mut hit = obvhs::ray::RayHit::none();
+        if !self.bvh.ray_traverse(ray, &mut hit, |r, id| self.tris[id].intersect(r)) {
+            return None;
+        }
+        let slot = hit.primitive_id as usize;
+        let tri = &self.tris[slot];
+        let p = Vec3A::from(origin) + Vec3A::from(dir) * hit.t;
+        Some(Hit { triangle: self.bvh.primitive_indices[slot], t: hit.t, bary: barycentrics(tri, p) })
+    }
+
+    /// True when anything blocks the segment from `origin` along `dir` (unit) within `(0, tmax)`.
+    pub fn occluded(&self, origin: Vec3, dir: Vec3, tmax: f32) -> bool {
+        if self.tris.is_empty() {
+            return false;
+        }
+        let ray = Ray::new(origin.into(), dir.into(), 0.0, tmax);
+        !self.bvh.ray_traverse_miss(ray, |r, id| self.tris[id].intersect(r))
+    }
+}
+
+/// Barycentrics (b1, b2) of point `p` on triangle `tri` (v1 = v0 − e1, v2 = v0 + e2 in obvhs).
+fn barycentrics(tri: &RtTriangle, p: Vec3A) -> Vec2 {
+    let (a, b, c) = (tri.v0, tri.v0 - tri.e1, tri.v0 + tri.e2);
+    let (v0, v1, v2) = (b - a, c - a, p - a);
+    let (d00, d01, d11) = (v0.dot(v0), v0.dot(v1), v1.dot(v1));
+    let (d20, d21) = (v2.dot(v0), v2.dot(v1));
+    let den = d00 * d11 - d01 * d01;
+    if den == 0.0 {
+        return Vec2::ZERO;
+    }
+    let b1 = (d11 * d20 - d01 * d21) / den;
+    let b2 = (d00 * d21 - d01 * d20) / den;
+    Vec2::new(b1, b2)
+}
+
+/// Moves `p` off a surface with geometric normal `n`, to the side `dir` leaves towards, by a
+/// few ULPs of its coordinates (or a small absolute step near the world origin).
+pub fn offset_ray_origin(p: Vec3, n: Vec3, dir: Vec3) -> Vec3 {
+    const ORIGIN: f32 = 1.0 / 32.0;
+    const FLOAT_SCALE: f32 = 1.0 / 65536.0;
+    const INT_SCALE: f32 = 256.0;
+    let n = if n.dot(dir) < 0.0 { -n } else { n };
+    let of_i = (n * INT_SCALE).as_ivec3();
+    let nudge = |x: f32, o: i32| f32::from_bits((x.to_bits() as i32 + if x < 0.0 { -o } else { o }) as u32);
+    let p_i = Vec3::new(nudge(p.x, of_i.x), nudge(p.y, of_i.y), nudge(p.z, of_i.z));
+    let pick = |x: f32, xi: f32, nx: f32| {
+        if x.abs() < ORIGIN { x + FLOAT_SCALE * nx } else { xi }
+    };
+    Vec3::new(pick(p.x, p_i.x, n.x), pick(p.y, p_i.y, n.y), pick(p.z, p_i.z, n.z))
+}
+
+/// Reference Möller–Trumbore intersection (f64), for tests against the BVH.
+pub fn intersect_triangle_f64(origin: Vec3, dir: Vec3, tri: &[Vec3; 3]) -> Option<f64> {
+    let (o, d) = (origin.as_dvec3(), dir.as_dvec3());
+    let [a, b, c] = tri.map(|v| v.as_dvec3());
+    let (e1, e2) = (b - a, c - a);
+    let pv = d.cross(e2);
+    let det = e1.dot(pv);
+    if det.abs() < 1e-14 {
+        return None;
+    }
+    let tv = o - a;
+    let u = tv.dot(pv) / det;
+    let qv = tv.cross(e1);
+    let v = d.dot(qv) / det;
+    let t = e2.dot(qv) / det;
+    (u >= 0.0 && v >= 0.0 && u + v <= 1.0 && t > 0.0).then_some(t)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn offset_leaves_the_surface_on_the_right_side() {
+        for p in [Vec3::new(1000.0, -3.0, 0.01), Vec3::ZERO, Vec3::new(-1e5, 2e4, 7.0)] {
+            let q = offset_ray_origin(p, Vec3::Y, Vec3::new(0.3, 0.9, 0.0));
+            assert!(q.y > p.y);
+            let q = offset_ray_origin(p, Vec3::Y, Vec3::NEG_Y);
+            assert!(q.y < p.y);
+            assert!((q - p).length() < 1e-2 * (1.0 + p.length() * 1e-3));
+        }
+    }
+
+    #[test]
+    fn hits_report_triangle_and_barycentrics() {
+        let tris = [
+            [Vec3::ZERO, Vec3::X, Vec3::Y],
+            [Vec3::new(0.0, 0.0, -2.0), Vec3::new(1.0, 0.0, -2.0), Vec3::new(0.0, 1.0, -2.0)],
+        ];
+        let bvh = SceneBvh::new(&tris);
+        let h = bvh.closest_hit(Vec3::new(0.25, 0.5, 1.0), Vec3::NEG_Z, f32::INFINITY).unwrap();
+        assert_eq!(h.triangle, 0);
+        assert!((h.t - 1.0).abs() < 1e-6);
+        assert!((h.bary - Vec2::new(0.25, 0.5)).length() < 1e-6);
+        assert!(bvh.occluded(Vec3::new(0.25, 0.5, 1.0), Vec3::NEG_Z, 1.5));
+        assert!(!bvh.occluded(Vec3::new(0.25, 0.5, 1.0), Vec3::NEG_Z, 0.5));
+        assert!(SceneBvh::new(&[]).closest_hit(Vec3::ZERO, Vec3::X, 1.0).is_none());
+    }
+}

@@ -1,0 +1,28 @@
+//! # kage-engine
+//!
+//! The engine behind `kage`: scene import (glTF → a [`hecs`] world of plain-data components),
+//! ray casting (a CWBVH from `obvhs`), the math the shadow techniques share, and the Monte
+//! Carlo reference integrator that every approximation is measured against.
+//!
+//! ## Design and guarantees
+//! - **Data flows one way**: files → [`scene::import`] → [`scene::Scene`] (an ECS world) →
+//!   [`scene::flatten`] (a world-space snapshot for a frame) → [`accel::SceneBvh`] →
+//!   [`reference`] integrator → [`output`] (EXR/PNG/CSV).
+//! - **Pure math apart from I/O**: [`math`] has no I/O and no global state.
+//! - **Determinism**: every estimator seeds its random numbers from the pixel or vertex index
+//!   (and the user's seed), never from time or thread; results are bit-identical on any
+//!   number of threads.
+//! - **Bad input never panics**: importers validate what they read and return
+//!   [`Error`] values that name the file and the problem.
+//! - **Conventions** (binding, from `DESIGN.md`): glTF frame (+Y up, right-handed), linear RGB
+//!   radiance, GGX with α = roughness², one-sided lights emitting on the CCW side,
+//!   equirectangular environments with `u = frac(atan2(d.x, −d.z)/2π)`, `v = acos(d.y)/π`.
+
+pub mod accel;
+pub mod error;
+pub mod math;
+pub mod output;
+pub mod reference;
+pub mod scene;
+
+pub use error::{Error, Result};

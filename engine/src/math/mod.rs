@@ -1,0 +1,14 @@
+//! Pure math shared by the bakers, the shading code and the reference integrator.
+//!
+//! No I/O and no global mutable state live here; lazily built tables are immutable once made.
+
+pub mod distribution;
+pub mod frame;
+pub mod ggx;
+pub mod rng;
+pub mod sampling;
+
+/// Luminance of a linear Rec.709 colour.
+pub fn luminance(c: glam::Vec3) -> f32 {
+    0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z
+}

@@ -1,0 +1,75 @@
+//! Building scenes in code (the built-in scene, tests, tools): each object or light is its own
+//! rigid group, as a top-level glTF node would be.
+
+use crate::scene::{
+    Camera, EnvironmentLight, InGroup, Material, Mesh, MeshRef, Name, NodeId, PolygonLight, PrimitiveId, RigidGroup,
+    Scene, Transform, propagate_transforms,
+};
+use glam::{Affine3A, Vec3};
+use std::sync::Arc;
+
+impl Scene {
+    /// An empty scene named `source`.
+    pub fn new(source: &str) -> Self {
+        Self {
+            world: hecs::World::new(),
+            meshes: Vec::new(),
+            textures: Vec::new(),
+            source: source.into(),
+            warnings: Vec::new(),
+        }
+    }
+
+    fn next_node(&self) -> u32 {
+        self.world.query::<&NodeId>().iter().map(|n| n.0 + 1).max().unwrap_or(0)
+    }
+
+    fn add_group(&mut self, name: &str, pose: Affine3A) -> (hecs::Entity, u32) {
+        let node = self.next_node();
+        let index = self.world.query::<&RigidGroup>().iter().count() as u32;
+        let group =
+            self.world.spawn((RigidGroup { index }, Transform { world: pose }, Name(name.into()), NodeId(node)));
+        (group, node)
+    }
+
+    /// Adds `mesh` as a new rigid group at `pose`; returns the group entity.
+    pub fn add_object(&mut self, name: &str, mesh: Mesh, material: Material, pose: Affine3A) -> hecs::Entity {
+        let (group, node) = self.add_group(name, pose);
+        let mref = MeshRef { index: self.meshes.len() as u32, hash: mesh.hash };
+        self.meshes.push(Arc::new(mesh));
+        let id = PrimitiveId { node, mesh: mref.index, primitive: 0 };
+        let member = InGroup { group, local: Affine3A::IDENTITY };
+        self.world.spawn((mref, material, member, Transform { world: pose }, id, Name(name.into())));
+        group
+    }
+
+    /// Adds a one-sided polygonal light (CCW about its emitting side) as a new rigid group.
+    pub fn add_light(&mut self, name: &str, points: Vec<Vec3>, radiance: Vec3, pose: Affine3A) -> hecs::Entity {
+        let (group, node) = self.add_group(name, pose);
+        let light = PolygonLight { points, uvs: vec![], radiance, texture: None };
+        self.world.spawn((
+            light,
+            InGroup { group, local: Affine3A::IDENTITY },
+            Transform { world: pose },
+            NodeId(node),
+        ));
+        group
+    }
+
+    /// Adds a camera.
+    pub fn add_camera(&mut self, camera: Camera) {
+        let node = self.next_node();
+        self.world.spawn((camera, NodeId(node)));
+    }
+
+    /// Recomputes derived transforms; call after moving groups.
+    pub fn update_transforms(&mut self) {
+        propagate_transforms(&mut self.world);
+    }
+
+    /// Sets the environment (see [`Scene::set_environment`]) and returns `self`, for chaining.
+    pub fn with_environment(mut self, env: EnvironmentLight) -> Self {
+        self.set_environment(env);
+        self
+    }
+}

@@ -1,0 +1,241 @@
+//! Plain-data ECS components (see `DESIGN.md`).
+
+use glam::{Affine3A, Mat3, Quat, Vec2, Vec3};
+
+/// A human-readable name (glTF node name, or a generated one).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Name(pub String);
+
+/// The glTF node index an entity came from (built-in scenes number their own nodes).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct NodeId(pub u32);
+
+/// World-from-local transform.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Transform {
+    /// The matrix (may be mirrored; see [`Transform::is_mirrored`]).
+    pub world: Affine3A,
+}
+
+/// A similarity transform split into parts: `world = T · R · s · (mirror ? diag(1, 1, −1) : I)`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RigidParts {
+    /// Uniform scale (> 0).
+    pub scale: f32,
+    /// Rotation.
+    pub rotation: Quat,
+    /// Translation.
+    pub translation: Vec3,
+    /// True when the transform mirrors (a uniform mirror is still rigid enough).
+    pub mirrored: bool,
+}
+
+impl RigidParts {
+    /// The transform these parts describe.
+    pub fn to_affine(&self) -> Affine3A {
+        let mirror = if self.mirrored { Vec3::new(1.0, 1.0, -1.0) } else { Vec3::ONE };
+        let m = Mat3::from_quat(self.rotation) * Mat3::from_diagonal(mirror * self.scale);
+        Affine3A::from_mat3_translation(m, self.translation)
+    }
+}
+
+/// Relative tolerance for "uniform" scale and "orthogonal" axes.
+const RIGID_TOLERANCE: f32 = 1e-4;
+
+impl Transform {
+    /// True when the matrix flips handedness, so triangle winding flips too.
+    pub fn is_mirrored(&self) -> bool {
+        self.world.matrix3.determinant() < 0.0
+    }
+
+    /// Splits a rotation + uniform scale (+ optional mirror) + translation; shear or
+    /// non-uniform scale is an error saying which.
+    pub fn rigid_parts(&self) -> Result<RigidParts, String> {
+        let m = Mat3::from(self.world.matrix3);
+        let cols = [m.x_axis, m.y_axis, m.z_axis];
+        let len = cols.map(Vec3::length);
+        let (lo, hi) = (len.iter().copied().fold(f32::MAX, f32::min), len.iter().copied().fold(0.0, f32::max));
+        if !(lo > 0.0 && lo.is_finite() && hi.is_finite()) {
+            return Err("the transform is singular or not finite".into());
+        }
+        if hi / lo - 1.0 > RIGID_TOLERANCE {
+            return Err(format!("non-uniform scale ({:.4}, {:.4}, {:.4})", len[0], len[1], len[2]));
+        }
+        for (i, j) in [(0, 1), (1, 2), (0, 2)] {
+            if cols[i].dot(cols[j]).abs() > RIGID_TOLERANCE * len[i] * len[j] {
+                return Err(format!("shear between axes {i} and {j}"));
+            }
+        }
+        let scale = (len[0] * len[1] * len[2]).cbrt();
+        let mirrored = m.determinant() < 0.0;
+        let unmirror = if mirrored { Vec3::new(1.0, 1.0, -1.0) } else { Vec3::ONE };
+        let r = Mat3::from_cols(cols[0] / len[0], cols[1] / len[1], cols[2] / len[2] * unmirror.z);
+        Ok(RigidParts {
+            scale,
+            rotation: Quat::from_mat3(&r).normalize(),
+            translation: self.world.translation.into(),
+            mirrored,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rigid_parts_round_trip_and_reject_shear() {
+        let q = Quat::from_euler(glam::EulerRot::XYZ, 0.3, -1.2, 2.0);
+        for mirror in [false, true] {
+            let parts =
+                RigidParts { scale: 2.5, rotation: q, translation: Vec3::new(1.0, -2.0, 3.0), mirrored: mirror };
+            let t = Transform { world: parts.to_affine() };
+            let back = t.rigid_parts().unwrap();
+            assert_eq!(back.mirrored, mirror);
+            assert!(back.to_affine().abs_diff_eq(parts.to_affine(), 1e-5));
+        }
+        // glTF's scale (1, −1, 1) mirror is valid.
+        let m = Transform { world: Affine3A::from_scale(Vec3::new(1.0, -1.0, 1.0)) };
+        assert!(m.rigid_parts().unwrap().mirrored);
+        let shear = Transform {
+            world: Affine3A::from_cols_array(&[1.0, 0.0, 0.0, 0.6, 0.8, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0]),
+        };
+        assert!(shear.rigid_parts().unwrap_err().contains("shear"));
+        let squash = Transform { world: Affine3A::from_scale(Vec3::new(1.0, 2.0, 1.0)) };
+        assert!(squash.rigid_parts().unwrap_err().contains("non-uniform scale"));
+    }
+}
+
+/// A rigid group: a top-level glTF node with its subtree. Its [`Transform`] is the group pose.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RigidGroup {
+    /// Index of the group among the scene's groups, in import order.
+    pub index: u32,
+}
+
+/// Membership of an instance or light in a rigid group, with its pose relative to the group.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct InGroup {
+    /// The group entity.
+    pub group: hecs::Entity,
+    /// Group-from-local transform.
+    pub local: Affine3A,
+}
+
+/// Where a mesh instance came from in the glTF file.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct PrimitiveId {
+    /// glTF node index.
+    pub node: u32,
+    /// glTF mesh index.
+    pub mesh: u32,
+    /// Primitive index within the mesh.
+    pub primitive: u32,
+}
+
+/// A reference to a shared mesh, keyed by its content hash.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct MeshRef {
+    /// Index into [`crate::scene::Scene::meshes`].
+    pub index: u32,
+    /// Content hash of that mesh.
+    pub hash: crate::scene::MeshHash,
+}
+
+/// glTF metallic-roughness material (factors only; see `DESIGN.md` for the BRDF).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Material {
+    /// Linear base colour.
+    pub base_color: Vec3,
+    /// Metalness in [0, 1].
+    pub metallic: f32,
+    /// Perceptual roughness in [0, 1] (α = roughness²).
+    pub roughness: f32,
+    /// `KHR_materials_specular` specularFactor (1 when absent).
+    pub specular: f32,
+}
+
+impl Default for Material {
+    /// glTF's default material: white, metallic 1, roughness 1.
+    fn default() -> Self {
+        Self { base_color: Vec3::ONE, metallic: 1.0, roughness: 1.0, specular: 1.0 }
+    }
+}
+
+impl Material {
+    /// A Lambertian material (dielectric with specularFactor 0).
+    pub fn lambertian(albedo: Vec3) -> Self {
+        Self { base_color: albedo, metallic: 0.0, roughness: 1.0, specular: 0.0 }
+    }
+}
+
+/// A one-sided polygonal light with constant (or textured) radiance, emitting on its CCW side.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PolygonLight {
+    /// Convex polygon vertices in the light's local frame (see [`InGroup::local`]).
+    pub points: Vec<Vec3>,
+    /// Texture coordinates per vertex (empty when untextured).
+    pub uvs: Vec<Vec2>,
+    /// Radiance: emissiveFactor × emissive strength (multiplied by the texture when present).
+    pub radiance: Vec3,
+    /// Emissive texture index into [`crate::scene::Scene::textures`].
+    pub texture: Option<u32>,
+}
+
+/// A camera; in its local frame it looks down −Z with +Y up (glTF).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Camera {
+    /// World-from-camera transform (rigid).
+    pub world: Affine3A,
+    /// The projection.
+    pub projection: Projection,
+}
+
+/// A camera projection.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Projection {
+    /// Perspective with vertical field of view in radians.
+    Perspective {
+        /// Vertical field of view (radians).
+        yfov: f32,
+    },
+    /// Orthographic with half height `ymag` (the width follows the image's aspect, as for
+    /// perspective cameras).
+    Orthographic {
+        /// Half height.
+        ymag: f32,
+    },
+}
+
+impl Camera {
+    /// A perspective camera at `eye` looking at `target` (+Y up).
+    pub fn look_at(eye: Vec3, target: Vec3, yfov: f32) -> Self {
+        let fwd = (target - eye).normalize_or(Vec3::NEG_Z);
+        let up = if fwd.cross(Vec3::Y).length_squared() < 1e-8 { Vec3::Z } else { Vec3::Y };
+        // Camera-local −Z looks along `fwd`.
+        let z = -fwd;
+        let x = up.cross(z).normalize();
+        let y = z.cross(x);
+        Self {
+            world: Affine3A::from_cols(x.into(), y.into(), z.into(), eye.into()),
+            projection: Projection::Perspective { yfov },
+        }
+    }
+
+    /// Camera position.
+    pub fn eye(&self) -> Vec3 {
+        self.world.translation.into()
+    }
+
+    /// The primary ray `(origin, direction)` through `ndc` ∈ [−1, 1]² (+y up) for `aspect` = w/h.
+    pub fn ray(&self, ndc: Vec2, aspect: f32) -> (Vec3, Vec3) {
+        let (o, d) = match self.projection {
+            Projection::Perspective { yfov } => {
+                let t = (0.5 * yfov).tan();
+                (Vec3::ZERO, Vec3::new(ndc.x * t * aspect, ndc.y * t, -1.0))
+            }
+            Projection::Orthographic { ymag } => (Vec3::new(ndc.x * ymag * aspect, ndc.y * ymag, 0.0), Vec3::NEG_Z),
+        };
+        (self.world.transform_point3(o), self.world.transform_vector3(d).normalize())
+    }
+}

@@ -1,0 +1,184 @@
+//! System: the world-space snapshot of a scene for one frame — triangles of every instance and
+//! light (light triangles are occluders too), per-instance transforms, and the light polygons.
+
+use super::import::polygon_normal_area;
+use crate::scene::{
+    Camera, EnvironmentLight, InGroup, Material, MeshRef, PolygonLight, PrimitiveId, Scene, Texture, Transform,
+};
+use glam::{Affine3A, Mat3A, Vec2, Vec3};
+use std::sync::Arc;
+
+/// Marks a triangle that belongs to no light.
+pub const NO_LIGHT: u32 = u32::MAX;
+
+/// A mesh instance in world space.
+#[derive(Clone, Debug)]
+pub struct Instance {
+    /// Index into [`Scene::meshes`].
+    pub mesh: u32,
+    /// World-from-local.
+    pub world: Affine3A,
+    /// Transforms normals (inverse transpose of the linear part).
+    pub normal_matrix: Mat3A,
+    /// True when the transform mirrors, so winding is reversed.
+    pub mirrored: bool,
+    /// Material.
+    pub material: Material,
+    /// glTF origin.
+    pub id: PrimitiveId,
+    /// Group entity.
+    pub group: hecs::Entity,
+    /// Index of this instance's first triangle in [`FlatScene::triangles`].
+    pub first_triangle: u32,
+}
+
+/// A light polygon in world space.
+#[derive(Clone, Debug)]
+pub struct FlatLight {
+    /// Convex polygon, CCW about `normal`.
+    pub points: Vec<Vec3>,
+    /// Texture coordinates per point (empty when untextured).
+    pub uvs: Vec<Vec2>,
+    /// Unit emitting-side normal.
+    pub normal: Vec3,
+    /// Area.
+    pub area: f32,
+    /// Radiance (times the texture when present).
+    pub radiance: Vec3,
+    /// Emissive texture.
+    pub texture: Option<Arc<Texture>>,
+}
+
+impl FlatLight {
+    /// Emitted radiance at barycentric position `b` (b1, b2) of fan triangle `tri`.
+    pub fn radiance_at(&self, tri: usize, b: Vec2) -> Vec3 {
+        match &self.texture {
+            Some(t) if !self.uvs.is_empty() => {
+                let uv = self.uvs[0] * (1.0 - b.x - b.y) + self.uvs[tri + 1] * b.x + self.uvs[tri + 2] * b.y;
+                self.radiance * t.sample(uv)
+            }
+            _ => self.radiance,
+        }
+    }
+}
+
+/// Which instance or light a world triangle belongs to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TriangleRef {
+    /// Instance index, or the light index when `light != NO_LIGHT`.
+    pub owner: u32,
+    /// Triangle index within the owner's mesh (or fan triangle of the light polygon).
+    pub local: u32,
+    /// Light index, or [`NO_LIGHT`].
+    pub light: u32,
+}
+
+/// World-space snapshot of a scene.
+#[derive(Clone, Debug)]
+pub struct FlatScene {
+    /// Triangle corners, in the order the BVH indexes them (winding already un-mirrored).
+    pub triangles: Vec<[Vec3; 3]>,
+    /// Owner of each triangle.
+    pub refs: Vec<TriangleRef>,
+    /// Mesh instances.
+    pub instances: Vec<Instance>,
+    /// Light polygons.
+    pub lights: Vec<FlatLight>,
+    /// The environment light, if any.
+    pub environment: Option<EnvironmentLight>,
+    /// The scene's first camera, if any.
+    pub camera: Option<Camera>,
+}
+
+/// Builds the snapshot from the ECS world (transforms must be propagated).
+pub fn flatten(scene: &Scene) -> FlatScene {
+    let mut flat = FlatScene {
+        triangles: Vec::new(),
+        refs: Vec::new(),
+        instances: Vec::new(),
+        lights: Vec::new(),
+        environment: scene.world.query::<&EnvironmentLight>().iter().next().cloned(),
+        camera: scene.first_camera(),
+    };
+    // Sorted by glTF origin so that triangle order (and hence every seeded estimate) does not
+    // depend on entity allocation order.
+    let mut items: Vec<(PrimitiveId, MeshRef, Material, Transform, hecs::Entity)> = scene
+        .world
+        .query::<(&PrimitiveId, &MeshRef, &Material, &Transform, &InGroup)>()
+        .iter()
+        .map(|(id, m, mat, t, g)| (*id, *m, *mat, *t, g.group))
+        .collect();
+    items.sort_by_key(|(id, ..)| (id.node, id.mesh, id.primitive));
+    for (id, mref, material, t, group) in items {
+        let mesh = &scene.meshes[mref.index as usize];
+        let mirrored = t.is_mirrored();
+        let owner = flat.instances.len() as u32;
+        flat.instances.push(Instance {
+            mesh: mref.index,
+            world: t.world,
+            normal_matrix: t.world.matrix3.inverse().transpose(),
+            mirrored,
+            material,
+            id,
+            group,
+            first_triangle: flat.triangles.len() as u32,
+        });
+        for (k, tri) in mesh.triangles.iter().enumerate() {
+            let mut p = tri.map(|i| t.world.transform_point3(mesh.positions[i as usize]));
+            if mirrored {
+                p.swap(1, 2);
+            }
+            flat.triangles.push(p);
+            flat.refs.push(TriangleRef { owner, local: k as u32, light: NO_LIGHT });
+        }
+    }
+    let mut lights: Vec<(u32, PolygonLight, Transform)> = scene
+        .world
+        .query::<(&PolygonLight, &Transform, &crate::scene::NodeId)>()
+        .iter()
+        .map(|(l, t, n)| (n.0, l.clone(), *t))
+        .collect();
+    lights.sort_by(|a, b| a.0.cmp(&b.0).then_with(|| a.1.points.len().cmp(&b.1.points.len())));
+    for (_, light, t) in lights {
+        add_light(&mut flat, scene, &light, &t);
+    }
+    flat
+}
+
+fn add_light(flat: &mut FlatScene, scene: &Scene, light: &PolygonLight, t: &Transform) {
+    let mut points: Vec<Vec3> = light.points.iter().map(|p| t.world.transform_point3(*p)).collect();
+    let mut uvs = light.uvs.clone();
+    if t.is_mirrored() {
+        points.reverse();
+        uvs.reverse();
+    }
+    let (normal, area) = polygon_normal_area(&points);
+    if area <= 0.0 {
+        return;
+    }
+    let index = flat.lights.len() as u32;
+    for k in 0..points.len() - 2 {
+        flat.triangles.push([points[0], points[k + 1], points[k + 2]]);
+        flat.refs.push(TriangleRef { owner: index, local: k as u32, light: index });
+    }
+    let texture = light.texture.map(|i| scene.textures[i as usize].clone());
+    flat.lights.push(FlatLight { points, uvs, normal, area, radiance: light.radiance, texture });
+}
+
+impl FlatScene {
+    /// World position and unit shading normal of vertex `v` of instance `inst`.
+    pub fn vertex(&self, scene: &Scene, inst: usize, v: usize) -> (Vec3, Vec3) {
+        let i = &self.instances[inst];
+        let mesh = &scene.meshes[i.mesh as usize];
+        let p = i.world.transform_point3(mesh.positions[v]);
+        let n = (i.normal_matrix * glam::Vec3A::from(mesh.normals[v])).normalize_or_zero();
+        (p, n.into())
+    }
+
+    /// Total emitted power proxy of light `l` (mean radiance × area), for light selection.
+    pub fn light_power(&self, l: usize) -> f32 {
+        let light = &self.lights[l];
+        let mean = light.texture.as_ref().map_or(Vec3::ONE, |t| t.mean());
+        crate::math::luminance(light.radiance * mean) * light.area
+    }
+}

@@ -1,0 +1,141 @@
+//! Checks the `gltf` crate does not make (or makes by panicking): references it indexes
+//! without bounds checks, byte ranges its readers slice without checks, and attribute formats.
+
+use super::SUPPORTED_EXTENSIONS;
+use gltf::accessor::{DataType, Dimensions};
+use gltf::json;
+
+/// References that `gltf`'s own validation dereferences unchecked, the node graph, and
+/// required extensions.
+pub fn references(root: &json::Root) -> Result<(), String> {
+    if let Some(ext) = root.extensions_required.iter().find(|e| !SUPPORTED_EXTENSIONS.contains(&e.as_str())) {
+        return Err(format!("requires extension {ext}, which kage does not support"));
+    }
+    node_graph(root)?;
+    let n = root.accessors.len();
+    for (m, mesh) in root.meshes.iter().enumerate() {
+        for (p, prim) in mesh.primitives.iter().enumerate() {
+            let targets = prim.targets.iter().flatten().flat_map(|t| [&t.positions, &t.normals, &t.tangents]).flatten();
+            let bad = prim.attributes.values().chain(prim.indices.iter()).chain(targets).find(|i| i.value() >= n);
+            if let Some(i) = bad {
+                return Err(format!(
+                    "meshes[{m}].primitives[{p}]: accessor {} does not exist ({n} accessors)",
+                    i.value()
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The 12-byte GLB header: the `gltf` crate underflows (panics) on a length below 12.
+pub fn glb_header(bytes: &[u8]) -> Result<(), String> {
+    if !bytes.starts_with(b"glTF") {
+        return Ok(());
+    }
+    let word = |i: usize| bytes.get(i..i + 4).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]));
+    match (word(4), word(8)) {
+        (Some(2), Some(len)) if (12..=bytes.len() as u64).contains(&(len as u64)) => Ok(()),
+        (Some(2), Some(len)) => Err(format!("GLB header declares {len} bytes but the file has {}", bytes.len())),
+        (Some(v), Some(_)) => Err(format!("GLB version {v} is not supported (glTF 2.0 uses version 2)")),
+        _ => Err("GLB header is truncated".into()),
+    }
+}
+
+/// Each node has at most one parent and the node graph has no cycle.
+fn node_graph(root: &json::Root) -> Result<(), String> {
+    let n = root.nodes.len();
+    let mut parent = vec![None; n];
+    for (i, node) in root.nodes.iter().enumerate() {
+        for c in node.children.iter().flatten().map(|c| c.value()) {
+            if c >= n {
+                return Err(format!("nodes[{i}].children: node {c} does not exist ({n} nodes)"));
+            }
+            if let Some(p) = parent[c].replace(i) {
+                return Err(format!("nodes[{c}] has two parents (nodes[{p}] and nodes[{i}])"));
+            }
+        }
+    }
+    // With single parents, exactly the nodes on or below a cycle are unreachable from the roots.
+    let mut reached = vec![false; n];
+    let mut stack: Vec<usize> = (0..n).filter(|&i| parent[i].is_none()).collect();
+    while let Some(i) = stack.pop() {
+        reached[i] = true;
+        stack.extend(root.nodes[i].children.iter().flatten().map(|c| c.value()));
+    }
+    match reached.iter().position(|r| !r) {
+        Some(i) => Err(format!("the node graph has a cycle through nodes[{i}]")),
+        None => Ok(()),
+    }
+}
+
+/// Every accessor's bytes lie inside its buffer view, and every view inside its buffer.
+pub fn byte_ranges(doc: &gltf::Document, buffers: &[gltf::buffer::Data]) -> Result<(), String> {
+    let view_ok = |view: &gltf::buffer::View| {
+        let len = buffers.get(view.buffer().index()).map_or(0, |b| b.len());
+        view.offset().checked_add(view.length()).is_some_and(|end| end <= len)
+    };
+    for acc in doc.accessors() {
+        let at = || format!("accessors[{}]", acc.index());
+        if let Some(view) = acc.view() {
+            if !view_ok(&view) {
+                return Err(format!("{}: bufferViews[{}] extends past the end of its buffer", at(), view.index()));
+            }
+            let stride = view.stride().unwrap_or(acc.size());
+            let need = match acc.count() {
+                0 => Some(0),
+                c => stride.checked_mul(c - 1).and_then(|b| b.checked_add(acc.offset() + acc.size())),
+            };
+            if need.is_none_or(|need| need > view.length()) {
+                return Err(format!("{}: {} elements do not fit in bufferViews[{}]", at(), acc.count(), view.index()));
+            }
+        }
+        if let Some(sparse) = acc.sparse() {
+            let (iv, vv) = (sparse.indices().view(), sparse.values().view());
+            let index_size = sparse.indices().index_type().size();
+            let fits = |view: &gltf::buffer::View, offset: usize, size: usize| {
+                view_ok(view) && sparse.count().checked_mul(size).is_some_and(|b| offset + b <= view.length())
+            };
+            if !fits(&iv, sparse.indices().offset(), index_size) || !fits(&vv, sparse.values().offset(), acc.size()) {
+                return Err(format!("{}: sparse data does not fit in its buffer views", at()));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The attribute types kage reads: POSITION/NORMAL float VEC3, TEXCOORD_0 VEC2, scalar indices.
+pub fn attribute_formats(prim: &gltf::Primitive) -> Result<(), String> {
+    use gltf::Semantic;
+    for (sem, acc) in prim.attributes() {
+        let ok = match sem {
+            Semantic::Positions | Semantic::Normals => {
+                acc.dimensions() == Dimensions::Vec3 && acc.data_type() == DataType::F32
+            }
+            Semantic::TexCoords(_) => {
+                acc.dimensions() == Dimensions::Vec2
+                    && matches!(acc.data_type(), DataType::F32 | DataType::U8 | DataType::U16)
+            }
+            _ => true,
+        };
+        if !ok {
+            return Err(format!(
+                "attribute {sem:?} has type {:?} {:?}, which glTF does not allow",
+                acc.dimensions(),
+                acc.data_type()
+            ));
+        }
+    }
+    if let Some(acc) = prim.indices() {
+        if acc.dimensions() != Dimensions::Scalar
+            || !matches!(acc.data_type(), DataType::U8 | DataType::U16 | DataType::U32)
+        {
+            return Err(format!(
+                "indices have type {:?} {:?}; glTF requires unsigned integer scalars",
+                acc.dimensions(),
+                acc.data_type()
+            ));
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,351 @@
+//! glTF 2.0 import (`.gltf` with embedded or external buffers, `.glb`) into a [`Scene`].
+//!
+//! The `gltf` crate panics on some invalid files and accepts cyclic node graphs, so this module
+//! checks references and byte ranges itself before handing data to it, guards the node
+//! traversal against cycles, and — as a last line — turns any panic inside it into an error.
+//! Every error names the file and the glTF element at fault.
+
+mod checks;
+mod light;
+
+pub use light::polygon_normal_area;
+
+use crate::scene::{
+    Camera, InGroup, Material, Mesh, MeshRef, Name, NodeId, PolygonLight, PrimitiveId, Projection, RigidGroup, Scene,
+    Texture, Transform, propagate_transforms,
+    texture::{Wrap, srgb_to_linear},
+};
+use crate::{Error, Result};
+use glam::{Affine3A, Mat4, Vec2, Vec3};
+use gltf::mesh::Mode;
+use std::collections::HashMap;
+use std::path::Path;
+use std::sync::Arc;
+
+/// Extensions whose data kage reads; any other *required* extension is refused.
+pub const SUPPORTED_EXTENSIONS: &[&str] = &["KHR_materials_emissive_strength", "KHR_materials_specular"];
+
+/// Options for [`import`].
+#[derive(Clone, Copy, Debug, Default)]
+pub struct ImportOptions {
+    /// Drop zero-area triangles (with a warning) instead of rejecting the file.
+    pub drop_degenerate: bool,
+}
+
+/// Imports a `.gltf` or `.glb` file.
+pub fn import(path: &Path, options: ImportOptions) -> Result<Scene> {
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    // Last line of defence: the gltf crate has panicked on malformed input before.
+    match std::panic::catch_unwind(|| Importer::run(path, &bytes, options)) {
+        Ok(result) => result,
+        Err(panic) => {
+            let what = panic
+                .downcast_ref::<String>()
+                .cloned()
+                .or_else(|| panic.downcast_ref::<&str>().map(|s| s.to_string()))
+                .unwrap_or_default();
+            Err(Error::gltf(path, format!("malformed glTF (the parser failed: {what})")))
+        }
+    }
+}
+
+struct Importer<'a> {
+    path: &'a Path,
+    doc: gltf::Document,
+    buffers: Vec<gltf::buffer::Data>,
+    options: ImportOptions,
+    scene: Scene,
+    /// (glTF mesh, primitive) → imported mesh index, so instanced meshes are read once.
+    mesh_cache: HashMap<(usize, usize), u32>,
+    by_hash: HashMap<crate::scene::MeshHash, u32>,
+    texture_cache: HashMap<usize, u32>,
+    group_count: u32,
+    /// Instances and lights spawned into the current group.
+    members: usize,
+}
+
+impl<'a> Importer<'a> {
+    fn run(path: &'a Path, bytes: &[u8], options: ImportOptions) -> Result<Scene> {
+        let err = |m: String| Error::gltf(path, m);
+        checks::glb_header(bytes).map_err(err)?;
+        let raw = gltf::Gltf::from_slice_without_validation(bytes)
+            .map_err(|e| err(format!("not a readable glTF file: {e}")))?;
+        let blob = raw.blob;
+        let json = raw.document.into_json();
+        checks::references(&json).map_err(err)?;
+        let doc = gltf::Document::from_json(json).map_err(|e| err(format!("invalid glTF: {}", describe(&e))))?;
+        if let Some(ext) = doc.extensions_required().find(|e| !SUPPORTED_EXTENSIONS.contains(e)) {
+            return Err(err(format!("requires extension {ext}, which kage does not support")));
+        }
+        let base = path.parent().unwrap_or(Path::new("."));
+        let buffers =
+            gltf::import_buffers(&doc, Some(base), blob).map_err(|e| err(format!("cannot load buffer data: {e}")))?;
+        checks::byte_ranges(&doc, &buffers).map_err(err)?;
+        let scene = Scene {
+            world: hecs::World::new(),
+            meshes: Vec::new(),
+            textures: Vec::new(),
+            source: path.display().to_string(),
+            warnings: Vec::new(),
+        };
+        let mut imp = Importer {
+            path,
+            doc,
+            buffers,
+            options,
+            scene,
+            mesh_cache: HashMap::new(),
+            by_hash: HashMap::new(),
+            texture_cache: HashMap::new(),
+            group_count: 0,
+            members: 0,
+        };
+        imp.import_nodes()?;
+        propagate_transforms(&mut imp.scene.world);
+        Ok(imp.scene)
+    }
+
+    fn error(&self, message: String) -> Error {
+        Error::gltf(self.path, message)
+    }
+
+    /// The default scene's root nodes, or every parentless node when the file has no scene.
+    fn roots(&self) -> Vec<usize> {
+        if let Some(s) = self.doc.default_scene().or_else(|| self.doc.scenes().next()) {
+            return s.nodes().map(|n| n.index()).collect();
+        }
+        let mut is_child = vec![false; self.doc.nodes().len()];
+        for n in self.doc.nodes() {
+            n.children().for_each(|c| is_child[c.index()] = true);
+        }
+        (0..is_child.len()).filter(|&i| !is_child[i]).collect()
+    }
+
+    fn import_nodes(&mut self) -> Result<()> {
+        // A clone, so that node handles do not borrow `self` while entities are spawned.
+        let doc = self.doc.clone();
+        let mut seen = vec![false; doc.nodes().len()];
+        for root in self.roots() {
+            let node = doc.nodes().nth(root).expect("checked index");
+            let pose =
+                node_matrix(&node).ok_or_else(|| self.error(format!("nodes[{root}]: transform is not finite")))?;
+            let name = node.name().map(str::to_string).unwrap_or_else(|| format!("node{root}"));
+            let group = self.scene.world.spawn((
+                RigidGroup { index: self.group_count },
+                Transform { world: pose },
+                Name(name),
+                NodeId(root as u32),
+            ));
+            self.members = 0;
+            // Depth-first, carrying the group-from-node transform; `seen` breaks cycles.
+            let mut stack = vec![(root, Affine3A::IDENTITY)];
+            while let Some((index, local)) = stack.pop() {
+                if std::mem::replace(&mut seen[index], true) {
+                    return Err(self.error(format!(
+                        "nodes[{index}] is reached twice (a cycle in the node graph, or a node with two parents)"
+                    )));
+                }
+                let node = doc.nodes().nth(index).expect("checked index");
+                self.import_node(&node, group, pose, local)?;
+                for child in node.children() {
+                    let m = node_matrix(&child)
+                        .ok_or_else(|| self.error(format!("nodes[{}]: transform is not finite", child.index())))?;
+                    stack.push((child.index(), local * m));
+                }
+            }
+            // Only subtrees with geometry are rigid groups (a lone camera node is not).
+            if self.members == 0 {
+                self.scene.world.despawn(group).expect("just spawned");
+            } else {
+                self.group_count += 1;
+            }
+        }
+        Ok(())
+    }
+
+    fn import_node(&mut self, node: &gltf::Node, group: hecs::Entity, pose: Affine3A, local: Affine3A) -> Result<()> {
+        let node_id = node.index() as u32;
+        if let Some(cam) = node.camera() {
+            let projection = match cam.projection() {
+                gltf::camera::Projection::Perspective(p) => Projection::Perspective { yfov: p.yfov() },
+                gltf::camera::Projection::Orthographic(o) => Projection::Orthographic { ymag: o.ymag() },
+            };
+            let world = orthonormalize(pose * local);
+            self.scene.world.spawn((Camera { world, projection }, NodeId(node_id)));
+        }
+        let Some(mesh) = node.mesh() else {
+            return Ok(());
+        };
+        for prim in mesh.primitives() {
+            let where_ =
+                format!("meshes[{}] ('{}') primitives[{}]", mesh.index(), mesh.name().unwrap_or(""), prim.index());
+            let mat = prim.material();
+            let emissive = Vec3::from_array(mat.emissive_factor()) * mat.emissive_strength().unwrap_or(1.0);
+            let mesh_index = self.mesh(&mesh, &prim, &where_)?;
+            let member = InGroup { group, local };
+            let transform = Transform { world: pose * local };
+            if emissive.max_element() > 0.0 {
+                let texture = match mat.emissive_texture() {
+                    Some(info) => Some(self.texture(&info.texture(), &where_)?),
+                    None => None,
+                };
+                let m = self.scene.meshes[mesh_index as usize].clone();
+                let polys = light::polygons(&m);
+                if polys.is_empty() {
+                    return Err(self.error(format!("{where_}: emitter has zero area")));
+                }
+                for poly in polys {
+                    let uvs = if texture.is_some() && !m.uvs.is_empty() {
+                        poly.iter().map(|&i| m.uvs[i as usize]).collect()
+                    } else {
+                        vec![]
+                    };
+                    let points = poly.iter().map(|&i| m.positions[i as usize]).collect();
+                    let light = PolygonLight { points, uvs, radiance: emissive, texture };
+                    self.scene.world.spawn((light, member, transform, NodeId(node_id)));
+                    self.members += 1;
+                }
+            } else {
+                let pbr = mat.pbr_metallic_roughness();
+                let c = pbr.base_color_factor();
+                let material = Material {
+                    base_color: Vec3::new(c[0], c[1], c[2]),
+                    metallic: pbr.metallic_factor().clamp(0.0, 1.0),
+                    roughness: pbr.roughness_factor().clamp(0.0, 1.0),
+                    specular: mat.specular().map(|s| s.specular_factor()).unwrap_or(1.0).max(0.0),
+                };
+                let hash = self.scene.meshes[mesh_index as usize].hash;
+                let id = PrimitiveId { node: node_id, mesh: mesh.index() as u32, primitive: prim.index() as u32 };
+                let name = Name(node.name().map(str::to_string).unwrap_or_else(|| format!("node{node_id}")));
+                self.scene.world.spawn((MeshRef { index: mesh_index, hash }, material, member, transform, id, name));
+                self.members += 1;
+            }
+        }
+        Ok(())
+    }
+
+    /// Reads (or reuses) the mesh of one primitive.
+    fn mesh(&mut self, mesh: &gltf::Mesh, prim: &gltf::Primitive, where_: &str) -> Result<u32> {
+        if let Some(&i) = self.mesh_cache.get(&(mesh.index(), prim.index())) {
+            return Ok(i);
+        }
+        checks::attribute_formats(prim).map_err(|m| self.error(format!("{where_}: {m}")))?;
+        let buffers = &self.buffers;
+        let reader = prim.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
+        let positions: Vec<Vec3> = reader
+            .read_positions()
+            .ok_or_else(|| self.error(format!("{where_}: has no POSITION data")))?
+            .map(Vec3::from_array)
+            .collect();
+        let normals = reader.read_normals().map(|n| n.map(Vec3::from_array).collect::<Vec<_>>());
+        let normals = normals.filter(|n| n.len() == positions.len());
+        let uvs = reader.read_tex_coords(0).map(|t| t.into_f32().map(Vec2::from_array).collect()).unwrap_or_default();
+        let indices: Vec<u32> = match reader.read_indices() {
+            Some(i) => i.into_u32().collect(),
+            None => (0..positions.len() as u32).collect(),
+        };
+        let triangles = match prim.mode() {
+            Mode::Triangles => indices.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
+            Mode::TriangleStrip => (2..indices.len())
+                .map(|i| {
+                    if i % 2 == 0 {
+                        [indices[i - 2], indices[i - 1], indices[i]]
+                    } else {
+                        [indices[i - 1], indices[i - 2], indices[i]]
+                    }
+                })
+                .collect(),
+            Mode::TriangleFan => (2..indices.len()).map(|i| [indices[0], indices[i - 1], indices[i]]).collect(),
+            other => {
+                return Err(self
+                    .error(format!("{where_}: primitive mode {other:?} has no surface; only triangles are supported")));
+            }
+        };
+        let (m, dropped) = Mesh::new(positions, normals, uvs, triangles, self.options.drop_degenerate)
+            .map_err(|p| self.error(format!("{where_}: {p}")))?;
+        if dropped > 0 {
+            self.scene
+                .warnings
+                .push(format!("{}: {where_}: dropped {dropped} degenerate triangles", self.path.display()));
+        }
+        let index = match self.by_hash.get(&m.hash) {
+            Some(&i) => i,
+            None => {
+                let i = self.scene.meshes.len() as u32;
+                self.by_hash.insert(m.hash, i);
+                self.scene.meshes.push(Arc::new(m));
+                i
+            }
+        };
+        self.mesh_cache.insert((mesh.index(), prim.index()), index);
+        Ok(index)
+    }
+
+    /// Decodes (or reuses) an emissive texture as linear RGB.
+    fn texture(&mut self, tex: &gltf::Texture, where_: &str) -> Result<u32> {
+        if let Some(&i) = self.texture_cache.get(&tex.index()) {
+            return Ok(i);
+        }
+        let base = self.path.parent().unwrap_or(Path::new("."));
+        let data = gltf::image::Data::from_source(tex.source().source(), Some(base), &self.buffers)
+            .map_err(|e| self.error(format!("{where_}: emissive texture {}: cannot decode image: {e}", tex.index())))?;
+        let texels = decode_texels(&data)
+            .ok_or_else(|| self.error(format!("{where_}: unsupported emissive texture format {:?}", data.format)))?;
+        let wrap = |m: gltf::texture::WrappingMode| match m {
+            gltf::texture::WrappingMode::ClampToEdge => Wrap::Clamp,
+            gltf::texture::WrappingMode::MirroredRepeat => Wrap::Mirror,
+            gltf::texture::WrappingMode::Repeat => Wrap::Repeat,
+        };
+        let sampler = tex.sampler();
+        let t = Texture {
+            width: data.width as usize,
+            height: data.height as usize,
+            texels,
+            wrap: [wrap(sampler.wrap_s()), wrap(sampler.wrap_t())],
+        };
+        let i = self.scene.textures.len() as u32;
+        self.scene.textures.push(Arc::new(t));
+        self.texture_cache.insert(tex.index(), i);
+        Ok(i)
+    }
+}
+
+/// sRGB-encoded 8-bit images → linear RGB (alpha ignored: lights are opaque).
+fn decode_texels(data: &gltf::image::Data) -> Option<Vec<Vec3>> {
+    use gltf::image::Format;
+    let channels = match data.format {
+        Format::R8 => 1,
+        Format::R8G8 => 2,
+        Format::R8G8B8 => 3,
+        Format::R8G8B8A8 => 4,
+        _ => return None,
+    };
+    let px = data.pixels.chunks_exact(channels).map(|p| {
+        let c = |k: usize| srgb_to_linear(p[k.min(channels - 1)] as f32 / 255.0);
+        if channels < 3 { Vec3::splat(c(0)) } else { Vec3::new(c(0), c(1), c(2)) }
+    });
+    Some(px.collect())
+}
+
+fn node_matrix(node: &gltf::Node) -> Option<Affine3A> {
+    let m = Mat4::from_cols_array_2d(&node.transform().matrix());
+    m.is_finite().then(|| Affine3A::from_mat4(m))
+}
+
+/// Removes scale (and shear) from a camera's pose, keeping position and orientation.
+fn orthonormalize(m: Affine3A) -> Affine3A {
+    let z = Vec3::from(m.matrix3.z_axis).normalize_or(Vec3::Z);
+    let y0 = Vec3::from(m.matrix3.y_axis);
+    let x = y0.cross(z).normalize_or(Vec3::X);
+    let y = z.cross(x);
+    Affine3A::from_cols(x.into(), y.into(), z.into(), m.translation)
+}
+
+fn describe(e: &gltf::Error) -> String {
+    match e {
+        gltf::Error::Validation(list) => {
+            list.iter().map(|(path, err)| format!("{path}: {err}")).collect::<Vec<_>>().join("; ")
+        }
+        other => other.to_string(),
+    }
+}

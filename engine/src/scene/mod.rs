@@ -1,0 +1,87 @@
+//! Scenes: plain-data ECS components in a [`hecs::World`], the meshes they share, and the
+//! systems that read them.
+//!
+//! Entities:
+//! - one **rigid group** per top-level glTF node ([`RigidGroup`], [`Transform`], [`Name`]);
+//! - one **mesh instance** per (node, primitive) that is not emissive ([`MeshRef`],
+//!   [`Material`], [`InGroup`], [`Transform`], [`PrimitiveId`]);
+//! - one **polygonal light** per emissive polygon ([`PolygonLight`], [`InGroup`], [`Transform`]);
+//! - **cameras** ([`Camera`]) and at most one **environment** ([`EnvironmentLight`]).
+//!
+//! [`Transform::world`] of instances and lights is derived from the group's pose by
+//! [`propagate_transforms`]; moving a group means changing its `Transform` and running it.
+
+mod build;
+mod builtin;
+mod components;
+pub mod environment;
+mod flatten;
+pub mod import;
+pub mod mesh;
+pub mod shapes;
+pub mod texture;
+
+pub use builtin::default_scene;
+pub use components::*;
+pub use environment::{EnvMap, EnvironmentLight};
+pub use flatten::{FlatLight, FlatScene, Instance, NO_LIGHT, TriangleRef, flatten};
+pub use mesh::{Mesh, MeshHash};
+pub use texture::Texture;
+
+use std::sync::Arc;
+
+/// An imported scene: the ECS world plus the assets its components refer to.
+pub struct Scene {
+    /// Entities and their components.
+    pub world: hecs::World,
+    /// Meshes, indexed by [`MeshRef::index`].
+    pub meshes: Vec<Arc<Mesh>>,
+    /// Textures (emissive), indexed by [`PolygonLight::texture`].
+    pub textures: Vec<Arc<Texture>>,
+    /// Where the scene came from (a path, or `builtin:default`).
+    pub source: String,
+    /// Non-fatal findings of the importer, e.g. dropped degenerate triangles.
+    pub warnings: Vec<String>,
+}
+
+impl Scene {
+    /// Replaces (or sets) the scene's environment light.
+    pub fn set_environment(&mut self, env: EnvironmentLight) {
+        let old: Vec<hecs::Entity> =
+            self.world.query::<(hecs::Entity, &EnvironmentLight)>().iter().map(|(e, _)| e).collect();
+        for e in old {
+            let _ = self.world.despawn(e);
+        }
+        self.world.spawn((env,));
+    }
+
+    /// Checks that every rigid group's pose is a similarity (rotation, uniform scale, optional
+    /// mirror, translation), as computations in a group's local frame require.
+    pub fn check_rigid_groups(&self) -> crate::Result<()> {
+        for (g, t, name) in self.world.query::<(&RigidGroup, &Transform, &Name)>().iter() {
+            t.rigid_parts().map_err(|why| {
+                crate::Error::Invalid(format!("{}: group {} ('{}') must be rigid: {why}", self.source, g.index, name.0))
+            })?;
+        }
+        Ok(())
+    }
+
+    /// The first camera, if the scene has one.
+    pub fn first_camera(&self) -> Option<Camera> {
+        let mut cams: Vec<(u32, Camera)> =
+            self.world.query::<(&Camera, &NodeId)>().iter().map(|(c, n)| (n.0, c.clone())).collect();
+        cams.sort_by_key(|(n, _)| *n);
+        cams.into_iter().next().map(|(_, c)| c)
+    }
+}
+
+/// System: recomputes every instance's and light's world transform from its group's pose.
+pub fn propagate_transforms(world: &mut hecs::World) {
+    let poses: std::collections::HashMap<hecs::Entity, glam::Affine3A> =
+        world.query::<(hecs::Entity, &RigidGroup, &Transform)>().iter().map(|(e, _, t)| (e, t.world)).collect();
+    for (member, t) in world.query_mut::<(&InGroup, &mut Transform)>() {
+        if let Some(pose) = poses.get(&member.group) {
+            t.world = *pose * member.local;
+        }
+    }
+}

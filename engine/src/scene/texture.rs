@@ -1,0 +1,87 @@
+//! Linear-RGB textures with bilinear filtering (emissive textures of polygonal lights).
+
+use glam::{Vec2, Vec3};
+
+/// How texture coordinates outside [0, 1] are handled.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Wrap {
+    /// Clamp to the edge texel.
+    Clamp,
+    /// Repeat (glTF's default).
+    Repeat,
+    /// Mirrored repeat.
+    Mirror,
+}
+
+impl Wrap {
+    fn apply(self, i: i64, n: usize) -> usize {
+        let n = n as i64;
+        let r = match self {
+            Wrap::Clamp => i.clamp(0, n - 1),
+            Wrap::Repeat => i.rem_euclid(n),
+            Wrap::Mirror => {
+                let m = i.rem_euclid(2 * n);
+                if m < n { m } else { 2 * n - 1 - m }
+            }
+        };
+        r as usize
+    }
+}
+
+/// A texture of linear radiance multipliers.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Texture {
+    /// Width in texels.
+    pub width: usize,
+    /// Height in texels.
+    pub height: usize,
+    /// Row-major linear RGB, row 0 at v = 0 (glTF's top).
+    pub texels: Vec<Vec3>,
+    /// Wrap modes along u and v.
+    pub wrap: [Wrap; 2],
+}
+
+/// sRGB transfer function → linear.
+pub fn srgb_to_linear(c: f32) -> f32 {
+    if c <= 0.04045 { c / 12.92 } else { ((c + 0.055) / 1.055).powf(2.4) }
+}
+
+impl Texture {
+    /// Bilinear lookup at `uv` (texel centres at (i + 0.5)/N).
+    pub fn sample(&self, uv: Vec2) -> Vec3 {
+        let x = uv.x * self.width as f32 - 0.5;
+        let y = uv.y * self.height as f32 - 0.5;
+        let (x0, y0) = (x.floor(), y.floor());
+        let (fx, fy) = (x - x0, y - y0);
+        let at = |i: f32, j: f32| {
+            let i = self.wrap[0].apply(i as i64, self.width);
+            let j = self.wrap[1].apply(j as i64, self.height);
+            self.texels[j * self.width + i]
+        };
+        let top = at(x0, y0).lerp(at(x0 + 1.0, y0), fx);
+        let bottom = at(x0, y0 + 1.0).lerp(at(x0 + 1.0, y0 + 1.0), fx);
+        top.lerp(bottom, fy)
+    }
+
+    /// Mean texel value (used to pick lights by power).
+    pub fn mean(&self) -> Vec3 {
+        self.texels.iter().copied().sum::<Vec3>() / self.texels.len().max(1) as f32
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bilinear_hits_texel_centres_and_wraps() {
+        let t = Texture { width: 2, height: 1, texels: vec![Vec3::ZERO, Vec3::ONE], wrap: [Wrap::Clamp, Wrap::Clamp] };
+        assert_eq!(t.sample(Vec2::new(0.25, 0.5)), Vec3::ZERO);
+        assert_eq!(t.sample(Vec2::new(0.75, 0.5)), Vec3::ONE);
+        assert!((t.sample(Vec2::new(0.5, 0.5)) - Vec3::splat(0.5)).length() < 1e-6);
+        assert_eq!(t.sample(Vec2::new(5.0, 0.5)), Vec3::ONE);
+        assert_eq!(Wrap::Repeat.apply(-1, 4), 3);
+        assert_eq!(Wrap::Mirror.apply(4, 4), 3);
+        assert!((srgb_to_linear(1.0) - 1.0).abs() < 1e-6);
+    }
+}

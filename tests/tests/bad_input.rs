@@ -1,0 +1,210 @@
+//! Bad input gets a clear error naming the file and the problem — never a panic.
+//!
+//! One test binary with one panic hook: any panic anywhere during these imports (even one the
+//! importer would catch) fails the test.
+
+use kage_engine::scene::import::{ImportOptions, import};
+use kage_engine::scene::{EnvMap, Scene};
+use kage_tests::{asset, scratch};
+use serde_json::{Value, json};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+static PANICS: AtomicUsize = AtomicUsize::new(0);
+
+fn count_panics() {
+    std::panic::set_hook(Box::new(|info| {
+        PANICS.fetch_add(1, Ordering::SeqCst);
+        eprintln!("PANIC: {info}");
+    }));
+}
+
+/// A one-triangle glTF with an external `.bin`; `edit` tweaks the JSON before writing.
+fn write_gltf(
+    dir: &Path,
+    name: &str,
+    positions: &[[f32; 3]],
+    indices: &[u32],
+    edit: impl FnOnce(&mut Value),
+) -> PathBuf {
+    let mut bin: Vec<u8> = positions.iter().flatten().flat_map(|f| f.to_le_bytes()).collect();
+    let pos_len = bin.len();
+    bin.extend(indices.iter().flat_map(|i| i.to_le_bytes()));
+    let bin_name = format!("{name}.bin");
+    std::fs::write(dir.join(&bin_name), &bin).unwrap();
+    let mut doc = json!({
+        "asset": {"version": "2.0"},
+        "scene": 0,
+        "scenes": [{"nodes": [0]}],
+        "nodes": [{"mesh": 0}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1, "material": 0}]}],
+        "materials": [{"pbrMetallicRoughness": {"baseColorFactor": [0.8, 0.8, 0.8, 1.0]}}],
+        "buffers": [{"uri": bin_name, "byteLength": bin.len()}],
+        "bufferViews": [
+            {"buffer": 0, "byteOffset": 0, "byteLength": pos_len},
+            {"buffer": 0, "byteOffset": pos_len, "byteLength": bin.len() - pos_len}
+        ],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": positions.len(), "type": "VEC3",
+             "min": [-1.0, -1.0, -1.0], "max": [1.0, 1.0, 1.0]},
+            {"bufferView": 1, "componentType": 5125, "count": indices.len(), "type": "SCALAR"}
+        ]
+    });
+    edit(&mut doc);
+    let path = dir.join(format!("{name}.gltf"));
+    std::fs::write(&path, serde_json::to_vec_pretty(&doc).unwrap()).unwrap();
+    path
+}
+
+const TRI: [[f32; 3]; 3] = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]];
+
+fn expect_error(path: &Path, needle: &str) {
+    let err = match import(path, ImportOptions::default()) {
+        Ok(_) => panic!("{} imported but should fail with '{needle}'", path.display()),
+        Err(e) => e.to_string(),
+    };
+    let file = path.file_name().unwrap().to_str().unwrap();
+    assert!(err.contains(file), "error names the file: {err}");
+    assert!(err.contains(needle), "error for {file} says '{needle}': {err}");
+}
+
+fn synthetic_files_are_rejected_clearly() {
+    let dir = scratch("bad-input");
+    let ok = write_gltf(&dir, "ok", &TRI, &[0, 1, 2], |_| {});
+    import(&ok, ImportOptions::default()).expect("the unmodified file is valid");
+
+    let malformed = dir.join("malformed.gltf");
+    std::fs::write(&malformed, b"{\"asset\": {\"version\": \"2.0\"").unwrap();
+    expect_error(&malformed, "not a readable glTF file");
+    expect_error(&dir.join("does_not_exist.gltf"), "No such file");
+    let p = write_gltf(&dir, "missing_buffer", &TRI, &[0, 1, 2], |d| d["buffers"][0]["uri"] = json!("gone.bin"));
+    expect_error(&p, "cannot load buffer data");
+    let p = write_gltf(&dir, "vec2_positions", &TRI, &[0, 1, 2], |d| {
+        d["accessors"][0]["type"] = json!("VEC2");
+        d["accessors"][0]["min"] = json!([-1.0, -1.0]);
+        d["accessors"][0]["max"] = json!([1.0, 1.0]);
+    });
+    expect_error(&p, "attributes[\"POSITION\"].min: Invalid value");
+    let p = write_gltf(&dir, "scalar_normals", &TRI, &[0, 1, 2], |d| {
+        d["meshes"][0]["primitives"][0]["attributes"]["NORMAL"] = json!(1)
+    });
+    expect_error(&p, "attribute Normals has type Scalar U32");
+    let p = write_gltf(&dir, "index_oob", &TRI, &[0, 1, 7], |_| {});
+    expect_error(&p, "triangle 0 uses vertex index 7");
+    let p = write_gltf(&dir, "accessor_oob", &TRI, &[0, 1, 2], |d| d["accessors"][0]["count"] = json!(30));
+    expect_error(&p, "30 elements do not fit");
+    let p = write_gltf(&dir, "cycle", &TRI, &[0, 1, 2], |d| {
+        d["nodes"] = json!([{"mesh": 0, "children": [1]}, {"children": [2]}, {"children": [1]}]);
+    });
+    expect_error(&p, "two parents");
+    let p = write_gltf(&dir, "pure_cycle", &TRI, &[0, 1, 2], |d| {
+        d["nodes"] = json!([{"mesh": 0}, {"children": [2]}, {"children": [1]}]);
+    });
+    expect_error(&p, "cycle through nodes[1]");
+    let nan = [[0.0, f32::NAN, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]];
+    expect_error(&write_gltf(&dir, "nan", &nan, &[0, 1, 2], |_| {}), "vertex 0 has a NaN or infinite coordinate");
+    let inf = [[0.0, 0.0, 0.0], [f32::INFINITY, 0.0, 0.0], [0.0, 0.0, -1.0]];
+    expect_error(&write_gltf(&dir, "inf", &inf, &[0, 1, 2], |_| {}), "vertex 1 has a NaN or infinite coordinate");
+    let line = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [2.0, 0.0, 0.0]];
+    expect_error(&write_gltf(&dir, "degenerate", &line, &[0, 1, 2], |_| {}), "triangle 0 is degenerate");
+    let emitter = write_gltf(&dir, "zero_area_light", &line, &[0, 1, 2], |d| {
+        d["materials"][0]["emissiveFactor"] = json!([1.0, 1.0, 1.0]);
+    });
+    expect_error(&emitter, "degenerate");
+    // Dropping degenerate triangles leaves the emitter with none: still an error.
+    let err = import(&emitter, ImportOptions { drop_degenerate: true }).err().expect("zero-area emitter").to_string();
+    assert!(err.contains("zero_area_light.gltf") && err.contains("no triangles"), "{err}");
+    let p = write_gltf(&dir, "points", &TRI, &[0, 1, 2], |d| d["meshes"][0]["primitives"][0]["mode"] = json!(0));
+    expect_error(&p, "only triangles are supported");
+    let p = write_gltf(&dir, "draco", &TRI, &[0, 1, 2], |d| {
+        d["extensionsRequired"] = json!(["KHR_draco_mesh_compression"])
+    });
+    expect_error(&p, "requires extension KHR_draco_mesh_compression");
+    let p = write_gltf(&dir, "infinite_matrix", &TRI, &[0, 1, 2], |d| d["nodes"][0]["scale"] = json!([1e39, 1.0, 1.0]));
+    expect_error(&p, "transform is not finite");
+    // A sheared group imports (rendering does not need rigidity) but is refused where a rigid
+    // frame is required.
+    let p = write_gltf(&dir, "shear", &TRI, &[0, 1, 2], |d| {
+        d["nodes"][0]["matrix"] =
+            json!([1.0, 0.0, 0.0, 0.0, 0.6, 0.8, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0]);
+    });
+    let scene = import(&p, ImportOptions::default()).unwrap();
+    let err = scene.check_rigid_groups().unwrap_err().to_string();
+    assert!(err.contains("shear.gltf") && err.contains("must be rigid: shear"), "{err}");
+    let mirrored = import(&asset("scenes/cube_on_plane_mirrored_light.gltf"), ImportOptions::default()).unwrap();
+    mirrored.check_rigid_groups().expect("a uniform mirror is rigid");
+    std::fs::remove_dir_all(dir).unwrap();
+}
+
+fn bad_environment_maps_are_rejected_clearly() {
+    let dir = scratch("bad-env");
+    let garbage = dir.join("garbage.hdr");
+    std::fs::write(&garbage, b"#?RADIANCE\nthis is not an image").unwrap();
+    for (path, needle) in [
+        (garbage, "cannot decode"),
+        (dir.join("absent.exr"), "No such file"),
+        (asset("scenes/stained_glass.png"), "must be .hdr or .exr"),
+    ] {
+        let err = EnvMap::load(&path).err().unwrap_or_else(|| panic!("{} loaded", path.display())).to_string();
+        assert!(err.contains(path.file_name().unwrap().to_str().unwrap()) && err.contains(needle), "{err}");
+    }
+    std::fs::remove_dir_all(dir).unwrap();
+}
+
+/// Every file of the Khronos validator corpus: an error naming the file, or a scene — and
+/// every file the validator marks as broken in a way kage relies on is an error.
+fn edge_case_corpus_never_panics() {
+    let mut files = Vec::new();
+    let mut stack = vec![asset("edge_cases")];
+    while let Some(d) = stack.pop() {
+        for e in std::fs::read_dir(&d).unwrap() {
+            let p = e.unwrap().path();
+            if p.is_dir() {
+                stack.push(p);
+            } else if matches!(p.extension().and_then(|e| e.to_str()), Some("gltf" | "glb")) {
+                files.push(p);
+            }
+        }
+    }
+    files.sort();
+    assert!(files.len() >= 70, "corpus found: {}", files.len());
+    let must_fail = [
+        "draco/suzanne_draco.glb",
+        "glb/invalid_version.glb",
+        "glb/empty_file.glb",
+        "mesh/unresolved_positions.gltf",
+        "node/node_loop.gltf",
+        "node/node_loop_scene.gltf",
+        "node/node_parent_override.gltf",
+        "node/infinite_transform.gltf",
+        "buffer/not_found.gltf",
+        "buffer/wrong_bytelength.glb",
+    ];
+    let (mut ok, mut failed) = (0, 0);
+    for f in &files {
+        let name = f.to_string_lossy().replace('\\', "/");
+        match import(f, ImportOptions::default()) {
+            Ok(scene) => {
+                ok += 1;
+                assert!(!must_fail.iter().any(|m| name.ends_with(m)), "{name} should be rejected");
+                let _: &Scene = &scene;
+            }
+            Err(e) => {
+                failed += 1;
+                let msg = e.to_string();
+                assert!(msg.contains(f.file_name().unwrap().to_str().unwrap()), "error names the file: {msg}");
+            }
+        }
+    }
+    eprintln!("corpus: {} files, {ok} imported, {failed} rejected with an error", files.len());
+}
+
+#[test]
+fn bad_input_never_panics() {
+    count_panics();
+    synthetic_files_are_rejected_clearly();
+    bad_environment_maps_are_rejected_clearly();
+    edge_case_corpus_never_panics();
+    let _ = std::panic::take_hook();
+    assert_eq!(PANICS.load(Ordering::SeqCst), 0, "no panic, caught or not");
+}
