@@ -126,16 +126,15 @@ pub fn attribute_formats(prim: &gltf::Primitive) -> Result<(), String> {
             ));
         }
     }
-    if let Some(acc) = prim.indices() {
-        if acc.dimensions() != Dimensions::Scalar
-            || !matches!(acc.data_type(), DataType::U8 | DataType::U16 | DataType::U32)
-        {
-            return Err(format!(
-                "indices have type {:?} {:?}; glTF requires unsigned integer scalars",
-                acc.dimensions(),
-                acc.data_type()
-            ));
-        }
+    if let Some(acc) = prim.indices()
+        && (acc.dimensions() != Dimensions::Scalar
+            || !matches!(acc.data_type(), DataType::U8 | DataType::U16 | DataType::U32))
+    {
+        return Err(format!(
+            "indices have type {:?} {:?}; glTF requires unsigned integer scalars",
+            acc.dimensions(),
+            acc.data_type()
+        ));
     }
     Ok(())
 }

@@ -1,0 +1,123 @@
+//! The `kage` binary as a user runs it: outputs, exit codes, error messages, determinism.
+
+use kage_engine::output::read_vertex_csv;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn kage(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_kage")).args(args).output().expect("kage runs")
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("kage-cli-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn shared(rel: &str) -> String {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/assets").join(rel).display().to_string()
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+#[test]
+fn info_describes_the_default_scene() {
+    let o = kage(&["info"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = String::from_utf8(o.stdout).unwrap();
+    for needle in ["scene: builtin:default", "groups: 5", "lights: 1 polygons", "cameras: 1", "environment: procedural:sky"] {
+        assert!(out.contains(needle), "missing '{needle}' in:\n{out}");
+    }
+}
+
+#[test]
+fn render_writes_png_exr_and_vertex_csv() {
+    let d = scratch("render");
+    let (png, exr, csv) = (d.join("a.png"), d.join("a.exr"), d.join("v.csv"));
+    for (out, extra) in [(&png, vec![]), (&exr, vec!["--vertices-out", csv.to_str().unwrap()])] {
+        let mut args = vec!["render", "--spp", "2", "--size", "40x24", "-o", out.to_str().unwrap()];
+        args.extend(extra);
+        let o = kage(&args);
+        assert!(o.status.success(), "{}", stderr(&o));
+    }
+    let png_img = image::open(&png).unwrap();
+    assert_eq!((png_img.width(), png_img.height()), (40, 24));
+    let exr_img = image::open(&exr).unwrap().into_rgb32f();
+    assert!(exr_img.pixels().any(|p| p.0[0] > 1.0), "EXR keeps linear radiance above 1 (the light)");
+    let rows = read_vertex_csv(&csv).unwrap();
+    assert_eq!(rows.len(), 1681 + 1625 + 1225 + 24);
+    assert!(rows.iter().all(|r| r.radiance.is_finite() && r.radiance.min_element() >= 0.0));
+    std::fs::remove_dir_all(d).unwrap();
+}
+
+#[test]
+fn vertices_are_identical_on_one_and_two_threads() {
+    let d = scratch("threads");
+    let scene = shared("scenes/cube_on_plane.gltf");
+    let run = |threads: &str, name: &str| {
+        let csv = d.join(name);
+        let o = kage(&["render", &scene, "--threads", threads, "--spp", "4", "--vertices-out", csv.to_str().unwrap()]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        std::fs::read(csv).unwrap()
+    };
+    assert_eq!(run("1", "one.csv"), run("2", "two.csv"));
+    std::fs::remove_dir_all(d).unwrap();
+}
+
+#[test]
+fn bad_input_exits_non_zero_with_a_message() {
+    let d = scratch("bad");
+    let broken = d.join("broken.gltf");
+    std::fs::write(&broken, "{ not json").unwrap();
+    let cases: Vec<(Vec<String>, &str)> = vec![
+        (vec!["info".into(), broken.display().to_string()], "broken.gltf: not a readable glTF file"),
+        (vec!["info".into(), d.join("nope.glb").display().to_string()], "nope.glb"),
+        (vec!["info".into(), "--env".into(), d.join("sky.hdr").display().to_string()], "sky.hdr"),
+        (vec!["render".into(), shared("models/bunny.glb"), "-o".into(), d.join("x.png").display().to_string()], "no camera"),
+        (vec!["render".into(), "-o".into(), d.join("x.bmp").display().to_string(), "--spp".into(), "1".into(), "--size".into(), "4x4".into()], "must be .exr"),
+        (vec!["render".into(), "--size".into(), "0x10".into()], "bad size"),
+        (vec!["info".into(), shared("edge_cases/validator/mesh/unresolved_positions.gltf")], "accessor 0 does not exist"),
+    ];
+    for (args, needle) in cases {
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        let o = kage(&args);
+        let err = stderr(&o);
+        assert!(!o.status.success(), "{args:?} succeeded");
+        assert!(err.contains(needle), "{args:?}: '{needle}' not in {err}");
+        assert!(!err.contains("panicked"), "{args:?} panicked: {err}");
+    }
+    std::fs::remove_dir_all(d).unwrap();
+}
+
+#[test]
+fn env_and_camera_overrides_apply() {
+    let d = scratch("env");
+    let out = d.join("b.png");
+    let o = kage(&[
+        "render",
+        &shared("models/bunny.glb"),
+        "--env",
+        &shared("envmaps/city.hdr"),
+        "--env-rotation",
+        "90",
+        "--eye",
+        "0,8,25",
+        "--target",
+        "0,4,0",
+        "--spp",
+        "2",
+        "--size",
+        "32x32",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(out.exists());
+    let o = kage(&["info", "--env", &shared("envmaps/sky.exr"), "--env-intensity", "2"]);
+    let text = String::from_utf8(o.stdout).unwrap();
+    assert!(text.contains("sky.exr (512×256), intensity 2"), "{text}");
+    std::fs::remove_dir_all(d).unwrap();
+}
