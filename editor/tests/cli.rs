@@ -28,7 +28,9 @@ fn info_describes_the_default_scene() {
     let o = kage(&["info"]);
     assert!(o.status.success(), "{}", stderr(&o));
     let out = String::from_utf8(o.stdout).unwrap();
-    for needle in ["scene: builtin:default", "groups: 5", "lights: 1 polygons", "cameras: 1", "environment: procedural:sky"] {
+    for needle in
+        ["scene: builtin:default", "groups: 5", "lights: 1 polygons", "cameras: 1", "environment: procedural:sky"]
+    {
         assert!(out.contains(needle), "missing '{needle}' in:\n{out}");
     }
 }
@@ -76,10 +78,27 @@ fn bad_input_exits_non_zero_with_a_message() {
         (vec!["info".into(), broken.display().to_string()], "broken.gltf: not a readable glTF file"),
         (vec!["info".into(), d.join("nope.glb").display().to_string()], "nope.glb"),
         (vec!["info".into(), "--env".into(), d.join("sky.hdr").display().to_string()], "sky.hdr"),
-        (vec!["render".into(), shared("models/bunny.glb"), "-o".into(), d.join("x.png").display().to_string()], "no camera"),
-        (vec!["render".into(), "-o".into(), d.join("x.bmp").display().to_string(), "--spp".into(), "1".into(), "--size".into(), "4x4".into()], "must be .exr"),
+        (
+            vec!["render".into(), shared("models/bunny.glb"), "-o".into(), d.join("x.png").display().to_string()],
+            "no camera",
+        ),
+        (
+            vec![
+                "render".into(),
+                "-o".into(),
+                d.join("x.bmp").display().to_string(),
+                "--spp".into(),
+                "1".into(),
+                "--size".into(),
+                "4x4".into(),
+            ],
+            "must be .exr",
+        ),
         (vec!["render".into(), "--size".into(), "0x10".into()], "bad size"),
-        (vec!["info".into(), shared("edge_cases/validator/mesh/unresolved_positions.gltf")], "accessor 0 does not exist"),
+        (
+            vec!["info".into(), shared("edge_cases/validator/mesh/unresolved_positions.gltf")],
+            "accessor 0 does not exist",
+        ),
     ];
     for (args, needle) in cases {
         let args: Vec<&str> = args.iter().map(String::as_str).collect();

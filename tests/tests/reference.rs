@@ -36,7 +36,10 @@ fn assert_consistent(est: &[Estimate], exact: &[f64], what: &str) {
     let bias: f64 = est.iter().zip(exact).map(|(e, x)| e.mean.x as f64 - x).sum();
     let pooled_se = est.iter().map(|e| (e.std_error.x as f64).powi(2)).sum::<f64>().sqrt();
     let rel_se = pooled_se / exact.iter().sum::<f64>();
-    eprintln!("{what}: mean z² {mean_z2:.3}, pooled z {:.3}, pooled relative se {rel_se:.2e}", bias / pooled_se.max(1e-12));
+    eprintln!(
+        "{what}: mean z² {mean_z2:.3}, pooled z {:.3}, pooled relative se {rel_se:.2e}",
+        bias / pooled_se.max(1e-12)
+    );
     assert!(bias.abs() < 4.0 * pooled_se + 1e-9, "{what}: pooled bias {bias} vs se {pooled_se}");
     assert!((0.4..2.0).contains(&mean_z2), "{what}: mean z² = {mean_z2}");
 }
@@ -49,7 +52,12 @@ fn quad(h: f32) -> Vec<Vec3> {
 fn unoccluded_lambertian_matches_lamberts_formula() {
     let mut scene = Scene::new("test:lambert");
     let albedo = 0.5f64;
-    scene.add_object("ground", shapes::grid(6.0, 6), Material::lambertian(Vec3::splat(albedo as f32)), Affine3A::IDENTITY);
+    scene.add_object(
+        "ground",
+        shapes::grid(6.0, 6),
+        Material::lambertian(Vec3::splat(albedo as f32)),
+        Affine3A::IDENTITY,
+    );
     let light_pose = Affine3A::from_translation(Vec3::new(0.4, 2.0, -0.3));
     scene.add_light("light", quad(0.5), Vec3::ONE, light_pose);
     let r = Renderer::new(&scene);

@@ -257,8 +257,9 @@ impl<'a> Importer<'a> {
                 .collect(),
             Mode::TriangleFan => (2..indices.len()).map(|i| [indices[0], indices[i - 1], indices[i]]).collect(),
             other => {
-                return Err(self
-                    .error(format!("{where_}: primitive mode {other:?} has no surface; only triangles are supported")));
+                return Err(self.error(format!(
+                    "{where_}: primitive mode {other:?} has no surface; only triangles are supported"
+                )));
             }
         };
         let (m, dropped) = Mesh::new(positions, normals, uvs, triangles, self.options.drop_degenerate)
