@@ -27,6 +27,8 @@ enum Command {
     Info(commands::info::Args),
     /// Render an image and/or per-vertex radiance.
     Render(commands::render::Args),
+    /// Fit the GGX LTC table and write it as Rust source (developer tool).
+    FitLtc(commands::fit_ltc::Args),
 }
 
 /// Writes to stdout, ignoring a closed pipe (`kage info | head` is not an error).
@@ -46,6 +48,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Info(a) => commands::info::run(&a),
         Command::Render(a) => commands::render::run(&a),
+        Command::FitLtc(a) => commands::fit_ltc::run(&a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -1,4 +1,5 @@
 //! One module per subcommand.
 
+pub mod fit_ltc;
 pub mod info;
 pub mod render;

@@ -2,11 +2,18 @@
 //!
 //! No I/O and no global mutable state live here; lazily built tables are immutable once made.
 
+pub mod cubemap;
 pub mod distribution;
 pub mod frame;
 pub mod ggx;
+pub mod hsh;
+pub mod ltc;
+pub mod nelder_mead;
+pub mod polygon;
+pub mod quadrature;
 pub mod rng;
 pub mod sampling;
+pub mod sh;
 
 /// Luminance of a linear Rec.709 colour.
 pub fn luminance(c: glam::Vec3) -> f32 {
