@@ -39,9 +39,7 @@ fn parts(order: usize, z: f64) -> Parts {
             dq[index(m + 1, mi)] = ((2 * m + 3) as f64).sqrt() * q[index(m, mi)];
         }
         for l in m + 2..order {
-            let (lf, mf) = (l as f64, m as f64);
-            let a = ((4.0 * lf * lf - 1.0) / (lf * lf - mf * mf)).sqrt();
-            let b = (((lf - 1.0) * (lf - 1.0) - mf * mf) / (4.0 * (lf - 1.0) * (lf - 1.0) - 1.0)).sqrt();
+            let (a, b) = sh::recurrence(l, m);
             dq[index(l, mi)] = a * (q[index(l - 1, mi)] + x * dq[index(l - 1, mi)] - b * dq[index(l - 2, mi)]);
         }
     }

@@ -41,12 +41,19 @@ pub fn legendre_q(order: usize, z: f64, out: &mut [f64]) {
             out[index(m + 1, m as i32)] = ((2 * m + 3) as f64).sqrt() * z * out[index(m, m as i32)];
         }
         for l in m + 2..order {
-            let (lf, mf) = (l as f64, m as f64);
-            let a = ((4.0 * lf * lf - 1.0) / (lf * lf - mf * mf)).sqrt();
-            let b = (((lf - 1.0) * (lf - 1.0) - mf * mf) / (4.0 * (lf - 1.0) * (lf - 1.0) - 1.0)).sqrt();
+            let (a, b) = recurrence(l, m);
             out[index(l, m as i32)] = a * (z * out[index(l - 1, m as i32)] - b * out[index(l - 2, m as i32)]);
         }
     }
+}
+
+/// Coefficients (a, b) of the normalised three-term recurrence
+/// `Q̄_lm = a (z Q̄_{l−1,m} − b Q̄_{l−2,m})`.
+pub(crate) fn recurrence(l: usize, m: usize) -> (f64, f64) {
+    let (lf, mf) = (l as f64, m as f64);
+    let a = ((4.0 * lf * lf - 1.0) / (lf * lf - mf * mf)).sqrt();
+    let b = (((lf - 1.0) * (lf - 1.0) - mf * mf) / (4.0 * (lf - 1.0) * (lf - 1.0) - 1.0)).sqrt();
+    (a, b)
 }
 
 /// Evaluates all n² basis functions at unit direction `d` into `out`; a non-finite `d`
