@@ -65,3 +65,38 @@ fn bvh_matches_brute_force_on_the_bunny() {
     let s = import(&asset("models/bunny.glb"), ImportOptions::default()).unwrap();
     check(&flatten(&s).triangles, 2000);
 }
+
+#[test]
+fn a_group_bvh_in_its_local_frame_agrees_with_the_world_bvh() {
+    use kage_engine::scene::{RigidGroup, Transform, group_triangles};
+    let s = import(&asset("scenes/bunny_two_groups.gltf"), ImportOptions::default()).unwrap();
+    let (group, pose) = s
+        .world
+        .query::<(hecs::Entity, &RigidGroup, &kage_engine::scene::Name, &Transform)>()
+        .iter()
+        .find(|(_, _, n, _)| n.0 == "group_box_sphere")
+        .map(|(e, _, _, t)| (e, t.world))
+        .unwrap();
+    let local = SceneBvh::new(&group_triangles(&s, group));
+    let world_tris: Vec<[Vec3; 3]> =
+        group_triangles(&s, group).iter().map(|t| t.map(|p| pose.transform_point3(p))).collect();
+    let world = SceneBvh::new(&world_tris);
+    let inv = pose.inverse();
+    let mut r = rng::seeded(3);
+    let centre = pose.transform_point3(Vec3::ZERO);
+    let mut hits = 0;
+    for _ in 0..2000 {
+        let d = sampling::uniform_sphere(Vec2::new(r.random(), r.random()));
+        let o = centre + Vec3::new(r.random::<f32>() - 0.5, r.random::<f32>() * 2.0, r.random::<f32>() - 0.5) * 3.0;
+        let (lo, ld) = (inv.transform_point3(o), inv.transform_vector3(d));
+        let a = world.closest_hit(o, d, f32::INFINITY);
+        let b = local.closest_hit(lo, ld.normalize(), f32::INFINITY);
+        assert_eq!(a.map(|h| h.triangle), b.map(|h| h.triangle));
+        if let (Some(a), Some(b)) = (a, b) {
+            hits += 1;
+            assert!((a.t - b.t * ld.length()).abs() < 1e-4 * a.t.max(1.0), "{} vs {}", a.t, b.t);
+        }
+        assert_eq!(world.occluded(o, d, 2.0), local.occluded(lo, ld.normalize(), 2.0 / ld.length()));
+    }
+    assert!(hits > 200, "{hits}");
+}

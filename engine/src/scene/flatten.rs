@@ -165,6 +165,38 @@ fn add_light(flat: &mut FlatScene, scene: &Scene, light: &PolygonLight, t: &Tran
     flat.lights.push(FlatLight { points, uvs, normal, area, radiance: light.radiance, texture });
 }
 
+/// The triangles of one rigid group in the group's own frame (instances and lights, winding
+/// un-mirrored), for a BVH that stays valid however the group moves.
+pub fn group_triangles(scene: &Scene, group: hecs::Entity) -> Vec<[Vec3; 3]> {
+    let mut items: Vec<(PrimitiveId, MeshRef, InGroup)> = scene
+        .world
+        .query::<(&PrimitiveId, &MeshRef, &InGroup)>()
+        .iter()
+        .filter(|(_, _, g)| g.group == group)
+        .map(|(id, m, g)| (*id, *m, *g))
+        .collect();
+    items.sort_by_key(|(id, ..)| (id.node, id.mesh, id.primitive));
+    let mut out = Vec::new();
+    for (_, mref, member) in items {
+        let mesh = &scene.meshes[mref.index as usize];
+        let mirrored = member.local.matrix3.determinant() < 0.0;
+        for tri in &mesh.triangles {
+            let mut p = tri.map(|i| member.local.transform_point3(mesh.positions[i as usize]));
+            if mirrored {
+                p.swap(1, 2);
+            }
+            out.push(p);
+        }
+    }
+    for (light, member) in scene.world.query::<(&PolygonLight, &InGroup)>().iter().filter(|(_, g)| g.group == group) {
+        let pts: Vec<Vec3> = light.points.iter().map(|p| member.local.transform_point3(*p)).collect();
+        for k in 1..pts.len().saturating_sub(1) {
+            out.push([pts[0], pts[k], pts[k + 1]]);
+        }
+    }
+    out
+}
+
 impl FlatScene {
     /// World position and unit shading normal of vertex `v` of instance `inst`.
     pub fn vertex(&self, scene: &Scene, inst: usize, v: usize) -> (Vec3, Vec3) {
