@@ -140,3 +140,37 @@ fn env_and_camera_overrides_apply() {
     assert!(text.contains("sky.exr (512×256), intensity 2"), "{text}");
     std::fs::remove_dir_all(d).unwrap();
 }
+
+#[test]
+fn polygon_light_methods_render_images_and_vertices() {
+    let d = scratch("methods");
+    let scene = shared("scenes/cube_on_plane.gltf");
+    for method in ["bspvt", "ltc-unshadowed", "ltc-exact-vis"] {
+        let (png, csv) = (d.join(format!("{method}.png")), d.join(format!("{method}.csv")));
+        let o = kage(&[
+            "render",
+            &scene,
+            "--method",
+            method,
+            "--face-res",
+            "8",
+            "--size",
+            "32x18",
+            "--spp",
+            "1",
+            "-o",
+            png.to_str().unwrap(),
+            "--vertices-out",
+            csv.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{method}: {}", stderr(&o));
+        let out = String::from_utf8_lossy(&o.stdout);
+        assert!(out.contains("shade:"), "{out}");
+        assert_eq!(method == "bspvt", out.contains("bake:"), "{out}");
+        assert_eq!(read_vertex_csv(&csv).unwrap().len(), 1705);
+        assert!(png.exists());
+    }
+    let o = kage(&["render", &scene, "--method", "bspvt", "--face-res", "2"]);
+    assert!(!o.status.success() && stderr(&o).contains("--face-res"));
+    std::fs::remove_dir_all(d).unwrap();
+}

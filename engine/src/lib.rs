@@ -19,9 +19,11 @@
 //!   equirectangular environments with `u = frac(atan2(d.x, −d.z)/2π)`, `v = acos(d.y)/π`.
 
 pub mod accel;
+pub mod bspvt;
 pub mod error;
 pub mod math;
 pub mod output;
+pub mod raster;
 pub mod reference;
 pub mod scene;
 

@@ -6,7 +6,8 @@ use anyhow::{Context, Result, bail};
 use glam::Vec3;
 use kage_engine::output::{VertexRow, write_image, write_vertex_csv};
 use kage_engine::reference::{Estimate, Renderer, Settings};
-use kage_engine::scene::Camera;
+use kage_engine::scene::{Camera, Scene};
+use kage_engine::{bspvt, raster};
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -15,6 +16,12 @@ use std::time::Instant;
 pub enum Method {
     /// Monte Carlo ground truth (path tracing with MIS).
     Reference,
+    /// Polygonal lights with BSP visibility trees and LTC (per vertex).
+    Bspvt,
+    /// Polygonal lights with LTC and no shadows (per vertex).
+    LtcUnshadowed,
+    /// Polygonal lights with LTC clipped per visible cube-map texel, no tree (per vertex).
+    LtcExactVis,
 }
 
 /// Arguments of `kage render`.
@@ -56,6 +63,16 @@ pub struct Args {
     /// PNG exposure in stops.
     #[arg(long, default_value_t = 0.0)]
     exposure: f32,
+    /// BSPVT cube-face resolution (texels per side).
+    #[arg(long, default_value_t = 64)]
+    face_res: usize,
+    /// BSPVT split threshold ε (cluster error in texels).
+    #[arg(long, default_value_t = 2.0)]
+    epsilon: f64,
+    /// Drop the environment light (the per-vertex polygonal-light methods never include it;
+    /// use this to compare the reference with them).
+    #[arg(long)]
+    no_env: bool,
 }
 
 fn parse_size(s: &str) -> Result<(usize, usize), String> {
@@ -79,34 +96,101 @@ pub fn run(args: &Args) -> Result<()> {
     if args.spp == 0 {
         bail!("--spp must be at least 1");
     }
-    let scene = args.scene.load()?;
+    if !(4..=1024).contains(&args.face_res) || args.epsilon.is_nan() || args.epsilon < 0.0 {
+        bail!("--face-res must be in 4..=1024 and --epsilon ≥ 0");
+    }
+    let mut scene = args.scene.load()?;
+    if args.no_env {
+        scene.clear_environment();
+    }
     let camera = camera(args, scene.first_camera())?;
     let renderer = Renderer::new(&scene);
-    let settings = Settings { spp: args.spp, seed: args.seed, max_bounces: args.bounces };
     let output = args.output.clone().or_else(|| args.vertices_out.is_none().then(|| PathBuf::from("render.png")));
-    if let Some(path) = &output {
+    let (image, vertices) = match args.method {
+        Method::Reference => reference(args, &renderer, &camera, output.is_some())?,
+        m => per_vertex(args, m, &scene, &renderer, &camera, output.is_some()),
+    };
+    if let (Some(path), Some(pixels)) = (&output, image) {
+        write_image(path, args.size.0, args.size.1, &pixels, args.exposure)?;
+        crate::emit(&format!("wrote {}\n", path.display()));
+    }
+    if let (Some(path), Some(values)) = (&args.vertices_out, vertices) {
+        let rows = vertex_rows(&renderer, &values);
+        write_vertex_csv(path, &rows).with_context(|| "writing per-vertex results")?;
+        crate::emit(&format!("wrote {} ({} vertices)\n", path.display(), rows.len()));
+    }
+    Ok(())
+}
+
+type Outputs = (Option<Vec<Vec3>>, Option<Vec<Vec<Vec3>>>);
+
+fn reference(args: &Args, renderer: &Renderer, camera: &Camera, want_image: bool) -> Result<Outputs> {
+    let settings = Settings { spp: args.spp, seed: args.seed, max_bounces: args.bounces };
+    let mut image = None;
+    if want_image {
         let (w, h) = args.size;
         let pb = bar(h as u64, "pixels");
         let start = Instant::now();
-        let est = renderer.render_image(&camera, w, h, &settings, &|rows| pb.set_position(rows as u64));
+        let est = renderer.render_image(camera, w, h, &settings, &|rows| pb.set_position(rows as u64));
         pb.finish_and_clear();
         report("image", &est, start);
-        let pixels: Vec<Vec3> = est.iter().map(|e| e.mean).collect();
-        write_image(path, w, h, &pixels, args.exposure)?;
-        crate::emit(&format!("wrote {}\n", path.display()));
+        image = Some(est.iter().map(|e| e.mean).collect());
     }
-    if let Some(path) = &args.vertices_out {
+    let mut vertices = None;
+    if args.vertices_out.is_some() {
         let pb = bar(renderer.vertex_count() as u64, "vertices");
         let start = Instant::now();
         let per_instance = renderer.render_vertices(camera.eye(), &settings, &|n| pb.set_position(n as u64));
         pb.finish_and_clear();
         let all: Vec<Estimate> = per_instance.iter().flatten().copied().collect();
         report("vertices", &all, start);
-        let rows = vertex_rows(&renderer, &per_instance);
-        write_vertex_csv(path, &rows).with_context(|| "writing per-vertex results")?;
-        crate::emit(&format!("wrote {} ({} vertices)\n", path.display(), rows.len()));
+        vertices = Some(per_instance.iter().map(|v| v.iter().map(|e| e.mean).collect()).collect());
     }
-    Ok(())
+    Ok((image, vertices))
+}
+
+fn per_vertex(
+    args: &Args,
+    method: Method,
+    scene: &Scene,
+    renderer: &Renderer,
+    camera: &Camera,
+    want_image: bool,
+) -> Outputs {
+    let settings = bspvt::Settings { res: args.face_res, epsilon: args.epsilon };
+    let bake = (method == Method::Bspvt).then(|| {
+        let pb = bar(renderer.vertex_count() as u64, "baking");
+        let b = bspvt::bake(scene, &renderer.flat, &settings, &|n| pb.set_position(n as u64));
+        pb.finish_and_clear();
+        let st = b.stats;
+        crate::emit(&format!(
+            "bake: {} vertices in {:.2} s ({:.0} vertices/s), {:.1} leaves and {:.1} nodes per vertex, {:.0} bytes per vertex ({:.2} MB)\n",
+            st.vertices,
+            st.seconds,
+            st.vertices as f64 / st.seconds,
+            st.leaves as f64 / st.vertices as f64,
+            st.nodes as f64 / st.vertices as f64,
+            st.bytes as f64 / st.vertices as f64,
+            st.bytes as f64 / 1e6
+        ));
+        b
+    });
+    let kind = match method {
+        Method::Bspvt => bspvt::Method::Bspvt,
+        Method::LtcExactVis => bspvt::Method::ExactVis,
+        _ => bspvt::Method::Unshadowed,
+    };
+    let start = Instant::now();
+    let values = bspvt::shade_vertices(scene, &renderer.flat, kind, bake.as_ref(), &settings, camera.eye());
+    let evals = renderer.vertex_count() * renderer.flat.lights.len();
+    let secs = start.elapsed().as_secs_f64();
+    crate::emit(&format!(
+        "shade: {evals} vertex–light evaluations in {secs:.3} s ({:.2} M/s)\n",
+        evals as f64 / secs / 1e6
+    ));
+    let image =
+        want_image.then(|| raster::vertex_image(renderer, camera, args.size.0, args.size.1, args.spp.min(16), &values));
+    (image, Some(values))
 }
 
 fn camera(args: &Args, scene_camera: Option<Camera>) -> Result<Camera> {
@@ -124,7 +208,7 @@ fn camera(args: &Args, scene_camera: Option<Camera>) -> Result<Camera> {
     Ok(cam)
 }
 
-fn vertex_rows(renderer: &Renderer, per_instance: &[Vec<Estimate>]) -> Vec<VertexRow> {
+fn vertex_rows(renderer: &Renderer, per_instance: &[Vec<Vec3>]) -> Vec<VertexRow> {
     let mut rows = Vec::new();
     for (i, est) in per_instance.iter().enumerate() {
         let id = renderer.flat.instances[i].id;
@@ -136,7 +220,7 @@ fn vertex_rows(renderer: &Renderer, per_instance: &[Vec<Estimate>]) -> Vec<Verte
                 primitive: id.primitive,
                 vertex: v as u32,
                 position,
-                radiance: e.mean,
+                radiance: *e,
             });
         }
     }

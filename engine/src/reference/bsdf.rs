@@ -43,6 +43,26 @@ impl Bsdf {
         Self { diffuse, f0, f90, alpha: ggx::alpha_from_roughness(m.roughness), p_spec }
     }
 
+    /// Diffuse albedo (base colour × (1 − metallic) × (1 − dielectric albedo)).
+    pub fn diffuse_albedo(&self) -> Vec3 {
+        self.diffuse * PI
+    }
+
+    /// Fresnel reflectance at normal incidence.
+    pub fn f0(&self) -> Vec3 {
+        self.f0
+    }
+
+    /// Fresnel reflectance at grazing incidence.
+    pub fn f90(&self) -> Vec3 {
+        self.f90
+    }
+
+    /// True when the material has a specular lobe (not a specularFactor-0 dielectric).
+    pub fn has_specular(&self) -> bool {
+        self.f0.max_element() > 0.0 || self.f90.max_element() > 0.0
+    }
+
     /// True when the BSDF reflects nothing (e.g. a black emitter's back).
     pub fn is_black(&self) -> bool {
         self.diffuse == Vec3::ZERO && self.p_spec == 0.0

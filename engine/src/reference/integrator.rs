@@ -145,11 +145,12 @@ impl Renderer {
 
     /// World position and shading normal of vertex `v` of instance `i`.
     pub fn vertex(&self, i: usize, v: usize) -> (Vec3, Vec3) {
-        let inst = &self.flat.instances[i];
-        let mesh = &self.meshes[inst.mesh as usize];
-        let p = inst.world.transform_point3(mesh.positions[v]);
-        let n = (inst.normal_matrix * glam::Vec3A::from(mesh.normals[v])).normalize_or_zero();
-        (p, n.into())
+        self.flat.vertex(&self.meshes, i, v)
+    }
+
+    /// The mesh of instance `i`.
+    pub fn mesh(&self, i: usize) -> &Mesh {
+        &self.meshes[self.flat.instances[i].mesh as usize]
     }
 
     /// Number of receiver vertices.

@@ -199,9 +199,9 @@ pub fn group_triangles(scene: &Scene, group: hecs::Entity) -> Vec<[Vec3; 3]> {
 
 impl FlatScene {
     /// World position and unit shading normal of vertex `v` of instance `inst`.
-    pub fn vertex(&self, scene: &Scene, inst: usize, v: usize) -> (Vec3, Vec3) {
+    pub fn vertex(&self, meshes: &[Arc<crate::scene::Mesh>], inst: usize, v: usize) -> (Vec3, Vec3) {
         let i = &self.instances[inst];
-        let mesh = &scene.meshes[i.mesh as usize];
+        let mesh = &meshes[i.mesh as usize];
         let p = i.world.transform_point3(mesh.positions[v]);
         let n = (i.normal_matrix * glam::Vec3A::from(mesh.normals[v])).normalize_or_zero();
         (p, n.into())

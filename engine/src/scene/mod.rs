@@ -47,12 +47,17 @@ pub struct Scene {
 impl Scene {
     /// Replaces (or sets) the scene's environment light.
     pub fn set_environment(&mut self, env: EnvironmentLight) {
+        self.clear_environment();
+        self.world.spawn((env,));
+    }
+
+    /// Removes the environment light, if any.
+    pub fn clear_environment(&mut self) {
         let old: Vec<hecs::Entity> =
             self.world.query::<(hecs::Entity, &EnvironmentLight)>().iter().map(|(e, _)| e).collect();
         for e in old {
             let _ = self.world.despawn(e);
         }
-        self.world.spawn((env,));
     }
 
     /// Checks that every rigid group's pose is a similarity (rotation, uniform scale, optional

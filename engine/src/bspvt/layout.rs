@@ -1,0 +1,131 @@
+//! The compact, versioned binary layout of baked BSPVT data.
+//!
+//! Per vertex: six little-endian `u16` byte lengths (one per cube face; 0 = no tree: the face
+//! is entirely below the horizon), then each face's tree in pre-order:
+//! - a **leaf** is 1 byte, top bit 0: the mean visibility quantised to 7 bits (v̄ · 127);
+//! - a **split** is 3 bytes, big-endian, top bit 1: 11 bits of angle θ ∈ [0, 2π) and 12 bits of
+//!   offset c ∈ [−√2, √2] (code q ↦ (q − 2047)/2047 · √2) of the line `cos θ · s + sin θ · t = c`; the positive side's subtree
+//!   follows, then the negative side's.
+//!
+//! A tree with L leaves has L − 1 splits: (L + 3(L − 1)) bytes ≈ 4 bytes per leaf, 2 bytes per
+//! node on average.
+
+use super::tree::Node;
+use std::f64::consts::{SQRT_2, TAU};
+
+/// Bumped whenever the layout or the baking algorithm changes what is stored.
+pub const FORMAT_VERSION: u32 = 1;
+
+const ANGLE_STEPS: f64 = 2048.0;
+/// Offsets are `(q − 2047) / 2047 · √2`, q ∈ [0, 4094]: symmetric, with 0 exact.
+const OFFSET_HALF: f64 = 2047.0;
+
+/// Quantises a line to (11-bit angle code, 12-bit offset code).
+pub fn quantise_line(theta: f64, c: f64) -> (u16, u16) {
+    let a = ((theta.rem_euclid(TAU) / TAU * ANGLE_STEPS).round() as i64).rem_euclid(ANGLE_STEPS as i64) as u16;
+    let o = (c.clamp(-SQRT_2, SQRT_2) / SQRT_2 * OFFSET_HALF + OFFSET_HALF).round() as u16;
+    (a, o)
+}
+
+/// The line a code pair stands for.
+pub fn dequantise_line(a: u16, o: u16) -> (f64, f64) {
+    (a as f64 / ANGLE_STEPS * TAU, (o as f64 - OFFSET_HALF) / OFFSET_HALF * SQRT_2)
+}
+
+/// Appends one tree.
+pub fn encode_tree(nodes: &[Node], out: &mut Vec<u8>) {
+    for n in nodes {
+        match *n {
+            Node::Leaf(v) => out.push((v.clamp(0.0, 1.0) * 127.0).round() as u8),
+            Node::Split { angle, offset } => {
+                let bits = 0x80_0000u32 | ((angle as u32) << 12) | offset as u32;
+                out.extend_from_slice(&bits.to_be_bytes()[1..]);
+            }
+        }
+    }
+}
+
+/// Decodes one tree.
+pub fn decode_tree(bytes: &[u8]) -> Vec<Node> {
+    let mut out = Vec::new();
+    let mut i = 0;
+    while i < bytes.len() {
+        if bytes[i] & 0x80 == 0 {
+            out.push(Node::Leaf(bytes[i] as f32 / 127.0));
+            i += 1;
+        } else {
+            let bits = u32::from_be_bytes([0, bytes[i], bytes[i + 1], bytes[i + 2]]);
+            out.push(Node::Split { angle: ((bits >> 12) & 0x7FF) as u16, offset: (bits & 0xFFF) as u16 });
+            i += 3;
+        }
+    }
+    out
+}
+
+/// Encodes a vertex record from its six optional face trees.
+pub fn encode_vertex(faces: &[Option<Vec<Node>>; 6]) -> Vec<u8> {
+    let mut trees: Vec<Vec<u8>> = Vec::with_capacity(6);
+    for f in faces {
+        let mut t = Vec::new();
+        if let Some(nodes) = f {
+            encode_tree(nodes, &mut t);
+        }
+        trees.push(t);
+    }
+    let mut out = Vec::with_capacity(12 + trees.iter().map(Vec::len).sum::<usize>());
+    for t in &trees {
+        out.extend_from_slice(&(t.len() as u16).to_le_bytes());
+    }
+    trees.iter().for_each(|t| out.extend_from_slice(t));
+    out
+}
+
+/// The six face trees of a vertex record, as byte slices (empty = no tree).
+pub fn vertex_faces(record: &[u8]) -> [&[u8]; 6] {
+    let mut faces = [&record[0..0]; 6];
+    let mut at = 12;
+    for (f, face) in faces.iter_mut().enumerate() {
+        let len = u16::from_le_bytes([record[2 * f], record[2 * f + 1]]) as usize;
+        *face = &record[at..at + len];
+        at += len;
+    }
+    faces
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn lines_round_trip_within_a_quantum() {
+        for (t, c) in [(0.0, 0.0), (1.0, -0.5), (6.2, 1.3), (3.3, -1.41)] {
+            let (a, o) = quantise_line(t, c);
+            let (t2, c2) = dequantise_line(a, o);
+            let dt = (t2 - t).rem_euclid(TAU);
+            assert!(dt.min(TAU - dt) <= TAU / ANGLE_STEPS / 2.0 + 1e-12);
+            assert!((c2 - c).abs() <= SQRT_2 / OFFSET_HALF / 2.0 + 1e-12);
+            assert_eq!(quantise_line(t2, c2), (a, o), "codes are fixed points");
+        }
+    }
+
+    #[test]
+    fn trees_and_records_round_trip() {
+        assert_eq!(dequantise_line(0, 2047), (0.0, 0.0), "offset 0 is exact");
+        let tree = vec![
+            Node::Split { angle: 2047, offset: 4094 },
+            Node::Leaf(1.0),
+            Node::Split { angle: 0, offset: 7 },
+            Node::Leaf(0.0),
+            Node::Leaf(63.0 / 127.0),
+        ];
+        let mut bytes = Vec::new();
+        encode_tree(&tree, &mut bytes);
+        assert_eq!(bytes.len(), 3 + 1 + 3 + 1 + 1);
+        assert_eq!(decode_tree(&bytes), tree);
+        let rec = encode_vertex(&[None, Some(tree.clone()), None, None, Some(vec![Node::Leaf(1.0)]), None]);
+        let faces = vertex_faces(&rec);
+        assert_eq!(decode_tree(faces[1]), tree);
+        assert_eq!(decode_tree(faces[4]), vec![Node::Leaf(1.0)]);
+        assert!(faces[0].is_empty() && faces[5].is_empty());
+    }
+}

@@ -1,0 +1,161 @@
+//! Per-vertex shading from polygonal lights: LTC (GGX specular with Fresnel, plus diffuse)
+//! over the light polygon clipped by cube-face frusta and BSP planes — all planes through the
+//! vertex, so every split is exact 3D polygon clipping — weighted by visibility.
+
+use super::layout::{dequantise_line, vertex_faces};
+use super::visibility::{CubeVisibility, VISIBLE};
+use crate::math::{cubemap, ltc, polygon};
+use crate::reference::Bsdf;
+use crate::scene::{FlatLight, Material};
+use glam::{DMat3, DVec3, Vec3};
+
+/// How visibility enters.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Visibility<'a> {
+    /// BSP visibility trees: a baked vertex record.
+    Tree(&'a [u8]),
+    /// The raw cube map, the light clipped exactly per visible texel.
+    Exact(&'a CubeVisibility),
+    /// No shadows.
+    Unshadowed,
+}
+
+/// Everything LTC shading needs at one vertex for one view.
+pub struct PointShader {
+    p: DVec3,
+    n: DVec3,
+    frame: DMat3,
+    spec_inv: DMat3,
+    diffuse: DVec3,
+    spec: DVec3,
+}
+
+impl PointShader {
+    /// Prepares shading at `p` (normal `n`) for material `m` seen from `eye`.
+    pub fn new(table: &ltc::Table, p: Vec3, n: Vec3, eye: Vec3, m: &Material) -> Self {
+        let (pd, nd) = (p.as_dvec3(), n.as_dvec3().normalize());
+        let v = (eye.as_dvec3() - pd).normalize_or(nd);
+        let frame = ltc::view_frame(nd, v);
+        // The diffuse lobe is reported whatever the view side; specular needs the view above.
+        let wo_local = (frame * v).as_vec3();
+        let bsdf = Bsdf::new(m, wo_local);
+        let lut = table.lookup(m.roughness as f64, v.dot(nd));
+        let spec = if v.dot(nd) > 0.0 && bsdf.has_specular() {
+            bsdf.f0().as_dvec3() * (lut.magnitude - lut.fresnel) + bsdf.f90().as_dvec3() * lut.fresnel
+        } else {
+            DVec3::ZERO
+        };
+        Self { p: pd, n: nd, frame, spec_inv: lut.inv * frame, diffuse: bsdf.diffuse_albedo().as_dvec3(), spec }
+    }
+
+    /// Outgoing radiance per unit light radiance from a polygon piece (points relative to p).
+    fn piece(&self, piece: &[DVec3]) -> DVec3 {
+        let local: Vec<DVec3> = piece.iter().map(|q| self.frame * *q).collect();
+        let mut out = self.diffuse * ltc::integrate(&local);
+        if self.spec != DVec3::ZERO {
+            let t: Vec<DVec3> = piece.iter().map(|q| self.spec_inv * *q).collect();
+            out += self.spec * ltc::integrate(&t);
+        }
+        out
+    }
+
+    /// Outgoing radiance from all `lights` with the given visibility.
+    pub fn shade(&self, lights: &[FlatLight], vis: Visibility) -> Vec3 {
+        let mut total = DVec3::ZERO;
+        for light in lights {
+            let rel: Vec<DVec3> = light.points.iter().map(|q| q.as_dvec3() - self.p).collect();
+            // One-sided lights, and lights entirely below the horizon, contribute nothing.
+            if light.normal.as_dvec3().dot(-rel[0]) <= 0.0 || rel.iter().all(|q| q.dot(self.n) <= 0.0) {
+                continue;
+            }
+            let radiance = light.radiance.as_dvec3();
+            let weighted = match vis {
+                Visibility::Unshadowed => self.piece(&rel),
+                Visibility::Tree(record) => self.through_trees(record, &rel),
+                Visibility::Exact(cube) => self.through_texels(cube, &rel),
+            };
+            total += radiance * weighted;
+        }
+        total.as_vec3()
+    }
+
+    fn through_trees(&self, record: &[u8], rel: &[DVec3]) -> DVec3 {
+        let mut acc = DVec3::ZERO;
+        for (f, bytes) in vertex_faces(record).into_iter().enumerate() {
+            if bytes.is_empty() {
+                continue;
+            }
+            let piece = clip_all(rel, &cubemap::face_frustum(f));
+            if !piece.is_empty() {
+                self.walk(bytes, 0, f, piece, &mut acc);
+            }
+        }
+        acc
+    }
+
+    /// Descends the pre-order tree from byte `i`, splitting `piece`; returns the next index.
+    fn walk(&self, bytes: &[u8], i: usize, face: usize, piece: Vec<DVec3>, acc: &mut DVec3) -> usize {
+        if bytes[i] & 0x80 == 0 {
+            let v = bytes[i] as f64 / 127.0;
+            if v > 0.0 && !piece.is_empty() {
+                *acc += v * self.piece(&piece);
+            }
+            return i + 1;
+        }
+        let bits = u32::from_be_bytes([0, bytes[i], bytes[i + 1], bytes[i + 2]]);
+        let (theta, c) = dequantise_line(((bits >> 12) & 0x7FF) as u16, (bits & 0xFFF) as u16);
+        let plane = cubemap::line_plane(face, theta.cos(), theta.sin(), -c);
+        let (pos, neg) = if piece.is_empty() {
+            (Vec::new(), Vec::new())
+        } else {
+            (polygon::clip(&piece, plane), polygon::clip(&piece, -plane))
+        };
+        let next = self.walk(bytes, i + 3, face, pos, acc);
+        self.walk(bytes, next, face, neg, acc)
+    }
+
+    fn through_texels(&self, cube: &CubeVisibility, rel: &[DVec3]) -> DVec3 {
+        let n = cube.res;
+        let edge = |k: usize| 2.0 * k as f64 / n as f64 - 1.0;
+        let mut acc = DVec3::ZERO;
+        for f in 0..cubemap::FACES {
+            let piece = clip_all(rel, &cubemap::face_frustum(f));
+            if piece.is_empty() {
+                continue;
+            }
+            // Only texels under the piece's (s, t) bounding box.
+            let (c, s_ax, t_ax) = cubemap::face_basis(f);
+            let (mut lo, mut hi) = (glam::DVec2::splat(1.0), glam::DVec2::splat(-1.0));
+            for q in &piece {
+                let st = glam::DVec2::new(q.dot(s_ax), q.dot(t_ax)) / q.dot(c);
+                lo = lo.min(st);
+                hi = hi.max(st);
+            }
+            let (i0, j0) = cubemap::texel_of(lo, n);
+            let (i1, j1) = cubemap::texel_of(hi, n);
+            let face = cube.face(f);
+            for j in j0..=j1 {
+                for i in i0..=i1 {
+                    if face[j * n + i] != VISIBLE {
+                        continue;
+                    }
+                    let planes = [
+                        cubemap::line_plane(f, 1.0, 0.0, -edge(i)),
+                        cubemap::line_plane(f, -1.0, 0.0, edge(i + 1)),
+                        cubemap::line_plane(f, 0.0, 1.0, -edge(j)),
+                        cubemap::line_plane(f, 0.0, -1.0, edge(j + 1)),
+                    ];
+                    let texel_piece = clip_all(&piece, &planes);
+                    if !texel_piece.is_empty() {
+                        acc += self.piece(&texel_piece);
+                    }
+                }
+            }
+        }
+        acc
+    }
+}
+
+fn clip_all(poly: &[DVec3], planes: &[DVec3]) -> Vec<DVec3> {
+    planes.iter().fold(poly.to_vec(), |p, n| if p.is_empty() { p } else { polygon::clip(&p, *n) })
+}

@@ -1,0 +1,199 @@
+//! BSPVT against its own comparison modes and the reference, and its hard cases.
+
+use glam::{Affine3A, Vec3};
+use kage_engine::bspvt::shade::{PointShader, Visibility};
+use kage_engine::bspvt::{self, Settings, bake_vertex, occluder_bvh, visibility};
+use kage_engine::math::ltc;
+use kage_engine::reference::{Renderer, Settings as RefSettings, SurfacePoint};
+use kage_engine::scene::import::{ImportOptions, import};
+use kage_engine::scene::{Material, Scene, flatten, shapes};
+use kage_tests::asset;
+
+fn quad(h: f32) -> Vec<Vec3> {
+    // CCW seen from below: emits towards −Y.
+    vec![Vec3::new(-h, 0.0, -h), Vec3::new(h, 0.0, -h), Vec3::new(h, 0.0, h), Vec3::new(-h, 0.0, h)]
+}
+
+fn rel_rmse(x: &[Vec3], r: &[Vec3]) -> f64 {
+    let num: f64 = x.iter().zip(r).map(|(a, b)| (*a - *b).as_dvec3().length_squared()).sum();
+    let den: f64 = r.iter().map(|b| b.as_dvec3().length_squared()).sum();
+    (num / den).sqrt()
+}
+
+/// Shades vertex `v` of instance `i` with all three visibility modes.
+fn three_ways(scene: &Scene, r: &Renderer, s: &Settings, i: usize, v: usize, eye: Vec3) -> [Vec3; 3] {
+    let table = ltc::table();
+    let occ = occluder_bvh(&r.flat);
+    let (p, n) = r.vertex(i, v);
+    let shader = PointShader::new(&table, p, n, eye, &r.flat.instances[i].material);
+    let (rec, _, _) = bake_vertex(&occ, p, n, s);
+    let cube = visibility::cast(&occ, p, n, s.res);
+    let _ = scene;
+    [
+        shader.shade(&r.flat.lights, Visibility::Tree(&rec)),
+        shader.shade(&r.flat.lights, Visibility::Exact(&cube)),
+        shader.shade(&r.flat.lights, Visibility::Unshadowed),
+    ]
+}
+
+#[test]
+fn unoccluded_vertices_equal_ltc_unshadowed() {
+    let mut scene = Scene::new("test:open");
+    scene.add_object("ground", shapes::grid(6.0, 6), Material::lambertian(Vec3::splat(0.7)), Affine3A::IDENTITY);
+    // A large light whose polygon crosses cube-face edges and corners as seen from the ground.
+    let pose = Affine3A::from_rotation_translation(glam::Quat::from_rotation_z(0.6), Vec3::new(0.5, 1.0, 0.3));
+    scene.add_light("light", quad(1.5), Vec3::splat(5.0), pose);
+    let r = Renderer::new(&scene);
+    let s = Settings { res: 16, epsilon: 0.5 };
+    for v in 0..r.mesh(0).positions.len() {
+        let [tree, exact, open] = three_ways(&scene, &r, &s, 0, v, Vec3::new(0.0, 4.0, 6.0));
+        assert!((tree - open).length() <= 1e-6 * open.length().max(1e-9), "vertex {v}: {tree} vs {open}");
+        assert!((exact - open).length() <= 1e-6 * open.length().max(1e-9), "vertex {v}: {exact} vs {open}");
+    }
+}
+
+#[test]
+fn cube_on_plane_umbra_is_black_and_matches_the_reference() {
+    let scene = import(&asset("scenes/cube_on_plane.gltf"), ImportOptions::default()).unwrap();
+    let r = Renderer::new(&scene);
+    // The default configuration: 64² faces, default ε.
+    let s = Settings::default();
+    let eye = scene.first_camera().unwrap().eye();
+    let bake = bspvt::bake(&scene, &r.flat, &s, &|_| {});
+    let values = bspvt::shade_vertices(&scene, &r.flat, bspvt::Method::Bspvt, Some(&bake), &s, eye);
+    let exact = bspvt::shade_vertices(&scene, &r.flat, bspvt::Method::ExactVis, None, &s, eye);
+    let ground = r.flat.instances.iter().position(|i| i.material.base_color == Vec3::splat(0.8)).unwrap();
+    let mut umbra = 0;
+    for (v, value) in values[ground].iter().enumerate() {
+        let (p, _) = r.vertex(ground, v);
+        if p.x.abs() < 0.3 && p.z.abs() < 0.3 {
+            umbra += 1;
+            assert_eq!(*value, Vec3::ZERO, "umbra vertex {v}");
+        }
+    }
+    assert_eq!(umbra, 9);
+    let (flat_b, flat_e): (Vec<Vec3>, Vec<Vec3>) = (values.concat(), exact.concat());
+    let tree_error = rel_rmse(&flat_b, &flat_e);
+    eprintln!(
+        "cube_on_plane, 64² faces, ε 2: tree error {tree_error:.4}, {:.1} leaves/vertex",
+        bake.stats.leaves as f64 / bake.stats.vertices as f64
+    );
+    assert!(tree_error < 0.01, "tree error {tree_error}");
+    let reference = r.render_vertices(eye, &RefSettings { spp: 512, seed: 5, max_bounces: 0 }, &|_| {});
+    let reference: Vec<Vec3> = reference.concat().iter().map(|e| e.mean).collect();
+    let error = rel_rmse(&flat_b, &reference);
+    eprintln!("bspvt vs reference (512 spp): {error:.4}");
+    assert!(error < 0.03, "{error}");
+}
+
+/// Tree error against exact visibility and error against the reference (polygonal light only)
+/// over every `step`-th vertex.
+fn sampled_errors(scene: &Scene, res: usize, step: usize, spp: u32) -> (f64, f64, usize) {
+    let r = Renderer::new(scene);
+    let s = Settings { res, epsilon: Settings::default().epsilon };
+    let eye = scene.first_camera().unwrap().eye();
+    let (mut tree, mut exact, mut reference) = (Vec::new(), Vec::new(), Vec::new());
+    for i in 0..r.flat.instances.len() {
+        for v in (0..r.mesh(i).positions.len()).step_by(step) {
+            let [t, e, _] = three_ways(scene, &r, &s, i, v, eye);
+            let (p, n) = r.vertex(i, v);
+            let frame = kage_engine::math::frame::Frame::from_normal(n);
+            let sp = SurfacePoint { p, ng: n, frame, material: r.flat.instances[i].material };
+            let settings = RefSettings { spp, seed: 9, max_bounces: 0 };
+            reference.push(r.estimate_point(&sp, (eye - p).normalize(), &settings, (i * 100_000 + v) as u64).mean);
+            tree.push(t);
+            exact.push(e);
+        }
+    }
+    (rel_rmse(&tree, &exact), rel_rmse(&tree, &reference), tree.len())
+}
+
+#[test]
+fn teapot_glossy_matches_the_reference_within_ltc_error() {
+    let scene = import(&asset("scenes/teapot_quad_light.gltf"), ImportOptions::default()).unwrap();
+    let (tree_error, error, n) = sampled_errors(&scene, 24, 17, 256);
+    eprintln!("teapot ({n} vertices, 24² faces): tree error {tree_error:.4}, vs reference {error:.4}");
+    assert!(tree_error < 0.01, "{tree_error}");
+    assert!(error < 0.12, "LTC on GGX roughness 0.4 plus reference noise: {error}");
+}
+
+#[test]
+fn default_scene_matches_the_reference() {
+    let mut scene = kage_engine::scene::default_scene();
+    scene.clear_environment();
+    let (tree_error, error, n) = sampled_errors(&scene, 32, 23, 256);
+    eprintln!("default scene ({n} vertices, 32² faces): tree error {tree_error:.4}, vs reference {error:.4}");
+    assert!(tree_error < 0.02, "{tree_error}");
+    assert!(error < 0.08, "{error}");
+}
+
+#[test]
+fn lights_behind_the_receiver_give_nothing() {
+    for (pose, what) in [
+        (Affine3A::from_translation(Vec3::new(0.0, -2.0, 0.0)), "below the ground, facing down"),
+        (
+            Affine3A::from_rotation_translation(
+                glam::Quat::from_rotation_x(std::f32::consts::PI),
+                Vec3::new(0.0, -2.0, 0.0),
+            ),
+            "below, facing up",
+        ),
+        (
+            Affine3A::from_rotation_translation(
+                glam::Quat::from_rotation_x(std::f32::consts::PI),
+                Vec3::new(0.0, 2.0, 0.0),
+            ),
+            "above, facing away",
+        ),
+    ] {
+        let mut scene = Scene::new("test:behind");
+        scene.add_object("ground", shapes::grid(4.0, 4), Material::lambertian(Vec3::splat(0.7)), Affine3A::IDENTITY);
+        scene.add_light("light", quad(0.5), Vec3::splat(5.0), pose);
+        let r = Renderer::new(&scene);
+        let s = Settings { res: 8, epsilon: 0.5 };
+        for v in 0..r.mesh(0).positions.len() {
+            for value in three_ways(&scene, &r, &s, 0, v, Vec3::new(0.0, 3.0, 3.0)) {
+                assert_eq!(value, Vec3::ZERO, "{what}: vertex {v}");
+            }
+        }
+    }
+}
+
+#[test]
+fn hard_cases_stay_finite() {
+    let mut scene = Scene::new("test:hard");
+    scene.add_object(
+        "ground",
+        shapes::grid(4.0, 4),
+        Material { base_color: Vec3::ONE, metallic: 1.0, roughness: 1e-3, specular: 1.0 },
+        Affine3A::IDENTITY,
+    );
+    scene.add_object(
+        "block",
+        shapes::cuboid(Vec3::splat(0.3)),
+        Material { base_color: Vec3::ONE, metallic: 0.0, roughness: 1.0, specular: 1.0 },
+        Affine3A::from_translation(Vec3::new(0.5, 0.3, 0.0)),
+    );
+    // A light touching the ground at a vertex, a sub-texel light, and a light larger than the hemisphere.
+    scene.add_light(
+        "touching",
+        vec![Vec3::new(0.0, 0.0, 0.0), Vec3::new(0.0, 1.0, 0.0), Vec3::new(0.0, 1.0, 1.0), Vec3::new(0.0, 0.0, 1.0)],
+        Vec3::splat(3.0),
+        Affine3A::from_translation(Vec3::new(-1.0, 0.0, -0.5)),
+    );
+    scene.add_light("tiny", quad(1e-3), Vec3::splat(1e4), Affine3A::from_translation(Vec3::new(0.0, 3.0, 0.0)));
+    scene.add_light("huge", quad(1e4), Vec3::splat(0.1), Affine3A::from_translation(Vec3::new(0.0, 50.0, 0.0)));
+    let r = Renderer::new(&scene);
+    let s = Settings { res: 16, epsilon: 0.0 };
+    for i in 0..r.flat.instances.len() {
+        for v in 0..r.mesh(i).positions.len() {
+            // A grazing view from just above the ground.
+            for eye in [Vec3::new(0.0, 2.0, 3.0), Vec3::new(50.0, 1e-3, 0.0)] {
+                for value in three_ways(&scene, &r, &s, i, v, eye) {
+                    assert!(value.is_finite() && value.min_element() >= 0.0, "instance {i} vertex {v}: {value}");
+                }
+            }
+        }
+    }
+    let _ = flatten(&scene);
+}
