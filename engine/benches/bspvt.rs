@@ -36,19 +36,15 @@ fn bench(c: &mut Criterion) {
                 .sum::<usize>()
         })
     });
-    let records: Vec<Vec<u8>> = verts
+    let baked: Vec<(Vec<u8>, usize, usize)> = verts
         .par_iter()
         .map(|&(i, v)| {
             let (p, n) = flat.vertex(&scene.meshes, i, v);
-            bake_vertex(&occ, p, n, &s).0
+            bake_vertex(&occ, p, n, &s)
         })
         .collect();
-    let leaves: usize = records
-        .iter()
-        .flat_map(|r| vertex_faces(r).map(decode_tree))
-        .flatten()
-        .filter(|n| matches!(n, Node::Leaf(_)))
-        .count();
+    let leaves: usize = baked.iter().map(|b| b.1).sum();
+    let records: Vec<Vec<u8>> = baked.into_iter().map(|b| b.0).collect();
     eprintln!(
         "{} vertices, {:.1} leaves and {:.0} bytes per vertex",
         records.len(),

@@ -45,6 +45,12 @@ pub fn encode_tree(nodes: &[Node], out: &mut Vec<u8>) {
     }
 }
 
+/// The (angle, offset) codes of the split starting at byte `i` (its top bit must be set).
+pub fn split_codes(bytes: &[u8], i: usize) -> (u16, u16) {
+    let bits = u32::from_be_bytes([0, bytes[i], bytes[i + 1], bytes[i + 2]]);
+    (((bits >> 12) & 0x7FF) as u16, (bits & 0xFFF) as u16)
+}
+
 /// Decodes one tree.
 pub fn decode_tree(bytes: &[u8]) -> Vec<Node> {
     let mut out = Vec::new();
@@ -54,8 +60,8 @@ pub fn decode_tree(bytes: &[u8]) -> Vec<Node> {
             out.push(Node::Leaf(bytes[i] as f32 / 127.0));
             i += 1;
         } else {
-            let bits = u32::from_be_bytes([0, bytes[i], bytes[i + 1], bytes[i + 2]]);
-            out.push(Node::Split { angle: ((bits >> 12) & 0x7FF) as u16, offset: (bits & 0xFFF) as u16 });
+            let (angle, offset) = split_codes(bytes, i);
+            out.push(Node::Split { angle, offset });
             i += 3;
         }
     }

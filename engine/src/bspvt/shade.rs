@@ -2,7 +2,7 @@
 //! over the light polygon clipped by cube-face frusta and BSP planes — all planes through the
 //! vertex, so every split is exact 3D polygon clipping — weighted by visibility.
 
-use super::layout::{dequantise_line, vertex_faces};
+use super::layout::{dequantise_line, split_codes, vertex_faces};
 use super::visibility::{CubeVisibility, VISIBLE};
 use crate::math::{cubemap, ltc, polygon};
 use crate::reference::Bsdf;
@@ -102,8 +102,8 @@ impl PointShader {
             }
             return i + 1;
         }
-        let bits = u32::from_be_bytes([0, bytes[i], bytes[i + 1], bytes[i + 2]]);
-        let (theta, c) = dequantise_line(((bits >> 12) & 0x7FF) as u16, (bits & 0xFFF) as u16);
+        let (angle, offset) = split_codes(bytes, i);
+        let (theta, c) = dequantise_line(angle, offset);
         let plane = cubemap::line_plane(face, theta.cos(), theta.sin(), -c);
         let (pos, neg) = if piece.is_empty() {
             (Vec::new(), Vec::new())
