@@ -3,9 +3,7 @@
 //! is used so that setup stays short.
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
-use kage_engine::bspvt::layout::{decode_tree, vertex_faces};
 use kage_engine::bspvt::shade::{PointShader, Visibility};
-use kage_engine::bspvt::tree::Node;
 use kage_engine::bspvt::{Settings, bake_vertex, occluder_bvh};
 use kage_engine::math::ltc;
 use kage_engine::scene::{default_scene, flatten};

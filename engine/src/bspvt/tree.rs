@@ -133,18 +133,33 @@ struct Split {
     neg: Vec<u32>,
 }
 
-/// Signed distance of a pixel to a line.
-fn side(p: &Pixel, theta: f64, c: f64) -> f64 {
-    theta.cos() * p.s + theta.sin() * p.t - c
+/// A line `cos θ · s + sin θ · t = c` with its sine and cosine evaluated once.
+#[derive(Clone, Copy)]
+struct Line {
+    cos: f64,
+    sin: f64,
+    c: f64,
+}
+
+impl Line {
+    fn new(theta: f64, c: f64) -> Self {
+        Self { cos: theta.cos(), sin: theta.sin(), c }
+    }
+
+    /// Signed distance of a pixel centre.
+    fn side(&self, p: &Pixel) -> f64 {
+        self.cos * p.s + self.sin * p.t - self.c
+    }
 }
 
 /// E(P, l) with the exact Heaviside.
 fn seed_error(c: &Cluster, all: &[Pixel], theta: f64, off: f64) -> f64 {
+    let line = Line::new(theta, off);
     c.pixels
         .iter()
         .map(|&i| {
             let p = &all[i as usize];
-            let h = if side(p, theta, off) > 0.0 { 1.0 } else { 0.0 };
+            let h = if line.side(p) > 0.0 { 1.0 } else { 0.0 };
             p.w * (h - p.v).powi(2)
         })
         .sum()
@@ -161,12 +176,13 @@ fn seed_error(c: &Cluster, all: &[Pixel], theta: f64, off: f64) -> f64 {
 fn split(c: &Cluster, all: &[Pixel], res: usize) -> Option<Split> {
     let tau = 0.5 * 2.0 / res as f64;
     let soft = |x: &[f64]| -> f64 {
+        let line = Line::new(x[0], x[1]);
         c.pixels
             .iter()
             .map(|&i| {
                 let p = &all[i as usize];
                 // A linear ramp one texel wide: cheap, and smooth enough for the simplex.
-                let h = (0.5 + side(p, x[0], x[1]) / (2.0 * tau)).clamp(0.0, 1.0);
+                let h = (0.5 + line.side(p) / (2.0 * tau)).clamp(0.0, 1.0);
                 p.w * (h - p.v).powi(2)
             })
             .sum()
@@ -184,7 +200,8 @@ fn split(c: &Cluster, all: &[Pixel], res: usize) -> Option<Split> {
         let o = max_margin_offset(c, all, t, o);
         let (qa, qo) = quantise_line(t, o);
         let (t, o) = dequantise_line(qa, qo);
-        let (pos, neg): (Vec<u32>, Vec<u32>) = c.pixels.iter().partition(|&&i| side(&all[i as usize], t, o) > 0.0);
+        let line = Line::new(t, o);
+        let (pos, neg): (Vec<u32>, Vec<u32>) = c.pixels.iter().partition(|&&i| line.side(&all[i as usize]) > 0.0);
         if pos.is_empty() || neg.is_empty() {
             continue;
         }
@@ -201,8 +218,9 @@ fn split(c: &Cluster, all: &[Pixel], res: usize) -> Option<Split> {
 /// has it) rather than anywhere in the gap.
 fn max_margin_offset(c: &Cluster, all: &[Pixel], theta: f64, off: f64) -> f64 {
     let (mut below, mut above) = (f64::NEG_INFINITY, f64::INFINITY);
+    let line = Line::new(theta, off);
     for &i in &c.pixels {
-        let d = side(&all[i as usize], theta, off);
+        let d = line.side(&all[i as usize]);
         if d > 0.0 {
             above = above.min(d);
         } else {
@@ -245,7 +263,8 @@ pub fn leaf_index(nodes: &[Node], s: f64, t: f64) -> usize {
             Node::Leaf(_) => return i,
             Node::Split { angle, offset } => {
                 let (th, c) = dequantise_line(angle, offset);
-                i = if th.cos() * s + th.sin() * t - c > 0.0 { i + 1 } else { skip(nodes, i + 1) };
+                let line = Line::new(th, c);
+                i = if line.side(&Pixel { s, t, w: 0.0, v: 0.0 }) > 0.0 { i + 1 } else { skip(nodes, i + 1) };
             }
         }
     }
