@@ -27,6 +27,8 @@ enum Command {
     Info(commands::info::Args),
     /// Render an image and/or per-vertex radiance.
     Render(commands::render::Args),
+    /// Speed against error of the polygonal-light methods, as Markdown, CSV and a PNG plot.
+    Report(commands::report::Args),
     /// Fit the GGX LTC table and write it as Rust source (developer tool).
     FitLtc(commands::fit_ltc::Args),
 }
@@ -49,6 +51,7 @@ fn main() -> ExitCode {
         Command::Info(a) => commands::info::run(&a),
         Command::Render(a) => commands::render::run(&a),
         Command::FitLtc(a) => commands::fit_ltc::run(&a),
+        Command::Report(a) => commands::report::run(&a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -174,3 +174,33 @@ fn polygon_light_methods_render_images_and_vertices() {
     assert!(!o.status.success() && stderr(&o).contains("--face-res"));
     std::fs::remove_dir_all(d).unwrap();
 }
+
+#[test]
+fn report_writes_markdown_csv_and_plot() {
+    let d = scratch("report");
+    let out = d.join("rep");
+    let o = kage(&[
+        "report",
+        &shared("scenes/cube_on_plane.gltf"),
+        "--out",
+        out.to_str().unwrap(),
+        "--reference-spp",
+        "64",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let md = std::fs::read_to_string(out.join("report.md")).unwrap();
+    for method in [
+        "| bspvt | 64² faces, ε 2 |",
+        "| ltc-exact-vis |",
+        "| ltc-unshadowed |",
+        "| monte-carlo | 16 spp |",
+        "| ratio-estimator | 4 rays per light |",
+    ] {
+        assert!(md.contains(method), "{method} missing:\n{md}");
+    }
+    let csv = std::fs::read_to_string(out.join("report.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 1 + 13);
+    let png = image::open(out.join("report.png")).unwrap();
+    assert_eq!((png.width(), png.height()), (640, 400));
+    std::fs::remove_dir_all(d).unwrap();
+}

@@ -24,6 +24,7 @@ pub mod error;
 pub mod math;
 pub mod output;
 pub mod raster;
+pub mod ratio;
 pub mod reference;
 pub mod scene;
 

@@ -3,3 +3,4 @@
 pub mod fit_ltc;
 pub mod info;
 pub mod render;
+pub mod report;
