@@ -197,3 +197,22 @@ fn hard_cases_stay_finite() {
     }
     let _ = flatten(&scene);
 }
+
+#[test]
+fn the_error_budget_picks_the_cheapest_resolution_within_it() {
+    let scene = import(&asset("scenes/cube_on_plane.gltf"), ImportOptions::default()).unwrap();
+    let flat = flatten(&scene);
+    let eye = scene.first_camera().unwrap().eye();
+    let (loose, why_loose) = bspvt::plan::choose(&scene, &flat, 0.2, eye);
+    let (tight, why_tight) = bspvt::plan::choose(&scene, &flat, 0.01, eye);
+    eprintln!("{why_loose}\n{why_tight}");
+    assert!(loose.res < tight.res, "{why_loose} / {why_tight}");
+    assert!(why_tight.contains("pilot on") && why_tight.contains("64²"));
+    // Nothing to reach: no trees at all.
+    let mut dark = Scene::new("test:dark");
+    dark.add_object("ground", shapes::grid(2.0, 2), Material::lambertian(Vec3::ONE), Affine3A::IDENTITY);
+    let flat = flatten(&dark);
+    assert!(bspvt::plan::choose(&dark, &flat, 0.01, Vec3::Y).1.contains("nothing to bake"));
+    let bake = bspvt::bake(&dark, &flat, &Settings::default(), &|_| {});
+    assert_eq!((bake.stats.leaves, bake.stats.bytes), (0, 9 * 12), "six empty face lengths per vertex");
+}

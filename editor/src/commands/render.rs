@@ -69,6 +69,10 @@ pub struct Args {
     /// BSPVT split threshold ε (cluster error in texels).
     #[arg(long, default_value_t = 2.0)]
     epsilon: f64,
+    /// Choose face resolution (and report why) from a relative error budget, e.g. 0.01,
+    /// measured by a pilot bake against exact visibility; overrides --face-res.
+    #[arg(long)]
+    error_budget: Option<f64>,
     /// Drop the environment light (the per-vertex polygonal-light methods never include it;
     /// use this to compare the reference with them).
     #[arg(long)]
@@ -98,6 +102,9 @@ pub fn run(args: &Args) -> Result<()> {
     }
     if !(4..=1024).contains(&args.face_res) || args.epsilon.is_nan() || args.epsilon < 0.0 {
         bail!("--face-res must be in 4..=1024 and --epsilon ≥ 0");
+    }
+    if args.error_budget.is_some_and(|b| !(b > 0.0 && b < 1.0)) {
+        bail!("--error-budget is a relative error in (0, 1), e.g. 0.01");
     }
     let mut scene = args.scene.load()?;
     if args.no_env {
@@ -157,7 +164,12 @@ fn per_vertex(
     camera: &Camera,
     want_image: bool,
 ) -> Outputs {
-    let settings = bspvt::Settings { res: args.face_res, epsilon: args.epsilon };
+    let mut settings = bspvt::Settings { res: args.face_res, epsilon: args.epsilon };
+    if let (Method::Bspvt, Some(budget)) = (method, args.error_budget) {
+        let (chosen, why) = bspvt::plan::choose(scene, &renderer.flat, budget, camera.eye());
+        crate::emit(&format!("plan: {why}\n"));
+        settings = bspvt::Settings { epsilon: args.epsilon, ..chosen };
+    }
     let bake = (method == Method::Bspvt).then(|| {
         let pb = bar(renderer.vertex_count() as u64, "baking");
         let b = bspvt::bake(scene, &renderer.flat, &settings, &|n| pb.set_position(n as u64));

@@ -13,6 +13,7 @@
 //! at run time), the face resolution and ε; it is parallel over vertices and deterministic.
 
 pub mod layout;
+pub mod plan;
 pub mod shade;
 pub mod tree;
 pub mod visibility;
@@ -87,16 +88,20 @@ pub fn occluder_bvh(flat: &FlatScene) -> SceneBvh {
     SceneBvh::new(&tris)
 }
 
-/// Bakes one vertex: its record and (leaves, nodes).
+/// Bakes one vertex: its record and (leaves, nodes). Faces entirely below the horizon or
+/// entirely occluded store no tree: both contribute nothing.
 pub fn bake_vertex(occluders: &SceneBvh, p: glam::Vec3, n: glam::Vec3, s: &Settings) -> (Vec<u8>, usize, usize) {
     let vis = visibility::cast(occluders, p, n, s.res);
-    let faces: [Option<Vec<tree::Node>>; 6] = std::array::from_fn(|f| tree::build(vis.face(f), s.res, s.epsilon));
+    let faces: [Option<Vec<tree::Node>>; 6] = std::array::from_fn(|f| {
+        tree::build(vis.face(f), s.res, s.epsilon).filter(|t| t.as_slice() != [tree::Node::Leaf(0.0)])
+    });
     let nodes: usize = faces.iter().flatten().map(Vec::len).sum();
     let leaves = faces.iter().flatten().flatten().filter(|n| matches!(n, tree::Node::Leaf(_))).count();
     (layout::encode_vertex(&faces), leaves, nodes)
 }
 
 /// Bakes every receiver vertex, in parallel; `progress` gets the number of vertices done.
+/// With no polygonal light in the scene nothing can be reached: every record is empty.
 pub fn bake(scene: &Scene, flat: &FlatScene, s: &Settings, progress: &(dyn Fn(usize) + Sync)) -> Bake {
     let start = Instant::now();
     let occluders = occluder_bvh(flat);
@@ -109,7 +114,11 @@ pub fn bake(scene: &Scene, flat: &FlatScene, s: &Settings, progress: &(dyn Fn(us
                 .into_par_iter()
                 .map(|v| {
                     let (p, normal) = flat.vertex(&scene.meshes, i, v);
-                    let r = bake_vertex(&occluders, p, normal, s);
+                    let r = if flat.lights.is_empty() {
+                        (layout::encode_vertex(&Default::default()), 0, 0)
+                    } else {
+                        bake_vertex(&occluders, p, normal, s)
+                    };
                     progress(done.fetch_add(1, Ordering::Relaxed) + 1);
                     r
                 })

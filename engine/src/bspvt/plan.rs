@@ -1,0 +1,76 @@
+//! Choosing bake parameters from an error budget ("model only what the scene needs"): a pilot
+//! bakes an even sample of receiver vertices at increasing face resolutions and measures each
+//! against exact visibility at twice the finest resolution; the cheapest configuration within
+//! the budget wins, and the plan says why.
+
+use super::shade::{PointShader, Visibility};
+use super::{Settings, bake_vertex, occluder_bvh, visibility};
+use crate::math::ltc;
+use crate::scene::{FlatScene, Scene};
+use glam::Vec3;
+use rayon::prelude::*;
+
+/// Candidate face resolutions, cheapest first.
+const RESOLUTIONS: [usize; 3] = [16, 32, 64];
+
+/// Vertices in the pilot.
+const PILOT: usize = 192;
+
+/// The chosen settings and a one-line reason with the measured pilot errors.
+pub fn choose(scene: &Scene, flat: &FlatScene, budget: f64, eye: Vec3) -> (Settings, String) {
+    let all: Vec<(usize, usize)> = (0..flat.instances.len())
+        .flat_map(|i| (0..scene.meshes[flat.instances[i].mesh as usize].positions.len()).map(move |v| (i, v)))
+        .collect();
+    if all.is_empty() || flat.lights.is_empty() {
+        return (Settings::default(), "no polygonal light or no receiver: nothing to bake".into());
+    }
+    let step = (all.len() / PILOT).max(1);
+    let sample: Vec<(usize, usize)> = all.into_iter().step_by(step).collect();
+    let occ = occluder_bvh(flat);
+    let table = ltc::table();
+    let truth_res = 2 * RESOLUTIONS[RESOLUTIONS.len() - 1];
+    let shade = |res: usize, exact: bool| -> Vec<Vec3> {
+        sample
+            .par_iter()
+            .map(|&(i, v)| {
+                let (p, n) = flat.vertex(&scene.meshes, i, v);
+                let shader = PointShader::new(&table, p, n, eye, &flat.instances[i].material);
+                if exact {
+                    shader.shade(&flat.lights, Visibility::Exact(&visibility::cast(&occ, p, n, res)))
+                } else {
+                    let (rec, _, _) = bake_vertex(&occ, p, n, &Settings { res, ..Settings::default() });
+                    shader.shade(&flat.lights, Visibility::Tree(&rec))
+                }
+            })
+            .collect()
+    };
+    let truth = shade(truth_res, true);
+    let mut measured = Vec::new();
+    for res in RESOLUTIONS {
+        let err = relative_rmse(&shade(res, false), &truth);
+        measured.push(format!("{res}²: {:.2} %", 100.0 * err));
+        if err <= budget {
+            let why = format!(
+                "error budget {:.2} %: {res}² faces, ε {} (pilot on {} vertices against exact visibility at {truth_res}²: {})",
+                100.0 * budget,
+                Settings::default().epsilon,
+                sample.len(),
+                measured.join(", ")
+            );
+            return (Settings { res, ..Settings::default() }, why);
+        }
+    }
+    let res = RESOLUTIONS[RESOLUTIONS.len() - 1];
+    let why = format!(
+        "error budget {:.2} % not reached: using the finest, {res}² faces ({})",
+        100.0 * budget,
+        measured.join(", ")
+    );
+    (Settings { res, ..Settings::default() }, why)
+}
+
+fn relative_rmse(x: &[Vec3], r: &[Vec3]) -> f64 {
+    let num: f64 = x.iter().zip(r).map(|(a, b)| (*a - *b).as_dvec3().length_squared()).sum();
+    let den: f64 = r.iter().map(|b| b.as_dvec3().length_squared()).sum();
+    if den > 0.0 { (num / den).sqrt() } else { 0.0 }
+}
