@@ -216,3 +216,51 @@ fn the_error_budget_picks_the_cheapest_resolution_within_it() {
     let bake = bspvt::bake(&dark, &flat, &Settings::default(), &|_| {});
     assert_eq!((bake.stats.leaves, bake.stats.bytes), (0, 9 * 12), "six empty face lengths per vertex");
 }
+
+#[test]
+fn textured_lights_use_their_prefiltered_texture() {
+    use kage_engine::scene::texture::Wrap;
+    use kage_engine::scene::{PolygonLight, Texture};
+    use std::sync::Arc;
+    let make = |texels: Vec<Vec3>| {
+        let mut scene = Scene::new("test:textured");
+        scene.add_object("ground", shapes::grid(4.0, 4), Material::lambertian(Vec3::splat(0.7)), Affine3A::IDENTITY);
+        scene.textures.push(Arc::new(Texture::new(2, 2, texels, [Wrap::Clamp, Wrap::Clamp])));
+        let group =
+            scene.add_light("light", quad(0.5), Vec3::splat(4.0), Affine3A::from_translation(Vec3::new(0.0, 1.5, 0.0)));
+        for light in scene
+            .world
+            .query_mut::<(&mut PolygonLight, &kage_engine::scene::InGroup)>()
+            .into_iter()
+            .filter(|(_, g)| g.group == group)
+        {
+            light.0.texture = Some(0);
+            light.0.uvs = vec![glam::Vec2::ZERO, glam::Vec2::X, glam::Vec2::ONE, glam::Vec2::Y];
+        }
+        scene
+    };
+    let shade = |scene: &Scene| {
+        let r = Renderer::new(scene);
+        (0..r.mesh(0).positions.len())
+            .map(|v| three_ways(scene, &r, &Settings { res: 16, epsilon: 2.0 }, 0, v, Vec3::new(0.0, 3.0, 3.0)))
+            .collect::<Vec<_>>()
+    };
+    let white = shade(&make(vec![Vec3::ONE; 4]));
+    let mut plain = make(vec![Vec3::ONE; 4]);
+    for light in plain.world.query_mut::<&mut PolygonLight>() {
+        light.texture = None;
+    }
+    let untextured = shade(&plain);
+    for (w, u) in white.iter().zip(&untextured) {
+        for k in 0..3 {
+            assert!((w[k] - u[k]).length() <= 1e-5 * u[k].length().max(1e-9), "a white texture changes nothing");
+        }
+    }
+    // A red/blue texture tints the result, and the tint depends on where the vertex is.
+    let tinted = shade(&make(vec![Vec3::X, Vec3::Z, Vec3::X, Vec3::Z]));
+    let ratios: Vec<f32> = tinted.iter().map(|t| t[2].x / t[2].z.max(1e-9)).filter(|r| r.is_finite()).collect();
+    assert!(
+        ratios.iter().all(|r| *r > 0.0)
+            && ratios.iter().copied().fold(f32::MIN, f32::max) > 1.2 * ratios.iter().copied().fold(f32::MAX, f32::min)
+    );
+}

@@ -49,12 +49,18 @@ impl PointShader {
     }
 
     /// Outgoing radiance per unit light radiance from a polygon piece (points relative to p).
-    fn piece(&self, piece: &[DVec3]) -> DVec3 {
-        let local: Vec<DVec3> = piece.iter().map(|q| self.frame * *q).collect();
-        let mut out = self.diffuse * ltc::integrate(&local);
+    fn piece(&self, piece: &[DVec3], tex: Option<&TexturedLight>) -> DVec3 {
+        let lobe = |m: &DMat3, space: usize| -> DVec3 {
+            let t: Vec<DVec3> = piece.iter().map(|q| *m * *q).collect();
+            let scalar = ltc::integrate(&t);
+            match tex {
+                Some(tex) => scalar * tex.colour[space].as_dvec3(),
+                _ => DVec3::splat(scalar),
+            }
+        };
+        let mut out = self.diffuse * lobe(&self.frame, 0);
         if self.spec != DVec3::ZERO {
-            let t: Vec<DVec3> = piece.iter().map(|q| self.spec_inv * *q).collect();
-            out += self.spec * ltc::integrate(&t);
+            out += self.spec * lobe(&self.spec_inv, 1);
         }
         out
     }
@@ -68,18 +74,19 @@ impl PointShader {
             if light.normal.as_dvec3().dot(-rel[0]) <= 0.0 || rel.iter().all(|q| q.dot(self.n) <= 0.0) {
                 continue;
             }
-            let radiance = light.radiance.as_dvec3();
+            let tex = TexturedLight::new(light, &rel, [&self.frame, &self.spec_inv]);
+            let tex = tex.as_ref();
             let weighted = match vis {
-                Visibility::Unshadowed => self.piece(&rel),
-                Visibility::Tree(record) => self.through_trees(record, &rel),
-                Visibility::Exact(cube) => self.through_texels(cube, &rel),
+                Visibility::Unshadowed => self.piece(&rel, tex),
+                Visibility::Tree(record) => self.through_trees(record, &rel, tex),
+                Visibility::Exact(cube) => self.through_texels(cube, &rel, tex),
             };
-            total += radiance * weighted;
+            total += light.radiance.as_dvec3() * weighted;
         }
         total.as_vec3()
     }
 
-    fn through_trees(&self, record: &[u8], rel: &[DVec3]) -> DVec3 {
+    fn through_trees(&self, record: &[u8], rel: &[DVec3], tex: Option<&TexturedLight>) -> DVec3 {
         let mut acc = DVec3::ZERO;
         for (f, bytes) in vertex_faces(record).into_iter().enumerate() {
             if bytes.is_empty() {
@@ -87,18 +94,26 @@ impl PointShader {
             }
             let piece = clip_all(rel, &cubemap::face_frustum(f));
             if !piece.is_empty() {
-                self.walk(bytes, 0, f, piece, &mut acc);
+                self.walk(bytes, 0, f, piece, tex, &mut acc);
             }
         }
         acc
     }
 
     /// Descends the pre-order tree from byte `i`, splitting `piece`; returns the next index.
-    fn walk(&self, bytes: &[u8], i: usize, face: usize, piece: Vec<DVec3>, acc: &mut DVec3) -> usize {
+    fn walk(
+        &self,
+        bytes: &[u8],
+        i: usize,
+        face: usize,
+        piece: Vec<DVec3>,
+        tex: Option<&TexturedLight>,
+        acc: &mut DVec3,
+    ) -> usize {
         if bytes[i] & 0x80 == 0 {
             let v = bytes[i] as f64 / 127.0;
             if v > 0.0 && !piece.is_empty() {
-                *acc += v * self.piece(&piece);
+                *acc += v * self.piece(&piece, tex);
             }
             return i + 1;
         }
@@ -110,11 +125,11 @@ impl PointShader {
         } else {
             (polygon::clip(&piece, plane), polygon::clip(&piece, -plane))
         };
-        let next = self.walk(bytes, i + 3, face, pos, acc);
-        self.walk(bytes, next, face, neg, acc)
+        let next = self.walk(bytes, i + 3, face, pos, tex, acc);
+        self.walk(bytes, next, face, neg, tex, acc)
     }
 
-    fn through_texels(&self, cube: &CubeVisibility, rel: &[DVec3]) -> DVec3 {
+    fn through_texels(&self, cube: &CubeVisibility, rel: &[DVec3], tex: Option<&TexturedLight>) -> DVec3 {
         let n = cube.res;
         let edge = |k: usize| 2.0 * k as f64 / n as f64 - 1.0;
         let mut acc = DVec3::ZERO;
@@ -147,13 +162,65 @@ impl PointShader {
                     ];
                     let texel_piece = clip_all(&piece, &planes);
                     if !texel_piece.is_empty() {
-                        acc += self.piece(&texel_piece);
+                        acc += self.piece(&texel_piece, tex);
                     }
                 }
             }
         }
         acc
     }
+}
+
+/// A textured light reduced to one prefiltered colour per lobe (Heitz et al. 2016, §5.3): the
+/// whole light's vector form factor in the lobe's space picks the point of the light plane the
+/// lobe looks at, and a footprint of a quarter of the plane's distance (relative to the light's
+/// size) picks the level. One colour per light and lobe — not per piece — so that visibility
+/// (tree or exact) only weights LTC integrals and the tree's error stays separate from the
+/// texture approximation's.
+pub struct TexturedLight {
+    /// Per lobe (diffuse, specular): the filtered radiance multiplier.
+    colour: [Vec3; 2],
+}
+
+impl TexturedLight {
+    fn new(light: &FlatLight, rel: &[DVec3], spaces: [&DMat3; 2]) -> Option<Self> {
+        let texture = light.texture.as_ref()?;
+        if light.uvs.len() < 3 {
+            return None;
+        }
+        let uvs = [0, 1, 2].map(|k| light.uvs[k].as_dvec2());
+        let colour = spaces.map(|m| {
+            let moved: Vec<DVec3> = rel.iter().map(|q| *m * *q).collect();
+            let (c0, e1, e2) = (moved[0], moved[1] - moved[0], moved[2] - moved[0]);
+            let n = e1.cross(e2);
+            let f = ltc::form_factor_vector(&moved);
+            let denom = n.dot(f);
+            // Along f to the plane; a grazing f falls back to the point nearest the origin.
+            let p = if denom.abs() > 1e-12 * n.length() * f.length() {
+                f * (n.dot(c0) / denom)
+            } else {
+                n * (n.dot(c0) / n.length_squared())
+            };
+            let r = p - c0;
+            let (a11, a12, a22) = (e1.dot(e1), e1.dot(e2), e2.dot(e2));
+            let det = a11 * a22 - a12 * a12;
+            let (x, y) = if det > 0.0 {
+                ((r.dot(e1) * a22 - r.dot(e2) * a12) / det, (r.dot(e2) * a11 - r.dot(e1) * a12) / det)
+            } else {
+                (0.5, 0.5)
+            };
+            let uv = uvs[0] + (uvs[1] - uvs[0]) * x + (uvs[2] - uvs[0]) * y;
+            let dist = n.normalize_or_zero().dot(c0).abs();
+            let footprint = (0.25 * dist / polygon_area(&moved).sqrt().max(1e-30)).min(1.0);
+            let lod = (footprint * texture.width.max(texture.height) as f64).max(1.0).log2() as f32;
+            texture.sample_lod(uv.as_vec2(), lod)
+        });
+        Some(Self { colour })
+    }
+}
+
+fn polygon_area(poly: &[DVec3]) -> f64 {
+    (1..poly.len().saturating_sub(1)).map(|k| 0.5 * (poly[k] - poly[0]).cross(poly[k + 1] - poly[0]).length()).sum()
 }
 
 fn clip_all(poly: &[DVec3], planes: &[DVec3]) -> Vec<DVec3> {

@@ -39,6 +39,10 @@ pub struct Texture {
     pub texels: Vec<Vec3>,
     /// Wrap modes along u and v.
     pub wrap: [Wrap; 2],
+    /// Prefiltered levels 1, 2, … (each half the size, 2×2 box filter), down to 1×1; empty in a
+    /// level itself. Textured lights read these at a footprint-dependent level, as in the LTC
+    /// paper.
+    pub mips: Vec<Texture>,
 }
 
 /// sRGB transfer function → linear.
@@ -47,6 +51,34 @@ pub fn srgb_to_linear(c: f32) -> f32 {
 }
 
 impl Texture {
+    /// A texture with its prefiltered chain.
+    pub fn new(width: usize, height: usize, texels: Vec<Vec3>, wrap: [Wrap; 2]) -> Self {
+        let mut mips = Vec::new();
+        let (mut w, mut h, mut cur) = (width, height, texels.clone());
+        while w > 1 || h > 1 {
+            let (nw, nh) = ((w / 2).max(1), (h / 2).max(1));
+            let at = |x: usize, y: usize| cur[y.min(h - 1) * w + x.min(w - 1)];
+            let next: Vec<Vec3> = (0..nw * nh)
+                .map(|k| {
+                    let (x, y) = (2 * (k % nw), 2 * (k / nw));
+                    (at(x, y) + at(x + 1, y) + at(x, y + 1) + at(x + 1, y + 1)) * 0.25
+                })
+                .collect();
+            mips.push(Texture { width: nw, height: nh, texels: next.clone(), wrap, mips: Vec::new() });
+            (w, h, cur) = (nw, nh, next);
+        }
+        Self { width, height, texels, wrap, mips }
+    }
+
+    /// Trilinear lookup at level `lod` (0 = full resolution; clamped to the chain).
+    pub fn sample_lod(&self, uv: Vec2, lod: f32) -> Vec3 {
+        let lod = if lod.is_finite() { lod.clamp(0.0, self.mips.len() as f32) } else { 0.0 };
+        let (l0, f) = (lod.floor() as usize, lod.fract());
+        let level = |l: usize| if l == 0 { self } else { &self.mips[(l - 1).min(self.mips.len() - 1)] };
+        let a = level(l0).sample(uv);
+        if f == 0.0 || l0 >= self.mips.len() { a } else { a.lerp(level(l0 + 1).sample(uv), f) }
+    }
+
     /// Bilinear lookup at `uv` (texel centres at (i + 0.5)/N).
     pub fn sample(&self, uv: Vec2) -> Vec3 {
         let x = uv.x * self.width as f32 - 0.5;
@@ -75,7 +107,7 @@ mod tests {
 
     #[test]
     fn bilinear_hits_texel_centres_and_wraps() {
-        let t = Texture { width: 2, height: 1, texels: vec![Vec3::ZERO, Vec3::ONE], wrap: [Wrap::Clamp, Wrap::Clamp] };
+        let t = Texture::new(2, 1, vec![Vec3::ZERO, Vec3::ONE], [Wrap::Clamp, Wrap::Clamp]);
         assert_eq!(t.sample(Vec2::new(0.25, 0.5)), Vec3::ZERO);
         assert_eq!(t.sample(Vec2::new(0.75, 0.5)), Vec3::ONE);
         assert!((t.sample(Vec2::new(0.5, 0.5)) - Vec3::splat(0.5)).length() < 1e-6);
@@ -83,5 +115,9 @@ mod tests {
         assert_eq!(Wrap::Repeat.apply(-1, 4), 3);
         assert_eq!(Wrap::Mirror.apply(4, 4), 3);
         assert!((srgb_to_linear(1.0) - 1.0).abs() < 1e-6);
+        // The chain ends in the mean.
+        assert_eq!(t.mips.len(), 1);
+        assert!((t.sample_lod(Vec2::new(0.1, 0.5), 10.0) - Vec3::splat(0.5)).length() < 1e-6);
+        assert!((t.sample_lod(Vec2::new(0.75, 0.5), 0.5) - Vec3::splat(0.75)).length() < 1e-6);
     }
 }

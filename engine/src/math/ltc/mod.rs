@@ -97,8 +97,16 @@ pub fn inverse_from_entry(e: &[f64]) -> DMat3 {
 /// shading point contributes (a back-facing one gives 0). Non-finite vertices give 0
 /// (documented clamp).
 pub fn integrate(poly: &[DVec3]) -> f64 {
+    form_factor_vector(poly).z.max(0.0)
+}
+
+/// The vector form factor −Σ θ n / 2π of the horizon-clipped polygon: its z component is the
+/// cosine integral ([`integrate`], before the one-sided clamp) and its direction points at the
+/// polygon's irradiance-weighted centre (used to fetch textured lights). Zero for degenerate,
+/// edge-on or non-finite input.
+pub fn form_factor_vector(poly: &[DVec3]) -> DVec3 {
     if poly.len() < 3 || poly.iter().any(|p| !p.is_finite()) {
-        return 0.0;
+        return DVec3::ZERO;
     }
     // A polygon whose plane passes through the shading point is seen edge-on: nothing. (Only
     // then can an edge pass through the point, where its plane is undefined.) Just off the
@@ -106,24 +114,24 @@ pub fn integrate(poly: &[DVec3]) -> f64 {
     // quarter sphere — so this is a genuine discontinuity, not a cut-off.
     let scale = poly.iter().fold(0.0f64, |m, p| m.max(p.length()));
     if newell_normal(poly).dot(poly[0]).abs() <= polygon::ON_PLANE * scale {
-        return 0.0;
+        return DVec3::ZERO;
     }
     let clipped = polygon::clip_horizon(poly);
-    let sum: f64 = (0..clipped.len()).map(|i| edge_integral(clipped[i], clipped[(i + 1) % clipped.len()])).sum();
-    // Σ θ n_z is negative when the CCW normal faces the origin.
-    (-sum / (2.0 * PI)).max(0.0)
+    let sum: DVec3 = (0..clipped.len()).map(|i| edge_integral(clipped[i], clipped[(i + 1) % clipped.len()])).sum();
+    // Σ θ n is opposite to the CCW normal's side: negative z when the polygon faces the origin.
+    -sum / (2.0 * PI)
 }
 
-/// θ · n_z of one edge: θ the angle the edge subtends, n the unit normal of the plane through
+/// θ · n of one edge: θ the angle the edge subtends, n the unit normal of the plane through
 /// the origin and the edge. atan2 keeps θ accurate near 0 and π (no acos of a value near ±1);
 /// a zero-length edge adds nothing.
-fn edge_integral(a: DVec3, b: DVec3) -> f64 {
+fn edge_integral(a: DVec3, b: DVec3) -> DVec3 {
     let c = a.cross(b);
     let len = c.length();
     if len == 0.0 {
-        return 0.0;
+        return DVec3::ZERO;
     }
-    len.atan2(a.dot(b)) * c.z / len
+    c * (len.atan2(a.dot(b)) / len)
 }
 
 fn newell_normal(poly: &[DVec3]) -> DVec3 {

@@ -298,12 +298,8 @@ impl<'a> Importer<'a> {
             gltf::texture::WrappingMode::Repeat => Wrap::Repeat,
         };
         let sampler = tex.sampler();
-        let t = Texture {
-            width: data.width as usize,
-            height: data.height as usize,
-            texels,
-            wrap: [wrap(sampler.wrap_s()), wrap(sampler.wrap_t())],
-        };
+        let wraps = [wrap(sampler.wrap_s()), wrap(sampler.wrap_t())];
+        let t = Texture::new(data.width as usize, data.height as usize, texels, wraps);
         let i = self.scene.textures.len() as u32;
         self.scene.textures.push(Arc::new(t));
         self.texture_cache.insert(tex.index(), i);
