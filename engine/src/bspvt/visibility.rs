@@ -1,5 +1,5 @@
-//! Per-vertex visibility cube maps, ray-cast with the BVH. Texels whose centre lies below the
-//! vertex's horizon are never cast: LTC clips there, so their visibility cannot matter.
+//! Per-vertex visibility cube maps, ray-cast with the BVH. Texels entirely below the vertex's
+//! horizon are never cast: LTC clips there, so their visibility cannot matter.
 
 use crate::accel::{SceneBvh, offset_ray_origin};
 use crate::math::cubemap;
@@ -30,16 +30,36 @@ impl CubeVisibility {
 }
 
 /// Casts the visibility cube map of a vertex at `p` with unit normal `n` against `occluders`.
+/// A texel is below the horizon only when all four of its corners are; a texel the horizon
+/// crosses is cast just above the horizon, so that grazing lights are not cut off by half a
+/// texel.
 pub fn cast(occluders: &SceneBvh, p: Vec3, n: Vec3, res: usize) -> CubeVisibility {
+    let nd = n.as_dvec3();
+    let edge = |k: usize| 2.0 * k as f64 / res as f64 - 1.0;
     let mut texels = Vec::with_capacity(6 * res * res);
     for f in 0..cubemap::FACES {
         for j in 0..res {
             for i in 0..res {
-                let d: DVec3 = cubemap::face_to_dir(f, cubemap::texel_center(i, j, res));
+                let centre: DVec3 = cubemap::face_to_dir(f, cubemap::texel_center(i, j, res));
+                let height = centre.dot(nd);
+                // A texel spans less than 2/res radians: only those near the horizon need corners.
+                let crossed = || {
+                    [(i, j), (i + 1, j), (i, j + 1), (i + 1, j + 1)]
+                        .iter()
+                        .any(|&(a, b)| cubemap::face_to_dir(f, glam::DVec2::new(edge(a), edge(b))).dot(nd) > 0.0)
+                };
+                if height <= -2.0 / res as f64 || (height <= 0.0 && !crossed()) {
+                    texels.push(BELOW);
+                    continue;
+                }
+                let d = if height > 0.0 {
+                    centre
+                } else {
+                    // The centre's projection onto the horizon, lifted slightly above it.
+                    ((centre - nd * centre.dot(nd)).normalize_or(centre) + nd * 1e-3).normalize()
+                };
                 let d = d.as_vec3();
-                texels.push(if d.dot(n) <= 0.0 {
-                    BELOW
-                } else if occluders.occluded(offset_ray_origin(p, n, d), d, f32::INFINITY) {
+                texels.push(if occluders.occluded(offset_ray_origin(p, n, d), d, f32::INFINITY) {
                     OCCLUDED
                 } else {
                     VISIBLE
