@@ -1,6 +1,6 @@
 //! Ray casting throughput on a ≥100K-triangle scene: coherent (all rays from one point) and
 //! incoherent (random origins and directions) any-hit rays, and incoherent closest-hit rays,
-//! on all cores with rayon. Goal: ≥ 8 M any-hit rays/s on 2 cores.
+//! on all cores with rayon, and the BVH build time. Goal: ≥ 8 M any-hit rays/s on 2 cores.
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use glam::{Affine3A, Vec2, Vec3};
@@ -57,6 +57,10 @@ fn bench(c: &mut Criterion) {
         b.iter(|| rs.par_iter().filter_map(|(o, d, t)| bvh.closest_hit(*o, *d, *t)).count())
     });
     g.finish();
+    let mut b = c.benchmark_group(format!("bvh_build_{}k_tris", tris.len() / 1000));
+    b.sample_size(10);
+    b.bench_function("build", |bench| bench.iter(|| SceneBvh::new(&tris).len()));
+    b.finish();
 }
 
 criterion_group!(benches, bench);

@@ -27,7 +27,8 @@ pub struct SceneBvh {
 }
 
 impl SceneBvh {
-    /// Builds a BVH (deterministic: obvhs' single-threaded build).
+    /// Builds a BVH (deterministic: obvhs' single-threaded build). The slowest, best PLOC
+    /// preset: 0.44 s for 165K triangles (4× the medium preset) buys ~7 % faster traversal.
     pub fn new(triangles: &[[Vec3; 3]]) -> Self {
         let tris: Vec<Triangle> =
             triangles.iter().map(|t| Triangle { v0: t[0].into(), v1: t[1].into(), v2: t[2].into() }).collect();
@@ -36,7 +37,7 @@ impl SceneBvh {
         }
         let bvh = obvhs::cwbvh::builder::build_cwbvh_from_tris(
             &tris,
-            BvhBuildParams::medium_build(),
+            BvhBuildParams::very_slow_build(),
             &mut Duration::default(),
         );
         let ordered = bvh.primitive_indices.iter().map(|&i| RtTriangle::from(&tris[i as usize])).collect();
