@@ -5,6 +5,7 @@
 
 mod commands;
 mod progress;
+mod prt_args;
 mod scene_args;
 
 use clap::{Parser, Subcommand};

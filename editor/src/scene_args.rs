@@ -2,6 +2,7 @@
 //! optional environment map.
 
 use anyhow::Result;
+use glam::{Quat, Vec3};
 use kage_engine::scene::{self, EnvMap, EnvironmentLight, Scene, import::ImportOptions};
 use std::path::PathBuf;
 
@@ -22,6 +23,41 @@ pub struct SceneArgs {
     /// Drop zero-area triangles with a warning instead of rejecting the file.
     #[arg(long)]
     pub drop_degenerate: bool,
+    /// Move a rigid group (top-level node name or group index) by x,y,z, e.g.
+    /// `--move group_bunny=0.5,0,0`; repeatable.
+    #[arg(long = "move", value_name = "NODE=x,y,z", value_parser = parse_move)]
+    pub moves: Vec<(String, Vec3)>,
+    /// Rotate a rigid group about its own origin by an axis and an angle in degrees, e.g.
+    /// `--rotate group_box_sphere=0,1,0,90`; applied before --move; repeatable.
+    #[arg(long = "rotate", value_name = "NODE=ax,ay,az,degrees", value_parser = parse_rotate)]
+    pub rotations: Vec<(String, Quat)>,
+}
+
+fn parse_numbers(s: &str, n: usize) -> Result<(String, Vec<f32>), String> {
+    let (node, rest) = s.split_once('=').ok_or_else(|| format!("expected NODE=..., got '{s}'"))?;
+    let v: Vec<f32> = rest
+        .split(',')
+        .map(|c| c.trim().parse::<f32>())
+        .collect::<Result<_, _>>()
+        .map_err(|e| format!("'{s}': {e}"))?;
+    if v.len() != n || !v.iter().all(|c| c.is_finite()) {
+        return Err(format!("expected {n} finite numbers after '{node}=', got '{rest}'"));
+    }
+    Ok((node.to_string(), v))
+}
+
+fn parse_move(s: &str) -> Result<(String, Vec3), String> {
+    let (node, v) = parse_numbers(s, 3)?;
+    Ok((node, Vec3::new(v[0], v[1], v[2])))
+}
+
+fn parse_rotate(s: &str) -> Result<(String, Quat), String> {
+    let (node, v) = parse_numbers(s, 4)?;
+    let axis = Vec3::new(v[0], v[1], v[2]);
+    if axis.length_squared() == 0.0 {
+        return Err(format!("'{s}': the rotation axis is zero"));
+    }
+    Ok((node, Quat::from_axis_angle(axis.normalize(), v[3].to_radians())))
 }
 
 impl SceneArgs {
@@ -49,6 +85,14 @@ impl SceneArgs {
                 anyhow::ensure!(deg.is_finite(), "--env-rotation must be finite, got {deg}");
                 env.rotation = deg.to_radians();
             }
+        }
+        for (node, q) in &self.rotations {
+            let g = scene.find_group(node)?;
+            scene.pose_group(g, *q, Vec3::ZERO);
+        }
+        for (node, offset) in &self.moves {
+            let g = scene.find_group(node)?;
+            scene.pose_group(g, Quat::IDENTITY, *offset);
         }
         Ok(scene)
     }

@@ -204,3 +204,49 @@ fn report_writes_markdown_csv_and_plot() {
     assert_eq!((png.width(), png.height()), (640, 400));
     std::fs::remove_dir_all(d).unwrap();
 }
+
+#[test]
+fn prt_methods_plan_render_and_move_groups() {
+    let d = scratch("prt");
+    let scene = shared("scenes/bunny_two_groups.gltf");
+    let env = shared("envmaps/city.hdr");
+    let run = |method: &str, extra: &[&str], name: &str| {
+        let csv = d.join(format!("{name}.csv"));
+        let png = d.join(format!("{name}.png"));
+        let mut args = vec!["render", &scene, "--env", &env, "--method", method, "--size", "48x27", "--spp", "1"];
+        args.extend_from_slice(&["-o", png.to_str().unwrap(), "--vertices-out", csv.to_str().unwrap()]);
+        args.extend_from_slice(extra);
+        let o = kage(&args);
+        assert!(o.status.success(), "{method} {extra:?}: {}", stderr(&o));
+        assert!(png.exists());
+        (String::from_utf8_lossy(&o.stdout).into_owned(), read_vertex_csv(&csv).unwrap())
+    };
+    let (out, planned) = run("prt", &[], "planned");
+    assert!(out.contains("plan: SH order") && out.contains("regions:"), "{out}");
+    let explicit = ["--sh-order", "4", "--regions", "8", "--sh-window", "none"];
+    let (out, base) = run("prt", &explicit, "base");
+    assert!(!out.contains("plan:") && out.contains("order 4"), "{out}");
+    assert_eq!(base.len(), planned.len());
+    let (_, own) = run("prt-self", &explicit, "self");
+    // Shadows between groups only take light away.
+    assert!(base.iter().zip(&own).all(|(a, b)| a.radiance.cmple(b.radiance + 1e-6).all()));
+    let mut moved_args = explicit.to_vec();
+    moved_args.extend_from_slice(&["--move", "group_bunny=0.5,0,0.5", "--rotate", "group_box_sphere=0,1,0,90"]);
+    let (_, moved) = run("prt", &moved_args, "moved");
+    let bunny_moved =
+        moved.iter().zip(&base).filter(|(m, _)| m.node == 1).all(|(m, b)| (m.position - b.position).length() > 0.7);
+    assert!(bunny_moved, "--move moves the bunny's group");
+    assert!(moved.iter().zip(&base).any(|(m, b)| m.node == 0 && m.radiance != b.radiance), "the ground's shadows move");
+    for (bad, needle) in [
+        (vec!["--move", "nope=1,0,0"], "no rigid group 'nope'"),
+        (vec!["--rotate", "group_bunny=0,0,0,10"], "axis is zero"),
+    ] {
+        let mut args = vec!["render", &scene, "--env", &env, "--method", "prt"];
+        args.extend(bad);
+        let o = kage(&args);
+        assert!(!o.status.success() && stderr(&o).contains(needle), "{}", stderr(&o));
+    }
+    let o = kage(&["render", &shared("scenes/cube_on_plane.gltf"), "--method", "prt"]);
+    assert!(!o.status.success() && stderr(&o).contains("has none"), "{}", stderr(&o));
+    std::fs::remove_dir_all(d).unwrap();
+}

@@ -23,6 +23,7 @@ pub mod bspvt;
 pub mod error;
 pub mod math;
 pub mod output;
+pub mod prt;
 pub mod raster;
 pub mod ratio;
 pub mod reference;

@@ -1,13 +1,14 @@
 //! `kage render`: images and per-vertex radiance with a chosen method.
 
 use crate::progress::bar;
+use crate::prt_args::PrtArgs;
 use crate::scene_args::SceneArgs;
 use anyhow::{Context, Result, bail};
 use glam::Vec3;
 use kage_engine::output::{VertexRow, write_image, write_vertex_csv};
 use kage_engine::reference::{Estimate, Renderer, Settings};
 use kage_engine::scene::{Camera, Scene};
-use kage_engine::{bspvt, raster};
+use kage_engine::{bspvt, prt, raster};
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -22,6 +23,10 @@ pub enum Method {
     LtcUnshadowed,
     /// Polygonal lights with LTC clipped per visible cube-map texel, no tree (per vertex).
     LtcExactVis,
+    /// Environment light with PRT: self-shadowing only (per vertex).
+    PrtSelf,
+    /// Environment light with PRT and shadows cast between rigid groups (per pixel in images).
+    Prt,
 }
 
 /// Arguments of `kage render`.
@@ -69,17 +74,20 @@ pub struct Args {
     /// BSPVT split threshold ε (cluster error in texels).
     #[arg(long, default_value_t = 2.0)]
     epsilon: f64,
-    /// Choose face resolution (and report why) from a relative error budget, e.g. 0.01,
-    /// measured by a pilot bake against exact visibility; overrides --face-res.
+    /// Choose parameters (and report why) from a relative error budget, e.g. 0.01, measured
+    /// by a pilot: BSPVT's face resolution (overrides --face-res); PRT's SH order, window and
+    /// region count (PRT plans with 0.02 when no budget and no PRT parameter is given).
     #[arg(long)]
     error_budget: Option<f64>,
+    #[command(flatten)]
+    prt: PrtArgs,
     /// Drop the environment light (the per-vertex polygonal-light methods never include it;
     /// use this to compare the reference with them).
     #[arg(long)]
     no_env: bool,
 }
 
-fn parse_size(s: &str) -> Result<(usize, usize), String> {
+pub(crate) fn parse_size(s: &str) -> Result<(usize, usize), String> {
     let (w, h) = s.split_once(['x', 'X']).ok_or("expected WxH, e.g. 640x360")?;
     let p =
         |v: &str| v.trim().parse::<usize>().ok().filter(|&n| (1..=16384).contains(&n)).ok_or(format!("bad size '{s}'"));
@@ -115,6 +123,7 @@ pub fn run(args: &Args) -> Result<()> {
     let output = args.output.clone().or_else(|| args.vertices_out.is_none().then(|| PathBuf::from("render.png")));
     let (image, vertices) = match args.method {
         Method::Reference => reference(args, &renderer, &camera, output.is_some())?,
+        Method::Prt | Method::PrtSelf => prt(args, &scene, &renderer, &camera, output.is_some())?,
         m => per_vertex(args, m, &scene, &renderer, &camera, output.is_some()),
     };
     if let (Some(path), Some(pixels)) = (&output, image) {
@@ -203,6 +212,45 @@ fn per_vertex(
     let image =
         want_image.then(|| raster::vertex_image(renderer, camera, args.size.0, args.size.1, args.spp.min(16), &values));
     (image, Some(values))
+}
+
+fn prt(args: &Args, scene: &Scene, renderer: &Renderer, camera: &Camera, want_image: bool) -> Result<Outputs> {
+    let flat = &renderer.flat;
+    let settings = args.prt.settings(scene, flat, args.error_budget, camera.eye());
+    let Some(lighting) = prt::Lighting::new(scene, &settings) else {
+        bail!("{}: PRT shades environment lighting and the scene has none (pass --env FILE.hdr)", scene.source);
+    };
+    crate::emit(&format!(
+        "lighting: order {}, {:?} window (negative lobes: min {:.1} % of the mean over {:.1} % of directions), {} regions\n",
+        settings.order,
+        settings.window,
+        -100.0 * lighting.lobes.min_relative,
+        100.0 * lighting.lobes.fraction,
+        lighting.regions.len()
+    ));
+    let pb = bar(renderer.vertex_count() as u64, "baking");
+    let bake = prt::bake(scene, flat, &settings, &|n| pb.set_position(n as u64));
+    pb.finish_and_clear();
+    let st = bake.stats;
+    crate::emit(&format!(
+        "bake: {} vertices in {:.2} s ({:.0} vertices/s), order {}, {} directions, {:.2} MB\n",
+        st.vertices,
+        st.seconds,
+        st.vertices as f64 / st.seconds,
+        settings.order,
+        settings.direction_side().pow(2),
+        st.bytes as f64 / 1e6
+    ));
+    let method = if args.method == Method::Prt { prt::Method::WithOthers } else { prt::Method::SelfOnly };
+    let start = Instant::now();
+    let frame = prt::Frame::prepare(scene, flat, &bake, &lighting, method, &settings, camera.eye());
+    let values = frame.vertex_values(scene, flat);
+    crate::emit(&format!("shade: {} vertices in {:.3} s\n", renderer.vertex_count(), start.elapsed().as_secs_f64()));
+    let image = want_image.then(|| {
+        let (w, h) = args.size;
+        frame.render(renderer, camera, w, h, args.spp.min(16))
+    });
+    Ok((image, Some(values)))
 }
 
 fn camera(args: &Args, scene_camera: Option<Camera>) -> Result<Camera> {

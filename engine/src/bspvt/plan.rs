@@ -5,7 +5,7 @@
 
 use super::shade::{PointShader, Visibility};
 use super::{Settings, bake_vertex, occluder_bvh, visibility};
-use crate::math::ltc;
+use crate::math::{ltc, relative_rmse};
 use crate::scene::{FlatScene, Scene};
 use glam::Vec3;
 use rayon::prelude::*;
@@ -67,10 +67,4 @@ pub fn choose(scene: &Scene, flat: &FlatScene, budget: f64, eye: Vec3) -> (Setti
         measured.join(", ")
     );
     (Settings { res, ..Settings::default() }, why)
-}
-
-fn relative_rmse(x: &[Vec3], r: &[Vec3]) -> f64 {
-    let num: f64 = x.iter().zip(r).map(|(a, b)| (*a - *b).as_dvec3().length_squared()).sum();
-    let den: f64 = r.iter().map(|b| b.as_dvec3().length_squared()).sum();
-    if den > 0.0 { (num / den).sqrt() } else { 0.0 }
 }

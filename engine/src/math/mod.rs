@@ -19,3 +19,10 @@ pub mod sh;
 pub fn luminance(c: glam::Vec3) -> f32 {
     0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z
 }
+
+/// Relative RMSE `√(Σ|x − r|² / Σ|r|²)` of colours against a reference (0 for a black one).
+pub fn relative_rmse(x: &[glam::Vec3], r: &[glam::Vec3]) -> f64 {
+    let num: f64 = x.iter().zip(r).map(|(a, b)| (*a - *b).as_dvec3().length_squared()).sum();
+    let den: f64 = r.iter().map(|b| b.as_dvec3().length_squared()).sum();
+    if den > 0.0 { (num / den).sqrt() } else { 0.0 }
+}

@@ -43,6 +43,23 @@ impl Scene {
         group
     }
 
+    /// Adds `mesh` to an existing `group` at group-from-local transform `local`.
+    pub fn add_member(&mut self, group: hecs::Entity, name: &str, mesh: Mesh, material: Material, local: Affine3A) {
+        let node = self.next_node();
+        let pose = self.world.get::<&Transform>(group).map_or(Affine3A::IDENTITY, |t| t.world);
+        let mref = MeshRef { index: self.meshes.len() as u32, hash: mesh.hash };
+        self.meshes.push(Arc::new(mesh));
+        let id = PrimitiveId { node, mesh: mref.index, primitive: 0 };
+        self.world.spawn((
+            mref,
+            material,
+            InGroup { group, local },
+            Transform { world: pose * local },
+            id,
+            Name(name.into()),
+        ));
+    }
+
     /// Adds a one-sided polygonal light (CCW about its emitting side) as a new rigid group.
     pub fn add_light(&mut self, name: &str, points: Vec<Vec3>, radiance: Vec3, pose: Affine3A) -> hecs::Entity {
         let (group, node) = self.add_group(name, pose);

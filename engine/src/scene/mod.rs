@@ -60,6 +60,15 @@ impl Scene {
         }
     }
 
+    /// Removes every polygonal light (e.g. to compare environment-only methods).
+    pub fn remove_polygon_lights(&mut self) {
+        let lights: Vec<hecs::Entity> =
+            self.world.query::<(hecs::Entity, &PolygonLight)>().iter().map(|(e, _)| e).collect();
+        for e in lights {
+            let _ = self.world.despawn(e);
+        }
+    }
+
     /// Checks that every rigid group's pose is a similarity (rotation, uniform scale, optional
     /// mirror, translation), as computations in a group's local frame require.
     pub fn check_rigid_groups(&self) -> crate::Result<()> {
@@ -69,6 +78,32 @@ impl Scene {
             })?;
         }
         Ok(())
+    }
+
+    /// The rigid group whose node is named `name`, or whose group index is `name` as a number.
+    pub fn find_group(&self, name: &str) -> crate::Result<hecs::Entity> {
+        let groups: Vec<(hecs::Entity, u32, String)> = self
+            .world
+            .query::<(hecs::Entity, &RigidGroup, &Name)>()
+            .iter()
+            .map(|(e, g, n)| (e, g.index, n.0.clone()))
+            .collect();
+        groups.iter().find(|(_, i, n)| n == name || name.parse::<u32>() == Ok(*i)).map(|(e, ..)| *e).ok_or_else(|| {
+            let names: Vec<String> = groups.iter().map(|(_, i, n)| format!("{i} '{n}'")).collect();
+            crate::Error::Invalid(format!("{}: no rigid group '{name}' (groups: {})", self.source, names.join(", ")))
+        })
+    }
+
+    /// Rotates `group` by `rotation` about its own origin, then moves it by `offset`, and
+    /// re-derives its members' transforms (a run-time pose change: no bake depends on it but
+    /// BSPVT visibility, which the caller re-bakes).
+    pub fn pose_group(&mut self, group: hecs::Entity, rotation: glam::Quat, offset: glam::Vec3) {
+        if let Ok(mut t) = self.world.get::<&mut Transform>(group) {
+            let linear = glam::Affine3A { matrix3: t.world.matrix3, translation: glam::Vec3A::ZERO };
+            let origin = glam::Vec3::from(t.world.translation) + offset;
+            t.world = glam::Affine3A::from_rotation_translation(rotation, origin) * linear;
+        }
+        propagate_transforms(&mut self.world);
     }
 
     /// The first camera, if the scene has one.

@@ -1,16 +1,19 @@
-//! `kage report`: speed against error. Runs the polygonal-light methods and parameter sweeps
+//! `kage report`: speed against error. Runs each technique's methods and parameter sweeps
 //! against the Monte Carlo reference and writes `report.md`, `report.csv` and `report.png`
 //! (relative RMSE against time, log–log, one colour per method) into `--out`.
 //!
-//! Everything is per vertex, toward the scene camera, from the polygonal lights only (the
-//! environment is dropped: PRT covers it).
+//! Sections run when the scene has what they shade: [`polygon`] (polygonal lights, the
+//! environment dropped) and [`prt`] (the environment, polygonal lights removed). Errors are
+//! per vertex toward the scene camera, and for PRT also per pixel.
+
+mod polygon;
+mod prt;
 
 use crate::progress::bar;
 use crate::scene_args::SceneArgs;
 use anyhow::{Context, Result};
 use glam::Vec3;
 use kage_engine::reference::{Renderer, Settings};
-use kage_engine::{bspvt, ratio};
 use std::fmt::Write as _;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -26,86 +29,114 @@ pub struct Args {
     /// Samples per vertex of the reference.
     #[arg(long, default_value_t = 1024)]
     reference_spp: u32,
+    /// Size of the per-pixel comparison images (PRT), WxH.
+    #[arg(long, default_value = "320x180", value_parser = super::render::parse_size)]
+    image_size: (usize, usize),
+    /// Samples per pixel of the reference image (PRT).
+    #[arg(long, default_value_t = 256)]
+    reference_image_spp: u32,
+    /// PRT transfer directions per vertex.
+    #[arg(long, default_value_t = 1024)]
+    directions: usize,
 }
 
 /// One measured configuration.
-struct Row {
+pub(crate) struct Row {
     method: &'static str,
     config: String,
     bake_s: f64,
     bake_bytes: usize,
+    /// BSPVT leaves per vertex (0 for other methods).
     leaves_per_vertex: f64,
     shade_s: f64,
     rmse: f64,
     rel_rmse: f64,
+    /// Per-pixel relative RMSE, where the method is measured per pixel.
+    pixel_rel_rmse: Option<f64>,
 }
 
-/// Runs the sweeps and writes the report.
+/// The reference a section measures against: per-vertex means of the instances it keeps, and
+/// the header line about it.
+pub(crate) struct Truth {
+    values: Vec<Vec3>,
+    keep: Vec<bool>,
+    line: String,
+}
+
+impl Truth {
+    /// Per-vertex reference toward `eye` with `spp` samples over the instances in `keep`, timed,
+    /// with its own standard error.
+    fn vertices(renderer: &Renderer, eye: Vec3, spp: u32, keep: Vec<bool>, what: &str) -> Self {
+        let pb = bar(renderer.vertex_count() as u64, "reference");
+        let start = Instant::now();
+        let est = renderer
+            .render_vertices(eye, &Settings { spp, seed: 0x5EED, max_bounces: 0 }, &|k| pb.set_position(k as u64));
+        pb.finish_and_clear();
+        let secs = start.elapsed().as_secs_f64();
+        let est: Vec<_> = est.into_iter().zip(&keep).filter(|(_, k)| **k).map(|(e, _)| e).collect();
+        let (se2, mean2) = est.iter().flatten().fold((0.0, 0.0), |(a, b), e| {
+            (a + e.std_error.as_dvec3().length_squared(), b + e.mean.as_dvec3().length_squared())
+        });
+        let se = (se2 / mean2.max(f64::MIN_POSITIVE)).sqrt();
+        Self {
+            values: est.iter().flatten().map(|e| e.mean).collect(),
+            keep,
+            line: format!(
+                "{what}: reference {spp} spp per vertex in {secs:.1} s, its own relative standard error {se:.4}"
+            ),
+        }
+    }
+
+    /// A row measured against this reference.
+    fn row(&self, method: &'static str, config: String, shade_s: f64, values: &[Vec<Vec3>]) -> Row {
+        let kept = values.iter().zip(&self.keep).filter(|(_, k)| **k).flat_map(|(v, _)| v.iter().copied());
+        let (rmse, rel_rmse) = rel(kept, &self.values);
+        Row {
+            method,
+            config,
+            bake_s: 0.0,
+            bake_bytes: 0,
+            leaves_per_vertex: 0.0,
+            shade_s,
+            rmse,
+            rel_rmse,
+            pixel_rel_rmse: None,
+        }
+    }
+}
+
+/// Runs the sections the scene supports and writes the report.
 pub fn run(args: &Args) -> Result<()> {
-    let mut scene = args.scene.load()?;
-    scene.clear_environment();
-    let renderer = Renderer::new(&scene);
+    let scene = args.scene.load()?;
     let eye = scene.first_camera().map(|c| c.eye()).context("the scene has no camera to shade toward")?;
-    let n = renderer.vertex_count();
-    let pb = bar(n as u64, "reference");
-    let start = Instant::now();
-    let reference =
-        renderer.render_vertices(eye, &Settings { spp: args.reference_spp, seed: 0x5EED, max_bounces: 0 }, &|k| {
-            pb.set_position(k as u64)
-        });
-    pb.finish_and_clear();
-    let ref_time = start.elapsed().as_secs_f64();
-    let truth: Vec<Vec3> = reference.iter().flatten().map(|e| e.mean).collect();
-    let (se2, mean2) = reference.iter().flatten().fold((0.0, 0.0), |(a, b), e| {
-        (a + e.std_error.as_dvec3().length_squared(), b + e.mean.as_dvec3().length_squared())
-    });
-    let ref_se = (se2 / mean2.max(f64::MIN_POSITIVE)).sqrt();
     let mut rows = Vec::new();
-    let mut push = |method, config: String, bake: Option<&bspvt::Bake>, shade_s: f64, values: Vec<Vec<Vec3>>| {
-        let (rmse, rel_rmse) = rel(values.into_iter().flatten(), &truth);
-        let (bake_s, bake_bytes, leaves) = bake.map_or((0.0, 0, 0.0), |b| {
-            (b.stats.seconds, b.stats.bytes, b.stats.leaves as f64 / b.stats.vertices.max(1) as f64)
-        });
-        crate::emit(&format!(
-            "{method:15} {config:22} bake {bake_s:8.2} s  shade {shade_s:8.3} s  rel RMSE {rel_rmse:.4}\n"
-        ));
-        rows.push(Row { method, config, bake_s, bake_bytes, leaves_per_vertex: leaves, shade_s, rmse, rel_rmse });
-    };
-    for (res, eps) in [(16, 2.0), (32, 2.0), (64, 2.0), (64, 0.5)] {
-        let s = bspvt::Settings { res, epsilon: eps };
-        let b = bspvt::bake(&scene, &renderer.flat, &s, &|_| {});
-        let t = Instant::now();
-        let v = bspvt::shade_vertices(&scene, &renderer.flat, bspvt::Method::Bspvt, Some(&b), &s, eye);
-        push("bspvt", format!("{res}² faces, ε {eps}"), Some(&b), t.elapsed().as_secs_f64(), v);
+    let mut header = vec![format!("scene {}", scene.source)];
+    let has_lights = scene.world.query::<&kage_engine::scene::PolygonLight>().iter().next().is_some();
+    let has_env = scene.world.query::<&kage_engine::scene::EnvironmentLight>().iter().next().is_some();
+    if has_lights {
+        header.push(polygon::run(args, eye, &mut rows)?);
     }
-    let s = bspvt::Settings::default();
-    let t = Instant::now();
-    let v = bspvt::shade_vertices(&scene, &renderer.flat, bspvt::Method::ExactVis, None, &s, eye);
-    push("ltc-exact-vis", "64² faces (cast per frame)".into(), None, t.elapsed().as_secs_f64(), v);
-    let t = Instant::now();
-    let v = bspvt::shade_vertices(&scene, &renderer.flat, bspvt::Method::Unshadowed, None, &s, eye);
-    push("ltc-unshadowed", String::new(), None, t.elapsed().as_secs_f64(), v);
-    for spp in [1u32, 4, 16, 64] {
-        let t = Instant::now();
-        let est = renderer.render_vertices(eye, &Settings { spp, seed: 7, max_bounces: 0 }, &|_| {});
-        let v = est.iter().map(|e| e.iter().map(|x| x.mean).collect()).collect();
-        push("monte-carlo", format!("{spp} spp"), None, t.elapsed().as_secs_f64(), v);
+    if has_env {
+        header.push(prt::run(args, eye, &mut rows)?);
     }
-    for rays in [1u32, 4, 16] {
-        let t = Instant::now();
-        let v = ratio::shade_vertices(&renderer, rays, 7, eye);
-        push("ratio-estimator", format!("{rays} rays per light"), None, t.elapsed().as_secs_f64(), v);
-    }
-    std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
-    let header = format!(
-        "scene {}: {n} vertices, {} lights; reference {} spp in {ref_time:.1} s, its own relative standard error {ref_se:.4}",
-        scene.source,
-        renderer.flat.lights.len(),
-        args.reference_spp
+    anyhow::ensure!(
+        has_lights || has_env,
+        "{}: no polygonal light and no environment: nothing to report",
+        scene.source
     );
-    write_files(args, &header, &rows)?;
+    std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
+    write_files(args, &header.join("\n\n"), &rows)?;
     crate::emit(&format!("wrote {}/report.md, report.csv, report.png\n", args.out.display()));
     Ok(())
+}
+
+/// Prints one row as it is measured.
+fn announce(r: &Row) {
+    let pixel = r.pixel_rel_rmse.map_or(String::new(), |p| format!("  per pixel {p:.4}"));
+    crate::emit(&format!(
+        "{:15} {:28} bake {:8.2} s  shade {:8.3} s  rel RMSE {:.4}{pixel}\n",
+        r.method, r.config, r.bake_s, r.shade_s, r.rel_rmse
+    ));
 }
 
 /// (RMSE, relative RMSE) of `values` against `truth`, per channel of linear radiance.
@@ -121,13 +152,15 @@ fn rel(values: impl Iterator<Item = Vec3>, truth: &[Vec3]) -> (f64, f64) {
 
 fn write_files(args: &Args, header: &str, rows: &[Row]) -> Result<()> {
     let mut md = format!("# kage report\n\n{header}\n\n");
-    md.push_str("| method | configuration | bake (s) | bake size (KB) | leaves / vertex | shade (s / frame) | RMSE | relative RMSE |\n");
-    md.push_str("|---|---|---|---|---|---|---|---|\n");
-    let mut csv = String::from("method,config,bake_s,bake_bytes,leaves_per_vertex,shade_s,rmse,rel_rmse\n");
+    md.push_str("| method | configuration | bake (s) | bake size (KB) | leaves / vertex | shade (s / frame) | RMSE | relative RMSE | per-pixel relative RMSE |\n");
+    md.push_str("|---|---|---|---|---|---|---|---|---|\n");
+    let mut csv =
+        String::from("method,config,bake_s,bake_bytes,leaves_per_vertex,shade_s,rmse,rel_rmse,pixel_rel_rmse\n");
     for r in rows {
+        let pixel = r.pixel_rel_rmse.map_or("—".to_string(), |p| format!("{p:.4}"));
         writeln!(
             md,
-            "| {} | {} | {:.2} | {:.1} | {:.1} | {:.4} | {:.5} | {:.4} |",
+            "| {} | {} | {:.2} | {:.1} | {:.1} | {:.4} | {:.5} | {:.4} | {pixel} |",
             r.method,
             r.config,
             r.bake_s,
@@ -139,8 +172,16 @@ fn write_files(args: &Args, header: &str, rows: &[Row]) -> Result<()> {
         )?;
         writeln!(
             csv,
-            "{},{},{},{},{},{},{},{}",
-            r.method, r.config, r.bake_s, r.bake_bytes, r.leaves_per_vertex, r.shade_s, r.rmse, r.rel_rmse
+            "{},{},{},{},{},{},{},{},{}",
+            r.method,
+            r.config,
+            r.bake_s,
+            r.bake_bytes,
+            r.leaves_per_vertex,
+            r.shade_s,
+            r.rmse,
+            r.rel_rmse,
+            r.pixel_rel_rmse.map_or(String::new(), |p| p.to_string())
         )?;
     }
     md.push_str("\nPlot (`report.png`): relative RMSE (vertical) against shade time per frame (horizontal), both log scale; colours: ");
@@ -159,12 +200,14 @@ fn write_files(args: &Args, header: &str, rows: &[Row]) -> Result<()> {
     plot(rows).save(args.out.join("report.png")).context("writing report.png")
 }
 
-const METHODS: [(&str, [u8; 3]); 5] = [
+const METHODS: [(&str, [u8; 3]); 7] = [
     ("bspvt", [220, 50, 40]),
     ("ltc-exact-vis", [40, 120, 220]),
     ("ltc-unshadowed", [120, 120, 120]),
     ("monte-carlo", [40, 170, 70]),
     ("ratio-estimator", [200, 140, 0]),
+    ("prt", [150, 40, 180]),
+    ("prt-self", [0, 170, 170]),
 ];
 
 /// A log–log scatter with lines joining each method's points (no text: the Markdown says

@@ -1,0 +1,55 @@
+//! The polygonal-light section: BSPVT sweeps (face resolution, ε), exact visibility, no
+//! visibility, and at equal time Monte Carlo shadow rays and the ratio estimator, per vertex
+//! with the environment dropped.
+
+use super::{Args, Row, Truth, announce};
+use anyhow::Result;
+use glam::Vec3;
+use kage_engine::reference::{Renderer, Settings};
+use kage_engine::{bspvt, ratio};
+use std::time::Instant;
+
+/// Measures the section into `rows`; returns its header line.
+pub fn run(args: &Args, eye: Vec3, rows: &mut Vec<Row>) -> Result<String> {
+    let mut scene = args.scene.load()?;
+    scene.clear_environment();
+    let renderer = Renderer::new(&scene);
+    let all = vec![true; renderer.flat.instances.len()];
+    let truth = Truth::vertices(&renderer, eye, args.reference_spp, all, "polygonal lights");
+    let mut push = |row: Row| {
+        announce(&row);
+        rows.push(row);
+    };
+    for (res, eps) in [(16, 2.0), (32, 2.0), (64, 2.0), (64, 0.5)] {
+        let s = bspvt::Settings { res, epsilon: eps };
+        let b = bspvt::bake(&scene, &renderer.flat, &s, &|_| {});
+        let t = Instant::now();
+        let v = bspvt::shade_vertices(&scene, &renderer.flat, bspvt::Method::Bspvt, Some(&b), &s, eye);
+        let st = b.stats;
+        push(Row {
+            bake_s: st.seconds,
+            bake_bytes: st.bytes,
+            leaves_per_vertex: st.leaves as f64 / st.vertices.max(1) as f64,
+            ..truth.row("bspvt", format!("{res}² faces, ε {eps}"), t.elapsed().as_secs_f64(), &v)
+        });
+    }
+    let s = bspvt::Settings::default();
+    let t = Instant::now();
+    let v = bspvt::shade_vertices(&scene, &renderer.flat, bspvt::Method::ExactVis, None, &s, eye);
+    push(truth.row("ltc-exact-vis", "64² faces (cast per frame)".into(), t.elapsed().as_secs_f64(), &v));
+    let t = Instant::now();
+    let v = bspvt::shade_vertices(&scene, &renderer.flat, bspvt::Method::Unshadowed, None, &s, eye);
+    push(truth.row("ltc-unshadowed", String::new(), t.elapsed().as_secs_f64(), &v));
+    for spp in [1u32, 4, 16, 64] {
+        let t = Instant::now();
+        let est = renderer.render_vertices(eye, &Settings { spp, seed: 7, max_bounces: 0 }, &|_| {});
+        let v: Vec<Vec<Vec3>> = est.iter().map(|e| e.iter().map(|x| x.mean).collect()).collect();
+        push(truth.row("monte-carlo", format!("{spp} spp"), t.elapsed().as_secs_f64(), &v));
+    }
+    for rays in [1u32, 4, 16] {
+        let t = Instant::now();
+        let v = ratio::shade_vertices(&renderer, rays, 7, eye);
+        push(truth.row("ratio-estimator", format!("{rays} rays per light"), t.elapsed().as_secs_f64(), &v));
+    }
+    Ok(format!("{} ({} vertices, {} lights)", truth.line, renderer.vertex_count(), renderer.flat.lights.len()))
+}

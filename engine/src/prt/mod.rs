@@ -1,0 +1,495 @@
+//! PRT for dynamic scenes (Tamura, Johan & Nishita, seed `003_…txt`; summary in DESIGN.md):
+//! diffuse surfaces under an environment light, the scene split into rigid groups.
+//!
+//! - [`transfer`]: per vertex, the self-shadowed diffuse transfer in SH, in its group's frame
+//!   (albedo left out), so a bake depends on the group's own geometry alone and survives any
+//!   move or rotation of the group;
+//! - [`lighting`]: the environment's SH coefficients (exact texel solid angles), the window
+//!   against ringing, and their rotation into each group's frame every frame;
+//! - [`regions`]: the environment as q area lights (power `B_i`, direction `w_i`, `Ω_i`);
+//! - [`silhouette`]: each other group's silhouette along `w_i`, box-filtered per receiver;
+//! - [`plan`]: SH order, region count and window chosen from an error budget.
+//!
+//! Per frame ([`Frame::prepare`]): `L(p) = ρ · max(0, Ls(p) − Σ_i B_i T(p, w_i) V_o(p, w_i))`
+//! (seed Eq. 15), where `Ls` and `T(p, w_i)` are windowed SH reconstructions from the vertex
+//! transfer, interpolated across triangles, and `V_o` combines the other groups as
+//! `1 − Π_o (1 − V_o)`. Images evaluate `V_o` per pixel; `--vertices-out` per vertex.
+
+pub mod lighting;
+pub mod plan;
+pub mod regions;
+pub mod silhouette;
+pub mod transfer;
+
+use crate::accel::SceneBvh;
+use crate::math::frame::Frame as ShadingFrame;
+use crate::math::sh;
+use crate::raster::{self, Primary, SurfaceHit};
+use crate::reference::Bsdf;
+use crate::scene::{FlatScene, InGroup, PrimitiveId, RigidGroup, Scene, Transform, group_triangles};
+use glam::{Affine3A, DMat3, DVec3, Vec3};
+use lighting::{NegativeLobes, RgbCoeffs, Window};
+use rayon::prelude::*;
+use regions::Region;
+use silhouette::Silhouette;
+use std::collections::HashMap;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::time::Instant;
+
+/// Version of the transfer bake's algorithm: part of every bake key.
+pub const ALGORITHM_VERSION: u32 = 1;
+
+/// Seed of the shared direction set (fixed: the bake depends on its parameters only).
+const DIRECTION_SEED: u64 = 0x0050_5254;
+
+/// PRT parameters.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Settings {
+    /// SH order n (bands 0..n−1, n² coefficients).
+    pub order: usize,
+    /// Directions per vertex for the transfer (rounded down to a square, for stratification).
+    pub directions: usize,
+    /// Environment regions q for shadows between groups.
+    pub regions: usize,
+    /// Window applied to `Ls` and `T(p, w_i)` alike.
+    pub window: Window,
+    /// Silhouette resolution (texels per side).
+    pub silhouette_res: usize,
+}
+
+impl Default for Settings {
+    fn default() -> Self {
+        Self { order: 4, directions: 1024, regions: 32, window: Window::Hanning, silhouette_res: 128 }
+    }
+}
+
+impl Settings {
+    /// Side of the stratified direction grid.
+    pub fn direction_side(&self) -> usize {
+        ((self.directions as f64).sqrt() as usize).max(1)
+    }
+}
+
+/// Statistics of a transfer bake.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Stats {
+    /// Vertices baked.
+    pub vertices: usize,
+    /// Bytes of transfer data.
+    pub bytes: usize,
+    /// Wall-clock seconds.
+    pub seconds: f64,
+}
+
+/// Self-transfer of every instance: vertex `v` of instance `i` is
+/// `instances[i][v·n² .. (v+1)·n²]`, in its group's frame.
+#[derive(Clone, Debug)]
+pub struct Bake {
+    /// SH order.
+    pub order: usize,
+    /// Per instance, in [`FlatScene::instances`] order.
+    pub instances: Vec<Vec<f32>>,
+    /// Statistics.
+    pub stats: Stats,
+}
+
+impl Bake {
+    /// The same bake cut to a lower order (SH projection is orthogonal: truncation is exact).
+    pub fn truncated(&self, order: usize) -> Self {
+        let (from, to) = (sh::num_coeffs(self.order), sh::num_coeffs(order.min(self.order)));
+        let instances: Vec<Vec<f32>> =
+            self.instances.iter().map(|t| t.chunks(from).flat_map(|c| c[..to].iter().copied()).collect()).collect();
+        let bytes = instances.iter().map(|t| t.len() * 4).sum();
+        Self { order: order.min(self.order), instances, stats: Stats { bytes, ..self.stats } }
+    }
+
+    /// Transfer coefficients of vertex `v` of instance `i`.
+    pub fn vertex(&self, i: usize, v: usize) -> &[f32] {
+        let n = sh::num_coeffs(self.order);
+        &self.instances[i][v * n..(v + 1) * n]
+    }
+}
+
+/// Group-from-local transform of every instance (exact, from the ECS: never through the
+/// group's pose, so moving a group cannot change a bit of its bake).
+pub fn local_transforms(scene: &Scene, flat: &FlatScene) -> Vec<Affine3A> {
+    let by_id: HashMap<PrimitiveId, Affine3A> =
+        scene.world.query::<(&PrimitiveId, &InGroup)>().iter().map(|(id, g)| (*id, g.local)).collect();
+    flat.instances.iter().map(|i| by_id[&i.id]).collect()
+}
+
+/// Bakes the self-transfer of every instance against its own group, in parallel over vertices.
+pub fn bake(scene: &Scene, flat: &FlatScene, s: &Settings, progress: &(dyn Fn(usize) + Sync)) -> Bake {
+    let start = Instant::now();
+    let dirs = transfer::Directions::stratified(s.direction_side(), s.order, DIRECTION_SEED);
+    let mut bvhs: HashMap<hecs::Entity, SceneBvh> = HashMap::new();
+    for inst in &flat.instances {
+        bvhs.entry(inst.group).or_insert_with(|| SceneBvh::new(&group_triangles(scene, inst.group)));
+    }
+    let locals = local_transforms(scene, flat);
+    let n = sh::num_coeffs(s.order);
+    let done = AtomicUsize::new(0);
+    let mut stats = Stats::default();
+    let instances: Vec<Vec<f32>> = flat
+        .instances
+        .iter()
+        .zip(&locals)
+        .map(|(inst, local)| {
+            let mesh = &scene.meshes[inst.mesh as usize];
+            let normal_matrix = local.matrix3.inverse().transpose();
+            let bvh = &bvhs[&inst.group];
+            let mut out = vec![0.0f32; mesh.positions.len() * n];
+            out.par_chunks_mut(n).enumerate().for_each(|(v, t)| {
+                let p = local.transform_point3(mesh.positions[v]);
+                let normal = Vec3::from(normal_matrix * glam::Vec3A::from(mesh.normals[v])).normalize_or(Vec3::Y);
+                transfer::vertex_transfer(bvh, &dirs, p, normal, t);
+                progress(done.fetch_add(1, Ordering::Relaxed) + 1);
+            });
+            stats.vertices += mesh.positions.len();
+            stats.bytes += out.len() * 4;
+            out
+        })
+        .collect();
+    stats.seconds = start.elapsed().as_secs_f64();
+    Bake { order: s.order, instances, stats }
+}
+
+/// The environment prepared for PRT: SH coefficients, regions and the ringing they show.
+#[derive(Clone, Debug)]
+pub struct Lighting {
+    /// World-frame SH coefficients of the radiance.
+    pub coeffs: RgbCoeffs,
+    /// The environment's regions.
+    pub regions: Vec<Region>,
+    /// Window applied at reconstruction.
+    pub window: Window,
+    /// Negative lobes of the windowed reconstruction.
+    pub lobes: NegativeLobes,
+}
+
+impl Lighting {
+    /// Projects and decomposes the scene's environment (`None` without one).
+    pub fn new(scene: &Scene, s: &Settings) -> Option<Self> {
+        let env = scene.world.query::<&crate::scene::EnvironmentLight>().iter().next().cloned()?;
+        let coeffs = lighting::project(&env, s.order);
+        let lobes = lighting::negative_lobes(&coeffs, s.window);
+        Some(Self { coeffs, regions: regions::decompose(&env, s.regions), window: s.window, lobes })
+    }
+}
+
+/// Which PRT terms to shade.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Method {
+    /// Self-shadowing only (plain PRT).
+    SelfOnly,
+    /// Self-shadowing and shadows cast by other groups.
+    WithOthers,
+}
+
+/// Everything one frame's shading needs, after groups, lights and the camera are posed.
+pub struct Frame {
+    /// Per instance and vertex: unclamped `Ls` (RGB, albedo not applied).
+    ls: Vec<Vec<Vec3>>,
+    /// Per instance and vertex: diffuse albedo toward the eye.
+    albedo: Vec<Vec<Vec3>>,
+    /// Per instance: `T(v, w_i)` for every vertex, vertex-major (q per vertex).
+    shadow_t: Vec<Vec<f32>>,
+    /// Per group index: one silhouette per region.
+    silhouettes: Vec<Arc<Vec<Silhouette>>>,
+    /// Group index of every instance.
+    group_of: Vec<usize>,
+    regions: Vec<Region>,
+    /// Angular width √spread of each region: the box filter's size per unit distance.
+    widths: Vec<f32>,
+}
+
+/// World-from-group rotation (scale removed) and mirror flag of every group in the snapshot.
+fn group_poses(scene: &Scene, flat: &FlatScene) -> (Vec<hecs::Entity>, Vec<(DMat3, bool)>) {
+    let mut groups: Vec<(u32, hecs::Entity)> = flat
+        .instances
+        .iter()
+        .map(|i| (scene.world.get::<&RigidGroup>(i.group).map_or(u32::MAX, |g| g.index), i.group))
+        .collect();
+    groups.sort();
+    groups.dedup();
+    let poses = groups
+        .iter()
+        .map(|&(_, g)| {
+            let parts = scene.world.get::<&Transform>(g).ok().and_then(|t| t.rigid_parts().ok());
+            parts.map_or((DMat3::IDENTITY, false), |p| (DMat3::from_quat(p.rotation.as_dquat()), p.mirrored))
+        })
+        .collect();
+    (groups.into_iter().map(|(_, g)| g).collect(), poses)
+}
+
+impl Frame {
+    /// Poses the lighting into every group, reconstructs `Ls` and `T(v, w_i)` per vertex, and
+    /// (for [`Method::WithOthers`] in a scene with several groups) rasterises the silhouettes.
+    pub fn prepare(
+        scene: &Scene,
+        flat: &FlatScene,
+        bake: &Bake,
+        light: &Lighting,
+        method: Method,
+        s: &Settings,
+        eye: Vec3,
+    ) -> Self {
+        Self::prepare_cached(scene, flat, bake, light, method, s, eye, &mut ShadowCache::default())
+    }
+
+    /// [`Frame::prepare`], reusing from `cache` the silhouettes of groups that did not move
+    /// (after a move, only the moved group's are rasterised again).
+    #[allow(clippy::too_many_arguments)]
+    pub fn prepare_cached(
+        scene: &Scene,
+        flat: &FlatScene,
+        bake: &Bake,
+        light: &Lighting,
+        method: Method,
+        s: &Settings,
+        eye: Vec3,
+        cache: &mut ShadowCache,
+    ) -> Self {
+        let order = bake.order.min((light.coeffs.len() as f64).sqrt() as usize);
+        let window = light.window.per_coeff(order);
+        let (groups, poses) = group_poses(scene, flat);
+        let group_of: Vec<usize> =
+            flat.instances.iter().map(|i| groups.iter().position(|g| *g == i.group).expect("listed")).collect();
+        let others = method == Method::WithOthers && groups.len() > 1;
+        let regions = if others { light.regions.clone() } else { Vec::new() };
+        // Per group: windowed local lighting, and per region the windowed Y_k(w_i in the group frame).
+        let per_group: Vec<(Vec<DVec3>, Vec<f64>)> = poses
+            .iter()
+            .map(|&(rot, mirrored)| {
+                let local = lighting::to_group_frame(&light.coeffs[..sh::num_coeffs(order)], rot, mirrored);
+                let lw = local.iter().zip(&window).map(|(c, h)| *c * *h).collect();
+                let mirror = if mirrored { DVec3::new(1.0, 1.0, -1.0) } else { DVec3::ONE };
+                let yh = regions
+                    .iter()
+                    .flat_map(|r| {
+                        let d = mirror * (rot.transpose() * r.dir.as_dvec3());
+                        sh::eval(order, d).into_iter().zip(&window).map(|(y, h)| y * h).collect::<Vec<_>>()
+                    })
+                    .collect();
+                (lw, yh)
+            })
+            .collect();
+        let q = regions.len();
+        let (mut ls, mut albedo, mut shadow_t) = (Vec::new(), Vec::new(), Vec::new());
+        for (i, inst) in flat.instances.iter().enumerate() {
+            let (lw, yh) = &per_group[group_of[i]];
+            let count = scene.meshes[inst.mesh as usize].positions.len();
+            let rows: Vec<(Vec3, Vec3, Vec<f32>)> = (0..count)
+                .into_par_iter()
+                .map(|v| {
+                    let t = &bake.vertex(i, v)[..sh::num_coeffs(order)];
+                    let l: DVec3 = t.iter().zip(lw).map(|(t, c)| *c * *t as f64).sum();
+                    let ts = (0..q)
+                        .map(|r| {
+                            let y = &yh[r * t.len()..(r + 1) * t.len()];
+                            (t.iter().zip(y).map(|(t, y)| *t as f64 * y).sum::<f64>()).max(0.0) as f32
+                        })
+                        .collect();
+                    let (p, normal) = flat.vertex(&scene.meshes, i, v);
+                    let wo = ShadingFrame::from_normal(normal).to_local((eye - p).normalize_or(normal));
+                    (l.as_vec3(), Bsdf::new(&inst.material, wo).diffuse_albedo(), ts)
+                })
+                .collect();
+            ls.push(rows.iter().map(|r| r.0).collect());
+            albedo.push(rows.iter().map(|r| r.1).collect());
+            shadow_t.push(rows.into_iter().flat_map(|r| r.2).collect());
+        }
+        let silhouettes =
+            if others { cache.silhouettes(flat, &group_of, groups.len(), &regions, s) } else { Vec::new() };
+        let widths = regions.iter().map(|r| r.spread.sqrt() as f32).collect();
+        Self { ls, albedo, shadow_t, silhouettes, group_of, regions, widths }
+    }
+
+    /// `ρ · max(0, Ls − Σ_i B_i T_i V_o)` at `p` from interpolated `ls`, `albedo` and `t`, with
+    /// `V_o = 1 − Π (1 − V_g)` over the (region, group) `pairs` (sorted by region) that are not
+    /// in group `own`.
+    fn radiance(
+        &self,
+        own: usize,
+        ls: Vec3,
+        albedo: Vec3,
+        t: impl Fn(usize) -> f32,
+        p: Vec3,
+        pairs: &[(u16, u16)],
+    ) -> Vec3 {
+        let mut l = ls.as_dvec3();
+        for run in pairs.chunk_by(|a, b| a.0 == b.0) {
+            let r = run[0].0 as usize;
+            let tr = t(r);
+            if tr <= 0.0 {
+                continue;
+            }
+            let width = self.widths[r];
+            let open: f32 = run
+                .iter()
+                .filter(|(_, g)| *g as usize != own)
+                .map(|&(_, g)| 1.0 - self.silhouettes[g as usize][r].occlusion(p, width))
+                .product();
+            if open < 1.0 {
+                l -= self.regions[r].power * (tr * (1.0 - open)) as f64;
+            }
+        }
+        albedo * l.max(DVec3::ZERO).as_vec3()
+    }
+
+    /// Every (region, group) pair, sorted by region.
+    fn all_pairs(&self) -> Vec<(u16, u16)> {
+        (0..self.regions.len()).flat_map(|r| (0..self.silhouettes.len()).map(move |g| (r as u16, g as u16))).collect()
+    }
+
+    /// The pairs whose shadow can reach a sphere (a tile's points).
+    fn pairs_reaching(&self, centre: Vec3, radius: f32) -> Vec<(u16, u16)> {
+        self.all_pairs()
+            .into_iter()
+            .filter(|&(r, g)| self.silhouettes[g as usize][r as usize].reaches(centre, radius, self.widths[r as usize]))
+            .collect()
+    }
+
+    /// Per-vertex radiance toward the eye, per instance.
+    pub fn vertex_values(&self, scene: &Scene, flat: &FlatScene) -> Vec<Vec<Vec3>> {
+        let q = self.regions.len();
+        let pairs = self.all_pairs();
+        (0..flat.instances.len())
+            .map(|i| {
+                let own = self.group_of[i];
+                (0..self.ls[i].len())
+                    .into_par_iter()
+                    .map(|v| {
+                        let (p, _) = flat.vertex(&scene.meshes, i, v);
+                        let t = &self.shadow_t[i][v * q..(v + 1) * q];
+                        self.radiance(own, self.ls[i][v], self.albedo[i][v], |r| t[r], p, &pairs)
+                    })
+                    .collect()
+            })
+            .collect()
+    }
+
+    /// Radiance at one primary-ray hit, with the other groups' shadows evaluated there.
+    pub fn shade_hit(&self, hit: &SurfaceHit) -> Vec3 {
+        self.shade_hit_with(hit, &self.all_pairs())
+    }
+
+    fn shade_hit_with(&self, hit: &SurfaceHit, pairs: &[(u16, u16)]) -> Vec3 {
+        let i = hit.instance;
+        let q = self.regions.len();
+        let t = |r: usize| (0..3).map(|c| self.shadow_t[i][hit.corners[c] * q + r] * hit.weights[c]).sum::<f32>();
+        let ls = hit.interpolate(&self.ls[i]);
+        let albedo = hit.interpolate(&self.albedo[i]);
+        self.radiance(self.group_of[i], ls, albedo, t, hit.position, pairs)
+    }
+
+    /// A `width × height` image with `spp` samples per pixel, the other groups' shadows
+    /// evaluated per sample (see [`Frame::shade_grid`]).
+    pub fn render(
+        &self,
+        r: &crate::reference::Renderer,
+        camera: &crate::scene::Camera,
+        width: usize,
+        height: usize,
+        spp: u32,
+    ) -> Vec<Vec3> {
+        let (grid, side) = raster::primary_grid(r, camera, width, height, spp);
+        raster::downsample(&self.shade_grid(&grid, width * side), width, height, side)
+    }
+
+    /// Shades a grid of primary hits (`grid_width` columns, row-major): per sample the same
+    /// result as [`Frame::shade_hit`], but 8×8-sample tiles skip the (region, group) pairs whose
+    /// shadow cannot reach them.
+    pub fn shade_grid(&self, grid: &[Primary], grid_width: usize) -> Vec<Vec3> {
+        const TILE: usize = 8;
+        let (gw, gh) = (grid_width, grid.len() / grid_width.max(1));
+        let (tx, ty) = (gw.div_ceil(TILE), gh.div_ceil(TILE));
+        let tiles: Vec<Vec<(usize, Vec3)>> = (0..tx * ty)
+            .into_par_iter()
+            .map(|t| {
+                let (x0, y0) = ((t % tx) * TILE, (t / tx) * TILE);
+                let cells: Vec<usize> = (y0..(y0 + TILE).min(gh))
+                    .flat_map(|y| (x0..(x0 + TILE).min(gw)).map(move |x| y * gw + x))
+                    .collect();
+                let hits: Vec<&SurfaceHit> = cells
+                    .iter()
+                    .filter_map(|&k| if let Primary::Surface(h) = &grid[k] { Some(h) } else { None })
+                    .collect();
+                let (lo, hi) =
+                    hits.iter().fold((Vec3::MAX, Vec3::MIN), |(lo, hi), h| (lo.min(h.position), hi.max(h.position)));
+                let pairs = if hits.is_empty() {
+                    Vec::new()
+                } else {
+                    self.pairs_reaching(0.5 * (lo + hi), 0.5 * (hi - lo).length())
+                };
+                cells
+                    .iter()
+                    .map(|&k| {
+                        let v = match &grid[k] {
+                            Primary::Miss => Vec3::ZERO,
+                            Primary::Emitter(l) => *l,
+                            Primary::Surface(h) => self.shade_hit_with(h, &pairs),
+                        };
+                        (k, v)
+                    })
+                    .collect()
+            })
+            .collect();
+        let mut values = vec![Vec3::ZERO; gw * gh];
+        for (k, v) in tiles.into_iter().flatten() {
+            values[k] = v;
+        }
+        values
+    }
+}
+
+/// Silhouettes kept between frames, per group, keyed by a hash of the group's world triangles,
+/// the regions and the resolution: a group that did not move is not rasterised again.
+#[derive(Default)]
+pub struct ShadowCache {
+    entries: HashMap<usize, (blake3::Hash, Arc<Vec<Silhouette>>)>,
+}
+
+impl ShadowCache {
+    /// One silhouette list per group index, built or reused.
+    fn silhouettes(
+        &mut self,
+        flat: &FlatScene,
+        group_of: &[usize],
+        groups: usize,
+        regions: &[Region],
+        s: &Settings,
+    ) -> Vec<Arc<Vec<Silhouette>>> {
+        let mut tris: Vec<Vec<[Vec3; 3]>> = vec![Vec::new(); groups];
+        for (t, r) in flat.triangles.iter().zip(&flat.refs) {
+            if r.light == crate::scene::NO_LIGHT {
+                tris[group_of[r.owner as usize]].push(*t);
+            }
+        }
+        let mut context = blake3::Hasher::new();
+        context.update(&(s.silhouette_res as u64).to_le_bytes());
+        for r in regions {
+            context.update(bytemuck::cast_slice(&[r.dir.x, r.dir.y, r.dir.z, r.spread as f32]));
+        }
+        let keys: Vec<blake3::Hash> =
+            tris.iter().map(|t| context.clone().update(bytemuck::cast_slice(t.as_slice())).finalize()).collect();
+        let built: Vec<Arc<Vec<Silhouette>>> = (0..groups)
+            .into_par_iter()
+            .map(|g| match self.entries.get(&g) {
+                Some((k, sil)) if *k == keys[g] => sil.clone(),
+                _ => Arc::new(group_silhouettes(&tris[g], regions, s)),
+            })
+            .collect();
+        self.entries = built.iter().enumerate().map(|(g, sil)| (g, (keys[g], sil.clone()))).collect();
+        built
+    }
+}
+
+/// One silhouette per region of a group's world triangles.
+fn group_silhouettes(t: &[[Vec3; 3]], regions: &[Region], s: &Settings) -> Vec<Silhouette> {
+    let (lo, hi) = t.iter().flatten().fold((Vec3::MAX, Vec3::MIN), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
+    let centre = 0.5 * (lo + hi);
+    let radius = t.iter().flatten().map(|p| p.distance(centre)).fold(0.0f32, f32::max);
+    regions.par_iter().map(|r| Silhouette::build(t, centre, radius, r.dir, s.silhouette_res)).collect()
+}

@@ -1,0 +1,191 @@
+//! Choosing SH order, window and region count from an error budget ("model only what the
+//! scene needs"). A pilot bakes the transfer at a high order once, then:
+//! - **order**: the smallest n in 2..=8 whose shading (best of no window and Hanning) is within
+//!   the budget of the order-12 unwindowed shading, relative RMSE over the receivers;
+//! - **q**: the smallest of 8, 16, 32, 64 whose other-group term `Σ B_i T V_o` is within the
+//!   budget (relative to the shading) of a Monte Carlo estimate of the same term (1024
+//!   importance-sampled environment rays per pilot vertex, shadow rays against the groups);
+//!   skipped when the scene has one group.
+
+use super::lighting::{self, Window};
+use super::{Bake, Frame, Lighting, Method, Settings, bake, regions};
+use crate::accel::{SceneBvh, offset_ray_origin};
+use crate::math::{relative_rmse, rng};
+use crate::reference::Bsdf;
+use crate::scene::{EnvironmentLight, FlatScene, NO_LIGHT, Scene};
+use glam::{Vec2, Vec3};
+use rand::Rng;
+use rayon::prelude::*;
+
+/// The order the others are measured against.
+pub const REFERENCE_ORDER: usize = 12;
+/// Candidate orders.
+pub const ORDERS: std::ops::RangeInclusive<usize> = 2..=8;
+/// Candidate region counts.
+pub const REGION_COUNTS: [usize; 4] = [8, 16, 32, 64];
+/// Pilot vertices for the other-group term.
+const PILOT: usize = 400;
+/// Environment samples per pilot vertex.
+const PILOT_SAMPLES: usize = 1024;
+
+/// The chosen settings with one line per decision, each with the measured errors.
+pub fn choose(scene: &Scene, flat: &FlatScene, budget: f64, eye: Vec3, base: &Settings) -> (Settings, Vec<String>) {
+    let Some(env) = flat.environment.clone() else {
+        return (*base, vec!["no environment light: PRT has nothing to shade".into()]);
+    };
+    let high = bake(scene, flat, &Settings { order: REFERENCE_ORDER, ..*base }, &|_| {});
+    let coeffs = lighting::project(&env, REFERENCE_ORDER);
+    let light = |window| Lighting {
+        coeffs: coeffs.clone(),
+        regions: Vec::new(),
+        window,
+        lobes: lighting::negative_lobes(&coeffs, window),
+    };
+    let shade = |b: &Bake, l: &Lighting, m| Frame::prepare(scene, flat, b, l, m, base, eye).vertex_values(scene, flat);
+    let truth: Vec<Vec3> = shade(&high, &light(Window::None), Method::SelfOnly).concat();
+    let mut chosen = None;
+    let mut measured = Vec::new();
+    for order in ORDERS {
+        let b = high.truncated(order);
+        let errs = [Window::None, Window::Hanning]
+            .map(|w| (relative_rmse(&shade(&b, &light(w), Method::SelfOnly).concat(), &truth), w));
+        let (err, window) = if errs[1].0 < errs[0].0 { errs[1] } else { errs[0] };
+        measured.push(format!(
+            "{order}: {:.2} %{}",
+            100.0 * err,
+            if window == Window::Hanning { " (Hanning)" } else { "" }
+        ));
+        if err <= budget || order == *ORDERS.end() {
+            chosen = Some((order, window, err <= budget));
+            break;
+        }
+    }
+    let (order, window, met) = chosen.expect("ORDERS is not empty");
+    let mut s = Settings { order, window, ..*base };
+    let mut why = vec![format!(
+        "SH order {order}{}: {} budget {:.1} % against order {REFERENCE_ORDER} ({})",
+        if window == Window::Hanning { " with a Hanning window" } else { "" },
+        if met { "smallest within the" } else { "highest tried; misses the" },
+        100.0 * budget,
+        measured.join(", ")
+    )];
+    why.push(choose_regions(scene, flat, &env, &high.truncated(order), budget, eye, &mut s, &coeffs));
+    (s, why)
+}
+
+/// Picks `s.regions`; returns the reason.
+#[allow(clippy::too_many_arguments)]
+fn choose_regions(
+    scene: &Scene,
+    flat: &FlatScene,
+    env: &EnvironmentLight,
+    b: &Bake,
+    budget: f64,
+    eye: Vec3,
+    s: &mut Settings,
+    coeffs: &lighting::RgbCoeffs,
+) -> String {
+    let groups: std::collections::BTreeSet<_> = flat.instances.iter().map(|i| i.group).collect();
+    if groups.len() < 2 {
+        return "one rigid group: no shadows between groups to compute".into();
+    }
+    let sample = pilot_vertices(scene, flat);
+    let exact = exact_other_term(scene, flat, env, &sample, eye);
+    let mut measured = Vec::new();
+    for q in REGION_COUNTS {
+        let l = Lighting {
+            coeffs: coeffs.clone(),
+            regions: regions::decompose(env, q),
+            window: s.window,
+            lobes: lighting::negative_lobes(coeffs, s.window),
+        };
+        let frame =
+            |m| Frame::prepare(scene, flat, b, &l, m, &Settings { regions: q, ..*s }, eye).vertex_values(scene, flat);
+        let (own, with) = (frame(Method::SelfOnly), frame(Method::WithOthers));
+        let pick = |v: &[Vec<Vec3>]| sample.iter().map(|&(i, k)| v[i][k]).collect::<Vec<_>>();
+        let (own, with) = (pick(&own), pick(&with));
+        let term: Vec<Vec3> = own.iter().zip(&with).map(|(a, b)| *a - *b).collect();
+        let num: f64 = term.iter().zip(&exact).map(|(a, b)| (*a - *b).as_dvec3().length_squared()).sum();
+        let den: f64 = own.iter().map(|a| a.as_dvec3().length_squared()).sum();
+        let err = if den > 0.0 { (num / den).sqrt() } else { 0.0 };
+        measured.push(format!("{q}: {:.2} %", 100.0 * err));
+        if err <= budget || q == REGION_COUNTS[REGION_COUNTS.len() - 1] {
+            s.regions = q;
+            return format!(
+                "{q} regions: {} budget for the other-group term against Monte Carlo on {} vertices ({})",
+                if err <= budget { "smallest within the" } else { "largest tried; misses the" },
+                sample.len(),
+                measured.join(", ")
+            );
+        }
+    }
+    unreachable!("the last candidate always returns")
+}
+
+/// An even sample of receiver vertices (instance, vertex).
+fn pilot_vertices(scene: &Scene, flat: &FlatScene) -> Vec<(usize, usize)> {
+    let all: Vec<(usize, usize)> = (0..flat.instances.len())
+        .flat_map(|i| (0..scene.meshes[flat.instances[i].mesh as usize].positions.len()).map(move |v| (i, v)))
+        .collect();
+    let step = (all.len() / PILOT).max(1);
+    all.into_iter().step_by(step).collect()
+}
+
+/// Monte Carlo of `ρ/π ∫ L cos V_self (1 − V_others) dω` at each sample vertex.
+fn exact_other_term(
+    scene: &Scene,
+    flat: &FlatScene,
+    env: &EnvironmentLight,
+    sample: &[(usize, usize)],
+    eye: Vec3,
+) -> Vec<Vec3> {
+    let mut groups: Vec<hecs::Entity> = flat.instances.iter().map(|i| i.group).collect();
+    groups.sort();
+    groups.dedup();
+    let bvhs: Vec<SceneBvh> = groups
+        .iter()
+        .map(|g| {
+            let tris: Vec<[Vec3; 3]> = flat
+                .triangles
+                .iter()
+                .zip(&flat.refs)
+                .filter(|(_, r)| r.light == NO_LIGHT && flat.instances[r.owner as usize].group == *g)
+                .map(|(t, _)| *t)
+                .collect();
+            SceneBvh::new(&tris)
+        })
+        .collect();
+    sample
+        .par_iter()
+        .enumerate()
+        .map(|(k, &(i, v))| {
+            let (p, n) = flat.vertex(&scene.meshes, i, v);
+            let own = groups.iter().position(|g| *g == flat.instances[i].group).expect("listed");
+            let frame = crate::math::frame::Frame::from_normal(n);
+            let albedo =
+                Bsdf::new(&flat.instances[i].material, frame.to_local((eye - p).normalize_or(n))).diffuse_albedo();
+            let mut r = rng::stream(0xE0, k as u64);
+            let side = (PILOT_SAMPLES as f64).sqrt() as usize;
+            let mut sum = Vec3::ZERO;
+            for j in 0..side * side {
+                let u = Vec2::new(
+                    ((j % side) as f32 + r.random::<f32>()) / side as f32,
+                    ((j / side) as f32 + r.random::<f32>()) / side as f32,
+                );
+                let Some(s) = env.sample(u) else { continue };
+                let cos = s.dir.dot(n);
+                if cos <= 0.0 {
+                    continue;
+                }
+                let o = offset_ray_origin(p, n, s.dir);
+                if bvhs[own].occluded(o, s.dir, f32::INFINITY) {
+                    continue;
+                }
+                if bvhs.iter().enumerate().any(|(g, b)| g != own && b.occluded(o, s.dir, f32::INFINITY)) {
+                    sum += s.radiance * cos / (std::f32::consts::PI * s.pdf);
+                }
+            }
+            albedo * sum / (side * side) as f32
+        })
+        .collect()
+}
