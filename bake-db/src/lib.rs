@@ -1,6 +1,29 @@
 //! # kage-bake-db
 //!
-//! The content-addressed store of baked artefacts (redb), the bake planner with incremental
-//! re-bake, and asset-pack export — issue #7. The crate exists so that the workspace layout is
-//! the final one; it has no code yet: bakes currently run in memory on every
-//! `kage render --method bspvt` (see the README's BSPVT section).
+//! The bake database: every baker's results, content-addressed in one redb file per project.
+//!
+//! - [`store`]: the file (schema version; tables for meshes, artefacts, metadata, scenes and
+//!   lineage), batched writes, integrity check and garbage collection;
+//! - [`key`]: bake keys, blake3 of everything a result depends on;
+//! - [`plan`]: which artefacts a scene needs (chunks of [`plan::CHUNK`] vertices per instance
+//!   and technique), which are cached;
+//! - [`run`]: bakes the misses on rayon while one writer commits batches, re-bakes BSPVT warm
+//!   from lineage after edits, and assembles the engine's bakes.
+//!
+//! ## Guarantees
+//! - **Same inputs, same bytes**: a key covers the mesh content, parameters, algorithm version
+//!   and (BSPVT) the occluder snapshot or (PRT) the group's own geometry; artefacts are
+//!   bit-identical on any thread count, and a warm re-bake gives the cold bake's bytes.
+//! - **Crash safety**: each batch is one transaction; a process killed at any moment loses at
+//!   most the batch in flight, and the next run bakes only what is missing.
+//! - **Clear errors**: a locked, corrupted or incompatible file is an error naming the file.
+
+pub mod key;
+pub mod plan;
+pub mod run;
+pub mod store;
+
+pub use key::Key;
+pub use plan::{Plan, plan};
+pub use run::{Outcome, RunStats, run};
+pub use store::{DbError, Store};

@@ -1,12 +1,14 @@
 //! `kage`: bake and preview shadows for real-time rendering.
 //!
-//! Subcommands: `info` (what a scene holds) and `render` (images and per-vertex radiance with a
-//! chosen method). With no scene argument every command uses the built-in default scene.
+//! Subcommands: `info` (what a scene holds), `render` (images and per-vertex radiance with a
+//! chosen method), `bake` and `db` (the bake database), `report` (speed against error). With no scene argument every command uses the built-in default scene.
 
 mod commands;
+mod db_args;
 mod progress;
 mod prt_args;
 mod scene_args;
+mod watch;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -28,6 +30,10 @@ enum Command {
     Info(commands::info::Args),
     /// Render an image and/or per-vertex radiance.
     Render(commands::render::Args),
+    /// Plan and run the scene's bakes against the bake database (incremental, resumable).
+    Bake(commands::bake::Args),
+    /// Inspect, check or clean the bake database.
+    Db(commands::db::Args),
     /// Speed against error of the polygonal-light methods, as Markdown, CSV and a PNG plot.
     Report(commands::report::Args),
     /// Fit the GGX LTC table and write it as Rust source (developer tool).
@@ -53,6 +59,8 @@ fn main() -> ExitCode {
         Command::Render(a) => commands::render::run(&a),
         Command::FitLtc(a) => commands::fit_ltc::run(&a),
         Command::Report(a) => commands::report::run(&a),
+        Command::Bake(a) => commands::bake::run(&a),
+        Command::Db(a) => commands::db::run(&a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

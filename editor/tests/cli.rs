@@ -250,3 +250,92 @@ fn prt_methods_plan_render_and_move_groups() {
     assert!(!o.status.success() && stderr(&o).contains("has none"), "{}", stderr(&o));
     std::fs::remove_dir_all(d).unwrap();
 }
+
+/// Per-vertex BSPVT radiance rendered from the database at `db` (the CSV's bytes).
+fn vertices_from_db(scene: &str, db: &Path, out: &Path) -> Vec<u8> {
+    let o = kage(&[
+        "render",
+        scene,
+        "--method",
+        "bspvt",
+        "--face-res",
+        "32",
+        "--db",
+        db.to_str().unwrap(),
+        "--vertices-out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        String::from_utf8_lossy(&o.stdout).contains("0 baked cold, 0 warm"),
+        "rendering a baked scene bakes nothing"
+    );
+    std::fs::read(out).unwrap()
+}
+
+#[test]
+fn a_bake_killed_at_random_points_resumes_to_a_clean_bakes_result() {
+    let d = scratch("crash");
+    let scene = d.join("scene.gltf");
+    std::fs::copy(shared("scenes/emissive_strength_cubes.gltf"), &scene).unwrap();
+    let scene = scene.to_str().unwrap().to_string();
+    let clean = d.join("clean.redb");
+    let o = kage(&["bake", &scene, "--face-res", "32", "--db", clean.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    // The default database: beside the scene.
+    let db = d.join(".kage/bake.redb");
+    let mut seed = 0x2545_F491_4F6C_DD1Du64;
+    for round in 0..10 {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        let delay = 50 + seed % 900;
+        let mut child = Command::new(env!("CARGO_BIN_EXE_kage"))
+            .args(["bake", &scene, "--face-res", "32"])
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .unwrap();
+        std::thread::sleep(std::time::Duration::from_millis(delay));
+        let _ = child.kill(); // SIGKILL: no chance to clean up
+        let _ = child.wait();
+        if db.exists() {
+            let o = kage(&["db", "check", "--db", db.to_str().unwrap()]);
+            assert!(
+                o.status.success(),
+                "round {round} (killed after {delay} ms): {}{}",
+                stderr(&o),
+                String::from_utf8_lossy(&o.stdout)
+            );
+        }
+    }
+    let o = kage(&["bake", &scene, "--face-res", "32"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = String::from_utf8_lossy(&o.stdout);
+    let resumed =
+        out.lines().find_map(|l| l.trim().split_once(" of 11 chunks cached")).map(|(n, _)| n.parse::<usize>().unwrap());
+    assert!(resumed.is_some_and(|n| n > 0), "the killed runs left finished chunks behind:\n{out}");
+    assert_eq!(vertices_from_db(&scene, &db, &d.join("a.csv")), vertices_from_db(&scene, &clean, &d.join("b.csv")));
+    // `--watch` holds the database: another process gets a clear error.
+    let mut holder = Command::new(env!("CARGO_BIN_EXE_kage"))
+        .args(["bake", &scene, "--face-res", "32", "--watch"])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(1500));
+    let o = kage(&["bake", &scene, "--face-res", "32"]);
+    assert!(!o.status.success() && stderr(&o).contains("in use by another process"), "{}", stderr(&o));
+    // An editor-style save (write a temporary file, rename it over the scene) re-bakes warm.
+    // The slab's translation y (the only "1.2," in the file) goes up by 5 cm.
+    let text = std::fs::read_to_string(&scene).unwrap().replacen("1.2,", "1.25,", 1);
+    let tmp = d.join("scene.gltf.tmp");
+    std::fs::write(&tmp, text).unwrap();
+    std::fs::rename(&tmp, &scene).unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(6000));
+    let _ = holder.kill();
+    let out = holder.wait_with_output().unwrap();
+    let out = String::from_utf8_lossy(&out.stdout);
+    assert!(out.matches("plan for").count() >= 2 && out.contains(" warm"), "--watch re-planned after the save:\n{out}");
+    std::fs::remove_dir_all(d).unwrap();
+}

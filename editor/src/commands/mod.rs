@@ -1,5 +1,7 @@
 //! One module per subcommand.
 
+pub mod bake;
+pub mod db;
 pub mod fit_ltc;
 pub mod info;
 pub mod render;

@@ -1,5 +1,6 @@
 //! `kage render`: images and per-vertex radiance with a chosen method.
 
+use crate::db_args::DbArgs;
 use crate::progress::bar;
 use crate::prt_args::PrtArgs;
 use crate::scene_args::SceneArgs;
@@ -81,6 +82,8 @@ pub struct Args {
     error_budget: Option<f64>,
     #[command(flatten)]
     prt: PrtArgs,
+    #[command(flatten)]
+    db: DbArgs,
     /// Drop the environment light (the per-vertex polygonal-light methods never include it;
     /// use this to compare the reference with them).
     #[arg(long)]
@@ -124,7 +127,7 @@ pub fn run(args: &Args) -> Result<()> {
     let (image, vertices) = match args.method {
         Method::Reference => reference(args, &renderer, &camera, output.is_some())?,
         Method::Prt | Method::PrtSelf => prt(args, &scene, &renderer, &camera, output.is_some())?,
-        m => per_vertex(args, m, &scene, &renderer, &camera, output.is_some()),
+        m => per_vertex(args, m, &scene, &renderer, &camera, output.is_some())?,
     };
     if let (Some(path), Some(pixels)) = (&output, image) {
         write_image(path, args.size.0, args.size.1, &pixels, args.exposure)?;
@@ -172,30 +175,19 @@ fn per_vertex(
     renderer: &Renderer,
     camera: &Camera,
     want_image: bool,
-) -> Outputs {
+) -> Result<Outputs> {
     let mut settings = bspvt::Settings { res: args.face_res, epsilon: args.epsilon };
     if let (Method::Bspvt, Some(budget)) = (method, args.error_budget) {
         let (chosen, why) = bspvt::plan::choose(scene, &renderer.flat, budget, camera.eye());
         crate::emit(&format!("plan: {why}\n"));
         settings = bspvt::Settings { epsilon: args.epsilon, ..chosen };
     }
-    let bake = (method == Method::Bspvt).then(|| {
-        let pb = bar(renderer.vertex_count() as u64, "baking");
-        let b = bspvt::bake(scene, &renderer.flat, &settings, &|n| pb.set_position(n as u64));
-        pb.finish_and_clear();
-        let st = b.stats;
-        crate::emit(&format!(
-            "bake: {} vertices in {:.2} s ({:.0} vertices/s), {:.1} leaves and {:.1} nodes per vertex, {:.0} bytes per vertex ({:.2} MB)\n",
-            st.vertices,
-            st.seconds,
-            st.vertices as f64 / st.seconds,
-            st.leaves as f64 / st.vertices as f64,
-            st.nodes as f64 / st.vertices as f64,
-            st.bytes as f64 / st.vertices as f64,
-            st.bytes as f64 / 1e6
-        ));
-        b
-    });
+    let store = if method == Method::Bspvt { args.db.open_if_used(&args.scene)? } else { None };
+    let bake = if let Some(store) = &store {
+        from_database(store, scene, &renderer.flat, Some(settings), None)?.bspvt
+    } else {
+        (method == Method::Bspvt).then(|| in_memory_bspvt(scene, renderer, &settings))
+    };
     let kind = match method {
         Method::Bspvt => bspvt::Method::Bspvt,
         Method::LtcExactVis => bspvt::Method::ExactVis,
@@ -211,12 +203,35 @@ fn per_vertex(
     ));
     let image =
         want_image.then(|| raster::vertex_image(renderer, camera, args.size.0, args.size.1, args.spp.min(16), &values));
-    (image, Some(values))
+    Ok((image, Some(values)))
+}
+
+/// Bakes BSPVT without a database, printing the bake statistics.
+fn in_memory_bspvt(scene: &Scene, renderer: &Renderer, settings: &bspvt::Settings) -> bspvt::Bake {
+    let pb = bar(renderer.vertex_count() as u64, "baking");
+    let b = bspvt::bake(scene, &renderer.flat, settings, &|n| pb.set_position(n as u64));
+    pb.finish_and_clear();
+    let st = b.stats;
+    crate::emit(&format!(
+        "bake: {} vertices in {:.2} s ({:.0} vertices/s), {:.1} leaves and {:.1} nodes per vertex, {:.0} bytes per vertex ({:.2} MB)\n",
+        st.vertices,
+        st.seconds,
+        st.vertices as f64 / st.seconds,
+        st.leaves as f64 / st.vertices as f64,
+        st.nodes as f64 / st.vertices as f64,
+        st.bytes as f64 / st.vertices as f64,
+        st.bytes as f64 / 1e6
+    ));
+    b
 }
 
 fn prt(args: &Args, scene: &Scene, renderer: &Renderer, camera: &Camera, want_image: bool) -> Result<Outputs> {
     let flat = &renderer.flat;
-    let settings = args.prt.settings(scene, flat, args.error_budget, camera.eye());
+    let store = args.db.open_if_used(&args.scene)?;
+    let settings = match &store {
+        Some(store) => args.prt.settings_cached(store, scene, flat, args.error_budget, camera.eye())?,
+        None => args.prt.settings(scene, flat, args.error_budget, camera.eye()),
+    };
     let Some(lighting) = prt::Lighting::new(scene, &settings) else {
         bail!("{}: PRT shades environment lighting and the scene has none (pass --env FILE.hdr)", scene.source);
     };
@@ -228,19 +243,25 @@ fn prt(args: &Args, scene: &Scene, renderer: &Renderer, camera: &Camera, want_im
         100.0 * lighting.lobes.fraction,
         lighting.regions.len()
     ));
-    let pb = bar(renderer.vertex_count() as u64, "baking");
-    let bake = prt::bake(scene, flat, &settings, &|n| pb.set_position(n as u64));
-    pb.finish_and_clear();
-    let st = bake.stats;
-    crate::emit(&format!(
-        "bake: {} vertices in {:.2} s ({:.0} vertices/s), order {}, {} directions, {:.2} MB\n",
-        st.vertices,
-        st.seconds,
-        st.vertices as f64 / st.seconds,
-        settings.order,
-        settings.direction_side().pow(2),
-        st.bytes as f64 / 1e6
-    ));
+    let bake = match &store {
+        Some(store) => from_database(store, scene, flat, None, Some(settings))?.prt.context("PRT was planned")?,
+        None => {
+            let pb = bar(renderer.vertex_count() as u64, "baking");
+            let bake = prt::bake(scene, flat, &settings, &|n| pb.set_position(n as u64));
+            pb.finish_and_clear();
+            let st = bake.stats;
+            crate::emit(&format!(
+                "bake: {} vertices in {:.2} s ({:.0} vertices/s), order {}, {} directions, {:.2} MB\n",
+                st.vertices,
+                st.seconds,
+                st.vertices as f64 / st.seconds,
+                settings.order,
+                settings.direction_side().pow(2),
+                st.bytes as f64 / 1e6
+            ));
+            bake
+        }
+    };
     let method = if args.method == Method::Prt { prt::Method::WithOthers } else { prt::Method::SelfOnly };
     let start = Instant::now();
     let frame = prt::Frame::prepare(scene, flat, &bake, &lighting, method, &settings, camera.eye());
@@ -251,6 +272,31 @@ fn prt(args: &Args, scene: &Scene, renderer: &Renderer, camera: &Camera, want_im
         frame.render(renderer, camera, w, h, args.spp.min(16))
     });
     Ok((image, Some(values)))
+}
+
+/// Plans and runs the bakes through the database, printing what was cached and what baked.
+fn from_database(
+    store: &kage_bake_db::Store,
+    scene: &Scene,
+    flat: &kage_engine::scene::FlatScene,
+    bspvt: Option<bspvt::Settings>,
+    prt: Option<prt::Settings>,
+) -> Result<kage_bake_db::Outcome> {
+    let plan = kage_bake_db::plan(store, scene, flat, bspvt, prt)?;
+    let pb = bar(plan.misses().map(|j| j.vertices.len()).sum::<usize>() as u64, "baking");
+    let out = kage_bake_db::run(store, scene, flat, &plan, &|n| pb.set_position(n as u64))?;
+    pb.finish_and_clear();
+    let s = out.stats;
+    crate::emit(&format!(
+        "bake: {}: {} chunks cached, {} baked cold, {} warm ({} vertices) in {:.2} s\n",
+        store.path().display(),
+        s.cached,
+        s.cold,
+        s.warm,
+        s.vertices_baked,
+        s.seconds
+    ));
+    Ok(out)
 }
 
 fn camera(args: &Args, scene_camera: Option<Camera>) -> Result<Camera> {

@@ -4,6 +4,10 @@
 //! origin off the surface it leaves by a few ULPs (Wächter & Binder, *Ray Tracing Gems* ch. 6),
 //! which is robust at any distance from the origin without a scene-dependent epsilon.
 
+mod instances;
+
+pub use instances::Occluders;
+
 use glam::{Vec2, Vec3, Vec3A};
 use obvhs::{BvhBuildParams, cwbvh::CwBvh, ray::Ray, rt_triangle::RtTriangle, triangle::Triangle};
 use std::time::Duration;

@@ -70,15 +70,22 @@ pub fn decode_tree(bytes: &[u8]) -> Vec<Node> {
 
 /// Encodes a vertex record from its six optional face trees.
 pub fn encode_vertex(faces: &[Option<Vec<Node>>; 6]) -> Vec<u8> {
-    let mut trees: Vec<Vec<u8>> = Vec::with_capacity(6);
-    for f in faces {
-        let mut t = Vec::new();
-        if let Some(nodes) = f {
-            encode_tree(nodes, &mut t);
-        }
-        trees.push(t);
+    let trees: [Vec<u8>; 6] = std::array::from_fn(|f| encode_face(faces[f].as_deref()));
+    join_faces(trees.each_ref().map(Vec::as_slice))
+}
+
+/// The bytes of one face's tree (empty for no tree).
+pub fn encode_face(nodes: Option<&[Node]>) -> Vec<u8> {
+    let mut t = Vec::new();
+    if let Some(nodes) = nodes {
+        encode_tree(nodes, &mut t);
     }
-    let mut out = Vec::with_capacity(12 + trees.iter().map(Vec::len).sum::<usize>());
+    t
+}
+
+/// A vertex record from six encoded face trees (the inverse of [`vertex_faces`]).
+pub fn join_faces(trees: [&[u8]; 6]) -> Vec<u8> {
+    let mut out = Vec::with_capacity(12 + trees.iter().map(|t| t.len()).sum::<usize>());
     for t in &trees {
         out.extend_from_slice(&(t.len() as u16).to_le_bytes());
     }

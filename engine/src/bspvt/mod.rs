@@ -18,7 +18,7 @@ pub mod shade;
 pub mod tree;
 pub mod visibility;
 
-use crate::accel::SceneBvh;
+use crate::accel::Occluders;
 use crate::scene::{FlatScene, NO_LIGHT, Scene};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -81,23 +81,79 @@ pub struct Bake {
     pub stats: Stats,
 }
 
-/// The BVH of everything that casts shadows on polygonal-light receivers (not the lights).
-pub fn occluder_bvh(flat: &FlatScene) -> SceneBvh {
-    let tris: Vec<_> =
-        flat.triangles.iter().zip(&flat.refs).filter(|(_, r)| r.light == NO_LIGHT).map(|(t, _)| *t).collect();
-    SceneBvh::new(&tris)
+/// Everything that casts shadows on polygonal-light receivers (not the lights), one BVH per
+/// instance (see [`Occluders`]: an edit cannot change rays against the other instances).
+pub fn occluder_bvh(flat: &FlatScene) -> Occluders {
+    let mut parts: Vec<Vec<[glam::Vec3; 3]>> = vec![Vec::new(); flat.instances.len()];
+    for (t, r) in flat.triangles.iter().zip(&flat.refs) {
+        if r.light == NO_LIGHT {
+            parts[r.owner as usize].push(*t);
+        }
+    }
+    Occluders::new(&parts)
 }
 
 /// Bakes one vertex: its record and (leaves, nodes). Faces entirely below the horizon or
 /// entirely occluded store no tree: both contribute nothing.
-pub fn bake_vertex(occluders: &SceneBvh, p: glam::Vec3, n: glam::Vec3, s: &Settings) -> (Vec<u8>, usize, usize) {
-    let vis = visibility::cast(occluders, p, n, s.res);
-    let faces: [Option<Vec<tree::Node>>; 6] = std::array::from_fn(|f| {
-        tree::build(vis.face(f), s.res, s.epsilon).filter(|t| t.as_slice() != [tree::Node::Leaf(0.0)])
-    });
+pub fn bake_vertex(occluders: &Occluders, p: glam::Vec3, n: glam::Vec3, s: &Settings) -> (Vec<u8>, usize, usize) {
+    let faces: [Option<Vec<tree::Node>>; 6] = std::array::from_fn(|f| bake_face(occluders, p, n, f, s));
     let nodes: usize = faces.iter().flatten().map(Vec::len).sum();
     let leaves = faces.iter().flatten().flatten().filter(|n| matches!(n, tree::Node::Leaf(_))).count();
     (layout::encode_vertex(&faces), leaves, nodes)
+}
+
+/// The tree of face `f` of a vertex (`None`: below the horizon or entirely occluded).
+pub fn bake_face(
+    occluders: &Occluders,
+    p: glam::Vec3,
+    n: glam::Vec3,
+    f: usize,
+    s: &Settings,
+) -> Option<Vec<tree::Node>> {
+    let vis = visibility::cast_face(occluders, p, n, f, s.res);
+    tree::build(&vis, s.res, s.epsilon).filter(|t| t.as_slice() != [tree::Node::Leaf(0.0)])
+}
+
+/// Re-bakes the faces of `old` (a vertex record) flagged in `dirty` and keeps the others'
+/// bytes: identical to [`bake_vertex`] when the clean faces' visibility did not change.
+pub fn rebake_faces(
+    occluders: &Occluders,
+    p: glam::Vec3,
+    n: glam::Vec3,
+    s: &Settings,
+    old: &[u8],
+    dirty: [bool; 6],
+) -> Vec<u8> {
+    let kept = layout::vertex_faces(old);
+    let fresh: [Vec<u8>; 6] = std::array::from_fn(|f| {
+        if dirty[f] { layout::encode_face(bake_face(occluders, p, n, f, s).as_deref()) } else { kept[f].to_vec() }
+    });
+    layout::join_faces(fresh.each_ref().map(Vec::as_slice))
+}
+
+/// Which faces of a vertex at `p` (unit normal `n`) can see into an axis-aligned box: the box
+/// meets the face's frustum above the horizon, with a margin of two texels for the rays cast
+/// just above the horizon (a conservative test: a clean face's visibility cannot change when
+/// only geometry inside the box does).
+pub fn faces_seeing_box(p: glam::Vec3, n: glam::Vec3, lo: glam::Vec3, hi: glam::Vec3, res: usize) -> [bool; 6] {
+    let (p, n) = (p.as_dvec3(), n.as_dvec3());
+    let (lo, hi) = (lo.as_dvec3(), hi.as_dvec3());
+    if (p.cmpge(lo) & p.cmple(hi)).all() {
+        return [true; 6];
+    }
+    let corners: [glam::DVec3; 8] = std::array::from_fn(|k| {
+        glam::DVec3::new(
+            if k & 1 == 0 { lo.x } else { hi.x },
+            if k & 2 == 0 { lo.y } else { hi.y },
+            if k & 4 == 0 { lo.z } else { hi.z },
+        ) - p
+    });
+    let margin = 4.0 / res as f64;
+    let outside = |plane: glam::DVec3| corners.iter().all(|c| plane.dot(*c) < -margin * c.length());
+    if outside(n) {
+        return [false; 6];
+    }
+    std::array::from_fn(|f| !crate::math::cubemap::face_frustum(f).iter().any(|pl| outside(pl.normalize())))
 }
 
 /// Bakes every receiver vertex, in parallel; `progress` gets the number of vertices done.

@@ -1,7 +1,7 @@
 //! Per-vertex visibility cube maps, ray-cast with the BVH. Texels entirely below the vertex's
 //! horizon are never cast: LTC clips there, so their visibility cannot matter.
 
-use crate::accel::{SceneBvh, offset_ray_origin};
+use crate::accel::{Occluders, offset_ray_origin};
 use crate::math::cubemap;
 use glam::{DVec3, Vec3};
 
@@ -33,39 +33,43 @@ impl CubeVisibility {
 /// A texel is below the horizon only when all four of its corners are; a texel the horizon
 /// crosses is cast just above the horizon, so that grazing lights are not cut off by half a
 /// texel.
-pub fn cast(occluders: &SceneBvh, p: Vec3, n: Vec3, res: usize) -> CubeVisibility {
+pub fn cast(occluders: &Occluders, p: Vec3, n: Vec3, res: usize) -> CubeVisibility {
+    let texels = (0..cubemap::FACES).flat_map(|f| cast_face(occluders, p, n, f, res)).collect();
+    CubeVisibility { res, texels }
+}
+
+/// The `res²` texel states of face `f` alone (see [`cast`]).
+pub fn cast_face(occluders: &Occluders, p: Vec3, n: Vec3, f: usize, res: usize) -> Vec<u8> {
     let nd = n.as_dvec3();
     let edge = |k: usize| 2.0 * k as f64 / res as f64 - 1.0;
-    let mut texels = Vec::with_capacity(6 * res * res);
-    for f in 0..cubemap::FACES {
-        for j in 0..res {
-            for i in 0..res {
-                let centre: DVec3 = cubemap::face_to_dir(f, cubemap::texel_center(i, j, res));
-                let height = centre.dot(nd);
-                // A texel spans less than 2/res radians: only those near the horizon need corners.
-                let crossed = || {
-                    [(i, j), (i + 1, j), (i, j + 1), (i + 1, j + 1)]
-                        .iter()
-                        .any(|&(a, b)| cubemap::face_to_dir(f, glam::DVec2::new(edge(a), edge(b))).dot(nd) > 0.0)
-                };
-                if height <= -2.0 / res as f64 || (height <= 0.0 && !crossed()) {
-                    texels.push(BELOW);
-                    continue;
-                }
-                let d = if height > 0.0 {
-                    centre
-                } else {
-                    // The centre's projection onto the horizon, lifted slightly above it.
-                    ((centre - nd * centre.dot(nd)).normalize_or(centre) + nd * 1e-3).normalize()
-                };
-                let d = d.as_vec3();
-                texels.push(if occluders.occluded(offset_ray_origin(p, n, d), d, f32::INFINITY) {
-                    OCCLUDED
-                } else {
-                    VISIBLE
-                });
+    let mut texels = Vec::with_capacity(res * res);
+    for j in 0..res {
+        for i in 0..res {
+            let centre: DVec3 = cubemap::face_to_dir(f, cubemap::texel_center(i, j, res));
+            let height = centre.dot(nd);
+            // A texel spans less than 2/res radians: only those near the horizon need corners.
+            let crossed = || {
+                [(i, j), (i + 1, j), (i, j + 1), (i + 1, j + 1)]
+                    .iter()
+                    .any(|&(a, b)| cubemap::face_to_dir(f, glam::DVec2::new(edge(a), edge(b))).dot(nd) > 0.0)
+            };
+            if height <= -2.0 / res as f64 || (height <= 0.0 && !crossed()) {
+                texels.push(BELOW);
+                continue;
             }
+            let d = if height > 0.0 {
+                centre
+            } else {
+                // The centre's projection onto the horizon, lifted slightly above it.
+                ((centre - nd * centre.dot(nd)).normalize_or(centre) + nd * 1e-3).normalize()
+            };
+            let d = d.as_vec3();
+            texels.push(if occluders.occluded(offset_ray_origin(p, n, d), d, f32::INFINITY) {
+                OCCLUDED
+            } else {
+                VISIBLE
+            });
         }
     }
-    CubeVisibility { res, texels }
+    texels
 }

@@ -119,34 +119,52 @@ pub fn local_transforms(scene: &Scene, flat: &FlatScene) -> Vec<Affine3A> {
     flat.instances.iter().map(|i| by_id[&i.id]).collect()
 }
 
+/// What baking any vertex's transfer needs: the shared directions, each group's BVH in its own
+/// frame, and each instance's group-from-local transform.
+pub struct Baker {
+    dirs: transfer::Directions,
+    bvhs: HashMap<hecs::Entity, SceneBvh>,
+    locals: Vec<Affine3A>,
+}
+
+impl Baker {
+    /// Prepares the directions and the group BVHs of a snapshot.
+    pub fn new(scene: &Scene, flat: &FlatScene, s: &Settings) -> Self {
+        let dirs = transfer::Directions::stratified(s.direction_side(), s.order, DIRECTION_SEED);
+        let mut bvhs: HashMap<hecs::Entity, SceneBvh> = HashMap::new();
+        for inst in &flat.instances {
+            bvhs.entry(inst.group).or_insert_with(|| SceneBvh::new(&group_triangles(scene, inst.group)));
+        }
+        Self { dirs, bvhs, locals: local_transforms(scene, flat) }
+    }
+
+    /// The transfer of vertex `v` of instance `i` into `out` (n² values).
+    pub fn vertex(&self, scene: &Scene, flat: &FlatScene, i: usize, v: usize, out: &mut [f32]) {
+        let inst = &flat.instances[i];
+        let (local, mesh) = (&self.locals[i], &scene.meshes[inst.mesh as usize]);
+        let p = local.transform_point3(mesh.positions[v]);
+        let normal_matrix = local.matrix3.inverse().transpose();
+        let normal = Vec3::from(normal_matrix * glam::Vec3A::from(mesh.normals[v])).normalize_or(Vec3::Y);
+        transfer::vertex_transfer(&self.bvhs[&inst.group], &self.dirs, p, normal, out);
+    }
+}
+
 /// Bakes the self-transfer of every instance against its own group, in parallel over vertices.
 pub fn bake(scene: &Scene, flat: &FlatScene, s: &Settings, progress: &(dyn Fn(usize) + Sync)) -> Bake {
     let start = Instant::now();
-    let dirs = transfer::Directions::stratified(s.direction_side(), s.order, DIRECTION_SEED);
-    let mut bvhs: HashMap<hecs::Entity, SceneBvh> = HashMap::new();
-    for inst in &flat.instances {
-        bvhs.entry(inst.group).or_insert_with(|| SceneBvh::new(&group_triangles(scene, inst.group)));
-    }
-    let locals = local_transforms(scene, flat);
+    let baker = Baker::new(scene, flat, s);
     let n = sh::num_coeffs(s.order);
     let done = AtomicUsize::new(0);
     let mut stats = Stats::default();
-    let instances: Vec<Vec<f32>> = flat
-        .instances
-        .iter()
-        .zip(&locals)
-        .map(|(inst, local)| {
-            let mesh = &scene.meshes[inst.mesh as usize];
-            let normal_matrix = local.matrix3.inverse().transpose();
-            let bvh = &bvhs[&inst.group];
-            let mut out = vec![0.0f32; mesh.positions.len() * n];
+    let instances: Vec<Vec<f32>> = (0..flat.instances.len())
+        .map(|i| {
+            let count = scene.meshes[flat.instances[i].mesh as usize].positions.len();
+            let mut out = vec![0.0f32; count * n];
             out.par_chunks_mut(n).enumerate().for_each(|(v, t)| {
-                let p = local.transform_point3(mesh.positions[v]);
-                let normal = Vec3::from(normal_matrix * glam::Vec3A::from(mesh.normals[v])).normalize_or(Vec3::Y);
-                transfer::vertex_transfer(bvh, &dirs, p, normal, t);
+                baker.vertex(scene, flat, i, v, t);
                 progress(done.fetch_add(1, Ordering::Relaxed) + 1);
             });
-            stats.vertices += mesh.positions.len();
+            stats.vertices += count;
             stats.bytes += out.len() * 4;
             out
         })

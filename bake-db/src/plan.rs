@@ -1,0 +1,245 @@
+//! The bake plan: which artefacts a scene needs (per instance, per chunk of vertices), their
+//! keys, which are already in the store, and what the misses should cost.
+//!
+//! - **BSPVT** (polygonal lights present): visibility depends on the whole scene, so a chunk's
+//!   key covers its receiver (mesh hash, world transform) and the occluder snapshot (every
+//!   instance's id, mesh hash and world transform). Its *slot* (the key without the snapshot)
+//!   remembers the last artefact baked there and the snapshot it saw — the lineage that lets an
+//!   edit re-bake only the cube faces that can see what changed.
+//! - **PRT** (an environment present): a chunk's key covers the instance's mesh hash, its
+//!   transform relative to its group, and the group's own geometry in the group's frame — never
+//!   where the group is.
+
+use crate::key::{Key, KeyHasher};
+use crate::store::{Result, Store};
+use glam::{Affine3A, Vec3};
+use kage_engine::scene::{FlatScene, InGroup, PolygonLight, PrimitiveId, Scene};
+use kage_engine::{bspvt, prt};
+use std::collections::HashMap;
+use std::ops::Range;
+
+/// Vertices per artefact: the unit of caching, resuming and writing.
+pub const CHUNK: usize = 256;
+
+/// Which technique a job bakes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Kind {
+    /// BSPVT visibility trees.
+    Bspvt,
+    /// PRT self-transfer.
+    Prt,
+}
+
+impl Kind {
+    /// The name used in keys, metadata and messages.
+    pub fn name(self) -> &'static str {
+        match self {
+            Kind::Bspvt => "bspvt",
+            Kind::Prt => "prt",
+        }
+    }
+}
+
+/// One artefact: a chunk of one instance's vertices for one technique.
+#[derive(Clone, Debug)]
+pub struct Job {
+    /// Technique.
+    pub kind: Kind,
+    /// Instance index in the snapshot.
+    pub instance: usize,
+    /// Vertex range.
+    pub vertices: Range<usize>,
+    /// Bake key.
+    pub key: Key,
+    /// Lineage slot (BSPVT only).
+    pub slot: Option<Key>,
+    /// Already in the store.
+    pub cached: bool,
+}
+
+/// One instance as an occluder: identity, mesh, placement, bounds.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Occluder {
+    /// glTF origin (node, mesh, primitive).
+    pub id: [u32; 3],
+    /// Mesh content hash.
+    pub mesh: [u8; 32],
+    /// World transform.
+    pub world: [f32; 12],
+    /// World bounds (min, max).
+    pub bounds: [f32; 6],
+}
+
+/// Bytes of one encoded [`Occluder`]: 3 u32 + 32 + 12 f32 + 6 f32.
+pub const OCCLUDER_BYTES: usize = 12 + 32 + 48 + 24;
+
+/// The scene's occluders, in snapshot order, and their hash.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Snapshot {
+    /// Every instance (lights are not occluders of BSPVT visibility).
+    pub occluders: Vec<Occluder>,
+    /// Hash of the list.
+    pub hash: Key,
+}
+
+impl Snapshot {
+    /// The snapshot of a flattened scene.
+    pub fn of(scene: &Scene, flat: &FlatScene) -> Self {
+        let occluders: Vec<Occluder> = flat
+            .instances
+            .iter()
+            .map(|inst| {
+                let mesh = &scene.meshes[inst.mesh as usize];
+                let (lo, hi) = mesh.positions.iter().fold((Vec3::MAX, Vec3::MIN), |(lo, hi), p| {
+                    let w = inst.world.transform_point3(*p);
+                    (lo.min(w), hi.max(w))
+                });
+                Occluder {
+                    id: [inst.id.node, inst.id.mesh, inst.id.primitive],
+                    mesh: mesh.hash.0,
+                    world: inst.world.to_cols_array(),
+                    bounds: [lo.x, lo.y, lo.z, hi.x, hi.y, hi.z],
+                }
+            })
+            .collect();
+        let hash = KeyHasher::new("occluders").bytes("list", &encode_occluders(&occluders)).finish();
+        Self { occluders, hash }
+    }
+}
+
+/// Serialises occluders as POD (id, mesh, world, bounds), [`OCCLUDER_BYTES`] each.
+pub fn encode_occluders(o: &[Occluder]) -> Vec<u8> {
+    let mut out = Vec::with_capacity(o.len() * OCCLUDER_BYTES);
+    for x in o {
+        out.extend_from_slice(bytemuck::cast_slice(&x.id));
+        out.extend_from_slice(&x.mesh);
+        out.extend_from_slice(bytemuck::cast_slice(&x.world));
+        out.extend_from_slice(bytemuck::cast_slice(&x.bounds));
+    }
+    out
+}
+
+/// The inverse of [`encode_occluders`] (`None` for malformed bytes).
+pub fn decode_occluders(b: &[u8]) -> Option<Vec<Occluder>> {
+    if !b.len().is_multiple_of(OCCLUDER_BYTES) {
+        return None;
+    }
+    Some(
+        b.chunks_exact(OCCLUDER_BYTES)
+            .map(|c| Occluder {
+                id: bytemuck::pod_read_unaligned(&c[..12]),
+                mesh: c[12..44].try_into().expect("32 bytes"),
+                world: bytemuck::pod_read_unaligned(&c[44..92]),
+                bounds: bytemuck::pod_read_unaligned(&c[92..116]),
+            })
+            .collect(),
+    )
+}
+
+/// What a scene's bake needs: settings per technique (`None`: not needed) and the jobs.
+#[derive(Clone, Debug)]
+pub struct Plan {
+    /// BSPVT settings, when the scene has polygonal lights.
+    pub bspvt: Option<bspvt::Settings>,
+    /// PRT settings, when the scene has an environment.
+    pub prt: Option<prt::Settings>,
+    /// Every artefact, instance by instance.
+    pub jobs: Vec<Job>,
+    /// The occluder snapshot BSPVT keys were made against.
+    pub snapshot: Snapshot,
+}
+
+impl Plan {
+    /// Jobs not yet in the store.
+    pub fn misses(&self) -> impl Iterator<Item = &Job> {
+        self.jobs.iter().filter(|j| !j.cached)
+    }
+
+    /// Every key (what the scene references).
+    pub fn keys(&self) -> Vec<Key> {
+        self.jobs.iter().map(|j| j.key).collect()
+    }
+}
+
+/// Plans the bakes of a snapshot: BSPVT when it has polygonal lights and `bspvt` is given, PRT
+/// when it has an environment and `prt` is given.
+pub fn plan(
+    store: &Store,
+    scene: &Scene,
+    flat: &FlatScene,
+    bspvt: Option<bspvt::Settings>,
+    prt: Option<prt::Settings>,
+) -> Result<Plan> {
+    let bspvt = bspvt.filter(|_| !flat.lights.is_empty());
+    let prt = prt.filter(|_| flat.environment.is_some());
+    let snapshot = Snapshot::of(scene, flat);
+    let mut jobs = Vec::new();
+    if let Some(s) = bspvt {
+        for (i, inst) in flat.instances.iter().enumerate() {
+            let base = KeyHasher::new("bspvt")
+                .u64("version", bspvt::layout::FORMAT_VERSION as u64)
+                .u64("res", s.res as u64)
+                .f64("epsilon", s.epsilon)
+                .bytes("mesh", &scene.meshes[inst.mesh as usize].hash.0)
+                .affine("world", &inst.world);
+            let id = [inst.id.node, inst.id.mesh, inst.id.primitive];
+            for (c, vertices) in chunks(scene, flat, i) {
+                let key = base.clone().bytes("occluders", snapshot.hash.as_bytes()).u64("chunk", c as u64).finish();
+                let slot = base.clone().bytes("id", bytemuck::cast_slice(&id)).u64("slot", c as u64).finish();
+                jobs.push(Job { kind: Kind::Bspvt, instance: i, vertices, key, slot: Some(slot), cached: false });
+            }
+        }
+    }
+    if let Some(s) = prt {
+        let groups = group_geometry(scene);
+        let locals = prt::local_transforms(scene, flat);
+        for (i, inst) in flat.instances.iter().enumerate() {
+            let base = KeyHasher::new("prt")
+                .u64("version", prt::ALGORITHM_VERSION as u64)
+                .u64("order", s.order as u64)
+                .u64("directions", s.direction_side().pow(2) as u64)
+                .bytes("mesh", &scene.meshes[inst.mesh as usize].hash.0)
+                .affine("local", &locals[i])
+                .bytes("group", groups[&inst.group].as_bytes());
+            for (c, vertices) in chunks(scene, flat, i) {
+                let key = base.clone().u64("chunk", c as u64).finish();
+                jobs.push(Job { kind: Kind::Prt, instance: i, vertices, key, slot: None, cached: false });
+            }
+        }
+    }
+    let present = store.contains_all(&jobs.iter().map(|j| j.key).collect::<Vec<_>>())?;
+    jobs.iter_mut().zip(present).for_each(|(j, p)| j.cached = p);
+    Ok(Plan { bspvt, prt, jobs, snapshot })
+}
+
+/// (chunk index, vertex range) of instance `i`.
+fn chunks(scene: &Scene, flat: &FlatScene, i: usize) -> Vec<(usize, Range<usize>)> {
+    let n = scene.meshes[flat.instances[i].mesh as usize].positions.len();
+    (0..n.div_ceil(CHUNK)).map(|c| (c, c * CHUNK..((c + 1) * CHUNK).min(n))).collect()
+}
+
+/// Per group: a hash of its geometry in its own frame (members' meshes and group-relative
+/// transforms, lights' polygons), in glTF order.
+fn group_geometry(scene: &Scene) -> HashMap<hecs::Entity, Key> {
+    let mut members: HashMap<hecs::Entity, Vec<(PrimitiveId, [u8; 32], Affine3A)>> = HashMap::new();
+    for (id, m, g) in scene.world.query::<(&PrimitiveId, &kage_engine::scene::MeshRef, &InGroup)>().iter() {
+        members.entry(g.group).or_default().push((*id, m.hash.0, g.local));
+    }
+    let mut lights: HashMap<hecs::Entity, Vec<f32>> = HashMap::new();
+    for (l, g) in scene.world.query::<(&PolygonLight, &InGroup)>().iter() {
+        let pts = lights.entry(g.group).or_default();
+        pts.extend(l.points.iter().flat_map(|p| g.local.transform_point3(*p).to_array()));
+    }
+    members
+        .into_iter()
+        .map(|(g, mut list)| {
+            list.sort_by_key(|(id, ..)| (id.node, id.mesh, id.primitive));
+            let mut h = KeyHasher::new("group");
+            for (_, mesh, local) in &list {
+                h = h.bytes("mesh", mesh).affine("local", local);
+            }
+            let light_points = lights.remove(&g).unwrap_or_default();
+            (g, h.bytes("lights", bytemuck::cast_slice(&light_points)).finish())
+        })
+        .collect()
+}

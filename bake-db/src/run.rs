@@ -1,0 +1,347 @@
+//! Running a plan: rayon workers bake the missing chunks while one writer thread commits them
+//! in batches, then every chunk (baked now or cached) is assembled into the engine's bakes.
+//!
+//! A BSPVT chunk whose slot has lineage is re-baked *warm*: only the cube faces of its vertices
+//! that can see the old or new bounds of an occluder that changed are cast and built again; the
+//! other faces' bytes are copied. The result is byte-identical to a cold bake, because a clean
+//! face's rays cannot meet anything that changed.
+
+use crate::key::Key;
+use crate::plan::{Job, Kind, Occluder, Plan, decode_occluders, encode_occluders};
+use crate::store::{Info, Result, Store};
+use glam::Vec3;
+use kage_engine::accel::Occluders;
+use kage_engine::scene::{FlatScene, Scene};
+use kage_engine::{bspvt, prt};
+use rayon::prelude::*;
+use std::collections::HashMap;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::mpsc;
+use std::time::{Duration, Instant};
+
+/// Artefacts per write transaction at most.
+const BATCH: usize = 32;
+/// Longest a finished artefact waits before it is committed.
+const FLUSH_EVERY: Duration = Duration::from_millis(250);
+
+/// An axis-aligned box (min, max).
+pub type Bounds = (Vec3, Vec3);
+
+/// A slot's previous vertex records and the bounds of what changed since.
+type Lineage = (Vec<Vec<u8>>, Vec<Bounds>);
+
+/// What a run did.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct RunStats {
+    /// Chunks found in the store.
+    pub cached: usize,
+    /// Chunks baked from scratch.
+    pub cold: usize,
+    /// BSPVT chunks re-baked from their lineage.
+    pub warm: usize,
+    /// Vertices whose data was computed (all of a cold chunk, the touched ones of a warm one).
+    pub vertices_baked: usize,
+    /// BSPVT cube faces built (6 per vertex cold; only the dirty ones warm).
+    pub faces_baked: usize,
+    /// Wall-clock seconds.
+    pub seconds: f64,
+}
+
+/// The assembled bakes and what it took.
+pub struct Outcome {
+    /// BSPVT trees, when planned.
+    pub bspvt: Option<bspvt::Bake>,
+    /// PRT transfer, when planned.
+    pub prt: Option<prt::Bake>,
+    /// Statistics.
+    pub stats: RunStats,
+}
+
+/// One finished artefact on its way to the writer.
+struct Baked {
+    key: Key,
+    bytes: Vec<u8>,
+    info: Info,
+    lineage: Option<(Key, Vec<u8>)>,
+    warm: bool,
+    vertices: usize,
+    faces: usize,
+}
+
+/// Bakes the plan's misses (committing as they finish), then assembles every chunk.
+/// `progress` gets the number of vertices done among the misses.
+pub fn run(
+    store: &Store,
+    scene: &Scene,
+    flat: &FlatScene,
+    plan: &Plan,
+    progress: &(dyn Fn(usize) + Sync),
+) -> Result<Outcome> {
+    let start = Instant::now();
+    let occluders = plan.bspvt.map(|_| bspvt::occluder_bvh(flat));
+    let transfer = plan.prt.map(|s| prt::Baker::new(scene, flat, &s));
+    let ctx = Context { scene, flat, plan, store, occluders: occluders.as_ref(), transfer: transfer.as_ref() };
+    let misses: Vec<&Job> = plan.misses().collect();
+    let done = AtomicUsize::new(0);
+    let (tx, rx) = mpsc::channel::<Baked>();
+    let mut fresh: HashMap<Key, Vec<u8>> = HashMap::new();
+    let mut stats = RunStats { cached: plan.jobs.len() - misses.len(), ..RunStats::default() };
+    let written = std::thread::scope(|scope| -> Result<()> {
+        let writer = scope.spawn(|| write_batches(store, rx));
+        misses.par_iter().try_for_each_with(tx, |tx, job| -> Result<()> {
+            let baked = ctx.bake(job)?;
+            progress(done.fetch_add(job.vertices.len(), Ordering::Relaxed) + job.vertices.len());
+            // A closed channel means the writer failed; its error is reported below.
+            let _ = tx.send(baked);
+            Ok(())
+        })?;
+        let results = writer.join().expect("the writer thread does not panic")?;
+        for b in results {
+            if b.warm {
+                stats.warm += 1
+            } else {
+                stats.cold += 1
+            }
+            stats.vertices_baked += b.vertices;
+            stats.faces_baked += b.faces;
+            fresh.insert(b.key, b.bytes);
+        }
+        Ok(())
+    });
+    written?;
+    store.put_scene(&scene.source, &plan.keys())?;
+    let meshes: Vec<([u8; 32], u32, u32)> =
+        scene.meshes.iter().map(|m| (m.hash.0, m.positions.len() as u32, m.triangles.len() as u32)).collect();
+    store.put_meshes(&meshes)?;
+    let outcome = assemble(store, scene, flat, plan, &fresh, stats)?;
+    Ok(Outcome { stats: RunStats { seconds: start.elapsed().as_secs_f64(), ..outcome.stats }, ..outcome })
+}
+
+/// Receives finished artefacts and commits them in batches; returns them all.
+fn write_batches(store: &Store, rx: mpsc::Receiver<Baked>) -> Result<Vec<Baked>> {
+    let mut all: Vec<Baked> = Vec::new();
+    let mut pending = 0usize;
+    let mut last = Instant::now();
+    loop {
+        let next = rx.recv_timeout(FLUSH_EVERY);
+        let closed = matches!(next, Err(mpsc::RecvTimeoutError::Disconnected));
+        if let Ok(b) = next {
+            all.push(b);
+            pending += 1;
+        }
+        if pending > 0 && (pending >= BATCH || closed || last.elapsed() >= FLUSH_EVERY) {
+            let batch = &all[all.len() - pending..];
+            let arts: Vec<(Key, Vec<u8>, Info)> =
+                batch.iter().map(|b| (b.key, b.bytes.clone(), b.info.clone())).collect();
+            let lineage: Vec<(Key, Vec<u8>)> = batch.iter().filter_map(|b| b.lineage.clone()).collect();
+            store.put_batch(&arts, &lineage)?;
+            pending = 0;
+            last = Instant::now();
+        }
+        if closed {
+            return Ok(all);
+        }
+    }
+}
+
+struct Context<'a> {
+    scene: &'a Scene,
+    flat: &'a FlatScene,
+    plan: &'a Plan,
+    store: &'a Store,
+    occluders: Option<&'a Occluders>,
+    transfer: Option<&'a prt::Baker>,
+}
+
+impl Context<'_> {
+    fn bake(&self, job: &Job) -> Result<Baked> {
+        let t = Instant::now();
+        let (bytes, params, warm, faces, vertices) = match job.kind {
+            Kind::Prt => {
+                let s = self.plan.prt.expect("PRT job without PRT settings");
+                let n = s.order * s.order;
+                let mut out = vec![0.0f32; job.vertices.len() * n];
+                let baker = self.transfer.expect("built for PRT plans");
+                for (k, v) in job.vertices.clone().enumerate() {
+                    baker.vertex(self.scene, self.flat, job.instance, v, &mut out[k * n..(k + 1) * n]);
+                }
+                let params = format!(
+                    "order {}, {} directions, algorithm {}",
+                    s.order,
+                    s.direction_side().pow(2),
+                    prt::ALGORITHM_VERSION
+                );
+                (bytemuck::cast_slice(&out).to_vec(), params, false, 0, job.vertices.len())
+            }
+            Kind::Bspvt => {
+                let s = self.plan.bspvt.expect("BSPVT job without BSPVT settings");
+                let (records, warm, faces, touched) = self.bake_bspvt(job, &s)?;
+                let params = format!("{}² faces, ε {}, format {}", s.res, s.epsilon, bspvt::layout::FORMAT_VERSION);
+                (encode_records(&records), params, warm, faces, touched)
+            }
+        };
+        let info = Info {
+            kind: job.kind.name().into(),
+            params,
+            seconds: t.elapsed().as_secs_f64(),
+            checksum: *blake3::hash(&bytes).as_bytes(),
+        };
+        let lineage = job.slot.map(|slot| {
+            let mut v = job.key.as_bytes().to_vec();
+            v.extend(encode_occluders(&self.plan.snapshot.occluders));
+            (slot, v)
+        });
+        Ok(Baked { key: job.key, bytes, info, lineage, warm, vertices, faces })
+    }
+
+    /// The chunk's vertex records, whether warm, how many faces were built and how many
+    /// vertices were touched.
+    fn bake_bspvt(&self, job: &Job, s: &bspvt::Settings) -> Result<(Vec<Vec<u8>>, bool, usize, usize)> {
+        let occ = self.occluders.expect("built for BSPVT plans");
+        let vertex = |v: usize| self.flat.vertex(&self.scene.meshes, job.instance, v);
+        if let Some((old, boxes)) = self.lineage_of(job)? {
+            let (mut faces, mut touched) = (0, 0);
+            let records = job
+                .vertices
+                .clone()
+                .zip(old)
+                .map(|(v, rec)| {
+                    let (p, n) = vertex(v);
+                    let mut dirty = [false; 6];
+                    for (lo, hi) in &boxes {
+                        let d = bspvt::faces_seeing_box(p, n, *lo, *hi, s.res);
+                        dirty.iter_mut().zip(d).for_each(|(a, b)| *a |= b);
+                    }
+                    let count = dirty.iter().filter(|d| **d).count();
+                    faces += count;
+                    touched += usize::from(count > 0);
+                    if count == 0 { rec } else { bspvt::rebake_faces(occ, p, n, s, &rec, dirty) }
+                })
+                .collect();
+            return Ok((records, true, faces, touched));
+        }
+        let records = job.vertices.clone().map(|v| {
+            let (p, n) = vertex(v);
+            bspvt::bake_vertex(occ, p, n, s).0
+        });
+        Ok((records.collect(), false, 6 * job.vertices.len(), job.vertices.len()))
+    }
+
+    /// The slot's previous records and the bounds (old and new) of every occluder that changed
+    /// since, when the lineage is usable.
+    fn lineage_of(&self, job: &Job) -> Result<Option<Lineage>> {
+        let Some(slot) = job.slot else { return Ok(None) };
+        let Some(entry) = self.store.lineage(&slot)? else { return Ok(None) };
+        if entry.len() < 32 {
+            return Ok(None);
+        }
+        let Some(then) = decode_occluders(&entry[32..]) else { return Ok(None) };
+        let Some(bytes) = self.store.get::<u8>(&Key::from_slice(&entry[..32]))? else { return Ok(None) };
+        let Some(records) = decode_records(&bytes).filter(|r| r.len() == job.vertices.len()) else { return Ok(None) };
+        Ok(Some((records, changed_bounds(&then, &self.plan.snapshot.occluders))))
+    }
+}
+
+/// Bounds of every occluder added, removed or changed between two snapshots (old and new).
+pub fn changed_bounds(then: &[Occluder], now: &[Occluder]) -> Vec<Bounds> {
+    let by_id = |list: &[Occluder]| -> HashMap<[u32; 3], Occluder> { list.iter().map(|o| (o.id, *o)).collect() };
+    let (old, new) = (by_id(then), by_id(now));
+    let bounds = |o: &Occluder| {
+        // A margin for rays that graze the box (their offset origins differ from p).
+        let (lo, hi) = (Vec3::from_slice(&o.bounds[..3]), Vec3::from_slice(&o.bounds[3..]));
+        let pad = Vec3::splat(1e-4 * (hi - lo).length() + 1e-5);
+        (lo - pad, hi + pad)
+    };
+    let mut out = Vec::new();
+    for (id, o) in &old {
+        if new.get(id).is_none_or(|n| n != o) {
+            out.push(bounds(o));
+        }
+    }
+    for (id, n) in &new {
+        if old.get(id).is_none_or(|o| o != n) {
+            out.push(bounds(n));
+        }
+    }
+    out
+}
+
+/// A BSPVT chunk: u32 count, count + 1 u32 offsets, then the records.
+fn encode_records(records: &[Vec<u8>]) -> Vec<u8> {
+    let mut offsets = vec![0u32];
+    for r in records {
+        offsets.push(offsets[offsets.len() - 1] + r.len() as u32);
+    }
+    let mut out = (records.len() as u32).to_le_bytes().to_vec();
+    out.extend_from_slice(bytemuck::cast_slice(&offsets));
+    records.iter().for_each(|r| out.extend_from_slice(r));
+    out
+}
+
+/// The offsets and data of a BSPVT chunk (`None` when malformed).
+fn chunk_parts(bytes: &[u8]) -> Option<(Vec<u32>, &[u8])> {
+    let count = u32::from_le_bytes(bytes.get(..4)?.try_into().ok()?) as usize;
+    let end = 4 + 4 * (count + 1);
+    let offsets: Vec<u32> = bytemuck::pod_collect_to_vec(bytes.get(4..end)?);
+    let data = bytes.get(end..)?;
+    (offsets.windows(2).all(|w| w[0] <= w[1]) && *offsets.last()? as usize == data.len()).then_some((offsets, data))
+}
+
+fn decode_records(bytes: &[u8]) -> Option<Vec<Vec<u8>>> {
+    let (offsets, data) = chunk_parts(bytes)?;
+    Some(offsets.windows(2).map(|w| data[w[0] as usize..w[1] as usize].to_vec()).collect())
+}
+
+/// Builds the engine's bakes from the chunks, fresh or from the store.
+fn assemble(
+    store: &Store,
+    scene: &Scene,
+    flat: &FlatScene,
+    plan: &Plan,
+    fresh: &HashMap<Key, Vec<u8>>,
+    stats: RunStats,
+) -> Result<Outcome> {
+    let load = |key: &Key| -> Result<Vec<u8>> {
+        match fresh.get(key) {
+            Some(b) => Ok(b.clone()),
+            None => Ok(store.get::<u8>(key)?.unwrap_or_default()),
+        }
+    };
+    let mut bspvt_instances: Vec<bspvt::BakedInstance> =
+        vec![
+            bspvt::BakedInstance { offsets: vec![0], data: Vec::new() };
+            if plan.bspvt.is_some() { flat.instances.len() } else { 0 }
+        ];
+    let mut prt_instances: Vec<Vec<f32>> = vec![Vec::new(); if plan.prt.is_some() { flat.instances.len() } else { 0 }];
+    let mut leaves_bytes = 0usize;
+    for job in &plan.jobs {
+        let bytes = load(&job.key)?;
+        match job.kind {
+            Kind::Bspvt => {
+                let inst = &mut bspvt_instances[job.instance];
+                let Some((offsets, data)) = chunk_parts(&bytes) else {
+                    return Err(crate::store::DbError::Corrupted {
+                        path: store.path().to_path_buf(),
+                        detail: format!("BSPVT artefact {} is malformed (run `kage db check`)", job.key.short()),
+                    });
+                };
+                let base = inst.data.len() as u32;
+                inst.offsets.extend(offsets[1..].iter().map(|o| base + o));
+                inst.data.extend_from_slice(data);
+                leaves_bytes += data.len();
+            }
+            Kind::Prt => prt_instances[job.instance].extend(bytemuck::pod_collect_to_vec::<u8, f32>(&bytes)),
+        }
+    }
+    let vertices: usize = flat.instances.iter().map(|i| scene.meshes[i.mesh as usize].positions.len()).sum();
+    let bspvt = plan.bspvt.map(|settings| bspvt::Bake {
+        settings,
+        instances: bspvt_instances,
+        stats: bspvt::Stats { vertices, bytes: leaves_bytes, ..Default::default() },
+    });
+    let prt = plan.prt.map(|s| {
+        let bytes = prt_instances.iter().map(|t| t.len() * 4).sum();
+        prt::Bake { order: s.order, instances: prt_instances, stats: prt::Stats { vertices, bytes, seconds: 0.0 } }
+    });
+    Ok(Outcome { bspvt, prt, stats })
+}

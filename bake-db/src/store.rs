@@ -1,0 +1,315 @@
+//! The redb file: schema version, meshes by content hash, artefacts by bake key with their
+//! metadata, per-scene references (for `gc`) and lineage (for incremental re-bake).
+//!
+//! Every write is one redb transaction, so a process killed at any moment leaves the file as of
+//! the last commit: completed batches survive, the batch in flight is lost.
+
+use crate::key::Key;
+use redb::{Database, ReadableDatabase, ReadableTable, ReadableTableMetadata, TableDefinition};
+use std::collections::HashSet;
+use std::path::{Path, PathBuf};
+
+/// Bumped when a table's meaning or an artefact layout changes incompatibly.
+pub const SCHEMA_VERSION: u32 = 1;
+
+const META: TableDefinition<&str, &[u8]> = TableDefinition::new("meta");
+/// Mesh content hash → (vertices, triangles) as two little-endian u32.
+const MESHES: TableDefinition<&[u8], &[u8]> = TableDefinition::new("meshes");
+/// Bake key → artefact bytes (POD).
+const ARTEFACTS: TableDefinition<&[u8], &[u8]> = TableDefinition::new("artefacts");
+/// Bake key → metadata JSON (kind, parameters, algorithm version, seconds, bytes, checksum).
+const INFO: TableDefinition<&[u8], &str> = TableDefinition::new("info");
+/// Scene name → the keys its last plan used (concatenated 32-byte keys).
+const SCENES: TableDefinition<&str, &[u8]> = TableDefinition::new("scenes");
+/// Lineage slot → the last artefact baked there and what it was baked against.
+const LINEAGE: TableDefinition<&[u8], &[u8]> = TableDefinition::new("lineage");
+
+/// What can go wrong with the database file.
+#[derive(Debug, thiserror::Error)]
+pub enum DbError {
+    /// Another process has the file open.
+    #[error("{0}: the bake database is in use by another process (close it, or pass --db OTHER.redb)")]
+    Locked(PathBuf),
+    /// The file is not a redb database or is damaged beyond repair.
+    #[error("{path}: not a readable bake database ({detail}); delete it to start over, or pass --db OTHER.redb")]
+    Corrupted {
+        /// The file.
+        path: PathBuf,
+        /// What redb said.
+        detail: String,
+    },
+    /// The file was written by an incompatible version of kage.
+    #[error("{path}: bake database schema version {found}, this kage reads version {expected}; delete it to re-bake")]
+    Schema {
+        /// The file.
+        path: PathBuf,
+        /// Version in the file.
+        found: u32,
+        /// Version this build reads.
+        expected: u32,
+    },
+    /// An I/O or storage failure while running.
+    #[error("{path}: {detail}")]
+    Storage {
+        /// The file.
+        path: PathBuf,
+        /// What failed.
+        detail: String,
+    },
+}
+
+/// Result alias.
+pub type Result<T> = std::result::Result<T, DbError>;
+
+/// Metadata stored beside an artefact.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Info {
+    /// `bspvt` or `prt`.
+    pub kind: String,
+    /// Parameters and algorithm version, as text.
+    pub params: String,
+    /// Seconds the bake took.
+    pub seconds: f64,
+    /// blake3 of the artefact bytes.
+    pub checksum: [u8; 32],
+}
+
+/// An open bake database.
+pub struct Store {
+    db: Database,
+    path: PathBuf,
+}
+
+/// The result of [`Store::check`].
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct CheckReport {
+    /// Artefacts whose bytes match their checksum.
+    pub ok: usize,
+    /// Keys of artefacts whose bytes do not match, or that lack metadata.
+    pub bad: Vec<Key>,
+    /// False when redb had to repair the file.
+    pub clean: bool,
+}
+
+impl Store {
+    /// Opens (creating if needed, with its parent folder) the database at `path`.
+    pub fn open(path: &Path) -> Result<Self> {
+        if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+            std::fs::create_dir_all(dir).map_err(|e| storage(path, e))?;
+        }
+        let db = Database::create(path).map_err(|e| match e {
+            redb::DatabaseError::DatabaseAlreadyOpen => DbError::Locked(path.to_path_buf()),
+            other => DbError::Corrupted { path: path.to_path_buf(), detail: other.to_string() },
+        })?;
+        let store = Self { db, path: path.to_path_buf() };
+        store.init()?;
+        Ok(store)
+    }
+
+    /// The file's path.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Creates the tables and the schema version, or checks the version.
+    fn init(&self) -> Result<()> {
+        let found = self.read(|t| {
+            let meta = t.open_table(META)?;
+            Ok(meta.get("schema_version")?.map(|v| u32::from_le_bytes(v.value().try_into().unwrap_or([0; 4]))))
+        });
+        match found {
+            Ok(Some(v)) if v == SCHEMA_VERSION => Ok(()),
+            Ok(Some(found)) => Err(DbError::Schema { path: self.path.clone(), found, expected: SCHEMA_VERSION }),
+            _ => self.write(|t| {
+                t.open_table(META)?.insert("schema_version", SCHEMA_VERSION.to_le_bytes().as_slice())?;
+                for table in [MESHES, ARTEFACTS, LINEAGE] {
+                    t.open_table(table)?;
+                }
+                t.open_table(INFO)?;
+                t.open_table(SCENES)?;
+                Ok(())
+            }),
+        }
+    }
+
+    fn read<T>(&self, f: impl FnOnce(&redb::ReadTransaction) -> std::result::Result<T, redb::Error>) -> Result<T> {
+        let t = self.db.begin_read().map_err(|e| storage(&self.path, e))?;
+        f(&t).map_err(|e| storage(&self.path, e))
+    }
+
+    fn write(&self, f: impl FnOnce(&redb::WriteTransaction) -> std::result::Result<(), redb::Error>) -> Result<()> {
+        let t = self.db.begin_write().map_err(|e| storage(&self.path, e))?;
+        f(&t).map_err(|e| storage(&self.path, e))?;
+        t.commit().map_err(|e| storage(&self.path, e))
+    }
+
+    /// Which of `keys` have an artefact.
+    pub fn contains_all(&self, keys: &[Key]) -> Result<Vec<bool>> {
+        self.read(|t| {
+            let a = t.open_table(ARTEFACTS)?;
+            keys.iter().map(|k| Ok(a.get(k.as_bytes().as_slice())?.is_some())).collect()
+        })
+    }
+
+    /// The artefact of `key`, copied once into aligned memory as `T`s.
+    pub fn get<T: bytemuck::Pod>(&self, key: &Key) -> Result<Option<Vec<T>>> {
+        self.read(|t| {
+            let a = t.open_table(ARTEFACTS)?;
+            Ok(a.get(key.as_bytes().as_slice())?.map(|v| bytemuck::pod_collect_to_vec(v.value())))
+        })
+    }
+
+    /// Writes a batch of artefacts (with metadata) and lineage entries in one transaction.
+    pub fn put_batch(&self, artefacts: &[(Key, Vec<u8>, Info)], lineage: &[(Key, Vec<u8>)]) -> Result<()> {
+        self.write(|t| {
+            let mut a = t.open_table(ARTEFACTS)?;
+            let mut i = t.open_table(INFO)?;
+            for (key, bytes, info) in artefacts {
+                a.insert(key.as_bytes().as_slice(), bytes.as_slice())?;
+                i.insert(key.as_bytes().as_slice(), info_json(info, bytes.len()).as_str())?;
+            }
+            let mut l = t.open_table(LINEAGE)?;
+            for (slot, value) in lineage {
+                l.insert(slot.as_bytes().as_slice(), value.as_slice())?;
+            }
+            Ok(())
+        })
+    }
+
+    /// The lineage entry of `slot`.
+    pub fn lineage(&self, slot: &Key) -> Result<Option<Vec<u8>>> {
+        self.read(|t| Ok(t.open_table(LINEAGE)?.get(slot.as_bytes().as_slice())?.map(|v| v.value().to_vec())))
+    }
+
+    /// Records a mesh (content hash → vertex and triangle counts).
+    pub fn put_meshes(&self, meshes: &[([u8; 32], u32, u32)]) -> Result<()> {
+        self.write(|t| {
+            let mut m = t.open_table(MESHES)?;
+            for (hash, v, tris) in meshes {
+                let mut value = v.to_le_bytes().to_vec();
+                value.extend_from_slice(&tris.to_le_bytes());
+                m.insert(hash.as_slice(), value.as_slice())?;
+            }
+            Ok(())
+        })
+    }
+
+    /// A metadata value (e.g. a cached parameter plan).
+    pub fn meta(&self, name: &str) -> Result<Option<Vec<u8>>> {
+        self.read(|t| Ok(t.open_table(META)?.get(name)?.map(|v| v.value().to_vec())))
+    }
+
+    /// Sets a metadata value.
+    pub fn put_meta(&self, name: &str, value: &[u8]) -> Result<()> {
+        self.write(|t| {
+            t.open_table(META)?.insert(name, value)?;
+            Ok(())
+        })
+    }
+
+    /// Records the keys a scene's plan uses (what `gc` keeps).
+    pub fn put_scene(&self, scene: &str, keys: &[Key]) -> Result<()> {
+        let bytes: Vec<u8> = keys.iter().flat_map(|k| *k.as_bytes()).collect();
+        self.write(|t| {
+            t.open_table(SCENES)?.insert(scene, bytes.as_slice())?;
+            Ok(())
+        })
+    }
+
+    /// Counts of (artefacts, their bytes, meshes, scenes).
+    pub fn counts(&self) -> Result<(u64, u64, u64, u64)> {
+        self.read(|t| {
+            let a = t.open_table(ARTEFACTS)?;
+            let mut bytes = 0u64;
+            for item in a.iter()? {
+                bytes += item?.1.value().len() as u64;
+            }
+            Ok((a.len()?, bytes, t.open_table(MESHES)?.len()?, t.open_table(SCENES)?.len()?))
+        })
+    }
+
+    /// Verifies redb's own integrity (repairing what it can) and every artefact's checksum.
+    pub fn check(&mut self) -> Result<CheckReport> {
+        let clean = self
+            .db
+            .check_integrity()
+            .map_err(|e| DbError::Corrupted { path: self.path.clone(), detail: e.to_string() })?;
+        let bad = self.read(|t| {
+            let (a, i) = (t.open_table(ARTEFACTS)?, t.open_table(INFO)?);
+            let mut out = Vec::new();
+            let mut ok = 0usize;
+            for item in a.iter()? {
+                let (k, v) = item?;
+                let key = Key::from_slice(k.value());
+                let good = i
+                    .get(k.value())?
+                    .is_some_and(|info| checksum_of(info.value()) == Some(*blake3::hash(v.value()).as_bytes()));
+                if good { ok += 1 } else { out.push(key) }
+            }
+            Ok((ok, out))
+        })?;
+        Ok(CheckReport { ok: bad.0, bad: bad.1, clean })
+    }
+
+    /// Drops artefacts (and lineage pointing at them) that no recorded scene references; returns
+    /// how many artefacts went.
+    pub fn gc(&self) -> Result<usize> {
+        let keep: HashSet<[u8; 32]> = self.read(|t| {
+            let s = t.open_table(SCENES)?;
+            let mut keep = HashSet::new();
+            for item in s.iter()? {
+                for k in item?.1.value().chunks_exact(32) {
+                    keep.insert(k.try_into().expect("32-byte chunk"));
+                }
+            }
+            Ok(keep)
+        })?;
+        let doomed: Vec<Vec<u8>> = self.read(|t| {
+            let a = t.open_table(ARTEFACTS)?;
+            let mut out = Vec::new();
+            for item in a.iter()? {
+                let k = item?.0.value().to_vec();
+                if !keep.contains(k.as_slice()) {
+                    out.push(k);
+                }
+            }
+            Ok(out)
+        })?;
+        self.write(|t| {
+            let (mut a, mut i) = (t.open_table(ARTEFACTS)?, t.open_table(INFO)?);
+            for k in &doomed {
+                a.remove(k.as_slice())?;
+                i.remove(k.as_slice())?;
+            }
+            Ok(())
+        })?;
+        Ok(doomed.len())
+    }
+}
+
+fn storage(path: &Path, e: impl Into<redb::Error>) -> DbError {
+    DbError::Storage { path: path.to_path_buf(), detail: e.into().to_string() }
+}
+
+fn hex(bytes: &[u8]) -> String {
+    bytes.iter().map(|b| format!("{b:02x}")).collect()
+}
+
+fn info_json(info: &Info, len: usize) -> String {
+    serde_json::json!({
+        "kind": info.kind,
+        "params": info.params,
+        "seconds": info.seconds,
+        "bytes": len,
+        "checksum": hex(&info.checksum),
+    })
+    .to_string()
+}
+
+fn checksum_of(json: &str) -> Option<[u8; 32]> {
+    let v: serde_json::Value = serde_json::from_str(json).ok()?;
+    let h = v.get("checksum")?.as_str()?;
+    let bytes: Vec<u8> =
+        (0..h.len()).step_by(2).map(|i| u8::from_str_radix(h.get(i..i + 2)?, 16).ok()).collect::<Option<_>>()?;
+    bytes.try_into().ok()
+}

@@ -1,0 +1,181 @@
+//! The bake database end to end: caching, bit-identical artefacts, incremental re-bake after
+//! edits (exact counts), and bad database files.
+
+use glam::{Affine3A, Quat, Vec3};
+use kage_bake_db::run::RunStats;
+use kage_bake_db::{DbError, Store, plan, run};
+use kage_engine::scene::{EnvMap, EnvironmentLight, Material, Scene, flatten, shapes};
+use kage_engine::{bspvt, prt};
+use std::path::PathBuf;
+
+fn scratch(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("kage-db-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d.join("bake.redb")
+}
+
+const BSPVT: bspvt::Settings = bspvt::Settings { res: 16, epsilon: 2.0 };
+
+fn prt_settings() -> prt::Settings {
+    prt::Settings { order: 3, directions: 256, ..prt::Settings::default() }
+}
+
+/// A ground (2 chunks), two boxes and a sphere, a quad light and a sky.
+fn scene(edit: &str) -> Scene {
+    let mut s = Scene::new("test:edits");
+    let d = |c: f32| Material::lambertian(Vec3::splat(c));
+    s.add_object("ground", shapes::grid(8.0, 20), d(0.8), Affine3A::IDENTITY);
+    let a_pose = if edit == "move" { Vec3::new(-0.5, 0.5, 0.4) } else { Vec3::new(-1.5, 0.5, 0.0) };
+    let a_mesh = if edit == "mesh" { shapes::sphere(0.5, 12, 6) } else { shapes::cuboid(Vec3::splat(0.5)) };
+    s.add_object("box a", a_mesh, d(0.5), Affine3A::from_translation(a_pose));
+    if edit != "remove" {
+        s.add_object(
+            "box b",
+            shapes::cuboid(Vec3::new(0.3, 0.8, 0.3)),
+            d(0.5),
+            Affine3A::from_translation(Vec3::new(1.5, 0.8, -1.0)),
+        );
+    }
+    if edit == "add" {
+        s.add_object(
+            "sphere",
+            shapes::sphere(0.4, 12, 6),
+            d(0.6),
+            Affine3A::from_translation(Vec3::new(0.0, 0.4, 2.0)),
+        );
+    }
+    let h = 0.5;
+    let quad = vec![Vec3::new(-h, 0.0, -h), Vec3::new(h, 0.0, -h), Vec3::new(h, 0.0, h), Vec3::new(-h, 0.0, h)];
+    let light = s.add_light("light", quad, Vec3::splat(10.0), Affine3A::from_translation(Vec3::new(0.0, 3.5, 0.0)));
+    // The light is not an occluder of BSPVT visibility: moving it must not re-bake anything.
+    if edit == "light" {
+        s.pose_group(light, Quat::from_rotation_x(0.3), Vec3::new(0.7, 0.0, 0.0));
+    }
+    s.with_environment(EnvironmentLight::new(EnvMap::procedural_sky(64, 32, Vec3::new(0.3, 0.8, 0.2))))
+}
+
+/// Plans and runs; returns the stats and every artefact's bytes in plan order.
+fn bake(store: &Store, scene: &Scene) -> (RunStats, Vec<Vec<u8>>, Vec<usize>) {
+    let flat = flatten(scene);
+    let p = plan(store, scene, &flat, Some(BSPVT), Some(prt_settings())).unwrap();
+    let out = run(store, scene, &flat, &p, &|_| {}).unwrap();
+    let bytes = p.jobs.iter().map(|j| store.get::<u8>(&j.key).unwrap().expect("stored")).collect();
+    // Chunks per instance and kind, for the expected counts.
+    let chunks = p.jobs.iter().map(|j| j.instance).collect();
+    (out.stats, bytes, chunks)
+}
+
+#[test]
+fn a_second_bake_does_no_work_and_matches_a_fresh_one_and_the_engine() {
+    let path = scratch("twice");
+    let store = Store::open(&path).unwrap();
+    let s = scene("");
+    let (first, bytes, _) = bake(&store, &s);
+    assert!(first.cold > 0 && first.cached == 0 && first.warm == 0);
+    let (second, again, _) = bake(&store, &s);
+    assert_eq!((second.cold, second.warm, second.vertices_baked), (0, 0, 0), "{second:?}");
+    assert_eq!(second.cached, first.cold);
+    assert!(bytes == again);
+    // A fresh database, on one thread: the same bytes.
+    let fresh = Store::open(&scratch("twice-fresh")).unwrap();
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+    let (_, single, _) = pool.install(|| bake(&fresh, &s));
+    assert!(bytes == single, "artefacts differ between 2 threads and 1");
+    // The assembled bakes equal the engine's in-memory bakes.
+    let flat = flatten(&s);
+    let p = plan(&store, &s, &flat, Some(BSPVT), Some(prt_settings())).unwrap();
+    let out = run(&store, &s, &flat, &p, &|_| {}).unwrap();
+    assert_eq!(out.bspvt.unwrap().instances, bspvt::bake(&s, &flat, &BSPVT, &|_| {}).instances);
+    assert!(out.prt.unwrap().instances == prt::bake(&s, &flat, &prt_settings(), &|_| {}).instances);
+}
+
+#[test]
+fn edits_rebake_exactly_what_they_affect_and_match_cold_bakes() {
+    // Chunks: ground 2 (441 vertices), each box or sphere 1, per technique.
+    // (edit, BSPVT chunks baked cold, BSPVT chunks re-baked warm, PRT chunks baked).
+    let cases = [
+        ("move", 1, 3, 0),   // box a moved: its own trees (new receiver); its PRT transfer is kept
+        ("add", 1, 4, 1),    // the new sphere; every other receiver may now see it
+        ("remove", 0, 3, 0), // box b gone: the others re-bake the faces that saw it
+        ("mesh", 1, 3, 1),   // box a's mesh replaced
+        ("light", 0, 0, 0),  // lights are not occluders: nothing to do
+    ];
+    for (edit, bspvt_cold, bspvt_warm, prt_cold) in cases {
+        let store = Store::open(&scratch(&format!("edit-{edit}"))).unwrap();
+        let (first, _, _) = bake(&store, &scene(""));
+        assert_eq!(first.cold, 8, "{edit}: 4 chunks per technique");
+        let edited = scene(edit);
+        let (warm, bytes, owners) = bake(&store, &edited);
+        let fresh = Store::open(&scratch(&format!("edit-{edit}-fresh"))).unwrap();
+        let (cold, cold_bytes, _) = bake(&fresh, &edited);
+        assert!(bytes == cold_bytes, "{edit}: a warm re-bake must give a cold bake's bytes");
+        assert_eq!((warm.cold, warm.warm), (bspvt_cold + prt_cold, bspvt_warm), "{edit}: {warm:?}");
+        assert_eq!(warm.cached, owners.len() - warm.cold - warm.warm, "{edit}");
+        if bspvt_warm > 0 {
+            // Only the faces that can see what changed are rebuilt.
+            assert!(warm.faces_baked < cold.faces_baked, "{edit}: {} vs {}", warm.faces_baked, cold.faces_baked);
+        }
+    }
+}
+
+#[test]
+fn bad_database_files_give_clear_errors() {
+    // Garbage.
+    let garbage = scratch("garbage");
+    std::fs::write(&garbage, b"this is not a redb file, just some text that goes on for a while........").unwrap();
+    let e = Store::open(&garbage).err().expect("garbage is rejected");
+    assert!(matches!(e, DbError::Corrupted { .. }) && e.to_string().contains("garbage"), "{e}");
+    // Truncated: a real database cut in half.
+    let path = scratch("truncated");
+    {
+        let store = Store::open(&path).unwrap();
+        bake(&store, &scene(""));
+    }
+    let full = std::fs::read(&path).unwrap();
+    std::fs::write(&path, &full[..full.len() / 2]).unwrap();
+    match Store::open(&path) {
+        Err(e) => assert!(e.to_string().contains("truncated"), "{e}"),
+        Ok(mut s) => {
+            // redb may repair what it can; whatever survives must check clean or report damage.
+            let _ = s.check();
+        }
+    }
+    // Locked: a second open of a database in use.
+    let locked = scratch("locked");
+    let _first = Store::open(&locked).unwrap();
+    let e = Store::open(&locked).err().expect("a database in use is refused");
+    assert!(matches!(e, DbError::Locked(_)) && e.to_string().contains("in use"), "{e}");
+    // Schema mismatch.
+    let old = scratch("schema");
+    {
+        let db = redb::Database::create(&old).unwrap();
+        let t = db.begin_write().unwrap();
+        t.open_table(redb::TableDefinition::<&str, &[u8]>::new("meta"))
+            .unwrap()
+            .insert("schema_version", 99u32.to_le_bytes().as_slice())
+            .unwrap();
+        t.commit().unwrap();
+    }
+    let e = Store::open(&old).err().expect("another schema is refused");
+    assert!(matches!(e, DbError::Schema { found: 99, .. }) && e.to_string().contains("schema version 99"), "{e}");
+}
+
+#[test]
+fn check_finds_damaged_artefacts_and_gc_drops_unreferenced_ones() {
+    let path = scratch("gc");
+    let mut store = Store::open(&path).unwrap();
+    bake(&store, &scene(""));
+    let (n0, ..) = store.counts().unwrap();
+    let report = store.check().unwrap();
+    assert!(report.bad.is_empty() && report.ok as u64 == n0);
+    // After an edit the scene references new keys; the old ones are garbage.
+    bake(&store, &scene("move"));
+    let (n1, ..) = store.counts().unwrap();
+    let dropped = store.gc().unwrap();
+    let (n2, ..) = store.counts().unwrap();
+    assert!(dropped > 0 && n2 == n1 - dropped as u64 && n2 == n0, "{n0} {n1} {dropped} {n2}");
+    // Still fully cached after gc.
+    let (again, ..) = bake(&store, &scene("move"));
+    assert_eq!((again.cold, again.warm), (0, 0));
+}

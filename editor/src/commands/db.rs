@@ -1,0 +1,79 @@
+//! `kage db`: inspect, check and clean the bake database.
+
+use crate::db_args::DbArgs;
+use crate::scene_args::SceneArgs;
+use anyhow::Result;
+
+/// Arguments of `kage db`.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// What to do.
+    #[command(subcommand)]
+    action: Action,
+}
+
+#[derive(clap::Subcommand, Debug)]
+enum Action {
+    /// Counts and sizes.
+    Info(Target),
+    /// Verify the file's integrity and every artefact's checksum (exit 1 on damage).
+    Check(Target),
+    /// Drop artefacts that no baked scene references.
+    Gc(Target),
+}
+
+#[derive(clap::Args, Debug)]
+struct Target {
+    #[command(flatten)]
+    scene: SceneArgs,
+    #[command(flatten)]
+    db: DbArgs,
+}
+
+/// Runs the command.
+pub fn run(args: &Args) -> Result<()> {
+    match &args.action {
+        Action::Info(t) => {
+            let store = open_existing(t)?;
+            // Counting reads every artefact's bytes: its time is the load throughput.
+            let start = std::time::Instant::now();
+            let (artefacts, bytes, meshes, scenes) = store.counts()?;
+            let secs = start.elapsed().as_secs_f64();
+            crate::emit(&format!(
+                "{}: schema {}, {artefacts} artefacts ({:.2} MB, read in {:.1} ms: {:.2} GB/s), {meshes} meshes, {scenes} scenes\n",
+                store.path().display(),
+                kage_bake_db::store::SCHEMA_VERSION,
+                bytes as f64 / 1e6,
+                secs * 1e3,
+                bytes as f64 / secs.max(1e-9) / 1e9
+            ));
+        }
+        Action::Check(t) => {
+            let mut store = open_existing(t)?;
+            let report = store.check()?;
+            crate::emit(&format!(
+                "{}: {} artefacts intact, {} damaged{}\n",
+                store.path().display(),
+                report.ok,
+                report.bad.len(),
+                if report.clean { "" } else { " (redb repaired the file)" }
+            ));
+            for k in &report.bad {
+                crate::emit(&format!("  damaged: {}\n", k.short()));
+            }
+            anyhow::ensure!(report.bad.is_empty(), "{} damaged artefacts: re-bake to replace them", report.bad.len());
+        }
+        Action::Gc(t) => {
+            let store = open_existing(t)?;
+            let dropped = store.gc()?;
+            crate::emit(&format!("{}: dropped {dropped} unreferenced artefacts\n", store.path().display()));
+        }
+    }
+    Ok(())
+}
+
+fn open_existing(t: &Target) -> Result<kage_bake_db::Store> {
+    let path = t.db.path(&t.scene);
+    anyhow::ensure!(path.exists(), "{}: no bake database here (run `kage bake` first)", path.display());
+    Ok(kage_bake_db::Store::open(&path)?)
+}
