@@ -8,7 +8,8 @@
 //! - [`plan`]: which artefacts a scene needs (chunks of [`plan::CHUNK`] vertices per instance
 //!   and technique), which are cached;
 //! - [`run`]: bakes the misses on rayon while one writer commits batches, re-bakes BSPVT warm
-//!   from lineage after edits, and assembles the engine's bakes.
+//!   from lineage after edits, and assembles the engine's bakes;
+//! - [`pack`]: asset packs (glTF binary + the `KAGE_baked_shadows` extension) written and read.
 //!
 //! ## Guarantees
 //! - **Same inputs, same bytes**: a key covers the mesh content, parameters, algorithm version
@@ -19,6 +20,7 @@
 //! - **Clear errors**: a locked, corrupted or incompatible file is an error naming the file.
 
 pub mod key;
+pub mod pack;
 pub mod plan;
 pub mod run;
 pub mod store;

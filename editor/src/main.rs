@@ -34,6 +34,8 @@ enum Command {
     Bake(commands::bake::Args),
     /// Inspect, check or clean the bake database.
     Db(commands::db::Args),
+    /// Write an asset pack: the scene, its baked data and an unlit preview, as glTF binary.
+    Export(commands::export::Args),
     /// Speed against error of the polygonal-light methods, as Markdown, CSV and a PNG plot.
     Report(commands::report::Args),
     /// Fit the GGX LTC table and write it as Rust source (developer tool).
@@ -61,6 +63,7 @@ fn main() -> ExitCode {
         Command::Report(a) => commands::report::run(&a),
         Command::Bake(a) => commands::bake::run(&a),
         Command::Db(a) => commands::db::run(&a),
+        Command::Export(a) => commands::export::run(&a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -339,3 +339,87 @@ fn a_bake_killed_at_random_points_resumes_to_a_clean_bakes_result() {
     assert!(out.matches("plan for").count() >= 2 && out.contains(" warm"), "--watch re-planned after the save:\n{out}");
     std::fs::remove_dir_all(d).unwrap();
 }
+
+/// The Khronos validator's report on `file` (npm package in tools/gltf-validator, installed on
+/// first use; `.ci/run` installs it up front).
+fn validate_gltf(file: &Path) -> (bool, String) {
+    let tools = Path::new(env!("CARGO_MANIFEST_DIR")).join("../tools/gltf-validator");
+    if !tools.join("node_modules/gltf-validator").exists() {
+        let o = Command::new("npm")
+            .args(["install", "--no-audit", "--no-fund", "--silent", "--prefix"])
+            .arg(&tools)
+            .output()
+            .expect("npm (Node.js) is needed to install the glTF validator");
+        assert!(o.status.success(), "installing the glTF validator failed: {}", stderr(&o));
+    }
+    let o = Command::new("node").arg(tools.join("validate.js")).arg(file).output().expect("node runs");
+    (o.status.success(), String::from_utf8_lossy(&o.stdout).into_owned())
+}
+
+/// The columns of a vertex CSV after the ids (vertex, position, radiance).
+fn values(csv: &Path) -> Vec<String> {
+    std::fs::read_to_string(csv)
+        .unwrap()
+        .lines()
+        .skip(1)
+        .map(|l| l.splitn(4, ',').nth(3).unwrap().to_string())
+        .collect()
+}
+
+#[test]
+fn export_writes_valid_packs_that_render_like_the_database() {
+    let d = scratch("pack");
+    for (file, method, extra) in [
+        ("scenes/teapot_quad_light", "bspvt", vec!["--face-res", "16"]),
+        ("scenes/bunny_two_groups", "prt", vec!["--sh-order", "4", "--regions", "8"]),
+    ] {
+        let name = Path::new(file).file_name().unwrap().to_str().unwrap();
+        for ext in ["gltf", "bin"] {
+            std::fs::copy(shared(&format!("{file}.{ext}")), d.join(format!("{name}.{ext}"))).unwrap();
+        }
+        let scene = d.join(format!("{name}.gltf")).to_str().unwrap().to_string();
+        let db = d.join(format!("{method}.redb"));
+        let pack = d.join(format!("{method}.glb"));
+        let env = shared("envmaps/sky.hdr");
+        let mut args =
+            vec!["export", &scene, "--db", db.to_str().unwrap(), "-o", pack.to_str().unwrap(), "--env", &env];
+        args.extend(&extra);
+        let o = kage(&args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let (ok, report) = validate_gltf(&pack);
+        assert!(ok && report.contains(": 0 errors"), "{report}");
+        let (a, b) = (d.join("a.csv"), d.join("b.csv"));
+        let o = kage(&[
+            "render",
+            "--pack",
+            pack.to_str().unwrap(),
+            "--method",
+            method,
+            "--vertices-out",
+            a.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let mut args = vec![
+            "render",
+            &scene,
+            "--env",
+            &env,
+            "--method",
+            method,
+            "--db",
+            db.to_str().unwrap(),
+            "--vertices-out",
+            b.to_str().unwrap(),
+        ];
+        args.extend(&extra);
+        let o = kage(&args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        assert!(values(&a) == values(&b), "{method}: the pack shades exactly like the database");
+        // Any glTF tool can read it: kage's own importer sees the groups and the preview.
+        let o = kage(&["info", pack.to_str().unwrap()]);
+        assert!(o.status.success(), "{}", stderr(&o));
+    }
+    let o = kage(&["render", "--pack", &shared("scenes/cube_on_plane.gltf"), "--method", "bspvt"]);
+    assert!(!o.status.success() && stderr(&o).contains("not a kage pack"), "{}", stderr(&o));
+    std::fs::remove_dir_all(d).unwrap();
+}

@@ -9,7 +9,7 @@ use anyhow::Result;
 use kage_bake_db::plan::Plan;
 use kage_bake_db::{Store, plan};
 use kage_engine::bspvt;
-use kage_engine::scene::{Scene, flatten};
+use kage_engine::scene::{FlatScene, Scene, flatten};
 use std::collections::BTreeMap;
 use std::time::Instant;
 
@@ -26,6 +26,13 @@ pub struct Args {
     /// Re-plan and re-bake whenever the scene file changes on disk.
     #[arg(long)]
     pub watch: bool,
+    #[command(flatten)]
+    pub options: BakeOptions,
+}
+
+/// Bake parameters shared by `bake` and `export`.
+#[derive(clap::Args, Debug)]
+pub struct BakeOptions {
     /// BSPVT cube-face resolution.
     #[arg(long, default_value_t = 64)]
     pub face_res: usize,
@@ -39,10 +46,25 @@ pub struct Args {
     pub prt: PrtArgs,
 }
 
+impl BakeOptions {
+    /// The plan for a snapshot: BSPVT with polygonal lights, PRT (parameters planned or given)
+    /// with an environment.
+    pub fn plan(&self, store: &Store, scene: &Scene, flat: &FlatScene) -> Result<Plan> {
+        anyhow::ensure!((4..=1024).contains(&self.face_res), "--face-res must be in 4..=1024");
+        anyhow::ensure!(self.epsilon >= 0.0, "--epsilon must be ≥ 0");
+        let bspvt = Some(bspvt::Settings { res: self.face_res, epsilon: self.epsilon });
+        let eye = scene.first_camera().map_or(glam::Vec3::new(0.0, 4.0, 8.0), |c| c.eye());
+        let prt = flat
+            .environment
+            .is_some()
+            .then(|| self.prt.settings_cached(store, scene, flat, self.error_budget, eye))
+            .transpose()?;
+        Ok(plan(store, scene, flat, bspvt, prt)?)
+    }
+}
+
 /// Runs the command.
 pub fn run(args: &Args) -> Result<()> {
-    anyhow::ensure!((4..=1024).contains(&args.face_res), "--face-res must be in 4..=1024");
-    anyhow::ensure!(args.epsilon >= 0.0, "--epsilon must be ≥ 0");
     let store = args.db.open(&args.scene)?;
     bake_once(args, &store)?;
     if args.watch {
@@ -56,14 +78,7 @@ fn bake_once(args: &Args, store: &Store) -> Result<()> {
     let scene = args.scene.load()?;
     let flat = flatten(&scene);
     let start = Instant::now();
-    let bspvt = Some(bspvt::Settings { res: args.face_res, epsilon: args.epsilon });
-    let eye = scene.first_camera().map_or(glam::Vec3::new(0.0, 4.0, 8.0), |c| c.eye());
-    let prt = flat
-        .environment
-        .is_some()
-        .then(|| args.prt.settings_cached(store, &scene, &flat, args.error_budget, eye))
-        .transpose()?;
-    let plan = plan(store, &scene, &flat, bspvt, prt)?;
+    let plan = args.options.plan(store, &scene, &flat)?;
     print_plan(&scene, &plan, start.elapsed().as_secs_f64());
     if args.dry_run || plan.misses().next().is_none() {
         return Ok(());
@@ -87,7 +102,7 @@ fn bake_once(args: &Args, store: &Store) -> Result<()> {
 }
 
 /// Per instance and technique: chunks, cached, vertices to bake, estimated seconds.
-fn print_plan(scene: &Scene, plan: &Plan, planning_s: f64) {
+pub fn print_plan(scene: &Scene, plan: &Plan, planning_s: f64) {
     let threads = rayon::current_num_threads() as f64;
     let mut rows: BTreeMap<(usize, &str), (usize, usize, usize)> = BTreeMap::new();
     for j in &plan.jobs {

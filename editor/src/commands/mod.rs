@@ -2,6 +2,7 @@
 
 pub mod bake;
 pub mod db;
+pub mod export;
 pub mod fit_ltc;
 pub mod info;
 pub mod render;

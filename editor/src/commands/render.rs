@@ -6,6 +6,7 @@ use crate::prt_args::PrtArgs;
 use crate::scene_args::SceneArgs;
 use anyhow::{Context, Result, bail};
 use glam::Vec3;
+use kage_bake_db::pack::Contents;
 use kage_engine::output::{VertexRow, write_image, write_vertex_csv};
 use kage_engine::reference::{Estimate, Renderer, Settings};
 use kage_engine::scene::{Camera, Scene};
@@ -84,6 +85,9 @@ pub struct Args {
     prt: PrtArgs,
     #[command(flatten)]
     db: DbArgs,
+    /// Shade from an asset pack written by `kage export` (its scene and bakes) instead of a scene.
+    #[arg(long, conflicts_with = "scene")]
+    pack: Option<PathBuf>,
     /// Drop the environment light (the per-vertex polygonal-light methods never include it;
     /// use this to compare the reference with them).
     #[arg(long)]
@@ -117,7 +121,13 @@ pub fn run(args: &Args) -> Result<()> {
     if args.error_budget.is_some_and(|b| !(b > 0.0 && b < 1.0)) {
         bail!("--error-budget is a relative error in (0, 1), e.g. 0.01");
     }
-    let mut scene = args.scene.load()?;
+    let (mut scene, pack) = match &args.pack {
+        Some(path) => {
+            let (scene, contents) = kage_bake_db::pack::read(path)?;
+            (scene, Some(contents))
+        }
+        None => (args.scene.load()?, None),
+    };
     if args.no_env {
         scene.clear_environment();
     }
@@ -126,8 +136,8 @@ pub fn run(args: &Args) -> Result<()> {
     let output = args.output.clone().or_else(|| args.vertices_out.is_none().then(|| PathBuf::from("render.png")));
     let (image, vertices) = match args.method {
         Method::Reference => reference(args, &renderer, &camera, output.is_some())?,
-        Method::Prt | Method::PrtSelf => prt(args, &scene, &renderer, &camera, output.is_some())?,
-        m => per_vertex(args, m, &scene, &renderer, &camera, output.is_some())?,
+        Method::Prt | Method::PrtSelf => prt(args, &scene, &renderer, &camera, output.is_some(), pack.as_ref())?,
+        m => per_vertex(args, m, &scene, &renderer, &camera, output.is_some(), pack.as_ref())?,
     };
     if let (Some(path), Some(pixels)) = (&output, image) {
         write_image(path, args.size.0, args.size.1, &pixels, args.exposure)?;
@@ -175,6 +185,7 @@ fn per_vertex(
     renderer: &Renderer,
     camera: &Camera,
     want_image: bool,
+    pack: Option<&Contents>,
 ) -> Result<Outputs> {
     let mut settings = bspvt::Settings { res: args.face_res, epsilon: args.epsilon };
     if let (Method::Bspvt, Some(budget)) = (method, args.error_budget) {
@@ -182,8 +193,12 @@ fn per_vertex(
         crate::emit(&format!("plan: {why}\n"));
         settings = bspvt::Settings { epsilon: args.epsilon, ..chosen };
     }
-    let store = if method == Method::Bspvt { args.db.open_if_used(&args.scene)? } else { None };
-    let bake = if let Some(store) = &store {
+    let store = if method == Method::Bspvt && pack.is_none() { args.db.open_if_used(&args.scene)? } else { None };
+    let bake = if let Some(pack) = pack.filter(|_| method == Method::Bspvt) {
+        let b = pack.bspvt.clone().context("the pack has no BSPVT data (its scene has no polygonal light)")?;
+        settings = b.settings;
+        Some(b)
+    } else if let Some(store) = &store {
         from_database(store, scene, &renderer.flat, Some(settings), None)?.bspvt
     } else {
         (method == Method::Bspvt).then(|| in_memory_bspvt(scene, renderer, &settings))
@@ -225,8 +240,20 @@ fn in_memory_bspvt(scene: &Scene, renderer: &Renderer, settings: &bspvt::Setting
     b
 }
 
-fn prt(args: &Args, scene: &Scene, renderer: &Renderer, camera: &Camera, want_image: bool) -> Result<Outputs> {
+fn prt(
+    args: &Args,
+    scene: &Scene,
+    renderer: &Renderer,
+    camera: &Camera,
+    want_image: bool,
+    pack: Option<&Contents>,
+) -> Result<Outputs> {
     let flat = &renderer.flat;
+    if let Some(pack) = pack {
+        let (bake, lighting, settings) =
+            pack.prt.as_ref().context("the pack has no PRT data (its scene has no environment)")?;
+        return Ok(prt_shade(args, scene, renderer, camera, want_image, bake, lighting, settings));
+    }
     let store = args.db.open_if_used(&args.scene)?;
     let settings = match &store {
         Some(store) => args.prt.settings_cached(store, scene, flat, args.error_budget, camera.eye())?,
@@ -262,16 +289,31 @@ fn prt(args: &Args, scene: &Scene, renderer: &Renderer, camera: &Camera, want_im
             bake
         }
     };
+    Ok(prt_shade(args, scene, renderer, camera, want_image, &bake, &lighting, &settings))
+}
+
+/// PRT shading of a frame: per-vertex values and, if wanted, the image.
+#[allow(clippy::too_many_arguments)]
+fn prt_shade(
+    args: &Args,
+    scene: &Scene,
+    renderer: &Renderer,
+    camera: &Camera,
+    want_image: bool,
+    bake: &prt::Bake,
+    lighting: &prt::Lighting,
+    settings: &prt::Settings,
+) -> Outputs {
     let method = if args.method == Method::Prt { prt::Method::WithOthers } else { prt::Method::SelfOnly };
     let start = Instant::now();
-    let frame = prt::Frame::prepare(scene, flat, &bake, &lighting, method, &settings, camera.eye());
-    let values = frame.vertex_values(scene, flat);
+    let frame = prt::Frame::prepare(scene, &renderer.flat, bake, lighting, method, settings, camera.eye());
+    let values = frame.vertex_values(scene, &renderer.flat);
     crate::emit(&format!("shade: {} vertices in {:.3} s\n", renderer.vertex_count(), start.elapsed().as_secs_f64()));
     let image = want_image.then(|| {
         let (w, h) = args.size;
         frame.render(renderer, camera, w, h, args.spp.min(16))
     });
-    Ok((image, Some(values)))
+    (image, Some(values))
 }
 
 /// Plans and runs the bakes through the database, printing what was cached and what baked.

@@ -125,11 +125,17 @@ impl Mesh {
         }
         let computed = angle_weighted_normals(&positions, &kept);
         let normals = match normals {
-            // Zero, non-finite or missing normals fall back to the computed ones.
+            // Zero, non-finite or missing normals fall back to the computed ones. Unit normals
+            // are kept bit for bit (re-normalising can move the last bit, and a mesh written
+            // out and read back must keep its content hash).
             Some(ns) => ns
                 .iter()
                 .zip(&computed)
-                .map(|(n, c)| if n.is_finite() && n.length_squared() > 1e-12 { n.normalize() } else { *c })
+                .map(|(n, c)| match n.length_squared() {
+                    l if (l - 1.0).abs() <= 4.0 * f32::EPSILON => *n,
+                    l if n.is_finite() && l > 1e-12 => n.normalize(),
+                    _ => *c,
+                })
                 .collect(),
             None => computed,
         };

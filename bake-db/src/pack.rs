@@ -1,0 +1,458 @@
+//! Asset packs: a glTF 2.0 binary with the scene, its baked data under the `KAGE_baked_shadows`
+//! extension (spec: `docs/KAGE_baked_shadows.md`), and a preview any viewer shows: the baked
+//! radiance as `COLOR_0` on `KHR_materials_unlit` materials.
+//!
+//! Layout: one root node per rigid group (its pose as `matrix`), one child node per mesh
+//! instance (its group-relative transform) with its own mesh, in the snapshot's instance order,
+//! then one child node per polygonal light (an emissive triangle fan), then the camera. Packs
+//! are read back by kage's glTF importer, which restores groups, lights and camera; the
+//! extension restores what the preview material replaced (the real materials) and the bakes.
+
+use glam::{DVec3, Vec3};
+use kage_engine::prt::{self, Lighting, lighting::Window, regions::Region};
+use kage_engine::scene::{
+    Camera, FlatScene, InGroup, Material, Name, NodeId, PolygonLight, Projection, RigidGroup, Scene, Transform,
+};
+use kage_engine::{bspvt, scene::import::ImportOptions};
+use serde_json::{Value, json};
+use std::path::Path;
+
+/// The extension's name.
+pub const EXTENSION: &str = "KAGE_baked_shadows";
+/// The extension's version.
+pub const VERSION: u64 = 1;
+
+/// What a pack holds besides its glTF scene.
+pub struct Contents {
+    /// BSPVT bake, if the pack has one.
+    pub bspvt: Option<bspvt::Bake>,
+    /// PRT bake with its lighting and settings, if the pack has one.
+    pub prt: Option<(prt::Bake, Lighting, prt::Settings)>,
+}
+
+/// Everything [`write`] needs.
+pub struct Export<'a> {
+    /// The scene.
+    pub scene: &'a Scene,
+    /// Its snapshot.
+    pub flat: &'a FlatScene,
+    /// BSPVT bake.
+    pub bspvt: Option<&'a bspvt::Bake>,
+    /// PRT bake, lighting and settings.
+    pub prt: Option<(&'a prt::Bake, &'a Lighting, &'a prt::Settings)>,
+    /// Per instance and vertex: the baked radiance for the preview (linear).
+    pub radiance: &'a [Vec<Vec3>],
+    /// Preview exposure in stops (COLOR_0 = clamp(radiance · 2^exposure, 0, 1)).
+    pub exposure: f32,
+}
+
+/// A growing binary chunk with its buffer views and accessors.
+#[derive(Default)]
+struct Bin {
+    bytes: Vec<u8>,
+    views: Vec<Value>,
+    accessors: Vec<Value>,
+}
+
+impl Bin {
+    /// Appends 4-byte-aligned data as a buffer view; returns its index.
+    fn view(&mut self, data: &[u8], target: Option<u32>) -> usize {
+        while !self.bytes.len().is_multiple_of(4) {
+            self.bytes.push(0);
+        }
+        let mut v = json!({"buffer": 0, "byteOffset": self.bytes.len(), "byteLength": data.len()});
+        if let Some(t) = target {
+            v["target"] = json!(t);
+        }
+        self.bytes.extend_from_slice(data);
+        self.views.push(v);
+        self.views.len() - 1
+    }
+
+    /// A float VEC3 accessor (with min/max).
+    fn vec3(&mut self, v: &[Vec3]) -> usize {
+        let (lo, hi) = v.iter().fold((Vec3::MAX, Vec3::MIN), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
+        let view = self.view(bytemuck::cast_slice(v), Some(34962));
+        self.accessors.push(json!({"bufferView": view, "componentType": 5126, "count": v.len(), "type": "VEC3",
+            "min": lo.to_array(), "max": hi.to_array()}));
+        self.accessors.len() - 1
+    }
+
+    /// A u32 index accessor.
+    fn indices(&mut self, i: &[u32]) -> usize {
+        let view = self.view(bytemuck::cast_slice(i), Some(34963));
+        self.accessors.push(json!({"bufferView": view, "componentType": 5125, "count": i.len(), "type": "SCALAR"}));
+        self.accessors.len() - 1
+    }
+}
+
+/// A node with an optional `matrix` (omitted when it is the identity, as glTF asks).
+fn node(mut n: Value, a: &glam::Affine3A) -> Value {
+    if *a != glam::Affine3A::IDENTITY {
+        n["matrix"] = json!(glam::Mat4::from(*a).to_cols_array());
+    }
+    n
+}
+
+fn material_json(m: &Material) -> Value {
+    json!({"baseColor": m.base_color.to_array(), "metallic": m.metallic, "roughness": m.roughness, "specular": m.specular})
+}
+
+/// Writes the pack.
+pub fn write(path: &Path, e: &Export) -> std::io::Result<()> {
+    let mut bin = Bin::default();
+    let (mut nodes, mut meshes, mut materials) = (Vec::<Value>::new(), Vec::<Value>::new(), Vec::<Value>::new());
+    let mut groups: Vec<(u32, hecs::Entity, glam::Affine3A, String)> = e
+        .scene
+        .world
+        .query::<(hecs::Entity, &RigidGroup, &Transform, &Name)>()
+        .iter()
+        .map(|(g, r, t, n)| (r.index, g, t.world, n.0.clone()))
+        .collect();
+    groups.sort_by_key(|g| g.0);
+    let mut children: Vec<Vec<usize>> = vec![Vec::new(); groups.len()];
+    let group_of = |g: hecs::Entity| groups.iter().position(|x| x.1 == g).expect("every member's group is listed");
+    let locals = prt::local_transforms(e.scene, e.flat);
+    let scale = 2f32.powf(e.exposure);
+    for (k, inst) in e.flat.instances.iter().enumerate() {
+        let mesh = &e.scene.meshes[inst.mesh as usize];
+        let preview: Vec<Vec3> = e.radiance[k].iter().map(|v| (*v * scale).clamp(Vec3::ZERO, Vec3::ONE)).collect();
+        let (pos, nor, col) = (bin.vec3(&mesh.positions), bin.vec3(&mesh.normals), bin.vec3(&preview));
+        let idx: Vec<u32> = mesh.triangles.iter().flatten().copied().collect();
+        let ind = bin.indices(&idx);
+        let mut ext = json!({"instance": k, "material": material_json(&inst.material),
+            "radiance": bin.view(bytemuck::cast_slice(&e.radiance[k]), None)});
+        if let Some(b) = e.bspvt {
+            let rec = &b.instances[k];
+            ext["bspvt"] = json!({"offsets": bin.view(bytemuck::cast_slice(&rec.offsets), None), "records": bin.view(&rec.data, None)});
+        }
+        if let Some((p, ..)) = e.prt {
+            ext["prt"] = json!({"transfer": bin.view(bytemuck::cast_slice(&p.instances[k]), None)});
+        }
+        materials.push(json!({"name": format!("preview {k}"), "pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0], "metallicFactor": 0.0, "roughnessFactor": 1.0},
+            "extensions": {"KHR_materials_unlit": {}}}));
+        meshes.push(
+            json!({"primitives": [{"attributes": {"POSITION": pos, "NORMAL": nor, "COLOR_0": col}, "indices": ind,
+            "material": materials.len() - 1, "extensions": {EXTENSION: ext}}]}),
+        );
+        children[group_of(inst.group)].push(nodes.len() + groups.len());
+        nodes.push(node(json!({"name": format!("instance {k}"), "mesh": meshes.len() - 1}), &locals[k]));
+    }
+    let mut lights: Vec<(u32, PolygonLight, InGroup)> = e
+        .scene
+        .world
+        .query::<(&PolygonLight, &InGroup, &NodeId)>()
+        .iter()
+        .map(|(l, g, n)| (n.0, l.clone(), *g))
+        .collect();
+    lights.sort_by(|a, b| a.0.cmp(&b.0).then_with(|| a.1.points.len().cmp(&b.1.points.len())));
+    for (_, light, member) in &lights {
+        let pos = bin.vec3(&light.points);
+        let fan: Vec<u32> = (1..light.points.len() as u32 - 1).flat_map(|i| [0, i, i + 1]).collect();
+        let ind = bin.indices(&fan);
+        let strength = light.radiance.max_element().max(1e-30);
+        materials.push(json!({"name": "light", "pbrMetallicRoughness": {"baseColorFactor": [0.0, 0.0, 0.0, 1.0]},
+            "emissiveFactor": (light.radiance / strength).to_array(), "extensions": {"KHR_materials_emissive_strength": {"emissiveStrength": strength}}}));
+        // The exact radiance (factor × strength need not round-trip in f32) and polygon (the
+        // importer may start the re-imported loop at another corner).
+        let points: Vec<f32> = light.points.iter().flat_map(|p| p.to_array()).collect();
+        let ext = json!({"lightRadiance": light.radiance.to_array(), "lightPolygon": points});
+        meshes.push(
+            json!({"primitives": [{"attributes": {"POSITION": pos}, "indices": ind, "material": materials.len() - 1,
+            "extensions": {EXTENSION: ext}}]}),
+        );
+        children[group_of(member.group)].push(nodes.len() + groups.len());
+        nodes.push(node(json!({"name": "light", "mesh": meshes.len() - 1}), &member.local));
+    }
+    // Group nodes first (indices 0..groups), then the members pushed above.
+    let mut all: Vec<Value> = groups
+        .iter()
+        .zip(&children)
+        .map(|((_, _, pose, name), c)| node(json!({"name": name, "children": c}), pose))
+        .collect();
+    all.extend(nodes);
+    let mut roots: Vec<usize> = (0..groups.len()).collect();
+    let mut cameras = Vec::new();
+    if let Some(cam) = e.scene.first_camera() {
+        cameras.push(camera_json(&cam));
+        roots.push(all.len());
+        all.push(node(json!({"name": "camera", "camera": 0}), &cam.world));
+    }
+    let root = root_extension(e);
+    let doc = json!({
+        "asset": {"version": "2.0", "generator": concat!("kage ", env!("CARGO_PKG_VERSION"))},
+        "extensionsUsed": ["KHR_materials_unlit", "KHR_materials_emissive_strength", EXTENSION],
+        "extensions": {EXTENSION: root},
+        "scene": 0, "scenes": [{"nodes": roots}], "nodes": all, "meshes": meshes, "materials": materials,
+        "cameras": cameras, "accessors": bin.accessors, "bufferViews": bin.views,
+        "buffers": [{"byteLength": bin.bytes.len()}],
+    });
+    let mut doc = doc;
+    if cameras_empty(&doc) {
+        doc.as_object_mut().expect("object").remove("cameras");
+    }
+    std::fs::write(path, glb(&doc.to_string(), bin.bytes))
+}
+
+fn cameras_empty(doc: &Value) -> bool {
+    doc["cameras"].as_array().is_some_and(Vec::is_empty)
+}
+
+fn camera_json(c: &Camera) -> Value {
+    match c.projection {
+        Projection::Perspective { yfov } => {
+            json!({"type": "perspective", "perspective": {"yfov": yfov, "znear": 0.01}})
+        }
+        Projection::Orthographic { ymag } => {
+            json!({"type": "orthographic", "orthographic": {"xmag": ymag, "ymag": ymag, "znear": 0.0, "zfar": 1000.0}})
+        }
+    }
+}
+
+fn root_extension(e: &Export) -> Value {
+    let mut root = json!({"version": VERSION, "previewExposure": e.exposure});
+    if let Some(b) = e.bspvt {
+        root["bspvt"] = json!({"faceResolution": b.settings.res, "epsilon": b.settings.epsilon, "format": bspvt::layout::FORMAT_VERSION});
+    }
+    if let Some((p, light, s)) = e.prt {
+        let window = match light.window {
+            Window::None => "none",
+            Window::Hanning => "hanning",
+            Window::Lanczos => "lanczos",
+        };
+        root["prt"] = json!({
+            "order": p.order, "directions": s.direction_side().pow(2), "algorithm": prt::ALGORITHM_VERSION,
+            "window": window, "silhouetteResolution": s.silhouette_res,
+            "lighting": light.coeffs.iter().map(|c| c.to_array()).collect::<Vec<_>>(),
+            "regions": light.regions.iter().map(|r| json!({"power": r.power.to_array(), "direction": r.dir.to_array(),
+                "solidAngle": r.solid_angle, "spread": r.spread})).collect::<Vec<_>>(),
+        });
+    }
+    root
+}
+
+/// The GLB container: header, JSON chunk (space-padded), BIN chunk (zero-padded).
+fn glb(json: &str, mut bin: Vec<u8>) -> Vec<u8> {
+    let mut j = json.as_bytes().to_vec();
+    while !j.len().is_multiple_of(4) {
+        j.push(b' ');
+    }
+    while !bin.len().is_multiple_of(4) {
+        bin.push(0);
+    }
+    let total = 12 + 8 + j.len() + 8 + bin.len();
+    let mut out = Vec::with_capacity(total);
+    out.extend_from_slice(b"glTF");
+    out.extend_from_slice(&2u32.to_le_bytes());
+    out.extend_from_slice(&(total as u32).to_le_bytes());
+    out.extend_from_slice(&(j.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"JSON");
+    out.extend_from_slice(&j);
+    out.extend_from_slice(&(bin.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"BIN\0");
+    out.extend_from_slice(&bin);
+    out
+}
+
+/// A pack's problem, naming the file.
+fn bad(path: &Path, what: impl std::fmt::Display) -> kage_engine::Error {
+    kage_engine::Error::Invalid(format!("{}: not a kage pack: {what}", path.display()))
+}
+
+/// Reads a pack: the scene (materials restored from the extension) and its bakes.
+pub fn read(path: &Path) -> kage_engine::Result<(Scene, Contents)> {
+    let mut scene = kage_engine::scene::import::import(path, ImportOptions::default())?;
+    let bytes = std::fs::read(path).map_err(|e| kage_engine::Error::io(path, e))?;
+    let (doc, bin) = split_glb(&bytes).ok_or_else(|| bad(path, "not a GLB with a JSON and a BIN chunk"))?;
+    let doc: Value = serde_json::from_slice(doc).map_err(|e| bad(path, e))?;
+    let root = &doc["extensions"][EXTENSION];
+    if root["version"].as_u64() != Some(VERSION) {
+        return Err(bad(path, format!("no {EXTENSION} version {VERSION} extension")));
+    }
+    let views = doc["bufferViews"].as_array().ok_or_else(|| bad(path, "no bufferViews"))?;
+    let view = |v: &Value| -> Option<&[u8]> {
+        let view = views.get(v.as_u64()? as usize)?;
+        let start = view["byteOffset"].as_u64().unwrap_or(0) as usize;
+        bin.get(start..start + view["byteLength"].as_u64()? as usize)
+    };
+    let all: Vec<&Value> = doc["meshes"]
+        .as_array()
+        .map(|m| m.iter().filter_map(|m| m["primitives"][0]["extensions"].get(EXTENSION)).collect())
+        .unwrap_or_default();
+    let (exts, lights): (Vec<&Value>, Vec<&Value>) = all.into_iter().partition(|e| e.get("lightRadiance").is_none());
+    restore_light_radiance(&mut scene, &lights).map_err(|what| bad(path, what))?;
+    let flat = kage_engine::scene::flatten(&scene);
+    if exts.len() != flat.instances.len() {
+        return Err(bad(path, format!("{} baked meshes for {} instances", exts.len(), flat.instances.len())));
+    }
+    // Instances re-import in node order, which is the pack's instance order.
+    let entities: Vec<(kage_engine::scene::PrimitiveId, hecs::Entity)> = scene
+        .world
+        .query::<(hecs::Entity, &kage_engine::scene::PrimitiveId)>()
+        .iter()
+        .map(|(e, id)| (*id, e))
+        .collect();
+    for (k, inst) in flat.instances.iter().enumerate() {
+        let m = &exts[k]["material"];
+        let f = |key: &str| m[key].as_f64().map(|v| v as f32);
+        let c = m["baseColor"]
+            .as_array()
+            .filter(|c| c.len() == 3)
+            .ok_or_else(|| bad(path, format!("mesh {k}: no material")))?;
+        let material = Material {
+            base_color: Vec3::new(
+                c[0].as_f64().unwrap_or(0.0) as f32,
+                c[1].as_f64().unwrap_or(0.0) as f32,
+                c[2].as_f64().unwrap_or(0.0) as f32,
+            ),
+            metallic: f("metallic").unwrap_or(0.0),
+            roughness: f("roughness").unwrap_or(1.0),
+            specular: f("specular").unwrap_or(1.0),
+        };
+        let entity =
+            entities.iter().find(|(id, _)| *id == inst.id).map(|(_, e)| *e).expect("flattened from this world");
+        let _ = scene.world.insert_one(entity, material);
+    }
+    let flat = kage_engine::scene::flatten(&scene);
+    let bspvt = root.get("bspvt").map(|b| -> kage_engine::Result<bspvt::Bake> {
+        let settings = bspvt::Settings {
+            res: b["faceResolution"].as_u64().unwrap_or(64) as usize,
+            epsilon: b["epsilon"].as_f64().unwrap_or(2.0),
+        };
+        let instances = exts
+            .iter()
+            .enumerate()
+            .map(|(k, x)| {
+                let offsets =
+                    view(&x["bspvt"]["offsets"]).ok_or_else(|| bad(path, format!("mesh {k}: no BSPVT offsets")))?;
+                let data =
+                    view(&x["bspvt"]["records"]).ok_or_else(|| bad(path, format!("mesh {k}: no BSPVT records")))?;
+                let offsets: Vec<u32> = bytemuck::pod_collect_to_vec(offsets);
+                let ok = offsets.len() == vertex_count(&scene, &flat, k) + 1
+                    && offsets.last().is_some_and(|&o| o as usize == data.len())
+                    && offsets.windows(2).all(|w| w[0] <= w[1]);
+                if !ok {
+                    return Err(bad(path, format!("mesh {k}: BSPVT data does not match the mesh")));
+                }
+                Ok(bspvt::BakedInstance { offsets, data: data.to_vec() })
+            })
+            .collect::<kage_engine::Result<Vec<_>>>()?;
+        Ok(bspvt::Bake { settings, instances, stats: bspvt::Stats::default() })
+    });
+    let prt = root.get("prt").map(|p| read_prt(path, p, &exts, &view, &scene, &flat));
+    Ok((scene, Contents { bspvt: bspvt.transpose()?, prt: prt.transpose()? }))
+}
+
+/// Puts back each light's exact radiance and polygon (lights re-import in the order they were
+/// written).
+fn restore_light_radiance(scene: &mut Scene, lights: &[&Value]) -> Result<(), String> {
+    let mut found: Vec<(u32, usize, hecs::Entity)> = scene
+        .world
+        .query::<(hecs::Entity, &PolygonLight, &NodeId)>()
+        .iter()
+        .map(|(e, l, n)| (n.0, l.points.len(), e))
+        .collect();
+    found.sort();
+    if found.len() != lights.len() {
+        return Err(format!("{} light records for {} lights", lights.len(), found.len()));
+    }
+    for ((_, _, e), rec) in found.iter().zip(lights) {
+        let floats = |key: &str| -> Vec<f32> {
+            rec[key]
+                .as_array()
+                .map(|a| a.iter().filter_map(|v| v.as_f64()).map(|v| v as f32).collect())
+                .unwrap_or_default()
+        };
+        let [r, g, b] = floats("lightRadiance")[..] else { return Err("a light radiance is not 3 numbers".into()) };
+        let points: Vec<Vec3> = floats("lightPolygon").chunks_exact(3).map(Vec3::from_slice).collect();
+        if let Ok(mut l) = scene.world.get::<&mut PolygonLight>(*e) {
+            if points.len() != l.points.len() {
+                return Err("a light polygon does not match its mesh".into());
+            }
+            l.radiance = Vec3::new(r, g, b);
+            l.points = points;
+        }
+    }
+    Ok(())
+}
+
+fn vertex_count(scene: &Scene, flat: &FlatScene, k: usize) -> usize {
+    scene.meshes[flat.instances[k].mesh as usize].positions.len()
+}
+
+fn read_prt<'a>(
+    path: &Path,
+    p: &Value,
+    exts: &[&Value],
+    view: &dyn Fn(&Value) -> Option<&'a [u8]>,
+    scene: &Scene,
+    flat: &FlatScene,
+) -> kage_engine::Result<(prt::Bake, Lighting, prt::Settings)> {
+    let order = p["order"].as_u64().filter(|&o| (1..=16).contains(&o)).ok_or_else(|| bad(path, "PRT order"))? as usize;
+    let window = match p["window"].as_str() {
+        Some("hanning") => Window::Hanning,
+        Some("lanczos") => Window::Lanczos,
+        _ => Window::None,
+    };
+    let triple = |v: &Value| -> Option<DVec3> {
+        let a = v.as_array().filter(|a| a.len() == 3)?;
+        Some(DVec3::new(a[0].as_f64()?, a[1].as_f64()?, a[2].as_f64()?))
+    };
+    let coeffs: Vec<DVec3> =
+        p["lighting"].as_array().map(|a| a.iter().filter_map(triple).collect()).unwrap_or_default();
+    if coeffs.len() != order * order {
+        return Err(bad(path, "PRT lighting coefficients"));
+    }
+    let regions: Vec<Region> = p["regions"]
+        .as_array()
+        .map(|a| {
+            a.iter()
+                .filter_map(|r| {
+                    Some(Region {
+                        power: triple(&r["power"])?,
+                        dir: triple(&r["direction"])?.as_vec3(),
+                        solid_angle: r["solidAngle"].as_f64()?,
+                        spread: r["spread"].as_f64()?,
+                    })
+                })
+                .collect()
+        })
+        .unwrap_or_default();
+    let settings = prt::Settings {
+        order,
+        directions: p["directions"].as_u64().unwrap_or(1024) as usize,
+        regions: regions.len(),
+        window,
+        silhouette_res: p["silhouetteResolution"].as_u64().unwrap_or(128) as usize,
+    };
+    let instances = exts
+        .iter()
+        .enumerate()
+        .map(|(k, x)| {
+            let t: Vec<f32> = view(&x["prt"]["transfer"])
+                .map(bytemuck::pod_collect_to_vec)
+                .ok_or_else(|| bad(path, format!("mesh {k}: no PRT transfer")))?;
+            if t.len() != vertex_count(scene, flat, k) * order * order {
+                return Err(bad(path, format!("mesh {k}: PRT transfer does not match the mesh")));
+            }
+            Ok(t)
+        })
+        .collect::<kage_engine::Result<Vec<_>>>()?;
+    let lobes = prt::lighting::negative_lobes(&coeffs, window);
+    let bake = prt::Bake { order, instances, stats: prt::Stats::default() };
+    Ok((bake, Lighting { coeffs, regions, window, lobes }, settings))
+}
+
+/// The JSON and BIN chunks of a GLB.
+fn split_glb(b: &[u8]) -> Option<(&[u8], &[u8])> {
+    let u32_at = |i: usize| -> Option<usize> { Some(u32::from_le_bytes(b.get(i..i + 4)?.try_into().ok()?) as usize) };
+    if b.get(..4)? != b"glTF" {
+        return None;
+    }
+    let json_len = u32_at(12)?;
+    let json = b.get(20..20 + json_len)?;
+    let at = 20 + json_len;
+    let bin_len = u32_at(at)?;
+    (b.get(at + 4..at + 8)? == b"BIN\0").then_some(())?;
+    Some((json, b.get(at + 8..at + 8 + bin_len)?))
+}

@@ -1,0 +1,75 @@
+//! `kage export`: bake through the database (misses only) and write an asset pack — the scene,
+//! its baked data under `KAGE_baked_shadows`, and an unlit `COLOR_0` preview.
+
+use crate::commands::bake::{BakeOptions, print_plan};
+use crate::db_args::DbArgs;
+use crate::progress::bar;
+use crate::scene_args::SceneArgs;
+use anyhow::{Context, Result};
+use glam::Vec3;
+use kage_bake_db::pack::{self, Export};
+use kage_engine::scene::flatten;
+use kage_engine::{bspvt, prt};
+use std::path::PathBuf;
+
+/// Arguments of `kage export`.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    #[command(flatten)]
+    scene: SceneArgs,
+    #[command(flatten)]
+    db: DbArgs,
+    /// The pack to write (.glb).
+    #[arg(short, long)]
+    output: PathBuf,
+    /// Preview exposure in stops: COLOR_0 = clamp(radiance · 2^EV, 0, 1).
+    #[arg(long, default_value_t = 0.0)]
+    exposure: f32,
+    #[command(flatten)]
+    options: BakeOptions,
+}
+
+/// Runs the command.
+pub fn run(args: &Args) -> Result<()> {
+    let store = args.db.open(&args.scene)?;
+    let scene = args.scene.load()?;
+    if scene.world.query::<&kage_engine::scene::PolygonLight>().iter().any(|l| l.texture.is_some()) {
+        eprintln!(
+            "warning: {}: textured lights are exported without their texture (see docs/KAGE_baked_shadows.md)",
+            scene.source
+        );
+    }
+    let flat = flatten(&scene);
+    let start = std::time::Instant::now();
+    let plan = args.options.plan(&store, &scene, &flat)?;
+    print_plan(&scene, &plan, start.elapsed().as_secs_f64());
+    anyhow::ensure!(!plan.jobs.is_empty(), "{}: no polygonal light and no environment: nothing to bake", scene.source);
+    let pb = bar(plan.misses().map(|j| j.vertices.len()).sum::<usize>() as u64, "baking");
+    let out = kage_bake_db::run(&store, &scene, &flat, &plan, &|n| pb.set_position(n as u64))?;
+    pb.finish_and_clear();
+    let eye = scene.first_camera().map_or(Vec3::new(0.0, 4.0, 8.0), |c| c.eye());
+    let mut radiance: Vec<Vec<Vec3>> =
+        flat.instances.iter().map(|i| vec![Vec3::ZERO; scene.meshes[i.mesh as usize].positions.len()]).collect();
+    let mut add = |values: Vec<Vec<Vec3>>| {
+        radiance.iter_mut().flatten().zip(values.into_iter().flatten()).for_each(|(r, v)| *r += v);
+    };
+    if let Some(b) = &out.bspvt {
+        add(bspvt::shade_vertices(&scene, &flat, bspvt::Method::Bspvt, Some(b), &b.settings, eye));
+    }
+    let lighting = plan.prt.and_then(|s| prt::Lighting::new(&scene, &s).map(|l| (l, s)));
+    if let (Some(b), Some((light, s))) = (&out.prt, &lighting) {
+        add(prt::Frame::prepare(&scene, &flat, b, light, prt::Method::WithOthers, s, eye).vertex_values(&scene, &flat));
+    }
+    let export = Export {
+        scene: &scene,
+        flat: &flat,
+        bspvt: out.bspvt.as_ref(),
+        prt: out.prt.as_ref().zip(lighting.as_ref()).map(|(b, (l, s))| (b, l, s)),
+        radiance: &radiance,
+        exposure: args.exposure,
+    };
+    pack::write(&args.output, &export).with_context(|| format!("writing {}", args.output.display()))?;
+    let size = std::fs::metadata(&args.output).map(|m| m.len()).unwrap_or(0);
+    crate::emit(&format!("wrote {} ({:.2} MB)\n", args.output.display(), size as f64 / 1e6));
+    Ok(())
+}
