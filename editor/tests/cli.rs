@@ -423,3 +423,28 @@ fn export_writes_valid_packs_that_render_like_the_database() {
     assert!(!o.status.success() && stderr(&o).contains("not a kage pack"), "{}", stderr(&o));
     std::fs::remove_dir_all(d).unwrap();
 }
+
+#[test]
+fn indirect_light_adds_to_per_vertex_methods() {
+    let d = scratch("indirect");
+    let scene = shared("scenes/cube_on_plane.gltf");
+    let run = |extra: &[&str]| {
+        let csv = d.join("v.csv");
+        let mut args =
+            vec!["render", &scene, "--method", "bspvt", "--face-res", "8", "--vertices-out", csv.to_str().unwrap()];
+        args.extend_from_slice(extra);
+        let o = kage(&args);
+        assert!(o.status.success(), "{extra:?}: {}", stderr(&o));
+        (String::from_utf8_lossy(&o.stdout).into_owned(), read_vertex_csv(&csv).unwrap())
+    };
+    let (_, direct) = run(&[]);
+    for mode in ["cache", "gather", "reference"] {
+        let (out, with) = run(&["--indirect", mode, "--spp", "64", "--cache-rays", "64"]);
+        assert!(out.contains("indirect ("), "{out}");
+        assert!(with.iter().zip(&direct).all(|(a, b)| a.radiance.cmpge(b.radiance).all()), "{mode} only adds light");
+        assert!(with.iter().zip(&direct).any(|(a, b)| a.radiance != b.radiance), "{mode} adds something");
+    }
+    let o = kage(&["render", &scene, "--indirect", "cache"]);
+    assert!(!o.status.success() && stderr(&o).contains("--bounces"), "{}", stderr(&o));
+    std::fs::remove_dir_all(d).unwrap();
+}

@@ -20,6 +20,7 @@
 
 pub mod accel;
 pub mod bspvt;
+pub mod cache;
 pub mod error;
 pub mod math;
 pub mod output;

@@ -79,7 +79,7 @@ fn cube_on_plane_umbra_is_black_and_matches_the_reference() {
         bake.stats.leaves as f64 / bake.stats.vertices as f64
     );
     assert!(tree_error < 0.01, "tree error {tree_error}");
-    let reference = r.render_vertices(eye, &RefSettings { spp: 512, seed: 5, max_bounces: 0 }, &|_| {});
+    let reference = r.render_vertices(eye, &RefSettings { spp: 512, seed: 5, max_bounces: 0, min_bounces: 0 }, &|_| {});
     let reference: Vec<Vec3> = reference.concat().iter().map(|e| e.mean).collect();
     let error = rel_rmse(&flat_b, &reference);
     eprintln!("bspvt vs reference (512 spp): {error:.4}");
@@ -99,7 +99,7 @@ fn sampled_errors(scene: &Scene, res: usize, step: usize, spp: u32) -> (f64, f64
             let (p, n) = r.vertex(i, v);
             let frame = kage_engine::math::frame::Frame::from_normal(n);
             let sp = SurfacePoint { p, ng: n, frame, material: r.flat.instances[i].material };
-            let settings = RefSettings { spp, seed: 9, max_bounces: 0 };
+            let settings = RefSettings { spp, seed: 9, max_bounces: 0, min_bounces: 0 };
             reference.push(r.estimate_point(&sp, (eye - p).normalize(), &settings, (i * 100_000 + v) as u64).mean);
             tree.push(t);
             exact.push(e);

@@ -13,7 +13,7 @@ fn render(threads: usize, seed: u64) -> (Vec<u32>, Vec<u32>) {
     pool.install(|| {
         let scene = default_scene();
         let r = Renderer::new(&scene);
-        let s = Settings { spp: 4, seed, max_bounces: 1 };
+        let s = Settings { spp: 4, seed, max_bounces: 1, min_bounces: 0 };
         let cam = scene.first_camera().unwrap();
         let img = r.render_image(&cam, 48, 27, &s, &|_| {});
         let verts: Vec<Estimate> = r.render_vertices(Vec3::new(0.0, 4.0, 8.0), &s, &|_| {}).concat();

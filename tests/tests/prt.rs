@@ -20,7 +20,7 @@ fn shade(scene: &Scene, s: &prt::Settings, method: Method) -> Vec<Vec<Vec3>> {
 /// Per-vertex reference (direct light only), per instance.
 fn reference(scene: &Scene, spp: u32) -> Vec<Vec<Vec3>> {
     let r = Renderer::new(scene);
-    let est = r.render_vertices(EYE, &Settings { spp, seed: 11, max_bounces: 0 }, &|_| {});
+    let est = r.render_vertices(EYE, &Settings { spp, seed: 11, max_bounces: 0, min_bounces: 0 }, &|_| {});
     est.iter().map(|v| v.iter().map(|e| e.mean).collect()).collect()
 }
 

@@ -61,7 +61,7 @@ fn unoccluded_lambertian_matches_lamberts_formula() {
     let light_pose = Affine3A::from_translation(Vec3::new(0.4, 2.0, -0.3));
     scene.add_light("light", quad(0.5), Vec3::ONE, light_pose);
     let r = Renderer::new(&scene);
-    let s = Settings { spp: 512, seed: 1, max_bounces: 0 };
+    let s = Settings { spp: 512, seed: 1, max_bounces: 0, min_bounces: 0 };
     let est = &r.render_vertices(Vec3::new(0.0, 5.0, 5.0), &s, &|_| {})[0];
     let poly = &r.flat.lights[0].points;
     let exact: Vec<f64> = (0..est.len())
@@ -86,7 +86,7 @@ fn cube_on_plane_shadow_and_unshadowed_irradiance() {
     // The published unshadowed irradiance at the ground centre.
     let e = lambert_irradiance(Vec3::ZERO, Vec3::Y, &r.flat.lights[0].points) * 10.0;
     assert!((e - 0.61226).abs() < 1e-4, "{e}");
-    let s = Settings { spp: 64, seed: 2, max_bounces: 0 };
+    let s = Settings { spp: 64, seed: 2, max_bounces: 0, min_bounces: 0 };
     let est = &r.render_vertices(Vec3::new(0.0, 6.0, 6.0), &s, &|_| {})[ground];
     let mut umbra = 0;
     for (v, e) in est.iter().enumerate() {
@@ -114,7 +114,11 @@ fn uniform_environment_gives_albedo_times_radiance() {
         Affine3A::IDENTITY,
     );
     let r = Renderer::new(&scene);
-    let est = &r.render_vertices(Vec3::new(0.0, 0.0, 5.0), &Settings { spp: 256, seed: 3, max_bounces: 0 }, &|_| {})[0];
+    let est = &r.render_vertices(
+        Vec3::new(0.0, 0.0, 5.0),
+        &Settings { spp: 256, seed: 3, max_bounces: 0, min_bounces: 0 },
+        &|_| {},
+    )[0];
     assert_consistent(est, &vec![albedo * 2.0; est.len()], "diffuse furnace");
 }
 
@@ -144,7 +148,7 @@ fn ggx_white_furnace_conserves_energy_and_matches_quadrature() {
     let mut exact = Vec::new();
     for (k, cos_o) in [0.05f32, 0.3, 0.6, 0.95].into_iter().enumerate() {
         let wo = Vec3::new((1.0 - cos_o * cos_o).sqrt(), 0.0, cos_o);
-        let e = r.estimate_point(&sp, wo, &Settings { spp: 20_000, seed: 4, max_bounces: 0 }, k as u64);
+        let e = r.estimate_point(&sp, wo, &Settings { spp: 20_000, seed: 4, max_bounces: 0, min_bounces: 0 }, k as u64);
         assert!(e.mean.x <= 1.0 + 3.0 * e.std_error.x, "energy at cos θo = {cos_o}: {}", e.mean.x);
         est.push(e);
         exact.push(ggx_albedo_quadrature(wo, ggx::alpha_from_roughness(0.6)));

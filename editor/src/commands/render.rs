@@ -31,6 +31,19 @@ pub enum Method {
     Prt,
 }
 
+/// Where one bounce of indirect light comes from.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Indirect {
+    /// Direct light only.
+    None,
+    /// The HSH radiance cache (records with gradients, interpolated).
+    Cache,
+    /// Brute-force gathering at every vertex (--cache-rays rays), the cache's baseline.
+    Gather,
+    /// The reference integrator's one-bounce term (--spp paths per vertex).
+    Reference,
+}
+
 /// Arguments of `kage render`.
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -85,6 +98,22 @@ pub struct Args {
     prt: PrtArgs,
     #[command(flatten)]
     db: DbArgs,
+    /// One bounce of indirect light added to a per-vertex method (the per-vertex direct
+    /// result lights the hits; exact for Lambertian hit surfaces).
+    #[arg(long, value_enum, default_value = "none")]
+    indirect: Indirect,
+    /// HSH order of the radiance cache.
+    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..=8))]
+    hsh_order: u32,
+    /// Rays per cache record (and per vertex for --indirect gather).
+    #[arg(long, default_value_t = 256, value_parser = clap::value_parser!(u32).range(1..=65536))]
+    cache_rays: u32,
+    /// Cache accuracy a (records serve where their weight exceeds 1/a; smaller = denser).
+    #[arg(long, default_value_t = 0.3)]
+    cache_accuracy: f32,
+    /// Interpolate without the records' translational gradients.
+    #[arg(long)]
+    no_gradients: bool,
     /// Shade from an asset pack written by `kage export` (its scene and bakes) instead of a scene.
     #[arg(long, conflicts_with = "scene")]
     pack: Option<PathBuf>,
@@ -134,11 +163,22 @@ pub fn run(args: &Args) -> Result<()> {
     let camera = camera(args, scene.first_camera())?;
     let renderer = Renderer::new(&scene);
     let output = args.output.clone().or_else(|| args.vertices_out.is_none().then(|| PathBuf::from("render.png")));
-    let (image, vertices) = match args.method {
+    if args.method == Method::Reference && args.indirect != Indirect::None {
+        bail!("--indirect is for the per-vertex methods; the reference takes --bounces N");
+    }
+    let (mut image, mut vertices) = match args.method {
         Method::Reference => reference(args, &renderer, &camera, output.is_some())?,
         Method::Prt | Method::PrtSelf => prt(args, &scene, &renderer, &camera, output.is_some(), pack.as_ref())?,
         m => per_vertex(args, m, &scene, &renderer, &camera, output.is_some(), pack.as_ref())?,
     };
+    if let Some(direct) = vertices.as_mut().filter(|_| args.indirect != Indirect::None) {
+        let extra = indirect(args, &renderer, direct, camera.eye());
+        if let Some(pixels) = image.as_mut() {
+            let more = raster::vertex_image(&renderer, &camera, args.size.0, args.size.1, args.spp.min(16), &extra);
+            pixels.iter_mut().zip(more).for_each(|(p, m)| *p += m);
+        }
+        direct.iter_mut().flatten().zip(extra.iter().flatten()).for_each(|(d, e)| *d += *e);
+    }
     if let (Some(path), Some(pixels)) = (&output, image) {
         write_image(path, args.size.0, args.size.1, &pixels, args.exposure)?;
         crate::emit(&format!("wrote {}\n", path.display()));
@@ -154,7 +194,7 @@ pub fn run(args: &Args) -> Result<()> {
 type Outputs = (Option<Vec<Vec3>>, Option<Vec<Vec<Vec3>>>);
 
 fn reference(args: &Args, renderer: &Renderer, camera: &Camera, want_image: bool) -> Result<Outputs> {
-    let settings = Settings { spp: args.spp, seed: args.seed, max_bounces: args.bounces };
+    let settings = Settings { spp: args.spp, seed: args.seed, max_bounces: args.bounces, min_bounces: 0 };
     let mut image = None;
     if want_image {
         let (w, h) = args.size;
@@ -339,6 +379,36 @@ fn from_database(
         s.seconds
     ));
     Ok(out)
+}
+
+/// One bounce of indirect light per vertex, lit by the per-vertex `direct` values.
+fn indirect(args: &Args, renderer: &Renderer, direct: &[Vec<Vec3>], eye: Vec3) -> Vec<Vec<Vec3>> {
+    let start = Instant::now();
+    let src = kage_engine::cache::record::Source { renderer, direct };
+    let s = kage_engine::cache::Settings {
+        order: args.hsh_order as usize,
+        rays: args.cache_rays as usize,
+        accuracy: args.cache_accuracy,
+        gradients: !args.no_gradients,
+        ..Default::default()
+    };
+    let (values, what) = match args.indirect {
+        Indirect::Cache => {
+            let (v, cache) = kage_engine::cache::indirect_vertices(&src, &s);
+            (v, format!("{} records, {} rays", cache.records.len(), cache.rays()))
+        }
+        Indirect::Gather => {
+            let v = kage_engine::cache::gather_vertices(&src, s.order, s.rays);
+            (v, format!("{} rays", renderer.vertex_count() * s.side().pow(2)))
+        }
+        _ => {
+            let settings = Settings { spp: args.spp, seed: args.seed, max_bounces: 1, min_bounces: 1 };
+            let est = renderer.render_vertices(eye, &settings, &|_| {});
+            (est.iter().map(|e| e.iter().map(|x| x.mean).collect()).collect(), format!("{} paths per vertex", args.spp))
+        }
+    };
+    crate::emit(&format!("indirect ({:?}): {what} in {:.2} s\n", args.indirect, start.elapsed().as_secs_f64()));
+    values
 }
 
 fn camera(args: &Args, scene_camera: Option<Camera>) -> Result<Camera> {

@@ -88,7 +88,7 @@ impl Renderer {
                             let px = Vec2::new(x as f32 + r.random::<f32>(), y as f32 + r.random::<f32>());
                             let ndc = Vec2::new(2.0 * px.x / width as f32 - 1.0, 1.0 - 2.0 * px.y / height as f32);
                             let (o, d) = camera.ray(ndc, aspect);
-                            acc.add(self.camera_path(o, d, s.max_bounces, &mut r));
+                            acc.add(self.camera_path(o, d, (s.min_bounces, s.max_bounces), &mut r));
                         }
                         acc.estimate()
                     })
@@ -138,7 +138,7 @@ impl Renderer {
         let mut r = rng::stream(s.seed, index);
         let mut acc = Accumulator::default();
         for _ in 0..s.spp {
-            acc.add(self.surface_path(*sp, wo, s.max_bounces, &mut r));
+            acc.add(self.surface_path(*sp, wo, (s.min_bounces, s.max_bounces), &mut r));
         }
         acc.estimate()
     }
@@ -159,26 +159,32 @@ impl Renderer {
     }
 
     /// Radiance along a camera ray: emitters and the environment are seen directly.
-    fn camera_path(&self, o: Vec3, d: Vec3, bounces: u32, r: &mut rng::Rng) -> Vec3 {
+    fn camera_path(&self, o: Vec3, d: Vec3, bounces: (u32, u32), r: &mut rng::Rng) -> Vec3 {
         match self.trace(o, d) {
             Found::Surface(sp) => self.surface_path(sp, -d, bounces, r),
-            Found::Emitter { radiance, .. } => radiance,
-            Found::Environment => self.flat.environment.as_ref().map_or(Vec3::ZERO, |e| e.radiance(d)),
-            Found::Nothing => Vec3::ZERO,
+            Found::Emitter { radiance, .. } if bounces.0 == 0 => radiance,
+            Found::Environment if bounces.0 == 0 => {
+                self.flat.environment.as_ref().map_or(Vec3::ZERO, |e| e.radiance(d))
+            }
+            _ => Vec3::ZERO,
         }
     }
 
-    /// Radiance leaving `sp` toward `wo` (world): the path loop with next-event estimation.
-    fn surface_path(&self, mut sp: SurfacePoint, mut wo: Vec3, bounces: u32, r: &mut rng::Rng) -> Vec3 {
+    /// Radiance leaving `sp` toward `wo` (world): the path loop with next-event estimation,
+    /// counting light that arrives after `min..=max` bounces.
+    fn surface_path(&self, mut sp: SurfacePoint, mut wo: Vec3, (min, bounces): (u32, u32), r: &mut rng::Rng) -> Vec3 {
         let mut radiance = Vec3::ZERO;
         let mut throughput = Vec3::ONE;
         for depth in 0..=bounces {
+            // Light found at this depth has bounced `depth` times before reaching the point.
+            let counted = if depth >= min { 1.0 } else { 0.0 };
             let wo_l = sp.frame.to_local(wo);
             let bsdf = Bsdf::new(&sp.material, wo_l);
             if bsdf.is_black() {
                 break;
             }
-            radiance += throughput
+            radiance += counted
+                * throughput
                 * (self.sample_polygon_light(&sp, &bsdf, wo_l, r) + self.sample_environment(&sp, &bsdf, wo_l, r));
             let Some(wi_l) = bsdf.sample(wo_l, r.random(), Vec2::new(r.random(), r.random())) else {
                 break;
@@ -191,13 +197,16 @@ impl Renderer {
             let weight = bsdf.eval(wo_l, wi_l) * wi_l.z / pdf;
             match self.trace(offset_ray_origin(sp.p, sp.ng, wi), wi) {
                 Found::Emitter { radiance: le, pdf_light } => {
-                    radiance += throughput * weight * le * sampling::power_heuristic(pdf, pdf_light);
+                    radiance += counted * throughput * weight * le * sampling::power_heuristic(pdf, pdf_light);
                     break;
                 }
                 Found::Environment => {
                     if let Some(env) = &self.flat.environment {
-                        radiance +=
-                            throughput * weight * env.radiance(wi) * sampling::power_heuristic(pdf, env.pdf(wi));
+                        radiance += counted
+                            * throughput
+                            * weight
+                            * env.radiance(wi)
+                            * sampling::power_heuristic(pdf, env.pdf(wi));
                     }
                     break;
                 }

@@ -26,11 +26,14 @@ pub struct Settings {
     pub seed: u64,
     /// Indirect bounces after the first surface (0 = direct lighting only).
     pub max_bounces: u32,
+    /// Bounces skipped before light is counted: 1 estimates the indirect light alone (the
+    /// ground truth of the radiance cache), 0 everything.
+    pub min_bounces: u32,
 }
 
 impl Default for Settings {
     fn default() -> Self {
-        Self { spp: 64, seed: 0, max_bounces: 0 }
+        Self { spp: 64, seed: 0, max_bounces: 0, min_bounces: 0 }
     }
 }
 

@@ -69,8 +69,10 @@ impl Truth {
     fn vertices(renderer: &Renderer, eye: Vec3, spp: u32, keep: Vec<bool>, what: &str) -> Self {
         let pb = bar(renderer.vertex_count() as u64, "reference");
         let start = Instant::now();
-        let est = renderer
-            .render_vertices(eye, &Settings { spp, seed: 0x5EED, max_bounces: 0 }, &|k| pb.set_position(k as u64));
+        let est =
+            renderer.render_vertices(eye, &Settings { spp, seed: 0x5EED, max_bounces: 0, min_bounces: 0 }, &|k| {
+                pb.set_position(k as u64)
+            });
         pb.finish_and_clear();
         let secs = start.elapsed().as_secs_f64();
         let est: Vec<_> = est.into_iter().zip(&keep).filter(|(_, k)| **k).map(|(e, _)| e).collect();

@@ -42,7 +42,7 @@ pub fn run(args: &Args, eye: Vec3, rows: &mut Vec<Row>) -> Result<String> {
     push(truth.row("ltc-unshadowed", String::new(), t.elapsed().as_secs_f64(), &v));
     for spp in [1u32, 4, 16, 64] {
         let t = Instant::now();
-        let est = renderer.render_vertices(eye, &Settings { spp, seed: 7, max_bounces: 0 }, &|_| {});
+        let est = renderer.render_vertices(eye, &Settings { spp, seed: 7, max_bounces: 0, min_bounces: 0 }, &|_| {});
         let v: Vec<Vec<Vec3>> = est.iter().map(|e| e.iter().map(|x| x.mean).collect()).collect();
         push(truth.row("monte-carlo", format!("{spp} spp"), t.elapsed().as_secs_f64(), &v));
     }

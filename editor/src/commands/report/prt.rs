@@ -38,7 +38,7 @@ pub fn run(args: &Args, eye: Vec3, rows: &mut Vec<Row>) -> Result<String> {
     let truth = Truth::vertices(&renderer, eye, args.reference_spp, keep.clone(), "environment (Lambertian instances)");
     let (w, h) = args.image_size;
     let pb = bar(h as u64, "reference image");
-    let settings = Settings { spp: args.reference_image_spp, seed: 0x1A6E, max_bounces: 0 };
+    let settings = Settings { spp: args.reference_image_spp, seed: 0x1A6E, max_bounces: 0, min_bounces: 0 };
     let pixels = renderer.render_image(&camera, w, h, &settings, &|r| pb.set_position(r as u64));
     pb.finish_and_clear();
     let coverage =

@@ -1,0 +1,264 @@
+//! Hemispherical-harmonic radiance caching (seed `004_…txt`, after Gautron et al. 2004 and
+//! Křivánek et al. 2005): one bounce of indirect light from sparse records.
+//!
+//! - [`record`]: gathering a record (HSH coefficients, analytic translational gradients,
+//!   harmonic mean distance);
+//! - this module: placement by the Ward/Křivánek criterion (a new record where no existing one
+//!   has weight above 1/a), lookup with the weights of H19 (clamped at a record's own
+//!   position), gradient extrapolation (H23), rotation of each record into the receiver's
+//!   frame, normalised blending, and the diffuse outgoing radiance `ρ/π Σ c_k h_k` with
+//!   `h_k = ∫ H_k cos θ dω` (H5 with its missing cos θ restored).
+//!
+//! Rotation goes through SH (`hsh::Conversion`, order [`ROTATION_SH_ORDER`]); when the
+//! receiver's normal is within [`SMALL_ANGLE`] of the record's the rotation is skipped (the
+//! small-angle case, measured in the tests). Receivers are diffuse here: a glossy receiver
+//! gets the cached light through its diffuse lobe only.
+
+pub mod record;
+
+use crate::math::hsh;
+use glam::{DMat3, DVec3, Vec3};
+use record::{Record, Source, gather};
+use std::collections::HashMap;
+
+/// SH order of the rotation between record and receiver frames.
+pub const ROTATION_SH_ORDER: usize = 8;
+/// Normals closer than this angle (radians) skip the rotation.
+pub const SMALL_ANGLE: f64 = 0.02;
+
+/// Cache parameters.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Settings {
+    /// HSH order (bands 0..order−1).
+    pub order: usize,
+    /// Rays per record (rounded down to a square).
+    pub rays: usize,
+    /// Accuracy a: a record serves points where its weight exceeds 1/a.
+    pub accuracy: f32,
+    /// Use the translational gradients.
+    pub gradients: bool,
+    /// Bounds of the record radius R_i, as fractions of the scene's bounding diagonal.
+    pub radius_bounds: (f32, f32),
+}
+
+impl Default for Settings {
+    fn default() -> Self {
+        Self { order: 3, rays: 256, accuracy: 0.3, gradients: true, radius_bounds: (0.01, 0.2) }
+    }
+}
+
+impl Settings {
+    /// Side of the stratified ray grid.
+    pub fn side(&self) -> usize {
+        ((self.rays as f64).sqrt() as usize).max(1)
+    }
+}
+
+/// Records with a uniform grid over their areas of influence.
+pub struct Cache {
+    /// The records, in creation order.
+    pub records: Vec<Record>,
+    settings: Settings,
+    bounds: (f32, f32),
+    cell: f32,
+    grid: HashMap<[i32; 3], Vec<u32>>,
+    cosine: Vec<f64>,
+    conversion: hsh::Conversion,
+}
+
+/// The H19 weight of a record at `p` with normal `n` (infinite at the record itself: clamped).
+pub fn weight(r: &Record, p: Vec3, n: Vec3) -> f32 {
+    let d = p.distance(r.p) / r.radius + (1.0 - n.dot(r.frame.n)).max(0.0).sqrt();
+    1.0 / d.max(1e-6)
+}
+
+impl Cache {
+    /// An empty cache for a scene whose bounding diagonal is `diagonal`.
+    pub fn new(settings: Settings, diagonal: f32) -> Self {
+        let bounds = (settings.radius_bounds.0 * diagonal, settings.radius_bounds.1 * diagonal);
+        Self {
+            records: Vec::new(),
+            settings,
+            bounds,
+            cell: (settings.accuracy * bounds.1).max(1e-6),
+            grid: HashMap::new(),
+            cosine: hsh::project(settings.order, 64, |d| d.z),
+            conversion: hsh::Conversion::new(settings.order, ROTATION_SH_ORDER),
+        }
+    }
+
+    fn cell_of(&self, p: Vec3) -> [i32; 3] {
+        (p / self.cell).floor().as_ivec3().to_array()
+    }
+
+    fn insert(&mut self, r: Record) {
+        let reach = Vec3::splat(self.settings.accuracy * r.radius);
+        let (lo, hi) = (self.cell_of(r.p - reach), self.cell_of(r.p + reach));
+        let id = self.records.len() as u32;
+        for x in lo[0]..=hi[0] {
+            for y in lo[1]..=hi[1] {
+                for z in lo[2]..=hi[2] {
+                    self.grid.entry([x, y, z]).or_default().push(id);
+                }
+            }
+        }
+        self.records.push(r);
+    }
+
+    /// Records usable at `p` (normal `n`) with their weights: weight above 1/a, and not in
+    /// front of the point (Ward's test: a record ahead of the tangent plane sees other light).
+    pub fn usable(&self, p: Vec3, n: Vec3) -> Vec<(u32, f32)> {
+        let Some(ids) = self.grid.get(&self.cell_of(p)) else { return Vec::new() };
+        ids.iter()
+            .filter_map(|&i| {
+                let r = &self.records[i as usize];
+                let w = weight(r, p, n);
+                let ahead = (p - r.p).dot(n + r.frame.n) * 0.5;
+                (w > 1.0 / self.settings.accuracy && ahead > -0.05 * r.radius).then_some((i, w))
+            })
+            .collect()
+    }
+
+    /// Places records at `points` (in order): a new record wherever no usable one exists.
+    /// Returns the number of records made.
+    pub fn place(&mut self, src: &Source, points: &[(Vec3, Vec3)]) -> usize {
+        let before = self.records.len();
+        for &(p, n) in points {
+            if self.usable(p, n).is_empty() {
+                let index = self.records.len() as u64;
+                let r = gather(src, p, n, self.settings.order, self.settings.side(), index, self.bounds);
+                self.insert(r);
+            }
+        }
+        self.records.len() - before
+    }
+
+    /// Rays cast so far.
+    pub fn rays(&self) -> usize {
+        self.records.len() * self.settings.side().pow(2)
+    }
+
+    /// Incoming radiance at `p` (normal `n`) as HSH coefficients in the frame of
+    /// `Frame::from_normal(n)`: the usable records extrapolated, rotated and blended. `None`
+    /// when no record is usable.
+    pub fn incoming(&self, p: Vec3, n: Vec3) -> Option<Vec<DVec3>> {
+        let usable = self.usable(p, n);
+        if usable.is_empty() {
+            return None;
+        }
+        let frame = crate::math::frame::Frame::from_normal(n);
+        let k = self.cosine.len();
+        let (mut sum, mut total) = (vec![DVec3::ZERO; k], 0.0f64);
+        for (i, w) in usable {
+            let r = &self.records[i as usize];
+            let mut c = r.coeffs.clone();
+            if self.settings.gradients {
+                let d = r.frame.to_local(p - r.p).as_dvec3();
+                c.iter_mut().zip(&r.grad_x).zip(&r.grad_y).for_each(|((c, gx), gy)| *c += *gx * d.x + *gy * d.y);
+            }
+            let c = self.rotate(&c, r, &frame);
+            sum.iter_mut().zip(&c).for_each(|(s, c)| *s += *c * w as f64);
+            total += w as f64;
+        }
+        Some(sum.into_iter().map(|s| s / total).collect())
+    }
+
+    /// A record's coefficients in the receiver's frame.
+    fn rotate(&self, c: &[DVec3], r: &Record, to: &crate::math::frame::Frame) -> Vec<DVec3> {
+        if r.frame.n.dot(to.n) as f64 >= SMALL_ANGLE.cos() {
+            return c.to_vec();
+        }
+        let basis = |f: &crate::math::frame::Frame| DMat3::from_cols(f.t.as_dvec3(), f.b.as_dvec3(), f.n.as_dvec3());
+        // Receiver-local from record-local: g(d_recv) = f(d_rec), d_rec = Bᵢᵀ B_r d_recv.
+        let rot = basis(to).transpose() * basis(&r.frame);
+        let mut out = vec![DVec3::ZERO; c.len()];
+        for ch in 0..3 {
+            let channel: Vec<f64> = c.iter().map(|v| v[ch]).collect();
+            for (o, v) in out.iter_mut().zip(self.conversion.rotate(&channel, rot)) {
+                o[ch] = v;
+            }
+        }
+        out
+    }
+
+    /// Irradiance from incoming-radiance coefficients: Σ c_k h_k.
+    pub fn irradiance(&self, c: &[DVec3]) -> Vec3 {
+        c.iter().zip(&self.cosine).map(|(c, h)| *c * *h).sum::<DVec3>().max(DVec3::ZERO).as_vec3()
+    }
+}
+
+/// Every receiver vertex (instance, vertex) with its world position and normal, in instance order.
+fn vertices(src: &Source) -> Vec<(usize, usize, Vec3, Vec3)> {
+    let r = src.renderer;
+    (0..r.flat.instances.len())
+        .flat_map(|i| (0..r.mesh(i).positions.len()).map(move |v| (i, v)))
+        .map(|(i, v)| {
+            let (p, n) = r.vertex(i, v);
+            (i, v, p, n)
+        })
+        .collect()
+}
+
+/// Diffuse albedo of instance `i` seen along its normal.
+fn albedo(src: &Source, i: usize) -> Vec3 {
+    crate::reference::Bsdf::new(&src.renderer.flat.instances[i].material, Vec3::Z).diffuse_albedo()
+}
+
+/// The scene's bounding diagonal.
+fn diagonal(src: &Source) -> f32 {
+    let (lo, hi) = src
+        .renderer
+        .flat
+        .triangles
+        .iter()
+        .flatten()
+        .fold((Vec3::MAX, Vec3::MIN), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
+    (hi - lo).length().max(1e-6)
+}
+
+/// One bounce of indirect light at every receiver vertex through the cache (records placed
+/// at the vertices, in order): per instance, the diffuse outgoing radiance; and the cache.
+pub fn indirect_vertices(src: &Source, s: &Settings) -> (Vec<Vec<Vec3>>, Cache) {
+    use rayon::prelude::*;
+    let verts = vertices(src);
+    let mut cache = Cache::new(*s, diagonal(src));
+    let points: Vec<(Vec3, Vec3)> = verts.iter().map(|&(_, _, p, n)| (p, n)).collect();
+    cache.place(src, &points);
+    let values: Vec<Vec3> = verts
+        .par_iter()
+        .map(|&(i, _, p, n)| {
+            let e = cache.incoming(p, n).map_or(Vec3::ZERO, |c| cache.irradiance(&c));
+            albedo(src, i) * e / std::f32::consts::PI
+        })
+        .collect();
+    (split(src, values), cache)
+}
+
+/// Brute-force gathering: `rays` rays at every vertex, no cache (the baseline the cache is
+/// measured against), per instance.
+pub fn gather_vertices(src: &Source, order: usize, rays: usize) -> Vec<Vec<Vec3>> {
+    use rayon::prelude::*;
+    let verts = vertices(src);
+    let s = Settings { order, rays, ..Settings::default() };
+    let cache = Cache::new(s, diagonal(src));
+    let values: Vec<Vec3> = verts
+        .par_iter()
+        .enumerate()
+        .map(|(k, &(i, _, p, n))| {
+            let r = gather(src, p, n, order, s.side(), k as u64, (0.0, f32::INFINITY));
+            albedo(src, i) * cache.irradiance(&r.coeffs) / std::f32::consts::PI
+        })
+        .collect();
+    split(src, values)
+}
+
+/// Per-instance vectors from a flat list in vertex order.
+fn split(src: &Source, mut values: Vec<Vec3>) -> Vec<Vec<Vec3>> {
+    let r = src.renderer;
+    let mut out = Vec::new();
+    for i in 0..r.flat.instances.len() {
+        let rest = values.split_off(r.mesh(i).positions.len());
+        out.push(std::mem::replace(&mut values, rest));
+    }
+    out
+}

@@ -1,0 +1,133 @@
+//! One radiance-cache record: incoming radiance over the hemisphere above a surface point in
+//! hemispherical harmonics (seed H4), its translational gradients (analytic form, H9–H18 with
+//! the corrections in DESIGN.md), and the harmonic mean distance R_i (H20).
+//!
+//! Gather rays are stratified uniformly in solid angle (each stands for Ω = 2π/N). A ray that
+//! hits a receiver sees the radiance leaving the hit toward the record: the hit triangle's
+//! per-vertex diffuse direct radiance, interpolated (one BVH query per ray). Emitters and the
+//! environment are direct light, not one bounce of indirect, and back faces are the insides of
+//! closed objects: they contribute nothing here.
+//!
+//! Gradient of `c_k = Σ_j L_j H_k(ω_j) Ω_j` when the record moves along its tangent x (fixed
+//! hit points): `∂c_k/∂x = Σ_j L_j [∂H_k/∂x Ω_j + H_k ∂Ω_j/∂x]` with
+//! `∂H_k/∂x = gradient_terms(ω_j)/r_j` and `∂Ω_j/∂x = Ω_j (r_j n_x + 3 q_x cos ξ_j)/(r_j² cos ξ_j)`
+//! (q = hit − record, n the hit's normal facing the record, ξ its angle to −ω_j), cos ξ clamped
+//! at [`MIN_COS_XI`]: grazing hits would otherwise dominate (Křivánek et al. note the same).
+
+use crate::accel::offset_ray_origin;
+use crate::math::frame::Frame;
+use crate::math::{hsh, rng};
+use crate::reference::Renderer;
+use glam::{DVec3, Vec3};
+use rand::Rng;
+
+/// Smallest cos ξ the solid-angle gradient uses.
+pub const MIN_COS_XI: f32 = 0.1;
+
+/// Where gather rays find radiance: the scene and each instance's per-vertex diffuse direct
+/// radiance (view-independent).
+pub struct Source<'a> {
+    /// The scene's BVH and snapshot.
+    pub renderer: &'a Renderer,
+    /// Per instance and vertex: diffuse radiance leaving the vertex from direct light.
+    pub direct: &'a [Vec<Vec3>],
+}
+
+/// What one gather ray found: radiance toward the record, distance, and the hit's normal
+/// facing back along the ray.
+struct Sample {
+    radiance: Vec3,
+    t: f32,
+    normal: Vec3,
+}
+
+impl Source<'_> {
+    fn trace(&self, o: Vec3, d: Vec3) -> Option<Sample> {
+        let r = self.renderer;
+        let hit = r.bvh.closest_hit(o, d, f32::INFINITY)?;
+        let tri = r.flat.triangles[hit.triangle as usize];
+        let normal = (tri[1] - tri[0]).cross(tri[2] - tri[0]).normalize_or_zero();
+        let tref = r.flat.refs[hit.triangle as usize];
+        // Emitters are direct light; a back face is the inside of a closed object (a ray that
+        // started in contact geometry): neither reflects one bounce toward the record.
+        if tref.light != crate::scene::NO_LIGHT || normal.dot(d) > 0.0 {
+            return Some(Sample { radiance: Vec3::ZERO, t: hit.t, normal });
+        }
+        let inst = tref.owner as usize;
+        let idx = r.mesh(inst).triangles[tref.local as usize];
+        let (i1, i2) = if r.flat.instances[inst].mirrored { (idx[2], idx[1]) } else { (idx[1], idx[2]) };
+        let v = &self.direct[inst];
+        let (b1, b2) = (hit.bary.x, hit.bary.y);
+        let radiance = v[idx[0] as usize] * (1.0 - b1 - b2) + v[i1 as usize] * b1 + v[i2 as usize] * b2;
+        Some(Sample { radiance, t: hit.t, normal })
+    }
+}
+
+/// A record.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Record {
+    /// Position.
+    pub p: Vec3,
+    /// Tangent frame (+Z = normal); gradients are along its t and b axes.
+    pub frame: Frame,
+    /// Harmonic mean distance of the gathered hits, clamped.
+    pub radius: f32,
+    /// HSH coefficients of the incoming radiance (RGB), in the record's frame.
+    pub coeffs: Vec<DVec3>,
+    /// ∂coeffs/∂x along `frame.t`.
+    pub grad_x: Vec<DVec3>,
+    /// ∂coeffs/∂y along `frame.b`.
+    pub grad_y: Vec<DVec3>,
+}
+
+/// Gathers a record at `p` (unit normal `n`) with `side²` stratified rays of stream `index`,
+/// HSH `order`, the harmonic mean distance clamped to `[r_min, r_max]`.
+pub fn gather(
+    src: &Source,
+    p: Vec3,
+    n: Vec3,
+    order: usize,
+    side: usize,
+    index: u64,
+    (r_min, r_max): (f32, f32),
+) -> Record {
+    let frame = Frame::from_normal(n);
+    let count = side * side;
+    let omega = 2.0 * std::f64::consts::PI / count as f64;
+    let k = hsh::num_coeffs(order);
+    let (mut c, mut gx, mut gy) = (vec![DVec3::ZERO; k], vec![DVec3::ZERO; k], vec![DVec3::ZERO; k]);
+    let mut inverse_distance = 0.0f64;
+    let mut r = rng::stream(0xCAC4E, index);
+    for j in 0..count {
+        let (u, v) = (
+            ((j % side) as f32 + r.random::<f32>()) / side as f32,
+            ((j / side) as f32 + r.random::<f32>()) / side as f32,
+        );
+        let (z, phi) = (u, 2.0 * std::f32::consts::PI * v);
+        let s = (1.0 - z * z).max(0.0).sqrt();
+        let local = Vec3::new(s * phi.cos(), s * phi.sin(), z);
+        let d = frame.to_world(local);
+        let Some(hit) = src.trace(offset_ray_origin(p, n, d), d) else { continue };
+        inverse_distance += 1.0 / hit.t.max(1e-6) as f64;
+        if hit.radiance == Vec3::ZERO {
+            continue;
+        }
+        let l = hit.radiance.as_dvec3();
+        let dl = local.as_dvec3();
+        let h = hsh::eval(order, dl);
+        let (tx, ty) = hsh::gradient_terms(order, dl);
+        let t = hit.t.max(1e-6) as f64;
+        let q = frame.to_local(d * hit.t).as_dvec3();
+        let nk = frame.to_local(hit.normal).as_dvec3();
+        let cos_xi = (nk.dot(-dl)).max(MIN_COS_XI as f64);
+        let d_omega = |nx: f64, qx: f64| omega * (t * nx + 3.0 * qx * cos_xi) / (t * t * cos_xi);
+        let (dox, doy) = (d_omega(nk.x, q.x), d_omega(nk.y, q.y));
+        for i in 0..k {
+            c[i] += l * (h[i] * omega);
+            gx[i] += l * (tx[i] / t * omega + h[i] * dox);
+            gy[i] += l * (ty[i] / t * omega + h[i] * doy);
+        }
+    }
+    let harmonic = if inverse_distance > 0.0 { (count as f64 / inverse_distance) as f32 } else { f32::INFINITY };
+    Record { p, frame, radius: harmonic.clamp(r_min, r_max), coeffs: c, grad_x: gx, grad_y: gy }
+}
