@@ -13,3 +13,11 @@ pub fn bar(total: u64, what: &str) -> ProgressBar {
     pb.set_message(what.to_string());
     pb
 }
+
+/// Runs `work` under a bar of `total` steps; `work` reports the steps done so far.
+pub fn with_bar<T>(total: usize, what: &str, work: impl FnOnce(&(dyn Fn(usize) + Sync)) -> T) -> T {
+    let pb = bar(total as u64, what);
+    let out = work(&|n| pb.set_position(n as u64));
+    pb.finish_and_clear();
+    out
+}

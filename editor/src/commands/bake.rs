@@ -2,7 +2,7 @@
 //! (progress, ETA), and with `--watch` do it again whenever the scene file changes.
 
 use crate::db_args::DbArgs;
-use crate::progress::bar;
+use crate::progress::with_bar;
 use crate::prt_args::PrtArgs;
 use crate::scene_args::SceneArgs;
 use anyhow::Result;
@@ -84,9 +84,7 @@ fn bake_once(args: &Args, store: &Store) -> Result<()> {
         return Ok(());
     }
     let total: usize = plan.misses().map(|j| j.vertices.len()).sum();
-    let pb = bar(total as u64, "baking");
-    let outcome = kage_bake_db::run(store, &scene, &flat, &plan, &|n| pb.set_position(n as u64))?;
-    pb.finish_and_clear();
+    let outcome = with_bar(total, "baking", |p| kage_bake_db::run(store, &scene, &flat, &plan, p))?;
     let s = outcome.stats;
     crate::emit(&format!(
         "baked {} chunks cold and {} warm ({} vertices, {} cube faces) in {:.2} s; {} cached; {}\n",

@@ -3,7 +3,7 @@
 
 use crate::commands::bake::{BakeOptions, print_plan};
 use crate::db_args::DbArgs;
-use crate::progress::bar;
+use crate::progress::with_bar;
 use crate::scene_args::SceneArgs;
 use anyhow::{Context, Result};
 use glam::Vec3;
@@ -44,9 +44,8 @@ pub fn run(args: &Args) -> Result<()> {
     let plan = args.options.plan(&store, &scene, &flat)?;
     print_plan(&scene, &plan, start.elapsed().as_secs_f64());
     anyhow::ensure!(!plan.jobs.is_empty(), "{}: no polygonal light and no environment: nothing to bake", scene.source);
-    let pb = bar(plan.misses().map(|j| j.vertices.len()).sum::<usize>() as u64, "baking");
-    let out = kage_bake_db::run(&store, &scene, &flat, &plan, &|n| pb.set_position(n as u64))?;
-    pb.finish_and_clear();
+    let total = plan.misses().map(|j| j.vertices.len()).sum();
+    let out = with_bar(total, "baking", |p| kage_bake_db::run(&store, &scene, &flat, &plan, p))?;
     let eye = scene.first_camera().map_or(Vec3::new(0.0, 4.0, 8.0), |c| c.eye());
     let mut radiance: Vec<Vec<Vec3>> =
         flat.instances.iter().map(|i| vec![Vec3::ZERO; scene.meshes[i.mesh as usize].positions.len()]).collect();

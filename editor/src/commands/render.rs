@@ -1,7 +1,7 @@
 //! `kage render`: images and per-vertex radiance with a chosen method.
 
 use crate::db_args::DbArgs;
-use crate::progress::bar;
+use crate::progress::{bar, with_bar};
 use crate::prt_args::PrtArgs;
 use crate::scene_args::SceneArgs;
 use anyhow::{Context, Result, bail};
@@ -263,9 +263,7 @@ fn per_vertex(
 
 /// Bakes BSPVT without a database, printing the bake statistics.
 fn in_memory_bspvt(scene: &Scene, renderer: &Renderer, settings: &bspvt::Settings) -> bspvt::Bake {
-    let pb = bar(renderer.vertex_count() as u64, "baking");
-    let b = bspvt::bake(scene, &renderer.flat, settings, &|n| pb.set_position(n as u64));
-    pb.finish_and_clear();
+    let b = with_bar(renderer.vertex_count(), "baking", |p| bspvt::bake(scene, &renderer.flat, settings, p));
     let st = b.stats;
     crate::emit(&format!(
         "bake: {} vertices in {:.2} s ({:.0} vertices/s), {:.1} leaves and {:.1} nodes per vertex, {:.0} bytes per vertex ({:.2} MB)\n",
@@ -313,9 +311,7 @@ fn prt(
     let bake = match &store {
         Some(store) => from_database(store, scene, flat, None, Some(settings))?.prt.context("PRT was planned")?,
         None => {
-            let pb = bar(renderer.vertex_count() as u64, "baking");
-            let bake = prt::bake(scene, flat, &settings, &|n| pb.set_position(n as u64));
-            pb.finish_and_clear();
+            let bake = with_bar(renderer.vertex_count(), "baking", |p| prt::bake(scene, flat, &settings, p));
             let st = bake.stats;
             crate::emit(&format!(
                 "bake: {} vertices in {:.2} s ({:.0} vertices/s), order {}, {} directions, {:.2} MB\n",
@@ -365,9 +361,8 @@ fn from_database(
     prt: Option<prt::Settings>,
 ) -> Result<kage_bake_db::Outcome> {
     let plan = kage_bake_db::plan(store, scene, flat, bspvt, prt)?;
-    let pb = bar(plan.misses().map(|j| j.vertices.len()).sum::<usize>() as u64, "baking");
-    let out = kage_bake_db::run(store, scene, flat, &plan, &|n| pb.set_position(n as u64))?;
-    pb.finish_and_clear();
+    let total = plan.misses().map(|j| j.vertices.len()).sum();
+    let out = with_bar(total, "baking", |p| kage_bake_db::run(store, scene, flat, &plan, p))?;
     let s = out.stats;
     crate::emit(&format!(
         "bake: {}: {} chunks cached, {} baked cold, {} warm ({} vertices) in {:.2} s\n",

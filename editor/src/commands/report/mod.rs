@@ -3,9 +3,11 @@
 //! (relative RMSE against time, log–log, one colour per method) into `--out`.
 //!
 //! Sections run when the scene has what they shade: [`polygon`] (polygonal lights, the
-//! environment dropped) and [`prt`] (the environment, polygonal lights removed). Errors are
-//! per vertex toward the scene camera, and for PRT also per pixel.
+//! environment dropped), [`prt`] (the environment, polygonal lights removed) and [`cache`] (one
+//! bounce of indirect light from all of them). Errors are per vertex toward the scene camera,
+//! and for PRT also per pixel.
 
+mod cache;
 mod polygon;
 mod prt;
 
@@ -64,15 +66,16 @@ pub(crate) struct Truth {
 }
 
 impl Truth {
-    /// Per-vertex reference toward `eye` with `spp` samples over the instances in `keep`, timed,
-    /// with its own standard error.
-    fn vertices(renderer: &Renderer, eye: Vec3, spp: u32, keep: Vec<bool>, what: &str) -> Self {
+    /// Per-vertex reference toward `eye` with `spp` samples over the instances in `keep`,
+    /// counting light after `(min, max)` bounces, timed, with its own standard error.
+    fn vertices(renderer: &Renderer, eye: Vec3, spp: u32, bounces: (u32, u32), keep: Vec<bool>, what: &str) -> Self {
         let pb = bar(renderer.vertex_count() as u64, "reference");
         let start = Instant::now();
-        let est =
-            renderer.render_vertices(eye, &Settings { spp, seed: 0x5EED, max_bounces: 0, min_bounces: 0 }, &|k| {
-                pb.set_position(k as u64)
-            });
+        let est = renderer.render_vertices(
+            eye,
+            &Settings { spp, seed: 0x5EED, min_bounces: bounces.0, max_bounces: bounces.1 },
+            &|k| pb.set_position(k as u64),
+        );
         pb.finish_and_clear();
         let secs = start.elapsed().as_secs_f64();
         let est: Vec<_> = est.into_iter().zip(&keep).filter(|(_, k)| **k).map(|(e, _)| e).collect();
@@ -126,6 +129,7 @@ pub fn run(args: &Args) -> Result<()> {
         "{}: no polygonal light and no environment: nothing to report",
         scene.source
     );
+    header.push(cache::run(args, eye, &mut rows)?);
     std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
     write_files(args, &header.join("\n\n"), &rows)?;
     crate::emit(&format!("wrote {}/report.md, report.csv, report.png\n", args.out.display()));
@@ -202,7 +206,7 @@ fn write_files(args: &Args, header: &str, rows: &[Row]) -> Result<()> {
     plot(rows).save(args.out.join("report.png")).context("writing report.png")
 }
 
-const METHODS: [(&str, [u8; 3]); 7] = [
+const METHODS: [(&str, [u8; 3]); 10] = [
     ("bspvt", [220, 50, 40]),
     ("ltc-exact-vis", [40, 120, 220]),
     ("ltc-unshadowed", [120, 120, 120]),
@@ -210,6 +214,9 @@ const METHODS: [(&str, [u8; 3]); 7] = [
     ("ratio-estimator", [200, 140, 0]),
     ("prt", [150, 40, 180]),
     ("prt-self", [0, 170, 170]),
+    ("indirect-gather", [90, 60, 20]),
+    ("hsh-cache", [230, 100, 180]),
+    ("hsh-cache-no-gradients", [160, 160, 40]),
 ];
 
 /// A log–log scatter with lines joining each method's points (no text: the Markdown says

@@ -15,7 +15,7 @@ pub fn run(args: &Args, eye: Vec3, rows: &mut Vec<Row>) -> Result<String> {
     scene.clear_environment();
     let renderer = Renderer::new(&scene);
     let all = vec![true; renderer.flat.instances.len()];
-    let truth = Truth::vertices(&renderer, eye, args.reference_spp, all, "polygonal lights");
+    let truth = Truth::vertices(&renderer, eye, args.reference_spp, (0, 0), all, "polygonal lights");
     let mut push = |row: Row| {
         announce(&row);
         rows.push(row);

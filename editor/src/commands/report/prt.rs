@@ -35,7 +35,8 @@ pub fn run(args: &Args, eye: Vec3, rows: &mut Vec<Row>) -> Result<String> {
     let camera = scene.first_camera().context("the scene has no camera")?;
     let lambertian = |m: &kage_engine::scene::Material| m.metallic == 0.0 && m.specular == 0.0;
     let keep: Vec<bool> = renderer.flat.instances.iter().map(|i| lambertian(&i.material)).collect();
-    let truth = Truth::vertices(&renderer, eye, args.reference_spp, keep.clone(), "environment (Lambertian instances)");
+    let truth =
+        Truth::vertices(&renderer, eye, args.reference_spp, (0, 0), keep.clone(), "environment (Lambertian instances)");
     let (w, h) = args.image_size;
     let pb = bar(h as u64, "reference image");
     let settings = Settings { spp: args.reference_image_spp, seed: 0x1A6E, max_bounces: 0, min_bounces: 0 };

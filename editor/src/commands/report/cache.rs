@@ -1,0 +1,69 @@
+//! The radiance-cache section: one bounce of indirect light per vertex against the reference's
+//! one-bounce term, for brute-force gathering (64, 256, 1024 rays per vertex) and the HSH cache
+//! (orders 2–6 × accuracy 0.3 and 0.5 — record density —, and without gradients), over the
+//! Lambertian instances. The gather rays' hits are lit by the reference's per-vertex direct
+//! light (exact for Lambertian hit surfaces). "shade" is the whole indirect pass: placing and
+//! gathering the records and every lookup (or the whole brute-force gather). For Lambertian
+//! receivers only bands 0–1 reach the result (the cosine lies in the span of order 2), so the
+//! order matters only through rotation here; it matters for glossy receivers.
+
+use super::{Args, Row, Truth, announce};
+use anyhow::Result;
+use glam::Vec3;
+use kage_engine::cache::record::Source;
+use kage_engine::cache::{Settings as CacheSettings, gather_vertices, indirect_vertices};
+use kage_engine::reference::{Renderer, Settings};
+use std::time::Instant;
+
+/// Measures the section into `rows`; returns its header line.
+pub fn run(args: &Args, eye: Vec3, rows: &mut Vec<Row>) -> Result<String> {
+    let scene = args.scene.load()?;
+    let renderer = Renderer::new(&scene);
+    let keep: Vec<bool> =
+        renderer.flat.instances.iter().map(|i| i.material.metallic == 0.0 && i.material.specular == 0.0).collect();
+    let direct_spp = (args.reference_spp / 4).max(16);
+    let direct: Vec<Vec<Vec3>> = renderer
+        .render_vertices(eye, &Settings { spp: direct_spp, seed: 0xD1, ..Settings::default() }, &|_| {})
+        .iter()
+        .map(|v| v.iter().map(|e| e.mean).collect())
+        .collect();
+    let truth = Truth::vertices(
+        &renderer,
+        eye,
+        args.reference_spp,
+        (1, 1),
+        keep,
+        "one bounce of indirect light (Lambertian instances)",
+    );
+    let src = Source { renderer: &renderer, direct: &direct };
+    let n = renderer.vertex_count();
+    let mut push = |row: Row| {
+        announce(&row);
+        rows.push(row);
+    };
+    for rays in [64usize, 256, 1024] {
+        let t = Instant::now();
+        let v = gather_vertices(&src, 3, rays);
+        push(truth.row(
+            "indirect-gather",
+            format!("{rays} rays per vertex ({} rays)", n * rays),
+            t.elapsed().as_secs_f64(),
+            &v,
+        ));
+    }
+    let mut cache_row = |method: &'static str, s: CacheSettings| {
+        let t = Instant::now();
+        let (v, cache) = indirect_vertices(&src, &s);
+        let secs = t.elapsed().as_secs_f64();
+        let config =
+            format!("order {}, a {}: {} records, {} rays", s.order, s.accuracy, cache.records.len(), cache.rays());
+        push(truth.row(method, config, secs, &v));
+    };
+    for order in 2..=6 {
+        for accuracy in [0.3f32, 0.5] {
+            cache_row("hsh-cache", CacheSettings { order, accuracy, ..CacheSettings::default() });
+        }
+    }
+    cache_row("hsh-cache-no-gradients", CacheSettings { gradients: false, ..CacheSettings::default() });
+    Ok(format!("{} ({n} vertices; hits lit by the reference's direct light at {direct_spp} spp)", truth.line))
+}
