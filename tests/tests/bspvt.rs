@@ -199,7 +199,7 @@ fn hard_cases_stay_finite() {
 }
 
 #[test]
-fn the_error_budget_picks_the_cheapest_resolution_within_it() {
+fn the_error_budget_picks_the_cheapest_resolution_and_epsilon_within_it() {
     let scene = import(&asset("scenes/cube_on_plane.gltf"), ImportOptions::default()).unwrap();
     let flat = flatten(&scene);
     let eye = scene.first_camera().unwrap().eye();
@@ -207,7 +207,7 @@ fn the_error_budget_picks_the_cheapest_resolution_within_it() {
     let (tight, why_tight) = bspvt::plan::choose(&scene, &flat, 0.01, eye);
     eprintln!("{why_loose}\n{why_tight}");
     assert!(loose.res < tight.res, "{why_loose} / {why_tight}");
-    assert!(why_tight.contains("pilot on") && why_tight.contains("64²"));
+    assert!(why_tight.contains("pilot on") && why_tight.contains("64²") && why_tight.contains("ε"));
     // Nothing to reach: no trees at all.
     let mut dark = Scene::new("test:dark");
     dark.add_object("ground", shapes::grid(2.0, 2), Material::lambertian(Vec3::ONE), Affine3A::IDENTITY);

@@ -231,7 +231,7 @@ fn per_vertex(
     if let (Method::Bspvt, Some(budget)) = (method, args.error_budget) {
         let (chosen, why) = bspvt::plan::choose(scene, &renderer.flat, budget, camera.eye());
         crate::emit(&format!("plan: {why}\n"));
-        settings = bspvt::Settings { epsilon: args.epsilon, ..chosen };
+        settings = chosen;
     }
     let store = if method == Method::Bspvt && pack.is_none() { args.db.open_if_used(&args.scene)? } else { None };
     let bake = if let Some(pack) = pack.filter(|_| method == Method::Bspvt) {

@@ -1,7 +1,7 @@
 //! Choosing bake parameters from an error budget ("model only what the scene needs"): a pilot
-//! bakes an even sample of receiver vertices at increasing face resolutions and measures each
-//! against exact visibility at twice the finest resolution; the cheapest configuration within
-//! the budget wins, and the plan says why.
+//! bakes an even sample of receiver vertices with candidate (face resolution, ε) pairs, cheapest
+//! first, and measures each against exact visibility at twice the finest resolution; the
+//! cheapest configuration within the budget wins, and the plan says why.
 
 use super::shade::{PointShader, Visibility};
 use super::{Settings, bake_vertex, occluder_bvh, visibility};
@@ -10,8 +10,9 @@ use crate::scene::{FlatScene, Scene};
 use glam::Vec3;
 use rayon::prelude::*;
 
-/// Candidate face resolutions, cheapest first.
-const RESOLUTIONS: [usize; 3] = [16, 32, 64];
+/// Candidate (face resolution, ε), cheapest first: resolution costs rays and tree work as res²,
+/// a smaller ε more splits.
+const CANDIDATES: [(usize, f64); 6] = [(16, 2.0), (32, 4.0), (32, 2.0), (64, 4.0), (64, 2.0), (64, 1.0)];
 
 /// Vertices in the pilot.
 const PILOT: usize = 192;
@@ -28,43 +29,43 @@ pub fn choose(scene: &Scene, flat: &FlatScene, budget: f64, eye: Vec3) -> (Setti
     let sample: Vec<(usize, usize)> = all.into_iter().step_by(step).collect();
     let occ = occluder_bvh(flat);
     let table = ltc::table();
-    let truth_res = 2 * RESOLUTIONS[RESOLUTIONS.len() - 1];
-    let shade = |res: usize, exact: bool| -> Vec<Vec3> {
+    let truth_res = 2 * CANDIDATES[CANDIDATES.len() - 1].0;
+    let shade = |s: Settings, exact: bool| -> Vec<Vec3> {
         sample
             .par_iter()
             .map(|&(i, v)| {
                 let (p, n) = flat.vertex(&scene.meshes, i, v);
                 let shader = PointShader::new(&table, p, n, eye, &flat.instances[i].material);
                 if exact {
-                    shader.shade(&flat.lights, Visibility::Exact(&visibility::cast(&occ, p, n, res)))
+                    shader.shade(&flat.lights, Visibility::Exact(&visibility::cast(&occ, p, n, s.res)))
                 } else {
-                    let (rec, _, _) = bake_vertex(&occ, p, n, &Settings { res, ..Settings::default() });
+                    let (rec, _, _) = bake_vertex(&occ, p, n, &s);
                     shader.shade(&flat.lights, Visibility::Tree(&rec))
                 }
             })
             .collect()
     };
-    let truth = shade(truth_res, true);
+    let truth = shade(Settings { res: truth_res, ..Settings::default() }, true);
     let mut measured = Vec::new();
-    for res in RESOLUTIONS {
-        let err = relative_rmse(&shade(res, false), &truth);
-        measured.push(format!("{res}²: {:.2} %", 100.0 * err));
+    for (res, epsilon) in CANDIDATES {
+        let candidate = Settings { res, epsilon };
+        let err = relative_rmse(&shade(candidate, false), &truth);
+        measured.push(format!("{res}² ε {epsilon}: {:.2} %", 100.0 * err));
         if err <= budget {
             let why = format!(
-                "error budget {:.2} %: {res}² faces, ε {} (pilot on {} vertices against exact visibility at {truth_res}²: {})",
+                "error budget {:.2} %: {res}² faces, ε {epsilon} (pilot on {} vertices against exact visibility at {truth_res}²: {})",
                 100.0 * budget,
-                Settings::default().epsilon,
                 sample.len(),
                 measured.join(", ")
             );
-            return (Settings { res, ..Settings::default() }, why);
+            return (candidate, why);
         }
     }
-    let res = RESOLUTIONS[RESOLUTIONS.len() - 1];
+    let (res, epsilon) = CANDIDATES[CANDIDATES.len() - 1];
     let why = format!(
-        "error budget {:.2} % not reached: using the finest, {res}² faces ({})",
+        "error budget {:.2} % not reached: using the finest, {res}² faces, ε {epsilon} ({})",
         100.0 * budget,
         measured.join(", ")
     );
-    (Settings { res, ..Settings::default() }, why)
+    (Settings { res, epsilon }, why)
 }
