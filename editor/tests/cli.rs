@@ -327,7 +327,27 @@ fn a_bake_killed_at_random_points_resumes_to_a_clean_bakes_result() {
         .stderr(std::process::Stdio::null())
         .spawn()
         .unwrap();
-    std::thread::sleep(std::time::Duration::from_millis(1500));
+    // The watcher's output, line by line, so the test waits for events rather than guessing.
+    let (tx, lines) = std::sync::mpsc::channel::<String>();
+    let stdout = holder.stdout.take().unwrap();
+    std::thread::spawn(move || {
+        use std::io::BufRead;
+        for line in std::io::BufReader::new(stdout).lines().map_while(Result::ok) {
+            let _ = tx.send(line);
+        }
+    });
+    let wait_for = |needle: &str| -> Vec<String> {
+        let mut seen = Vec::new();
+        while let Ok(line) = lines.recv_timeout(std::time::Duration::from_secs(120)) {
+            let hit = line.contains(needle);
+            seen.push(line);
+            if hit {
+                return seen;
+            }
+        }
+        panic!("`kage bake --watch` never printed '{needle}':\n{}", seen.join("\n"));
+    };
+    wait_for("watching");
     let o = kage(&["bake", &scene, "--face-res", "32"]);
     assert!(!o.status.success() && stderr(&o).contains("in use by another process"), "{}", stderr(&o));
     // An editor-style save (write a temporary file, rename it over the scene) re-bakes warm.
@@ -336,11 +356,15 @@ fn a_bake_killed_at_random_points_resumes_to_a_clean_bakes_result() {
     let tmp = d.join("scene.gltf.tmp");
     std::fs::write(&tmp, text).unwrap();
     std::fs::rename(&tmp, &scene).unwrap();
-    std::thread::sleep(std::time::Duration::from_millis(6000));
+    let after = wait_for("baked ");
     let _ = holder.kill();
-    let out = holder.wait_with_output().unwrap();
-    let out = String::from_utf8_lossy(&out.stdout);
-    assert!(out.matches("plan for").count() >= 2 && out.contains(" warm"), "--watch re-planned after the save:\n{out}");
+    let _ = holder.wait();
+    let summary = after.last().unwrap();
+    assert!(
+        after.iter().any(|l| l.contains("plan for")) && summary.contains(" warm"),
+        "--watch re-planned after the save:\n{}",
+        after.join("\n")
+    );
     std::fs::remove_dir_all(d).unwrap();
 }
 

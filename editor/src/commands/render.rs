@@ -90,7 +90,7 @@ pub struct Args {
     #[arg(long, default_value_t = 2.0)]
     epsilon: f64,
     /// Choose parameters (and report why) from a relative error budget, e.g. 0.01, measured
-    /// by a pilot: BSPVT's face resolution (overrides --face-res); PRT's SH order, window and
+    /// by a pilot: BSPVT's face resolution and ε (override --face-res and --epsilon); PRT's SH order, window and
     /// region count (PRT plans with 0.02 when no budget and no PRT parameter is given).
     #[arg(long)]
     error_budget: Option<f64>,
