@@ -389,11 +389,11 @@ fn indirect(args: &Args, renderer: &Renderer, direct: &[Vec<Vec3>], eye: Vec3) -
     };
     let (values, what) = match args.indirect {
         Indirect::Cache => {
-            let (v, cache) = kage_engine::cache::indirect_vertices(&src, &s);
+            let (v, cache) = kage_engine::cache::indirect_vertices(&src, &s, eye);
             (v, format!("{} records, {} rays", cache.records.len(), cache.rays()))
         }
         Indirect::Gather => {
-            let v = kage_engine::cache::gather_vertices(&src, s.order, s.rays);
+            let v = kage_engine::cache::gather_vertices(&src, s.rays, eye);
             (v, format!("{} rays", renderer.vertex_count() * s.side().pow(2)))
         }
         _ => {

@@ -11,8 +11,7 @@
 //!
 //! Rotation goes through SH (`hsh::Conversion`, order [`ROTATION_SH_ORDER`]); when the
 //! receiver's normal is within [`SMALL_ANGLE`] of the record's the rotation is skipped (the
-//! small-angle case, measured in the tests). Receivers are diffuse here: a glossy receiver
-//! gets the cached light through its diffuse lobe only.
+//! small-angle case, measured in the tests).
 
 pub mod record;
 
@@ -25,6 +24,10 @@ use std::collections::HashMap;
 pub const ROTATION_SH_ORDER: usize = 8;
 /// Normals closer than this angle (radians) skip the rotation.
 pub const SMALL_ANGLE: f64 = 0.02;
+/// Default roughness below which glossy receivers gather directly (see README: measured).
+pub const GLOSSY_FALLBACK_ROUGHNESS: f32 = 0.6;
+/// Gauss–Legendre nodes in cos θ of the BRDF projection (twice as many in φ).
+const BRDF_NODES: usize = 32;
 
 /// Cache parameters.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -39,11 +42,21 @@ pub struct Settings {
     pub gradients: bool,
     /// Bounds of the record radius R_i, as fractions of the scene's bounding diagonal.
     pub radius_bounds: (f32, f32),
+    /// Glossy receivers smoother than this gather directly (BSDF-sampled, `rays` rays)
+    /// instead of reading the cache, whose low-order HSH cannot hold their lobe.
+    pub glossy_fallback: f32,
 }
 
 impl Default for Settings {
     fn default() -> Self {
-        Self { order: 3, rays: 256, accuracy: 0.3, gradients: true, radius_bounds: (0.01, 0.2) }
+        Self {
+            order: 3,
+            rays: 256,
+            accuracy: 0.3,
+            gradients: true,
+            radius_bounds: (0.01, 0.2),
+            glossy_fallback: GLOSSY_FALLBACK_ROUGHNESS,
+        }
     }
 }
 
@@ -64,6 +77,9 @@ pub struct Cache {
     grid: HashMap<[i32; 3], Vec<u32>>,
     cosine: Vec<f64>,
     conversion: hsh::Conversion,
+    /// Quadrature directions and weights for BRDF projections, with their HSH values.
+    rule: Vec<(Vec3, f64)>,
+    rule_h: Vec<f64>,
 }
 
 /// The H19 weight of a record at `p` with normal `n` (infinite at the record itself: clamped).
@@ -84,6 +100,14 @@ impl Cache {
             grid: HashMap::new(),
             cosine: hsh::project(settings.order, 64, |d| d.z),
             conversion: hsh::Conversion::new(settings.order, ROTATION_SH_ORDER),
+            rule: crate::math::quadrature::hemisphere_rule(BRDF_NODES)
+                .into_iter()
+                .map(|(d, w)| (d.as_vec3(), w))
+                .collect(),
+            rule_h: crate::math::quadrature::hemisphere_rule(BRDF_NODES)
+                .into_iter()
+                .flat_map(|(d, _)| hsh::eval(settings.order, d))
+                .collect(),
         }
     }
 
@@ -181,6 +205,23 @@ impl Cache {
         out
     }
 
+    /// Radiance leaving toward local `wo` for a BSDF, from incoming-radiance coefficients in the
+    /// same frame: `Σ c_k b_k` with `b_k = ∫ f(ωi, wo) cos θi H_k(ωi) dωi` (H5 with cos θ).
+    pub fn outgoing(&self, c: &[DVec3], bsdf: &crate::reference::Bsdf, wo: Vec3) -> Vec3 {
+        if !bsdf.has_specular() {
+            return bsdf.diffuse_albedo() * self.irradiance(c) / std::f32::consts::PI;
+        }
+        let k = c.len();
+        let mut out = DVec3::ZERO;
+        for (j, (d, w)) in self.rule.iter().enumerate() {
+            let f = (bsdf.eval(wo, *d) * d.z).as_dvec3() * *w;
+            let h = &self.rule_h[j * k..(j + 1) * k];
+            let l: DVec3 = c.iter().zip(h).map(|(c, h)| *c * *h).sum();
+            out += f * l;
+        }
+        out.max(DVec3::ZERO).as_vec3()
+    }
+
     /// Irradiance from incoming-radiance coefficients: Σ c_k h_k.
     pub fn irradiance(&self, c: &[DVec3]) -> Vec3 {
         c.iter().zip(&self.cosine).map(|(c, h)| *c * *h).sum::<DVec3>().max(DVec3::ZERO).as_vec3()
@@ -199,11 +240,6 @@ fn vertices(src: &Source) -> Vec<(usize, usize, Vec3, Vec3)> {
         .collect()
 }
 
-/// Diffuse albedo of instance `i` seen along its normal.
-fn albedo(src: &Source, i: usize) -> Vec3 {
-    crate::reference::Bsdf::new(&src.renderer.flat.instances[i].material, Vec3::Z).diffuse_albedo()
-}
-
 /// The scene's bounding diagonal.
 fn diagonal(src: &Source) -> f32 {
     let (lo, hi) = src
@@ -216,37 +252,47 @@ fn diagonal(src: &Source) -> f32 {
     (hi - lo).length().max(1e-6)
 }
 
-/// One bounce of indirect light at every receiver vertex through the cache (records placed
-/// at the vertices, in order): per instance, the diffuse outgoing radiance; and the cache.
-pub fn indirect_vertices(src: &Source, s: &Settings) -> (Vec<Vec<Vec3>>, Cache) {
+/// One bounce of indirect light toward `eye` at every receiver vertex: through the cache
+/// (records placed at the vertices, in order), or by a direct BSDF-sampled gather for glossy
+/// receivers smoother than [`Settings::glossy_fallback`]. Per instance; and the cache.
+pub fn indirect_vertices(src: &Source, s: &Settings, eye: Vec3) -> (Vec<Vec<Vec3>>, Cache) {
     use rayon::prelude::*;
     let verts = vertices(src);
     let mut cache = Cache::new(*s, diagonal(src));
-    let points: Vec<(Vec3, Vec3)> = verts.iter().map(|&(_, _, p, n)| (p, n)).collect();
+    let fallback = |i: usize| {
+        let m = &src.renderer.flat.instances[i].material;
+        crate::reference::Bsdf::new(m, Vec3::Z).has_specular() && m.roughness < s.glossy_fallback
+    };
+    let points: Vec<(Vec3, Vec3)> = verts.iter().filter(|v| !fallback(v.0)).map(|&(_, _, p, n)| (p, n)).collect();
     cache.place(src, &points);
     let values: Vec<Vec3> = verts
         .par_iter()
-        .map(|&(i, _, p, n)| {
-            let e = cache.incoming(p, n).map_or(Vec3::ZERO, |c| cache.irradiance(&c));
-            albedo(src, i) * e / std::f32::consts::PI
+        .enumerate()
+        .map(|(k, &(i, _, p, n))| {
+            let frame = crate::math::frame::Frame::from_normal(n);
+            let wo = frame.to_local((eye - p).normalize_or(n));
+            let bsdf = crate::reference::Bsdf::new(&src.renderer.flat.instances[i].material, wo);
+            if fallback(i) {
+                return record::gather_bsdf(src, p, n, &bsdf, wo, s.side(), k as u64);
+            }
+            cache.incoming(p, n).map_or(Vec3::ZERO, |c| cache.outgoing(&c, &bsdf, wo))
         })
         .collect();
     (split(src, values), cache)
 }
 
-/// Brute-force gathering: `rays` rays at every vertex, no cache (the baseline the cache is
-/// measured against), per instance.
-pub fn gather_vertices(src: &Source, order: usize, rays: usize) -> Vec<Vec<Vec3>> {
+/// Brute-force gathering: `rays` BSDF-sampled rays at every vertex toward `eye`, no cache (the
+/// baseline the cache is measured against), per instance.
+pub fn gather_vertices(src: &Source, rays: usize, eye: Vec3) -> Vec<Vec<Vec3>> {
     use rayon::prelude::*;
-    let verts = vertices(src);
-    let s = Settings { order, rays, ..Settings::default() };
-    let cache = Cache::new(s, diagonal(src));
-    let values: Vec<Vec3> = verts
+    let side = ((rays as f64).sqrt() as usize).max(1);
+    let values: Vec<Vec3> = vertices(src)
         .par_iter()
         .enumerate()
         .map(|(k, &(i, _, p, n))| {
-            let r = gather(src, p, n, order, s.side(), k as u64, (0.0, f32::INFINITY));
-            albedo(src, i) * cache.irradiance(&r.coeffs) / std::f32::consts::PI
+            let wo = crate::math::frame::Frame::from_normal(n).to_local((eye - p).normalize_or(n));
+            let bsdf = crate::reference::Bsdf::new(&src.renderer.flat.instances[i].material, wo);
+            record::gather_bsdf(src, p, n, &bsdf, wo, side, k as u64)
         })
         .collect();
     split(src, values)

@@ -131,3 +131,35 @@ pub fn gather(
     let harmonic = if inverse_distance > 0.0 { (count as f64 / inverse_distance) as f32 } else { f32::INFINITY };
     Record { p, frame, radius: harmonic.clamp(r_min, r_max), coeffs: c, grad_x: gx, grad_y: gy }
 }
+
+/// Radiance leaving `p` toward local `wo` from one bounce, by `side²` BSDF-sampled gather rays
+/// (the direct gather that glossy receivers fall back to).
+pub fn gather_bsdf(
+    src: &Source,
+    p: Vec3,
+    n: Vec3,
+    bsdf: &crate::reference::Bsdf,
+    wo: Vec3,
+    side: usize,
+    index: u64,
+) -> Vec3 {
+    let frame = Frame::from_normal(n);
+    let mut r = rng::stream(0x61055, index);
+    let mut sum = Vec3::ZERO;
+    for j in 0..side * side {
+        let u = glam::Vec2::new(
+            ((j % side) as f32 + r.random::<f32>()) / side as f32,
+            ((j / side) as f32 + r.random::<f32>()) / side as f32,
+        );
+        let Some(wi) = bsdf.sample(wo, r.random(), u) else { continue };
+        let pdf = bsdf.pdf(wo, wi);
+        if pdf <= 0.0 {
+            continue;
+        }
+        let d = frame.to_world(wi);
+        if let Some(hit) = src.trace(offset_ray_origin(p, n, d), d) {
+            sum += hit.radiance * bsdf.eval(wo, wi) * wi.z / pdf;
+        }
+    }
+    sum / (side * side) as f32
+}

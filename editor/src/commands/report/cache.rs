@@ -43,7 +43,7 @@ pub fn run(args: &Args, eye: Vec3, rows: &mut Vec<Row>) -> Result<String> {
     };
     for rays in [64usize, 256, 1024] {
         let t = Instant::now();
-        let v = gather_vertices(&src, 3, rays);
+        let v = gather_vertices(&src, rays, eye);
         push(truth.row(
             "indirect-gather",
             format!("{rays} rays per vertex ({} rays)", n * rays),
@@ -53,7 +53,7 @@ pub fn run(args: &Args, eye: Vec3, rows: &mut Vec<Row>) -> Result<String> {
     }
     let mut cache_row = |method: &'static str, s: CacheSettings| {
         let t = Instant::now();
-        let (v, cache) = indirect_vertices(&src, &s);
+        let (v, cache) = indirect_vertices(&src, &s, eye);
         let secs = t.elapsed().as_secs_f64();
         let config =
             format!("order {}, a {}: {} records, {} rays", s.order, s.accuracy, cache.records.len(), cache.rays());
