@@ -14,7 +14,7 @@ pub struct Directions {
     pub order: usize,
     /// Unit directions.
     pub dirs: Vec<Vec3>,
-    /// `sh[j * n² + k]` = Y_k(dirs[j]).
+    /// `sh[j * n² + k]` = `Y_k(dirs[j])`.
     pub sh: Vec<f32>,
 }
 
