@@ -9,6 +9,8 @@
 //!   and technique), which are cached;
 //! - [`run`]: bakes the misses on rayon while one writer commits batches, re-bakes BSPVT warm
 //!   from lineage after edits, and assembles the engine's bakes;
+//! - [`records`]: radiance-cache records, keyed by geometry, materials, direct light and
+//!   settings;
 //! - [`pack`]: asset packs (glTF binary + the `KAGE_baked_shadows` extension) written and read.
 //!
 //! ## Guarantees
@@ -22,6 +24,7 @@
 pub mod key;
 pub mod pack;
 pub mod plan;
+pub mod records;
 pub mod run;
 pub mod store;
 

@@ -216,6 +216,21 @@ impl Store {
         })
     }
 
+    /// Adds keys to a scene's reference list (artefacts made outside the bake plan).
+    pub fn add_scene_keys(&self, scene: &str, keys: &[Key]) -> Result<()> {
+        let mut bytes =
+            self.read(|t| Ok(t.open_table(SCENES)?.get(scene)?.map(|v| v.value().to_vec()).unwrap_or_default()))?;
+        for k in keys {
+            if !bytes.chunks_exact(32).any(|c| c == k.as_bytes()) {
+                bytes.extend_from_slice(k.as_bytes());
+            }
+        }
+        self.write(|t| {
+            t.open_table(SCENES)?.insert(scene, bytes.as_slice())?;
+            Ok(())
+        })
+    }
+
     /// Counts of (artefacts, their bytes, meshes, scenes).
     pub fn counts(&self) -> Result<(u64, u64, u64, u64)> {
         self.read(|t| {

@@ -474,5 +474,12 @@ fn indirect_light_adds_to_per_vertex_methods() {
     }
     let o = kage(&["render", &scene, "--indirect", "cache"]);
     assert!(!o.status.success() && stderr(&o).contains("--bounces"), "{}", stderr(&o));
+    // With a bake database the records persist: the second run reads them and shades the same.
+    let db = d.join("bake.redb");
+    let cached = ["--indirect", "cache", "--cache-rays", "64", "--db", db.to_str().unwrap()];
+    let (first, a) = run(&cached);
+    let (second, b) = run(&cached);
+    assert!(!first.contains("from the bake database") && second.contains("from the bake database"), "{first}{second}");
+    assert!(a.iter().zip(&b).all(|(x, y)| x.radiance == y.radiance));
     std::fs::remove_dir_all(d).unwrap();
 }

@@ -172,7 +172,7 @@ pub fn run(args: &Args) -> Result<()> {
         m => per_vertex(args, m, &scene, &renderer, &camera, output.is_some(), pack.as_ref())?,
     };
     if let Some(direct) = vertices.as_mut().filter(|_| args.indirect != Indirect::None) {
-        let extra = indirect(args, &renderer, direct, camera.eye());
+        let extra = indirect(args, &scene, &renderer, direct, camera.eye())?;
         if let Some(pixels) = image.as_mut() {
             let more = raster::vertex_image(&renderer, &camera, args.size.0, args.size.1, args.spp.min(16), &extra);
             pixels.iter_mut().zip(more).for_each(|(p, m)| *p += m);
@@ -377,7 +377,14 @@ fn from_database(
 }
 
 /// One bounce of indirect light per vertex, lit by the per-vertex `direct` values.
-fn indirect(args: &Args, renderer: &Renderer, direct: &[Vec<Vec3>], eye: Vec3) -> Vec<Vec<Vec3>> {
+/// With a bake database in use, the cache's records come from it (or are stored in it).
+fn indirect(
+    args: &Args,
+    scene: &Scene,
+    renderer: &Renderer,
+    direct: &[Vec<Vec3>],
+    eye: Vec3,
+) -> Result<Vec<Vec<Vec3>>> {
     let start = Instant::now();
     let src = kage_engine::cache::record::Source { renderer, direct };
     let s = kage_engine::cache::Settings {
@@ -389,8 +396,14 @@ fn indirect(args: &Args, renderer: &Renderer, direct: &[Vec<Vec3>], eye: Vec3) -
     };
     let (values, what) = match args.indirect {
         Indirect::Cache => {
-            let (v, cache) = kage_engine::cache::indirect_vertices(&src, &s, eye);
-            (v, format!("{} records, {} rays", cache.records.len(), cache.rays()))
+            let store = if args.pack.is_none() { args.db.open_if_used(&args.scene)? } else { None };
+            let (cache, stored) = match &store {
+                Some(store) => kage_bake_db::records::load_or_place(store, scene, &src, &s)?,
+                None => (kage_engine::cache::place_at_vertices(&src, &s), false),
+            };
+            let v = kage_engine::cache::shade_vertices(&src, &cache, eye);
+            let from = if stored { " from the bake database" } else { "" };
+            (v, format!("{} records{from}, {} rays", cache.records.len(), cache.rays()))
         }
         Indirect::Gather => {
             let v = kage_engine::cache::gather_vertices(&src, s.rays, eye);
@@ -403,7 +416,7 @@ fn indirect(args: &Args, renderer: &Renderer, direct: &[Vec<Vec3>], eye: Vec3) -
         }
     };
     crate::emit(&format!("indirect ({:?}): {what} in {:.2} s\n", args.indirect, start.elapsed().as_secs_f64()));
-    values
+    Ok(values)
 }
 
 fn camera(args: &Args, scene_camera: Option<Camera>) -> Result<Camera> {

@@ -252,33 +252,54 @@ fn diagonal(src: &Source) -> f32 {
     (hi - lo).length().max(1e-6)
 }
 
-/// One bounce of indirect light toward `eye` at every receiver vertex: through the cache
-/// (records placed at the vertices, in order), or by a direct BSDF-sampled gather for glossy
-/// receivers smoother than [`Settings::glossy_fallback`]. Per instance; and the cache.
-pub fn indirect_vertices(src: &Source, s: &Settings, eye: Vec3) -> (Vec<Vec<Vec3>>, Cache) {
-    use rayon::prelude::*;
-    let verts = vertices(src);
+/// True when instance `i` is a glossy receiver smoother than the cache can serve.
+fn falls_back(src: &Source, s: &Settings, i: usize) -> bool {
+    let m = &src.renderer.flat.instances[i].material;
+    crate::reference::Bsdf::new(m, Vec3::Z).has_specular() && m.roughness < s.glossy_fallback
+}
+
+/// A cache with records placed at the receiver vertices (in order) that read it (not the
+/// glossy receivers that gather directly).
+pub fn place_at_vertices(src: &Source, s: &Settings) -> Cache {
     let mut cache = Cache::new(*s, diagonal(src));
-    let fallback = |i: usize| {
-        let m = &src.renderer.flat.instances[i].material;
-        crate::reference::Bsdf::new(m, Vec3::Z).has_specular() && m.roughness < s.glossy_fallback
-    };
-    let points: Vec<(Vec3, Vec3)> = verts.iter().filter(|v| !fallback(v.0)).map(|&(_, _, p, n)| (p, n)).collect();
+    let points: Vec<(Vec3, Vec3)> =
+        vertices(src).iter().filter(|v| !falls_back(src, s, v.0)).map(|&(_, _, p, n)| (p, n)).collect();
     cache.place(src, &points);
-    let values: Vec<Vec3> = verts
+    cache
+}
+
+/// A cache from stored records (e.g. the bake database's), as [`place_at_vertices`] made them.
+pub fn from_records(src: &Source, s: &Settings, records: Vec<Record>) -> Cache {
+    let mut cache = Cache::new(*s, diagonal(src));
+    records.into_iter().for_each(|r| cache.insert(r));
+    cache
+}
+
+/// One bounce of indirect light toward `eye` at every receiver vertex from `cache`, or by a
+/// direct BSDF-sampled gather for glossy receivers smoother than [`Settings::glossy_fallback`].
+pub fn shade_vertices(src: &Source, cache: &Cache, eye: Vec3) -> Vec<Vec<Vec3>> {
+    use rayon::prelude::*;
+    let s = &cache.settings;
+    let values: Vec<Vec3> = vertices(src)
         .par_iter()
         .enumerate()
         .map(|(k, &(i, _, p, n))| {
             let frame = crate::math::frame::Frame::from_normal(n);
             let wo = frame.to_local((eye - p).normalize_or(n));
             let bsdf = crate::reference::Bsdf::new(&src.renderer.flat.instances[i].material, wo);
-            if fallback(i) {
+            if falls_back(src, s, i) {
                 return record::gather_bsdf(src, p, n, &bsdf, wo, s.side(), k as u64);
             }
             cache.incoming(p, n).map_or(Vec3::ZERO, |c| cache.outgoing(&c, &bsdf, wo))
         })
         .collect();
-    (split(src, values), cache)
+    split(src, values)
+}
+
+/// [`place_at_vertices`] then [`shade_vertices`]: per instance, and the cache.
+pub fn indirect_vertices(src: &Source, s: &Settings, eye: Vec3) -> (Vec<Vec<Vec3>>, Cache) {
+    let cache = place_at_vertices(src, s);
+    (shade_vertices(src, &cache, eye), cache)
 }
 
 /// Brute-force gathering: `rays` BSDF-sampled rays at every vertex toward `eye`, no cache (the

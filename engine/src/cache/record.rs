@@ -80,6 +80,46 @@ pub struct Record {
     pub grad_y: Vec<DVec3>,
 }
 
+impl Record {
+    /// The record as little-endian f64s: p, frame (t, b, n), radius, then coefficients and both
+    /// gradients (RGB each) — the bake database's artefact layout.
+    pub fn to_f64s(&self) -> Vec<f64> {
+        let mut out: Vec<f64> =
+            [self.p, self.frame.t, self.frame.b, self.frame.n].iter().flat_map(|v| v.as_dvec3().to_array()).collect();
+        out.push(self.radius as f64);
+        for list in [&self.coeffs, &self.grad_x, &self.grad_y] {
+            out.extend(list.iter().flat_map(|c| c.to_array()));
+        }
+        out
+    }
+
+    /// Records of HSH order `order` from [`Record::to_f64s`] data (`None` if malformed).
+    pub fn from_f64s(data: &[f64], order: usize) -> Option<Vec<Record>> {
+        let k = hsh::num_coeffs(order);
+        let size = 13 + 9 * k;
+        if !data.len().is_multiple_of(size) {
+            return None;
+        }
+        data.chunks_exact(size)
+            .map(|c| {
+                let v = |i: usize| Vec3::new(c[i] as f32, c[i + 1] as f32, c[i + 2] as f32);
+                let list =
+                    |from: usize| (0..k).map(|j| DVec3::from_slice(&c[from + 3 * j..from + 3 * j + 3])).collect();
+                let frame = Frame { t: v(3), b: v(6), n: v(9) };
+                let ok = c.iter().all(|x| x.is_finite()) && c[12] > 0.0;
+                ok.then(|| Record {
+                    p: v(0),
+                    frame,
+                    radius: c[12] as f32,
+                    coeffs: list(13),
+                    grad_x: list(13 + 3 * k),
+                    grad_y: list(13 + 6 * k),
+                })
+            })
+            .collect()
+    }
+}
+
 /// Gathers a record at `p` (unit normal `n`) with `side²` stratified rays of stream `index`,
 /// HSH `order`, the harmonic mean distance clamped to `[r_min, r_max]`.
 pub fn gather(
@@ -162,4 +202,24 @@ pub fn gather_bsdf(
         }
     }
     sum / (side * side) as f32
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn records_round_trip_through_f64s_bit_for_bit() {
+        let r = Record {
+            p: Vec3::new(0.1, -2.0, 3.3),
+            frame: Frame::from_normal(Vec3::new(0.3, 0.9, 0.1).normalize()),
+            radius: 0.37,
+            coeffs: (0..9).map(|i| DVec3::new(i as f64, 0.5, -1.0 / (i + 1) as f64)).collect(),
+            grad_x: (0..9).map(|i| DVec3::splat(i as f64 * 0.1)).collect(),
+            grad_y: (0..9).map(|i| DVec3::splat(-(i as f64))).collect(),
+        };
+        let data = [r.to_f64s(), r.to_f64s()].concat();
+        assert_eq!(Record::from_f64s(&data, 3).unwrap(), vec![r.clone(), r]);
+        assert!(Record::from_f64s(&data[1..], 3).is_none(), "a cut record is malformed");
+    }
 }

@@ -1,0 +1,66 @@
+//! Radiance-cache records in the database, keyed by everything they depend on: the scene's
+//! geometry (the occluder snapshot and the lights, which block gather rays), the receivers'
+//! materials (which decide where records are placed), the per-vertex direct light the gathers
+//! saw, and the cache settings. A light that moves changes the direct light and so the key.
+
+use crate::key::{Key, KeyHasher};
+use crate::plan::{Snapshot, encode_occluders};
+use crate::store::{Info, Result, Store};
+use kage_engine::cache::record::{Record, Source};
+use kage_engine::cache::{self, Cache, Settings};
+use kage_engine::scene::Scene;
+
+/// Version of the record layout and placement: part of every key.
+pub const VERSION: u32 = 1;
+
+/// The key of the records a cache built from `src` with `s` would hold.
+pub fn key(scene: &Scene, src: &Source, s: &Settings) -> Key {
+    let flat = &src.renderer.flat;
+    let snapshot = Snapshot::of(scene, flat);
+    let materials: Vec<f32> = flat
+        .instances
+        .iter()
+        .flat_map(|i| {
+            let m = i.material;
+            [m.base_color.x, m.base_color.y, m.base_color.z, m.metallic, m.roughness, m.specular]
+        })
+        .collect();
+    let lights: Vec<f32> = flat.lights.iter().flat_map(|l| l.points.iter().flat_map(|p| p.to_array())).collect();
+    let direct: Vec<f32> = src.direct.iter().flatten().flat_map(|v| v.to_array()).collect();
+    KeyHasher::new("hsh-cache")
+        .u64("version", VERSION as u64)
+        .u64("order", s.order as u64)
+        .u64("rays", s.side().pow(2) as u64)
+        .f64("accuracy", s.accuracy as f64)
+        .u64("gradients", s.gradients as u64)
+        .f64("r_min", s.radius_bounds.0 as f64)
+        .f64("r_max", s.radius_bounds.1 as f64)
+        .f64("glossy_fallback", s.glossy_fallback as f64)
+        .bytes("occluders", &encode_occluders(&snapshot.occluders))
+        .bytes("lights", bytemuck::cast_slice(&lights))
+        .bytes("materials", bytemuck::cast_slice(&materials))
+        .bytes("direct", bytemuck::cast_slice(&direct))
+        .finish()
+}
+
+/// The cache from the store when its records are there, else placed now and stored; and
+/// whether it came from the store. The scene's reference list gains the key (kept by `gc`).
+pub fn load_or_place(store: &Store, scene: &Scene, src: &Source, s: &Settings) -> Result<(Cache, bool)> {
+    let key = key(scene, src, s);
+    store.add_scene_keys(&scene.source, &[key])?;
+    if let Some(records) = store.get::<f64>(&key)?.and_then(|d| Record::from_f64s(&d, s.order)) {
+        return Ok((cache::from_records(src, s, records), true));
+    }
+    let start = std::time::Instant::now();
+    let cache = cache::place_at_vertices(src, s);
+    let bytes: Vec<u8> =
+        cache.records.iter().flat_map(|r| bytemuck::cast_slice::<f64, u8>(&r.to_f64s()).to_vec()).collect();
+    let info = Info {
+        kind: "hsh-cache".into(),
+        params: format!("order {}, {} rays, a {}, layout {VERSION}", s.order, s.side().pow(2), s.accuracy),
+        seconds: start.elapsed().as_secs_f64(),
+        checksum: *blake3::hash(&bytes).as_bytes(),
+    };
+    store.put_batch(&[(key, bytes, info)], &[])?;
+    Ok((cache, false))
+}
