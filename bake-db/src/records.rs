@@ -36,6 +36,7 @@ pub fn key(scene: &Scene, src: &Source, s: &Settings) -> Key {
         .f64("r_min", s.radius_bounds.0 as f64)
         .f64("r_max", s.radius_bounds.1 as f64)
         .f64("glossy_fallback", s.glossy_fallback as f64)
+        .u64("glossy_spp", src.glossy_spp as u64)
         .bytes("occluders", &encode_occluders(&snapshot.occluders))
         .bytes("lights", bytemuck::cast_slice(&lights))
         .bytes("materials", bytemuck::cast_slice(&materials))

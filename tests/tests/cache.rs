@@ -2,7 +2,7 @@
 //! records, hard placements, determinism, and accuracy against the one-bounce reference.
 
 use glam::{Affine3A, Vec3};
-use kage_engine::cache::record::{Source, gather};
+use kage_engine::cache::record::{GLOSSY_SPP, Source, gather};
 use kage_engine::cache::{Cache, Settings, gather_vertices, indirect_vertices};
 use kage_engine::math::hsh;
 use kage_engine::reference::{Renderer, Settings as RefSettings};
@@ -40,7 +40,7 @@ fn ceiling() -> (Renderer, Vec<Vec<Vec3>>) {
 #[test]
 fn analytic_gradients_match_central_differences_of_regathered_records() {
     let (renderer, direct) = ceiling();
-    let src = Source { renderer: &renderer, direct: &direct };
+    let src = Source { renderer: &renderer, direct: &direct, glossy_spp: GLOSSY_SPP };
     let at = |p: Vec3| gather(&src, p, Vec3::Y, 3, 64, 7, (0.0, f32::INFINITY));
     let r0 = at(Vec3::ZERO);
     let h = 0.01;
@@ -82,7 +82,7 @@ fn corners_clamp_the_radius_and_opposite_normals_get_their_own_record() {
     );
     let r = Renderer::new(&s);
     let direct: Vec<Vec<Vec3>> = (0..3).map(|i| vec![Vec3::ONE; r.mesh(i).positions.len()]).collect();
-    let src = Source { renderer: &r, direct: &direct };
+    let src = Source { renderer: &r, direct: &direct, glossy_spp: GLOSSY_SPP };
     let rec = gather(&src, Vec3::splat(1e-3), Vec3::Y, 3, 16, 1, (0.05, 1.0));
     assert_eq!(rec.radius, 0.05, "R → 0 in a corner is clamped");
     assert!(rec.coeffs.iter().chain(&rec.grad_x).chain(&rec.grad_y).all(|c| c.is_finite()));
@@ -124,7 +124,7 @@ fn rel(x: &[Vec<Vec3>], r: &[Vec<Vec3>]) -> f64 {
 #[test]
 fn the_cache_matches_the_one_bounce_reference_with_far_fewer_rays_than_gathering() {
     let (renderer, direct) = lit_room();
-    let src = Source { renderer: &renderer, direct: &direct };
+    let src = Source { renderer: &renderer, direct: &direct, glossy_spp: GLOSSY_SPP };
     let one_bounce = RefSettings { spp: 1024, seed: 5, max_bounces: 1, min_bounces: 1 };
     let truth: Vec<Vec<Vec3>> = renderer
         .render_vertices(EYE, &one_bounce, &|_| {})
@@ -150,7 +150,7 @@ fn the_cache_is_deterministic_across_thread_counts() {
     let run = |threads: usize| {
         rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap().install(|| {
             let (renderer, direct) = ceiling();
-            let src = Source { renderer: &renderer, direct: &direct };
+            let src = Source { renderer: &renderer, direct: &direct, glossy_spp: GLOSSY_SPP };
             let (v, _) = indirect_vertices(&src, &Settings::default(), EYE);
             v.concat().iter().flat_map(|c| c.to_array()).map(f32::to_bits).collect::<Vec<u32>>()
         })
@@ -192,7 +192,7 @@ fn smooth_glossy_receivers_fall_back_to_a_direct_gather() {
     let settings = RefSettings { spp: 256, seed: 3, ..Default::default() };
     let direct: Vec<Vec<Vec3>> =
         r.render_vertices(EYE, &settings, &|_| {}).iter().map(|v| v.iter().map(|e| e.mean).collect()).collect();
-    let src = Source { renderer: &r, direct: &direct };
+    let src = Source { renderer: &r, direct: &direct, glossy_spp: GLOSSY_SPP };
     let truth = gather_vertices(&src, 4096, EYE);
     let e = |v: &[Vec<Vec3>]| kage_engine::math::relative_rmse(&v[0], &truth[0]);
     let (fallback, _) = indirect_vertices(&src, &Settings::default(), EYE);

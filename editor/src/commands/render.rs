@@ -386,7 +386,7 @@ fn indirect(
     eye: Vec3,
 ) -> Result<Vec<Vec<Vec3>>> {
     let start = Instant::now();
-    let src = kage_engine::cache::record::Source { renderer, direct };
+    let src = kage_engine::cache::record::Source { renderer, direct, glossy_spp: kage_engine::cache::record::GLOSSY_SPP };
     let s = kage_engine::cache::Settings {
         order: args.hsh_order as usize,
         rays: args.cache_rays as usize,

@@ -24,14 +24,21 @@ use rand::Rng;
 /// Smallest cos ξ the solid-angle gradient uses.
 pub const MIN_COS_XI: f32 = 0.1;
 
-/// Where gather rays find radiance: the scene and each instance's per-vertex diffuse direct
-/// radiance (view-independent).
+/// Where gather rays find radiance: the scene, each instance's per-vertex direct radiance
+/// (used for Lambertian hits, where it is view-independent), and for glossy hits the reference's
+/// direct-light estimate toward the record with `glossy_spp` samples (0: use the per-vertex
+/// value there too, right only if it is view-independent).
 pub struct Source<'a> {
     /// The scene's BVH and snapshot.
     pub renderer: &'a Renderer,
-    /// Per instance and vertex: diffuse radiance leaving the vertex from direct light.
+    /// Per instance and vertex: radiance leaving the vertex from direct light.
     pub direct: &'a [Vec<Vec3>],
+    /// Direct-light samples per glossy hit, evaluated toward the record.
+    pub glossy_spp: u32,
 }
+
+/// Samples per glossy hit used by the CLI and the report.
+pub const GLOSSY_SPP: u32 = 4;
 
 /// What one gather ray found: radiance toward the record, distance, and the hit's normal
 /// facing back along the ray.
@@ -42,7 +49,8 @@ struct Sample {
 }
 
 impl Source<'_> {
-    fn trace(&self, o: Vec3, d: Vec3) -> Option<Sample> {
+    /// What a gather ray from `o` along `d` finds; `stream` seeds glossy hits' estimates.
+    fn trace(&self, o: Vec3, d: Vec3, stream: u64) -> Option<Sample> {
         let r = self.renderer;
         let hit = r.bvh.closest_hit(o, d, f32::INFINITY)?;
         let tri = r.flat.triangles[hit.triangle as usize];
@@ -54,6 +62,14 @@ impl Source<'_> {
             return Some(Sample { radiance: Vec3::ZERO, t: hit.t, normal });
         }
         let inst = tref.owner as usize;
+        let m = r.flat.instances[inst].material;
+        if self.glossy_spp > 0 && (m.metallic > 0.0 || m.specular > 0.0) {
+            // A glossy hit reflects direct light toward the record, not toward the camera.
+            let sp = r.surface_at(hit, inst, tref.local as usize, d);
+            let s = crate::reference::Settings { spp: self.glossy_spp, seed: 0x6105, ..Default::default() };
+            let radiance = r.estimate_point(&sp, -d, &s, stream).mean;
+            return Some(Sample { radiance, t: hit.t, normal });
+        }
         let idx = r.mesh(inst).triangles[tref.local as usize];
         let (i1, i2) = if r.flat.instances[inst].mirrored { (idx[2], idx[1]) } else { (idx[1], idx[2]) };
         let v = &self.direct[inst];
@@ -147,7 +163,7 @@ pub fn gather(
         let s = (1.0 - z * z).max(0.0).sqrt();
         let local = Vec3::new(s * phi.cos(), s * phi.sin(), z);
         let d = frame.to_world(local);
-        let Some(hit) = src.trace(offset_ray_origin(p, n, d), d) else { continue };
+        let Some(hit) = src.trace(offset_ray_origin(p, n, d), d, rng::mix64(index) ^ j as u64) else { continue };
         inverse_distance += 1.0 / hit.t.max(1e-6) as f64;
         if hit.radiance == Vec3::ZERO {
             continue;
@@ -197,7 +213,7 @@ pub fn gather_bsdf(
             continue;
         }
         let d = frame.to_world(wi);
-        if let Some(hit) = src.trace(offset_ray_origin(p, n, d), d) {
+        if let Some(hit) = src.trace(offset_ray_origin(p, n, d), d, rng::mix64(index ^ 0x61055) ^ j as u64) {
             sum += hit.radiance * bsdf.eval(wo, wi) * wi.z / pdf;
         }
     }

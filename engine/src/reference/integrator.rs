@@ -295,7 +295,9 @@ impl Renderer {
     }
 
     /// Builds the shading point of a hit, with both normals facing the incoming ray.
-    fn surface_at(&self, hit: Hit, inst: usize, local_tri: usize, d: Vec3) -> SurfacePoint {
+    /// The shading point of a hit on triangle `local_tri` of instance `inst` by a ray along `d`
+    /// (normals facing the ray's origin).
+    pub fn surface_at(&self, hit: Hit, inst: usize, local_tri: usize, d: Vec3) -> SurfacePoint {
         let instance = &self.flat.instances[inst];
         let mesh = &self.meshes[instance.mesh as usize];
         let t = self.flat.triangles[hit.triangle as usize];
