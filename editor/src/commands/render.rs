@@ -98,8 +98,8 @@ pub struct Args {
     prt: PrtArgs,
     #[command(flatten)]
     db: DbArgs,
-    /// One bounce of indirect light added to a per-vertex method (the per-vertex direct
-    /// result lights the hits; exact for Lambertian hit surfaces).
+    /// One bounce of indirect light added to a per-vertex method (its per-vertex direct result
+    /// lights Lambertian hits; glossy hits reflect direct light toward the gathering point).
     #[arg(long, value_enum, default_value = "none")]
     indirect: Indirect,
     /// HSH order of the radiance cache.
@@ -386,7 +386,8 @@ fn indirect(
     eye: Vec3,
 ) -> Result<Vec<Vec<Vec3>>> {
     let start = Instant::now();
-    let src = kage_engine::cache::record::Source { renderer, direct, glossy_spp: kage_engine::cache::record::GLOSSY_SPP };
+    let src =
+        kage_engine::cache::record::Source { renderer, direct, glossy_spp: kage_engine::cache::record::GLOSSY_SPP };
     let s = kage_engine::cache::Settings {
         order: args.hsh_order as usize,
         rays: args.cache_rays as usize,
