@@ -243,3 +243,22 @@ fn group_geometry(scene: &Scene) -> HashMap<hecs::Entity, Key> {
         })
         .collect()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn occluders_round_trip_through_their_encoding() {
+        let o = Occluder {
+            id: [3, 1, 0],
+            mesh: [7; 32],
+            world: std::array::from_fn(|i| i as f32 * 0.5 - 1.0),
+            bounds: [-1.0, 0.0, -2.5, 1.0, 3.0, 2.5],
+        };
+        let bytes = encode_occluders(&[o, o]);
+        assert_eq!(bytes.len(), 2 * OCCLUDER_BYTES);
+        assert_eq!(decode_occluders(&bytes).unwrap(), vec![o, o]);
+        assert!(decode_occluders(&bytes[1..]).is_none());
+    }
+}
