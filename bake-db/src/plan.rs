@@ -155,6 +155,24 @@ impl Plan {
         self.jobs.iter().filter(|j| !j.cached)
     }
 
+    /// The parameters of a technique's artefacts, as recorded in their metadata (with the
+    /// algorithm version).
+    pub fn params(&self, kind: Kind) -> String {
+        match kind {
+            Kind::Bspvt => self.bspvt.map_or_else(String::new, |s| {
+                format!("{}² faces, ε {}, format {}", s.res, s.epsilon, bspvt::layout::FORMAT_VERSION)
+            }),
+            Kind::Prt => self.prt.map_or_else(String::new, |s| {
+                format!(
+                    "order {}, {} directions, algorithm {}",
+                    s.order,
+                    s.direction_side().pow(2),
+                    prt::ALGORITHM_VERSION
+                )
+            }),
+        }
+    }
+
     /// Every key (what the scene references).
     pub fn keys(&self) -> Vec<Key> {
         self.jobs.iter().map(|j| j.key).collect()

@@ -60,6 +60,7 @@ pub fn load_or_place(store: &Store, scene: &Scene, src: &Source, s: &Settings) -
         kind: "hsh-cache".into(),
         params: format!("order {}, {} rays, a {}, layout {VERSION}", s.order, s.side().pow(2), s.accuracy),
         seconds: start.elapsed().as_secs_f64(),
+        vertices: 0,
         checksum: *blake3::hash(&bytes).as_bytes(),
     };
     store.put_batch(&[(key, bytes, info)], &[])?;

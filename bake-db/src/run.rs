@@ -165,25 +165,20 @@ impl Context<'_> {
                 for (k, v) in job.vertices.clone().enumerate() {
                     baker.vertex(self.scene, self.flat, job.instance, v, &mut out[k * n..(k + 1) * n]);
                 }
-                let params = format!(
-                    "order {}, {} directions, algorithm {}",
-                    s.order,
-                    s.direction_side().pow(2),
-                    prt::ALGORITHM_VERSION
-                );
-                (bytemuck::cast_slice(&out).to_vec(), params, false, 0, job.vertices.len())
+                (bytemuck::cast_slice(&out).to_vec(), self.plan.params(Kind::Prt), false, 0, job.vertices.len())
             }
             Kind::Bspvt => {
                 let s = self.plan.bspvt.expect("BSPVT job without BSPVT settings");
                 let (records, warm, faces, touched) = self.bake_bspvt(job, &s)?;
-                let params = format!("{}² faces, ε {}, format {}", s.res, s.epsilon, bspvt::layout::FORMAT_VERSION);
-                (encode_records(&records), params, warm, faces, touched)
+                (encode_records(&records), self.plan.params(Kind::Bspvt), warm, faces, touched)
             }
         };
         let info = Info {
             kind: job.kind.name().into(),
             params,
             seconds: t.elapsed().as_secs_f64(),
+            // Warm chunks are not representative of a bake's cost per vertex.
+            vertices: if warm { 0 } else { job.vertices.len() },
             checksum: *blake3::hash(&bytes).as_bytes(),
         };
         let lineage = job.slot.map(|slot| {

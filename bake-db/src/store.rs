@@ -70,6 +70,8 @@ pub struct Info {
     pub params: String,
     /// Seconds the bake took.
     pub seconds: f64,
+    /// Vertices baked from scratch (0 for warm re-bakes and non-vertex artefacts).
+    pub vertices: usize,
     /// blake3 of the artefact bytes.
     pub checksum: [u8; 32],
 }
@@ -231,6 +233,24 @@ impl Store {
         })
     }
 
+    /// Measured seconds per vertex of cold bakes of `kind` with exactly `params` (single
+    /// worker time), from the artefacts' metadata; `None` before any such bake.
+    pub fn seconds_per_vertex(&self, kind: &str, params: &str) -> Result<Option<f64>> {
+        let (seconds, vertices) = self.read(|t| {
+            let (mut s, mut v) = (0.0, 0u64);
+            for item in t.open_table(INFO)?.iter()? {
+                let (_, json) = item?;
+                let Ok(info) = serde_json::from_str::<serde_json::Value>(json.value()) else { continue };
+                if info["kind"] == kind && info["params"] == params {
+                    s += info["seconds"].as_f64().unwrap_or(0.0);
+                    v += info["vertices"].as_u64().unwrap_or(0);
+                }
+            }
+            Ok((s, v))
+        })?;
+        Ok((vertices > 0).then(|| seconds / vertices as f64))
+    }
+
     /// Counts of (artefacts, their bytes, meshes, scenes).
     pub fn counts(&self) -> Result<(u64, u64, u64, u64)> {
         self.read(|t| {
@@ -315,6 +335,7 @@ fn info_json(info: &Info, len: usize) -> String {
         "kind": info.kind,
         "params": info.params,
         "seconds": info.seconds,
+        "vertices": info.vertices,
         "bytes": len,
         "checksum": hex(&info.checksum),
     })

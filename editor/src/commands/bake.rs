@@ -6,7 +6,7 @@ use crate::progress::with_bar;
 use crate::prt_args::PrtArgs;
 use crate::scene_args::SceneArgs;
 use anyhow::Result;
-use kage_bake_db::plan::Plan;
+use kage_bake_db::plan::{Kind, Plan};
 use kage_bake_db::{Store, plan};
 use kage_engine::bspvt;
 use kage_engine::scene::{FlatScene, Scene, flatten};
@@ -79,7 +79,7 @@ fn bake_once(args: &Args, store: &Store) -> Result<()> {
     let flat = flatten(&scene);
     let start = Instant::now();
     let plan = args.options.plan(store, &scene, &flat)?;
-    print_plan(&scene, &plan, start.elapsed().as_secs_f64());
+    print_plan(store, &scene, &plan, start.elapsed().as_secs_f64())?;
     if args.dry_run || plan.misses().next().is_none() {
         return Ok(());
     }
@@ -100,7 +100,7 @@ fn bake_once(args: &Args, store: &Store) -> Result<()> {
 }
 
 /// Per instance and technique: chunks, cached, vertices to bake, estimated seconds.
-pub fn print_plan(scene: &Scene, plan: &Plan, planning_s: f64) {
+pub fn print_plan(store: &Store, scene: &Scene, plan: &Plan, planning_s: f64) -> Result<()> {
     let threads = rayon::current_num_threads() as f64;
     let mut rows: BTreeMap<(usize, &str), (usize, usize, usize)> = BTreeMap::new();
     for j in &plan.jobs {
@@ -109,14 +109,19 @@ pub fn print_plan(scene: &Scene, plan: &Plan, planning_s: f64) {
         r.1 += usize::from(j.cached);
         r.2 += if j.cached { 0 } else { j.vertices.len() };
     }
-    let cost = |kind: &str, vertices: usize| -> f64 {
-        // Measured single-core rates (README): BSPVT ≈ 10 ms per vertex at 64² (∝ res²),
-        // PRT ≈ 80 µs per vertex at 1024 directions (∝ directions).
-        match kind {
-            "bspvt" => plan.bspvt.map_or(0.0, |s| 1e-2 * (s.res as f64 / 64.0).powi(2)) * vertices as f64,
-            _ => plan.prt.map_or(0.0, |s| 8e-5 * s.direction_side().pow(2) as f64 / 1024.0) * vertices as f64,
-        }
-    };
+    // Seconds per vertex on one worker: measured by earlier bakes with the same parameters in
+    // this database, else the README's rates (BSPVT ≈ 10 ms per vertex at 64², ∝ res²; PRT
+    // ≈ 80 µs per vertex at 1024 directions, ∝ directions).
+    let mut rate = std::collections::HashMap::new();
+    for kind in [Kind::Bspvt, Kind::Prt] {
+        let measured = store.seconds_per_vertex(kind.name(), &plan.params(kind))?;
+        let default = match kind {
+            Kind::Bspvt => plan.bspvt.map_or(0.0, |s| 1e-2 * (s.res as f64 / 64.0).powi(2)),
+            Kind::Prt => plan.prt.map_or(0.0, |s| 8e-5 * s.direction_side().pow(2) as f64 / 1024.0),
+        };
+        rate.insert(kind.name(), (measured.unwrap_or(default), measured.is_some()));
+    }
+    let cost = |kind: &str, vertices: usize| rate[kind].0 * vertices as f64;
     let mut out = format!("plan for {} ({:.0} ms):\n", scene.source, planning_s * 1e3);
     if let Some(s) = plan.bspvt {
         out += &format!("  bspvt: {}² faces, ε {} (polygonal lights present)\n", s.res, s.epsilon);
@@ -142,10 +147,12 @@ pub fn print_plan(scene: &Scene, plan: &Plan, planning_s: f64) {
         );
     }
     let misses = plan.misses().count();
+    let basis = if rate.values().any(|r| r.1) { "rates measured by earlier bakes" } else { "default rates" };
     out += &format!(
-        "  {} of {} chunks cached; {misses} to bake, estimated {total:.1} s on {threads} threads\n",
+        "  {} of {} chunks cached; {misses} to bake, estimated {total:.1} s on {threads} threads ({basis})\n",
         plan.jobs.len() - misses,
         plan.jobs.len()
     );
     crate::emit(&out);
+    Ok(())
 }
