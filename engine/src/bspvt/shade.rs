@@ -54,7 +54,7 @@ impl PointShader {
             let t: Vec<DVec3> = piece.iter().map(|q| *m * *q).collect();
             let scalar = ltc::integrate(&t);
             match tex {
-                Some(tex) => scalar * tex.colour[space].as_dvec3(),
+                Some(tex) if scalar != 0.0 => scalar * tex.colour(space, &t).as_dvec3(),
                 _ => DVec3::splat(scalar),
             }
         };
@@ -171,51 +171,65 @@ impl PointShader {
     }
 }
 
-/// A textured light reduced to one prefiltered colour per lobe (Heitz et al. 2016, §5.3): the
-/// whole light's vector form factor in the lobe's space picks the point of the light plane the
-/// lobe looks at, and a footprint of a quarter of the plane's distance (relative to the light's
-/// size) picks the level. One colour per light and lobe — not per piece — so that visibility
-/// (tree or exact) only weights LTC integrals and the tree's error stays separate from the
-/// texture approximation's.
+/// A textured light with a prefiltered texture (Heitz et al. 2016, §5.3), fetched per piece:
+/// a piece's vector form factor in the lobe's space picks the point of the light plane the
+/// lobe looks at through that piece; the level comes from the lobe's footprint on the plane,
+/// a quarter of the plane's distance relative to the whole light's size (a property of the
+/// lobe, not of the piece). Pieces (texels of exact visibility, tree leaves) so see the part of
+/// the texture they expose, instead of one colour for the whole light.
 pub struct TexturedLight {
-    /// Per lobe (diffuse, specular): the filtered radiance multiplier.
-    colour: [Vec3; 2],
+    texture: std::sync::Arc<crate::scene::Texture>,
+    /// Per lobe (diffuse, specular): the light's first corner, two edges and normal in the
+    /// lobe's space.
+    basis: [(DVec3, DVec3, DVec3, DVec3); 2],
+    /// Per lobe: the mip level of the lobe's footprint.
+    lod: [f32; 2],
+    /// Texture coordinates of the first three corners.
+    uvs: [glam::DVec2; 3],
 }
 
 impl TexturedLight {
     fn new(light: &FlatLight, rel: &[DVec3], spaces: [&DMat3; 2]) -> Option<Self> {
-        let texture = light.texture.as_ref()?;
+        let texture = light.texture.clone()?;
         if light.uvs.len() < 3 {
             return None;
         }
-        let uvs = [0, 1, 2].map(|k| light.uvs[k].as_dvec2());
-        let colour = spaces.map(|m| {
-            let moved: Vec<DVec3> = rel.iter().map(|q| *m * *q).collect();
-            let (c0, e1, e2) = (moved[0], moved[1] - moved[0], moved[2] - moved[0]);
-            let n = e1.cross(e2);
-            let f = ltc::form_factor_vector(&moved);
-            let denom = n.dot(f);
-            // Along f to the plane; a grazing f falls back to the point nearest the origin.
-            let p = if denom.abs() > 1e-12 * n.length() * f.length() {
-                f * (n.dot(c0) / denom)
-            } else {
-                n * (n.dot(c0) / n.length_squared())
-            };
-            let r = p - c0;
-            let (a11, a12, a22) = (e1.dot(e1), e1.dot(e2), e2.dot(e2));
-            let det = a11 * a22 - a12 * a12;
-            let (x, y) = if det > 0.0 {
-                ((r.dot(e1) * a22 - r.dot(e2) * a12) / det, (r.dot(e2) * a11 - r.dot(e1) * a12) / det)
-            } else {
-                (0.5, 0.5)
-            };
-            let uv = uvs[0] + (uvs[1] - uvs[0]) * x + (uvs[2] - uvs[0]) * y;
+        let basis = spaces.map(|m| {
+            let (c0, c1, c2) = (*m * rel[0], *m * rel[1], *m * rel[2]);
+            let (e1, e2) = (c1 - c0, c2 - c0);
+            (c0, e1, e2, e1.cross(e2))
+        });
+        let lod = [0, 1].map(|k| {
+            let moved: Vec<DVec3> = rel.iter().map(|q| *spaces[k] * *q).collect();
+            let (c0, _, _, n) = basis[k];
             let dist = n.normalize_or_zero().dot(c0).abs();
             let footprint = (0.25 * dist / polygon_area(&moved).sqrt().max(1e-30)).min(1.0);
-            let lod = (footprint * texture.width.max(texture.height) as f64).max(1.0).log2() as f32;
-            texture.sample_lod(uv.as_vec2(), lod)
+            (footprint * texture.width.max(texture.height) as f64).max(1.0).log2() as f32
         });
-        Some(Self { colour })
+        Some(Self { texture, basis, lod, uvs: [0, 1, 2].map(|k| light.uvs[k].as_dvec2()) })
+    }
+
+    /// The filtered radiance multiplier for a piece of the light (points in lobe `lobe`'s space).
+    fn colour(&self, lobe: usize, moved: &[DVec3]) -> Vec3 {
+        let (c0, e1, e2, n) = self.basis[lobe];
+        let f = ltc::form_factor_vector(moved);
+        let denom = n.dot(f);
+        // Along f to the plane; a grazing f falls back to the point nearest the origin.
+        let p = if denom.abs() > 1e-12 * n.length() * f.length() {
+            f * (n.dot(c0) / denom)
+        } else {
+            n * (n.dot(c0) / n.length_squared())
+        };
+        let r = p - c0;
+        let (a11, a12, a22) = (e1.dot(e1), e1.dot(e2), e2.dot(e2));
+        let det = a11 * a22 - a12 * a12;
+        let (x, y) = if det > 0.0 {
+            ((r.dot(e1) * a22 - r.dot(e2) * a12) / det, (r.dot(e2) * a11 - r.dot(e1) * a12) / det)
+        } else {
+            (0.5, 0.5)
+        };
+        let uv = self.uvs[0] + (self.uvs[1] - self.uvs[0]) * x + (self.uvs[2] - self.uvs[0]) * y;
+        self.texture.sample_lod(uv.as_vec2(), self.lod[lobe])
     }
 }
 
