@@ -179,23 +179,19 @@ pub fn write(path: &Path, e: &Export) -> std::io::Result<()> {
         all.push(node(json!({"name": "camera", "camera": 0}), &cam.world));
     }
     let root = root_extension(e);
-    let doc = json!({
+    let mut doc = json!({
         "asset": {"version": "2.0", "generator": concat!("kage ", env!("CARGO_PKG_VERSION"))},
         "extensionsUsed": ["KHR_materials_unlit", "KHR_materials_emissive_strength", EXTENSION],
         "extensions": {EXTENSION: root},
         "scene": 0, "scenes": [{"nodes": roots}], "nodes": all, "meshes": meshes, "materials": materials,
-        "cameras": cameras, "accessors": bin.accessors, "bufferViews": bin.views,
+        "accessors": bin.accessors, "bufferViews": bin.views,
         "buffers": [{"byteLength": bin.bytes.len()}],
     });
-    let mut doc = doc;
-    if cameras_empty(&doc) {
-        doc.as_object_mut().expect("object").remove("cameras");
+    // glTF forbids empty top-level arrays: `cameras` only when there is one.
+    if !cameras.is_empty() {
+        doc["cameras"] = json!(cameras);
     }
     std::fs::write(path, glb(&doc.to_string(), bin.bytes))
-}
-
-fn cameras_empty(doc: &Value) -> bool {
-    doc["cameras"].as_array().is_some_and(Vec::is_empty)
 }
 
 fn camera_json(c: &Camera) -> Value {
