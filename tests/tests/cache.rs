@@ -94,11 +94,11 @@ fn corners_clamp_the_radius_and_opposite_normals_get_their_own_record() {
     assert!(cache.incoming(Vec3::new(1.0, 0.0, 1.0), -Vec3::Y).is_some_and(|c| c.iter().all(|v| v.is_finite())));
 }
 
-/// Ground, a sphere and a quad light, all Lambertian; per-vertex direct light from the
-/// reference (exact for Lambertian surfaces, whatever the eye).
-fn lit_room() -> (Renderer, Vec<Vec<Vec3>>) {
+/// A ground of material `ground`, a Lambertian sphere and a quad light; per-vertex direct light
+/// from the reference (exact for the Lambertian sphere the gathers hit, whatever the eye).
+fn lit_room(ground: Material) -> (Renderer, Vec<Vec<Vec3>>) {
     let mut s = Scene::new("room");
-    s.add_object("ground", shapes::grid(6.0, 30), lambert(0.7), Affine3A::IDENTITY);
+    s.add_object("ground", shapes::grid(6.0, 30), ground, Affine3A::IDENTITY);
     // Finely tessellated: hits see per-vertex direct light interpolated, which a coarse box's
     // four corners per face would not resolve.
     s.add_object(
@@ -111,8 +111,7 @@ fn lit_room() -> (Renderer, Vec<Vec<Vec3>>) {
     let quad = vec![Vec3::new(-h, 0.0, -h), Vec3::new(h, 0.0, -h), Vec3::new(h, 0.0, h), Vec3::new(-h, 0.0, h)];
     s.add_light("light", quad, Vec3::splat(20.0), Affine3A::from_translation(Vec3::new(1.5, 3.0, 0.5)));
     let r = Renderer::new(&s);
-    let est =
-        r.render_vertices(Vec3::new(0.0, 5.0, 5.0), &RefSettings { spp: 256, seed: 3, ..Default::default() }, &|_| {});
+    let est = r.render_vertices(EYE, &RefSettings { spp: 256, seed: 3, ..Default::default() }, &|_| {});
     let direct = est.iter().map(|v| v.iter().map(|e| e.mean).collect()).collect();
     (r, direct)
 }
@@ -123,7 +122,7 @@ fn rel(x: &[Vec<Vec3>], r: &[Vec<Vec3>]) -> f64 {
 
 #[test]
 fn the_cache_matches_the_one_bounce_reference_with_far_fewer_rays_than_gathering() {
-    let (renderer, direct) = lit_room();
+    let (renderer, direct) = lit_room(lambert(0.7));
     let src = Source { renderer: &renderer, direct: &direct, glossy_spp: GLOSSY_SPP };
     let one_bounce = RefSettings { spp: 1024, seed: 5, max_bounces: 1, min_bounces: 1 };
     let truth: Vec<Vec<Vec3>> = renderer
@@ -176,22 +175,8 @@ fn record_rotation_is_identity_at_zero_and_composes() {
 #[test]
 fn smooth_glossy_receivers_fall_back_to_a_direct_gather() {
     // A smooth metal ground (roughness 0.2) under a lit Lambertian sphere.
-    let mut s = Scene::new("glossy");
     let metal = Material { base_color: Vec3::splat(0.9), metallic: 1.0, roughness: 0.2, specular: 1.0 };
-    s.add_object("ground", shapes::grid(6.0, 30), metal, Affine3A::IDENTITY);
-    s.add_object(
-        "sphere",
-        shapes::sphere(0.8, 48, 24),
-        lambert(0.7),
-        Affine3A::from_translation(Vec3::new(0.0, 0.85, 0.0)),
-    );
-    let h = 0.5;
-    let quad = vec![Vec3::new(-h, 0.0, -h), Vec3::new(h, 0.0, -h), Vec3::new(h, 0.0, h), Vec3::new(-h, 0.0, h)];
-    s.add_light("light", quad, Vec3::splat(20.0), Affine3A::from_translation(Vec3::new(1.5, 3.0, 0.5)));
-    let r = Renderer::new(&s);
-    let settings = RefSettings { spp: 256, seed: 3, ..Default::default() };
-    let direct: Vec<Vec<Vec3>> =
-        r.render_vertices(EYE, &settings, &|_| {}).iter().map(|v| v.iter().map(|e| e.mean).collect()).collect();
+    let (r, direct) = lit_room(metal);
     let src = Source { renderer: &r, direct: &direct, glossy_spp: GLOSSY_SPP };
     let truth = gather_vertices(&src, 4096, EYE);
     let e = |v: &[Vec<Vec3>]| kage_engine::math::relative_rmse(&v[0], &truth[0]);
