@@ -117,6 +117,10 @@ pub struct Args {
     /// Shade from an asset pack written by `kage export` (its scene and bakes) instead of a scene.
     #[arg(long, conflicts_with = "scene")]
     pack: Option<PathBuf>,
+    /// Shade on the GPU with the WGSL compute shaders (bspvt, ltc-unshadowed, prt, prt-self;
+    /// per vertex — images interpolate the vertices, PRT's other-group shadows included).
+    #[arg(long)]
+    gpu: bool,
     /// Drop the environment light (the per-vertex polygonal-light methods never include it;
     /// use this to compare the reference with them).
     #[arg(long)]
@@ -163,6 +167,9 @@ pub fn run(args: &Args) -> Result<()> {
     let camera = camera(args, scene.first_camera())?;
     let renderer = Renderer::new(&scene);
     let output = args.output.clone().or_else(|| args.vertices_out.is_none().then(|| PathBuf::from("render.png")));
+    if args.gpu && matches!(args.method, Method::Reference | Method::LtcExactVis) {
+        bail!("--gpu shades bspvt, ltc-unshadowed, prt and prt-self; {:?} runs on the CPU only", args.method);
+    }
     if args.method == Method::Reference && args.indirect != Indirect::None {
         bail!("--indirect is for the per-vertex methods; the reference takes --bounces N");
     }
@@ -249,7 +256,15 @@ fn per_vertex(
         _ => bspvt::Method::Unshadowed,
     };
     let start = Instant::now();
-    let values = bspvt::shade_vertices(scene, &renderer.flat, kind, bake.as_ref(), &settings, camera.eye());
+    let values = if args.gpu {
+        let gpu = gpu_device()?;
+        let shader = kage_gpu::bspvt::BspvtShader::new(&gpu, &kage_gpu::Shaders::embedded(), bake.as_ref())?;
+        let mode =
+            if kind == bspvt::Method::Bspvt { kage_gpu::bspvt::Mode::Trees } else { kage_gpu::bspvt::Mode::Unshadowed };
+        kage_gpu::bspvt::shade_vertices(&gpu, &shader, scene, &renderer.flat, mode, camera.eye())?
+    } else {
+        bspvt::shade_vertices(scene, &renderer.flat, kind, bake.as_ref(), &settings, camera.eye())
+    };
     let evals = renderer.vertex_count() * renderer.flat.lights.len();
     let secs = start.elapsed().as_secs_f64();
     crate::emit(&format!(
@@ -290,7 +305,7 @@ fn prt(
     if let Some(pack) = pack {
         let (bake, lighting, settings) =
             pack.prt.as_ref().context("the pack has no PRT data (its scene has no environment)")?;
-        return Ok(prt_shade(args, scene, renderer, camera, want_image, bake, lighting, settings));
+        return prt_shade(args, scene, renderer, camera, want_image, bake, lighting, settings);
     }
     let store = args.db.open_if_used(&args.scene)?;
     let settings = match &store {
@@ -325,7 +340,7 @@ fn prt(
             bake
         }
     };
-    Ok(prt_shade(args, scene, renderer, camera, want_image, &bake, &lighting, &settings))
+    prt_shade(args, scene, renderer, camera, want_image, &bake, &lighting, &settings)
 }
 
 /// PRT shading of a frame: per-vertex values and, if wanted, the image.
@@ -339,8 +354,11 @@ fn prt_shade(
     bake: &prt::Bake,
     lighting: &prt::Lighting,
     settings: &prt::Settings,
-) -> Outputs {
+) -> Result<Outputs> {
     let method = if args.method == Method::Prt { prt::Method::WithOthers } else { prt::Method::SelfOnly };
+    if args.gpu {
+        return prt_gpu(args, scene, renderer, camera, want_image, bake, lighting, settings, method);
+    }
     let start = Instant::now();
     let frame = prt::Frame::prepare(scene, &renderer.flat, bake, lighting, method, settings, camera.eye());
     let values = frame.vertex_values(scene, &renderer.flat);
@@ -349,7 +367,40 @@ fn prt_shade(
         let (w, h) = args.size;
         frame.render(renderer, camera, w, h, args.spp.min(16))
     });
-    (image, Some(values))
+    Ok((image, Some(values)))
+}
+
+/// [`prt_shade`] on the GPU: per-vertex values, the image interpolating them.
+#[allow(clippy::too_many_arguments)]
+fn prt_gpu(
+    args: &Args,
+    scene: &Scene,
+    renderer: &Renderer,
+    camera: &Camera,
+    want_image: bool,
+    bake: &prt::Bake,
+    lighting: &prt::Lighting,
+    settings: &prt::Settings,
+    method: prt::Method,
+) -> Result<Outputs> {
+    let gpu = gpu_device()?;
+    let flat = &renderer.flat;
+    let mut cache = prt::ShadowCache::default();
+    let posed = prt::Posed::new(scene, flat, bake.order, lighting, method, settings, &mut cache);
+    let shader = kage_gpu::prt::PrtShader::new(&gpu, &kage_gpu::Shaders::embedded(), bake, posed.order)?;
+    let start = Instant::now();
+    let values = kage_gpu::prt::shade_vertices(&gpu, &shader, scene, flat, &posed, camera.eye())?;
+    crate::emit(&format!("shade: {} vertices in {:.3} s\n", renderer.vertex_count(), start.elapsed().as_secs_f64()));
+    let image =
+        want_image.then(|| raster::vertex_image(renderer, camera, args.size.0, args.size.1, args.spp.min(16), &values));
+    Ok((image, Some(values)))
+}
+
+/// The GPU device, announced on stderr.
+fn gpu_device() -> Result<kage_gpu::Gpu> {
+    let gpu = kage_gpu::Gpu::new()?;
+    crate::emit(&format!("gpu: {}\n", gpu.describe()));
+    Ok(gpu)
 }
 
 /// Plans and runs the bakes through the database, printing what was cached and what baked.

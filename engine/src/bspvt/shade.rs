@@ -22,12 +22,19 @@ pub enum Visibility<'a> {
 
 /// Everything LTC shading needs at one vertex for one view.
 pub struct PointShader {
-    p: DVec3,
-    n: DVec3,
-    frame: DMat3,
-    spec_inv: DMat3,
-    diffuse: DVec3,
-    spec: DVec3,
+    /// Shading point.
+    pub p: DVec3,
+    /// Unit normal.
+    pub n: DVec3,
+    /// World → local frame (x toward the view), the diffuse lobe's space.
+    pub frame: DMat3,
+    /// World → the specular LTC's cosine space (`M⁻¹ · frame`).
+    pub spec_inv: DMat3,
+    /// Diffuse albedo (RGB).
+    pub diffuse: DVec3,
+    /// Specular weight `F0 (magnitude − fresnel) + F90 fresnel` (zero without a specular lobe
+    /// or with the view below the surface).
+    pub spec: DVec3,
 }
 
 impl PointShader {

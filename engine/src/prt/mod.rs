@@ -205,6 +205,85 @@ pub enum Method {
     WithOthers,
 }
 
+/// The lighting posed into every group for one frame: what per-vertex shading needs besides
+/// the bake and the albedo. The CPU path ([`Frame`]) and the GPU shaders share it.
+pub struct Posed {
+    /// SH order used (the bake's, at most the lighting's).
+    pub order: usize,
+    /// Per group index: the windowed SH lighting in the group's frame (n² RGB coefficients).
+    pub lighting: Vec<Vec<DVec3>>,
+    /// Per group index: per region, the windowed SH basis at `w_i` in the group's frame
+    /// (q × n², region-major).
+    pub region_basis: Vec<Vec<f64>>,
+    /// Group index of every instance.
+    pub group_of: Vec<usize>,
+    /// The environment's regions (empty without shadows between groups).
+    pub regions: Vec<Region>,
+    /// Angular width √spread of each region: the box filter's size per unit distance.
+    pub widths: Vec<f32>,
+    /// Per group index: one silhouette per region.
+    pub silhouettes: Vec<Arc<Vec<Silhouette>>>,
+}
+
+impl Posed {
+    /// Poses `light` into every group of the snapshot; rasterises (or reuses from `cache`) the
+    /// silhouettes for [`Method::WithOthers`] in a scene with several groups.
+    pub fn new(
+        scene: &Scene,
+        flat: &FlatScene,
+        bake_order: usize,
+        light: &Lighting,
+        method: Method,
+        s: &Settings,
+        cache: &mut ShadowCache,
+    ) -> Self {
+        let order = bake_order.min((light.coeffs.len() as f64).sqrt() as usize);
+        let window = light.window.per_coeff(order);
+        let (groups, poses) = group_poses(scene, flat);
+        let group_of: Vec<usize> =
+            flat.instances.iter().map(|i| groups.iter().position(|g| *g == i.group).expect("listed")).collect();
+        let others = method == Method::WithOthers && groups.len() > 1;
+        let regions = if others { light.regions.clone() } else { Vec::new() };
+        let (lighting, region_basis) = poses
+            .iter()
+            .map(|&(rot, mirrored)| {
+                let local = lighting::to_group_frame(&light.coeffs[..sh::num_coeffs(order)], rot, mirrored);
+                let lw = local.iter().zip(&window).map(|(c, h)| *c * *h).collect();
+                let mirror = if mirrored { DVec3::new(1.0, 1.0, -1.0) } else { DVec3::ONE };
+                let yh = regions
+                    .iter()
+                    .flat_map(|r| {
+                        let d = mirror * (rot.transpose() * r.dir.as_dvec3());
+                        sh::eval(order, d).into_iter().zip(&window).map(|(y, h)| y * h).collect::<Vec<_>>()
+                    })
+                    .collect();
+                (lw, yh)
+            })
+            .unzip();
+        let silhouettes =
+            if others { cache.silhouettes(flat, &group_of, groups.len(), &regions, s) } else { Vec::new() };
+        let widths = regions.iter().map(|r| r.spread.sqrt() as f32).collect();
+        Self { order, lighting, region_basis, group_of, regions, widths, silhouettes }
+    }
+}
+
+/// Per instance and vertex: the diffuse albedo seen from `eye` (the BSDF's, view-dependent
+/// through the specular layer's energy).
+pub fn vertex_albedo(scene: &Scene, flat: &FlatScene, eye: Vec3) -> Vec<Vec<Vec3>> {
+    (0..flat.instances.len())
+        .map(|i| {
+            let count = scene.meshes[flat.instances[i].mesh as usize].positions.len();
+            (0..count).into_par_iter().map(|v| albedo_at(scene, flat, i, v, eye)).collect()
+        })
+        .collect()
+}
+
+fn albedo_at(scene: &Scene, flat: &FlatScene, i: usize, v: usize, eye: Vec3) -> Vec3 {
+    let (p, normal) = flat.vertex(&scene.meshes, i, v);
+    let wo = ShadingFrame::from_normal(normal).to_local((eye - p).normalize_or(normal));
+    Bsdf::new(&flat.instances[i].material, wo).diffuse_albedo()
+}
+
 /// Everything one frame's shading needs, after groups, lights and the camera are posed.
 pub struct Frame {
     /// Per instance and vertex: unclamped `Ls` (RGB, albedo not applied).
@@ -213,13 +292,7 @@ pub struct Frame {
     albedo: Vec<Vec<Vec3>>,
     /// Per instance: `T(v, w_i)` for every vertex, vertex-major (q per vertex).
     shadow_t: Vec<Vec<f32>>,
-    /// Per group index: one silhouette per region.
-    silhouettes: Vec<Arc<Vec<Silhouette>>>,
-    /// Group index of every instance.
-    group_of: Vec<usize>,
-    regions: Vec<Region>,
-    /// Angular width √spread of each region: the box filter's size per unit distance.
-    widths: Vec<f32>,
+    posed: Posed,
 }
 
 /// World-from-group rotation (scale removed) and mirror flag of every group in the snapshot.
@@ -269,35 +342,12 @@ impl Frame {
         eye: Vec3,
         cache: &mut ShadowCache,
     ) -> Self {
-        let order = bake.order.min((light.coeffs.len() as f64).sqrt() as usize);
-        let window = light.window.per_coeff(order);
-        let (groups, poses) = group_poses(scene, flat);
-        let group_of: Vec<usize> =
-            flat.instances.iter().map(|i| groups.iter().position(|g| *g == i.group).expect("listed")).collect();
-        let others = method == Method::WithOthers && groups.len() > 1;
-        let regions = if others { light.regions.clone() } else { Vec::new() };
-        // Per group: windowed local lighting, and per region the windowed Y_k(w_i in the group frame).
-        let per_group: Vec<(Vec<DVec3>, Vec<f64>)> = poses
-            .iter()
-            .map(|&(rot, mirrored)| {
-                let local = lighting::to_group_frame(&light.coeffs[..sh::num_coeffs(order)], rot, mirrored);
-                let lw = local.iter().zip(&window).map(|(c, h)| *c * *h).collect();
-                let mirror = if mirrored { DVec3::new(1.0, 1.0, -1.0) } else { DVec3::ONE };
-                let yh = regions
-                    .iter()
-                    .flat_map(|r| {
-                        let d = mirror * (rot.transpose() * r.dir.as_dvec3());
-                        sh::eval(order, d).into_iter().zip(&window).map(|(y, h)| y * h).collect::<Vec<_>>()
-                    })
-                    .collect();
-                (lw, yh)
-            })
-            .collect();
-        let q = regions.len();
+        let posed = Posed::new(scene, flat, bake.order, light, method, s, cache);
+        let (order, q) = (posed.order, posed.regions.len());
         let (mut ls, mut albedo, mut shadow_t) = (Vec::new(), Vec::new(), Vec::new());
-        for (i, inst) in flat.instances.iter().enumerate() {
-            let (lw, yh) = &per_group[group_of[i]];
-            let count = scene.meshes[inst.mesh as usize].positions.len();
+        for i in 0..flat.instances.len() {
+            let (lw, yh) = (&posed.lighting[posed.group_of[i]], &posed.region_basis[posed.group_of[i]]);
+            let count = scene.meshes[flat.instances[i].mesh as usize].positions.len();
             let rows: Vec<(Vec3, Vec3, Vec<f32>)> = (0..count)
                 .into_par_iter()
                 .map(|v| {
@@ -309,19 +359,14 @@ impl Frame {
                             (t.iter().zip(y).map(|(t, y)| *t as f64 * y).sum::<f64>()).max(0.0) as f32
                         })
                         .collect();
-                    let (p, normal) = flat.vertex(&scene.meshes, i, v);
-                    let wo = ShadingFrame::from_normal(normal).to_local((eye - p).normalize_or(normal));
-                    (l.as_vec3(), Bsdf::new(&inst.material, wo).diffuse_albedo(), ts)
+                    (l.as_vec3(), albedo_at(scene, flat, i, v, eye), ts)
                 })
                 .collect();
             ls.push(rows.iter().map(|r| r.0).collect());
             albedo.push(rows.iter().map(|r| r.1).collect());
             shadow_t.push(rows.into_iter().flat_map(|r| r.2).collect());
         }
-        let silhouettes =
-            if others { cache.silhouettes(flat, &group_of, groups.len(), &regions, s) } else { Vec::new() };
-        let widths = regions.iter().map(|r| r.spread.sqrt() as f32).collect();
-        Self { ls, albedo, shadow_t, silhouettes, group_of, regions, widths }
+        Self { ls, albedo, shadow_t, posed }
     }
 
     /// `ρ · max(0, Ls − Σ_i B_i T_i V_o)` at `p` from interpolated `ls`, `albedo` and `t`, with
@@ -343,14 +388,14 @@ impl Frame {
             if tr <= 0.0 {
                 continue;
             }
-            let width = self.widths[r];
+            let width = self.posed.widths[r];
             let open: f32 = run
                 .iter()
                 .filter(|(_, g)| *g as usize != own)
-                .map(|&(_, g)| 1.0 - self.silhouettes[g as usize][r].occlusion(p, width))
+                .map(|&(_, g)| 1.0 - self.posed.silhouettes[g as usize][r].occlusion(p, width))
                 .product();
             if open < 1.0 {
-                l -= self.regions[r].power * (tr * (1.0 - open)) as f64;
+                l -= self.posed.regions[r].power * (tr * (1.0 - open)) as f64;
             }
         }
         albedo * l.max(DVec3::ZERO).as_vec3()
@@ -358,24 +403,28 @@ impl Frame {
 
     /// Every (region, group) pair, sorted by region.
     fn all_pairs(&self) -> Vec<(u16, u16)> {
-        (0..self.regions.len()).flat_map(|r| (0..self.silhouettes.len()).map(move |g| (r as u16, g as u16))).collect()
+        (0..self.posed.regions.len())
+            .flat_map(|r| (0..self.posed.silhouettes.len()).map(move |g| (r as u16, g as u16)))
+            .collect()
     }
 
     /// The pairs whose shadow can reach a sphere (a tile's points).
     fn pairs_reaching(&self, centre: Vec3, radius: f32) -> Vec<(u16, u16)> {
         self.all_pairs()
             .into_iter()
-            .filter(|&(r, g)| self.silhouettes[g as usize][r as usize].reaches(centre, radius, self.widths[r as usize]))
+            .filter(|&(r, g)| {
+                self.posed.silhouettes[g as usize][r as usize].reaches(centre, radius, self.posed.widths[r as usize])
+            })
             .collect()
     }
 
     /// Per-vertex radiance toward the eye, per instance.
     pub fn vertex_values(&self, scene: &Scene, flat: &FlatScene) -> Vec<Vec<Vec3>> {
-        let q = self.regions.len();
+        let q = self.posed.regions.len();
         let pairs = self.all_pairs();
         (0..flat.instances.len())
             .map(|i| {
-                let own = self.group_of[i];
+                let own = self.posed.group_of[i];
                 (0..self.ls[i].len())
                     .into_par_iter()
                     .map(|v| {
@@ -395,11 +444,11 @@ impl Frame {
 
     fn shade_hit_with(&self, hit: &SurfaceHit, pairs: &[(u16, u16)]) -> Vec3 {
         let i = hit.instance;
-        let q = self.regions.len();
+        let q = self.posed.regions.len();
         let t = |r: usize| (0..3).map(|c| self.shadow_t[i][hit.corners[c] * q + r] * hit.weights[c]).sum::<f32>();
         let ls = hit.interpolate(&self.ls[i]);
         let albedo = hit.interpolate(&self.albedo[i]);
-        self.radiance(self.group_of[i], ls, albedo, t, hit.position, pairs)
+        self.radiance(self.posed.group_of[i], ls, albedo, t, hit.position, pairs)
     }
 
     /// A `width × height` image with `spp` samples per pixel, the other groups' shadows
@@ -471,7 +520,7 @@ pub struct ShadowCache {
 
 impl ShadowCache {
     /// One silhouette list per group index, built or reused.
-    fn silhouettes(
+    pub fn silhouettes(
         &mut self,
         flat: &FlatScene,
         group_of: &[usize],

@@ -14,6 +14,27 @@
 use crate::math::frame::Frame;
 use glam::{Vec2, Vec3};
 
+/// A silhouette's lookup parameters (see [`Silhouette::params`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Params {
+    /// The region direction the silhouette is seen along.
+    pub w: Vec3,
+    /// Texel-space u axis (world units × texels per unit).
+    pub u_axis: Vec3,
+    /// Texel-space v axis.
+    pub v_axis: Vec3,
+    /// Texel-space offset.
+    pub offset: Vec2,
+    /// Depth of the plane touching the bounding sphere on the receivers' side.
+    pub plane: f32,
+    /// Texels per world unit.
+    pub texels_per_unit: f32,
+    /// Texels per side.
+    pub res: u32,
+    /// Texel-space bounds of the covered texels.
+    pub covered: (Vec2, Vec2),
+}
+
 /// A rasterised silhouette with its summed-area table.
 #[derive(Clone, Debug)]
 pub struct Silhouette {
@@ -65,6 +86,30 @@ impl Silhouette {
         }
         s.build_sat();
         s
+    }
+
+    /// The lookup's parameters as plain numbers (the GPU shaders repeat [`Self::occlusion`]).
+    pub fn params(&self) -> Params {
+        Params {
+            w: self.frame.n,
+            u_axis: self.u_axis,
+            v_axis: self.v_axis,
+            offset: self.offset,
+            plane: self.plane,
+            texels_per_unit: self.texels_per_unit,
+            res: self.res as u32,
+            covered: self.covered,
+        }
+    }
+
+    /// The summed-area table, (res + 1)² row-major.
+    pub fn sat(&self) -> &[f32] {
+        &self.sat
+    }
+
+    /// The far depth per texel, res² row-major (−∞ where uncovered).
+    pub fn far(&self) -> &[f32] {
+        &self.far
     }
 
     /// Plane coordinates of `p` in texels.

@@ -1,0 +1,217 @@
+//! BSPVT per-vertex shading on the GPU (`shaders/bspvt.wgsl`).
+
+use crate::buffers::{dispatch, pipeline, storage, uniform};
+use crate::{Gpu, GpuError, Shaders};
+use glam::{DMat3, Vec3};
+use kage_engine::bspvt::shade::PointShader;
+use kage_engine::bspvt::{Bake, layout};
+use kage_engine::math::ltc;
+use kage_engine::scene::{FlatLight, FlatScene, Scene};
+
+/// Most corners a light polygon may have on the GPU.
+pub const MAX_LIGHT_POINTS: usize = 8;
+/// Deepest tree the shader's stack holds.
+pub const MAX_DEPTH: usize = 32;
+
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct Params {
+    vertex_count: u32,
+    light_count: u32,
+    mode: u32,
+    pad: u32,
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct GpuVertex {
+    p: [f32; 4],
+    frame: [[f32; 4]; 3],
+    spec_inv: [[f32; 4]; 3],
+    diffuse: [f32; 4],
+    spec: [f32; 4],
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct GpuLight {
+    points: [[f32; 4]; MAX_LIGHT_POINTS],
+    normal: [f32; 3],
+    count: u32,
+    radiance: [f32; 3],
+    pad: u32,
+}
+
+/// Which visibility the shader applies.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Mode {
+    /// No shadows (`ltc-unshadowed`).
+    Unshadowed,
+    /// Baked visibility trees (`bspvt`).
+    Trees,
+}
+
+/// The BSPVT shading pipeline with a bake's trees resident on the device.
+pub struct BspvtShader {
+    pipeline: wgpu::ComputePipeline,
+    records: wgpu::Buffer,
+    starts: wgpu::Buffer,
+}
+
+impl BspvtShader {
+    /// Builds the pipeline from `shaders` and uploads the trees of `bake` (every instance's
+    /// records, in instance order; `None` for unshadowed shading only).
+    pub fn new(gpu: &Gpu, shaders: &Shaders, bake: Option<&Bake>) -> Result<Self, GpuError> {
+        let module = shaders.module(&gpu.device, "bspvt.wgsl")?;
+        let (mut bytes, mut starts) = (Vec::new(), Vec::new());
+        for inst in bake.map_or(&[][..], |b| &b.instances[..]) {
+            for v in 0..inst.offsets.len() - 1 {
+                let record = inst.record(v);
+                check_depth(record)?;
+                starts.push(bytes.len() as u32);
+                bytes.extend_from_slice(record);
+            }
+        }
+        bytes.resize(bytes.len().next_multiple_of(4).max(4), 0);
+        Ok(Self {
+            pipeline: pipeline(gpu, "bspvt", &module),
+            records: storage(gpu, "bspvt records", &bytes),
+            starts: storage(gpu, "bspvt record starts", &starts),
+        })
+    }
+
+    /// Outgoing radiance at every vertex (`shaders`: the CPU's per-vertex LTC setup, in the
+    /// bake's vertex order for [`Mode::Trees`]) from `lights`.
+    pub fn shade(
+        &self,
+        gpu: &Gpu,
+        shaders: &[PointShader],
+        lights: &[FlatLight],
+        mode: Mode,
+    ) -> Result<Vec<Vec3>, GpuError> {
+        if mode == Mode::Trees && self.starts.size() < 4 * shaders.len() as u64 {
+            return Err(GpuError::Unsupported("BSPVT shading needs a bake of every vertex".into()));
+        }
+        let vertices: Vec<GpuVertex> = shaders.iter().map(gpu_vertex).collect();
+        let lights = lights.iter().map(gpu_light).collect::<Result<Vec<_>, _>>()?;
+        let mode = match mode {
+            Mode::Unshadowed => 0,
+            Mode::Trees => 1,
+        };
+        let params = Params { vertex_count: vertices.len() as u32, light_count: lights.len() as u32, mode, pad: 0 };
+        let out = storage(gpu, "bspvt radiance", &vec![[0.0f32; 4]; vertices.len().max(1)]);
+        let overflow = storage(gpu, "bspvt overflow", &[0u32]);
+        let buffers = [
+            &uniform(gpu, "bspvt params", &params),
+            &storage(gpu, "bspvt vertices", &vertices),
+            &storage(gpu, "bspvt lights", &lights),
+            &self.starts,
+            &self.records,
+            &out,
+            &overflow,
+        ];
+        let read = dispatch(gpu, &self.pipeline, &buffers, params.vertex_count, &[5, 6])?;
+        let overflowed: u32 = bytemuck::pod_read_unaligned(&read[1][..4]);
+        if overflowed > 0 {
+            return Err(GpuError::Unsupported(format!(
+                "{overflowed} light pieces outgrew the shader's 16-corner polygons or {MAX_DEPTH}-deep stack"
+            )));
+        }
+        let values: &[[f32; 4]] = &bytemuck::cast_slice::<u8, [f32; 4]>(&read[0])[..shaders.len()];
+        Ok(values.iter().map(|v| Vec3::new(v[0], v[1], v[2])).collect())
+    }
+}
+
+/// Rejects a record whose trees are deeper than the shader's stack.
+fn check_depth(record: &[u8]) -> Result<(), GpuError> {
+    for face in layout::vertex_faces(record) {
+        let (mut depth, mut pending) = (0usize, 0usize);
+        let mut i = 0;
+        while i < face.len() {
+            if face[i] & 0x80 == 0 {
+                pending = pending.saturating_sub(1);
+                i += 1;
+            } else {
+                pending += 1;
+                depth = depth.max(pending);
+                i += 3;
+            }
+        }
+        if depth > MAX_DEPTH {
+            return Err(GpuError::Unsupported(format!("a visibility tree {depth} deep exceeds the GPU's {MAX_DEPTH}")));
+        }
+    }
+    Ok(())
+}
+
+fn rows(m: &DMat3) -> [[f32; 4]; 3] {
+    let t = m.transpose();
+    [t.x_axis, t.y_axis, t.z_axis].map(|r| [r.x as f32, r.y as f32, r.z as f32, 0.0])
+}
+
+fn gpu_vertex(s: &PointShader) -> GpuVertex {
+    let has_spec = if s.spec != glam::DVec3::ZERO { 1.0 } else { 0.0 };
+    GpuVertex {
+        p: [s.p.x as f32, s.p.y as f32, s.p.z as f32, 0.0],
+        frame: rows(&s.frame),
+        spec_inv: rows(&s.spec_inv),
+        diffuse: [s.diffuse.x as f32, s.diffuse.y as f32, s.diffuse.z as f32, 0.0],
+        spec: [s.spec.x as f32, s.spec.y as f32, s.spec.z as f32, has_spec],
+    }
+}
+
+fn gpu_light(l: &FlatLight) -> Result<GpuLight, GpuError> {
+    if l.points.len() > MAX_LIGHT_POINTS {
+        return Err(GpuError::Unsupported(format!(
+            "a light polygon with {} corners (the GPU path takes at most {MAX_LIGHT_POINTS})",
+            l.points.len()
+        )));
+    }
+    if l.texture.is_some() {
+        return Err(GpuError::Unsupported("textured polygonal lights are shaded on the CPU only".into()));
+    }
+    let mut points = [[0.0; 4]; MAX_LIGHT_POINTS];
+    for (d, p) in points.iter_mut().zip(&l.points) {
+        *d = [p.x, p.y, p.z, 0.0];
+    }
+    Ok(GpuLight {
+        points,
+        normal: l.normal.to_array(),
+        count: l.points.len() as u32,
+        radiance: l.radiance.to_array(),
+        pad: 0,
+    })
+}
+
+/// The CPU's per-vertex LTC setup for every vertex of every instance, seen from `eye`.
+pub fn point_shaders(scene: &Scene, flat: &FlatScene, eye: Vec3) -> Vec<PointShader> {
+    use rayon::prelude::*;
+    let table = ltc::table();
+    (0..flat.instances.len())
+        .flat_map(|i| {
+            let n = scene.meshes[flat.instances[i].mesh as usize].positions.len();
+            let material = flat.instances[i].material;
+            let table = &table;
+            (0..n)
+                .into_par_iter()
+                .map(move |v| {
+                    let (p, normal) = flat.vertex(&scene.meshes, i, v);
+                    PointShader::new(table, p, normal, eye, &material)
+                })
+                .collect::<Vec<_>>()
+        })
+        .collect()
+}
+
+/// Per instance and vertex, the GPU counterpart of `kage_engine::bspvt::shade_vertices`.
+pub fn shade_vertices(
+    gpu: &Gpu,
+    shader: &BspvtShader,
+    scene: &Scene,
+    flat: &FlatScene,
+    mode: Mode,
+    eye: Vec3,
+) -> Result<Vec<Vec<Vec3>>, GpuError> {
+    let values = shader.shade(gpu, &point_shaders(scene, flat, eye), &flat.lights, mode)?;
+    Ok(crate::per_instance(scene, flat, values))
+}

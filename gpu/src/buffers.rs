@@ -1,0 +1,103 @@
+//! Buffer helpers: uploads, a read-back, one compute dispatch.
+
+use crate::{Gpu, GpuError};
+use wgpu::util::DeviceExt;
+
+/// A storage buffer holding `data` (at least 4 bytes: wgpu rejects empty bindings).
+pub fn storage<T: bytemuck::Pod>(gpu: &Gpu, label: &str, data: &[T]) -> wgpu::Buffer {
+    let bytes: &[u8] = bytemuck::cast_slice(data);
+    let padded;
+    let contents = if !bytes.len().is_multiple_of(4) || bytes.is_empty() {
+        padded = [bytes, &[0u8; 4][..(4 - bytes.len() % 4)]].concat();
+        &padded[..]
+    } else {
+        bytes
+    };
+    gpu.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some(label),
+        contents,
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+    })
+}
+
+/// A uniform buffer holding `value`.
+pub fn uniform<T: bytemuck::Pod>(gpu: &Gpu, label: &str, value: &T) -> wgpu::Buffer {
+    gpu.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some(label),
+        contents: bytemuck::bytes_of(value),
+        usage: wgpu::BufferUsages::UNIFORM,
+    })
+}
+
+/// A compute pipeline over shader module `module`'s `main`, with an automatic layout.
+pub fn pipeline(gpu: &Gpu, label: &str, module: &wgpu::ShaderModule) -> wgpu::ComputePipeline {
+    gpu.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        label: Some(label),
+        layout: None,
+        module,
+        entry_point: Some("main"),
+        compilation_options: Default::default(),
+        cache: None,
+    })
+}
+
+/// Runs `pipeline` with `buffers` bound in order at group 0 over `threads` invocations
+/// (workgroups of 64; at most 65535 × 64 invocations), then reads back the buffers listed in `read` (indices into `buffers`).
+pub fn dispatch(
+    gpu: &Gpu,
+    pipeline: &wgpu::ComputePipeline,
+    buffers: &[&wgpu::Buffer],
+    threads: u32,
+    read: &[usize],
+) -> Result<Vec<Vec<u8>>, GpuError> {
+    let groups = threads.div_ceil(64).max(1);
+    if groups > 65535 {
+        return Err(GpuError::Unsupported(format!("{threads} invocations exceed one dispatch (65535 × 64)")));
+    }
+    let entries: Vec<wgpu::BindGroupEntry> = buffers
+        .iter()
+        .enumerate()
+        .map(|(i, b)| wgpu::BindGroupEntry { binding: i as u32, resource: b.as_entire_binding() })
+        .collect();
+    let bind = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: None,
+        layout: &pipeline.get_bind_group_layout(0),
+        entries: &entries,
+    });
+    let staging: Vec<wgpu::Buffer> = read
+        .iter()
+        .map(|&i| {
+            gpu.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("read-back"),
+                size: buffers[i].size(),
+                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            })
+        })
+        .collect();
+    let mut encoder = gpu.device.create_command_encoder(&Default::default());
+    {
+        let mut pass = encoder.begin_compute_pass(&Default::default());
+        pass.set_pipeline(pipeline);
+        pass.set_bind_group(0, &bind, &[]);
+        pass.dispatch_workgroups(groups, 1, 1);
+    }
+    for (&i, s) in read.iter().zip(&staging) {
+        encoder.copy_buffer_to_buffer(buffers[i], 0, s, 0, s.size());
+    }
+    gpu.queue.submit([encoder.finish()]);
+    staging.iter().map(|s| map_read(gpu, s)).collect()
+}
+
+fn map_read(gpu: &Gpu, buffer: &wgpu::Buffer) -> Result<Vec<u8>, GpuError> {
+    let slice = buffer.slice(..);
+    let (tx, rx) = std::sync::mpsc::channel();
+    slice.map_async(wgpu::MapMode::Read, move |r| {
+        let _ = tx.send(r);
+    });
+    gpu.device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| GpuError::Readback(e.to_string()))?;
+    rx.recv().map_err(|e| GpuError::Readback(e.to_string()))?.map_err(|e| GpuError::Readback(e.to_string()))?;
+    let bytes = slice.get_mapped_range().map_err(|e| GpuError::Readback(e.to_string()))?.to_vec();
+    buffer.unmap();
+    Ok(bytes)
+}

@@ -1,0 +1,98 @@
+//! GPU shading (WGSL compute on wgpu; lavapipe in CI) against the CPU path: per vertex within
+//! 1e-3 relative plus 1e-5 absolute (in radiance units of each scene), as the editor issue asks.
+//! No skipping: a machine without a device fails here with the device error.
+
+use glam::{Quat, Vec3};
+use kage_engine::bspvt;
+use kage_engine::prt::{self, Method, ShadowCache, lighting::Window};
+use kage_engine::scene::{EnvMap, EnvironmentLight, Scene, default_scene, flatten, import::import};
+use kage_gpu::{Gpu, Shaders, bspvt as gpu_bspvt, prt as gpu_prt};
+use kage_tests::asset;
+
+/// Largest `|g − c| / (1e-3 |c| + 1e-5)` over vertices and channels (≤ 1 passes).
+fn worst(gpu: &[Vec<Vec3>], cpu: &[Vec<Vec3>]) -> f32 {
+    assert_eq!(gpu.len(), cpu.len());
+    gpu.iter()
+        .flatten()
+        .zip(cpu.iter().flatten())
+        .flat_map(|(g, c)| (0..3).map(move |k| (g[k] - c[k]).abs() / (1e-3 * c[k].abs() + 1e-5)))
+        .fold(0.0, f32::max)
+}
+
+fn device() -> Gpu {
+    Gpu::new().unwrap_or_else(|e| panic!("GPU tests need a device (CI installs lavapipe): {e}"))
+}
+
+fn bspvt_agrees(scene: &Scene, eye: Vec3) {
+    let gpu = device();
+    let flat = flatten(scene);
+    let s = bspvt::Settings { res: 32, epsilon: 2.0 };
+    let bake = bspvt::bake(scene, &flat, &s, &|_| {});
+    let shader = gpu_bspvt::BspvtShader::new(&gpu, &Shaders::embedded(), Some(&bake)).unwrap();
+    for (mode, method) in
+        [(gpu_bspvt::Mode::Trees, bspvt::Method::Bspvt), (gpu_bspvt::Mode::Unshadowed, bspvt::Method::Unshadowed)]
+    {
+        let cpu = bspvt::shade_vertices(scene, &flat, method, Some(&bake), &s, eye);
+        let on_gpu = gpu_bspvt::shade_vertices(&gpu, &shader, scene, &flat, mode, eye).unwrap();
+        let w = worst(&on_gpu, &cpu);
+        let lit = cpu.iter().flatten().filter(|c| c.max_element() > 0.0).count();
+        assert!(lit > 100, "{}: the test must shade lit vertices ({lit})", scene.source);
+        assert!(w <= 1.0, "{} {mode:?}: worst error {w} × tolerance on {}", scene.source, gpu.describe());
+    }
+}
+
+#[test]
+fn bspvt_on_the_gpu_matches_the_cpu_on_the_default_scene() {
+    bspvt_agrees(&default_scene(), Vec3::new(0.0, 3.0, 6.0));
+}
+
+#[test]
+fn bspvt_on_the_gpu_matches_the_cpu_on_the_glossy_teapot() {
+    let scene = import(&asset("scenes/teapot_quad_light.gltf"), Default::default()).unwrap();
+    let eye = scene.first_camera().map_or(Vec3::new(0.0, 3.0, 6.0), |c| c.eye());
+    bspvt_agrees(&scene, eye);
+}
+
+#[test]
+fn prt_with_moving_groups_on_the_gpu_matches_the_cpu() {
+    let gpu = device();
+    let mut scene = import(&asset("scenes/bunny_two_groups.gltf"), Default::default()).unwrap();
+    scene.set_environment(EnvironmentLight::new(EnvMap::load(&asset("envmaps/studio.hdr")).unwrap()));
+    let s = prt::Settings { order: 6, regions: 16, window: Window::None, ..prt::Settings::default() };
+    let flat = flatten(&scene);
+    let bake = prt::bake(&scene, &flat, &s, &|_| {});
+    let light = prt::Lighting::new(&scene, &s).expect("the scene has an environment");
+    let shader = gpu_prt::PrtShader::new(&gpu, &Shaders::embedded(), &bake, s.order).unwrap();
+    let eye = Vec3::new(0.0, 4.0, 6.0);
+    let compare = |scene: &Scene| {
+        let flat = flatten(scene);
+        let cpu =
+            prt::Frame::prepare(scene, &flat, &bake, &light, Method::WithOthers, &s, eye).vertex_values(scene, &flat);
+        let posed =
+            prt::Posed::new(scene, &flat, bake.order, &light, Method::WithOthers, &s, &mut ShadowCache::default());
+        assert!(posed.silhouettes.len() > 1, "the scene has several groups");
+        let on_gpu = gpu_prt::shade_vertices(&gpu, &shader, scene, &flat, &posed, eye).unwrap();
+        let w = worst(&on_gpu, &cpu);
+        assert!(w <= 1.0, "worst error {w} × tolerance on {}", gpu.describe());
+    };
+    compare(&scene);
+    // Move and turn one group: same bake, new poses, new shadows between the groups.
+    let group = scene.find_group("group_box_sphere").expect("the scene's second group");
+    scene.pose_group(group, Quat::from_rotation_y(0.7), Vec3::new(0.4, 0.0, -0.3));
+    compare(&scene);
+}
+
+#[test]
+fn a_light_with_too_many_corners_is_refused_not_truncated() {
+    let gpu = device();
+    let scene = default_scene();
+    let flat = flatten(&scene);
+    let shader = gpu_bspvt::BspvtShader::new(&gpu, &Shaders::embedded(), None).unwrap();
+    let mut lights = flat.lights.clone();
+    let l = &mut lights[0];
+    let c: Vec3 = l.points.iter().copied().sum::<Vec3>() / l.points.len() as f32;
+    l.points = (0..12).map(|k| c + Quat::from_axis_angle(l.normal, k as f32 * 0.5236) * (l.points[0] - c)).collect();
+    let shaders = gpu_bspvt::point_shaders(&scene, &flat, Vec3::new(0.0, 3.0, 6.0));
+    let e = shader.shade(&gpu, &shaders, &lights, gpu_bspvt::Mode::Unshadowed).unwrap_err();
+    assert!(e.to_string().contains("12 corners"), "{e}");
+}
