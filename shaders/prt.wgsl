@@ -49,14 +49,15 @@ struct Silhouette {
 @group(0) @binding(5) var<storage, read> regions: array<Region>;
 // Per group and region.
 @group(0) @binding(6) var<storage, read> silhouettes: array<Silhouette>;
-@group(0) @binding(7) var<storage, read> sat: array<f32>;
-@group(0) @binding(8) var<storage, read> far: array<f32>;
-@group(0) @binding(9) var<storage, read_write> radiance: array<vec4<f32>>;
+// Every silhouette's summed-area table and far depths, at their bases (one buffer: eight
+// storage bindings is wgpu's default limit).
+@group(0) @binding(7) var<storage, read> tables: array<f32>;
+@group(0) @binding(8) var<storage, read_write> radiance: array<vec4<f32>>;
 
 fn sat_row(s: Silhouette, y: u32, x: u32, f: f32) -> f32 {
     let at = s.sat_base + y * (s.res + 1u) + x;
-    let l = sat[at];
-    return l + (sat[at + 1u] - l) * f;
+    let l = tables[at];
+    return l + (tables[at + 1u] - l) * f;
 }
 
 // ∫ of the coverage over the box [a, b] in texels (bilinear inside a texel: exact).
@@ -86,7 +87,7 @@ fn occlusion(s: Silhouette, p: vec3<f32>, width: f32) -> f32 {
         if (t.x < s.lo.x || t.y < s.lo.y || t.x >= s.hi.x || t.y >= s.hi.y) {
             return 0.0;
         }
-        let depth = far[s.far_base + u32(t.y) * s.res + u32(t.x)];
+        let depth = tables[s.far_base + u32(t.y) * s.res + u32(t.x)];
         return select(0.0, 1.0, depth > dot(p, s.w));
     }
     let half = max(0.5 * width * r * s.texels_per_unit, 0.5);

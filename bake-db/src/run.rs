@@ -8,14 +8,14 @@
 
 use crate::key::Key;
 use crate::plan::{Job, Kind, Occluder, Plan, decode_occluders, encode_occluders};
-use crate::store::{Info, Result, Store};
+use crate::store::{DbError, Info, Result, Store};
 use glam::Vec3;
 use kage_engine::accel::Occluders;
 use kage_engine::scene::{FlatScene, Scene};
 use kage_engine::{bspvt, prt};
 use rayon::prelude::*;
 use std::collections::HashMap;
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
@@ -77,6 +77,20 @@ pub fn run(
     plan: &Plan,
     progress: &(dyn Fn(usize) + Sync),
 ) -> Result<Outcome> {
+    run_cancellable(store, scene, flat, plan, progress, &AtomicBool::new(false))
+}
+
+/// [`run`] that stops starting jobs once `cancel` is set: the jobs in flight finish and are
+/// committed with the rest of their batch, then [`DbError::Cancelled`] is returned; the next
+/// run finds their results cached.
+pub fn run_cancellable(
+    store: &Store,
+    scene: &Scene,
+    flat: &FlatScene,
+    plan: &Plan,
+    progress: &(dyn Fn(usize) + Sync),
+    cancel: &AtomicBool,
+) -> Result<Outcome> {
     let start = Instant::now();
     let occluders = plan.bspvt.map(|_| bspvt::occluder_bvh(flat));
     let transfer = plan.prt.map(|s| prt::Baker::new(scene, flat, &s));
@@ -88,14 +102,25 @@ pub fn run(
     let mut stats = RunStats { cached: plan.jobs.len() - misses.len(), ..RunStats::default() };
     let written = std::thread::scope(|scope| -> Result<()> {
         let writer = scope.spawn(|| write_batches(store, rx));
-        misses.par_iter().try_for_each_with(tx, |tx, job| -> Result<()> {
+        let baking = misses.par_iter().try_for_each_with(tx, |tx, job| -> Result<()> {
+            if cancel.load(Ordering::Relaxed) {
+                return Err(DbError::Cancelled { done: 0 });
+            }
             let baked = ctx.bake(job)?;
             progress(done.fetch_add(job.vertices.len(), Ordering::Relaxed) + job.vertices.len());
             // A closed channel means the writer failed; its error is reported below.
             let _ = tx.send(baked);
             Ok(())
-        })?;
+        });
+        // The channel is closed either way: the writer commits what arrived before returning.
         let results = writer.join().expect("the writer thread does not panic")?;
+        if let Err(e) = baking {
+            let done = results.iter().map(|b| b.vertices).sum();
+            return Err(match e {
+                DbError::Cancelled { .. } => DbError::Cancelled { done },
+                e => e,
+            });
+        }
         for b in results {
             if b.warm {
                 stats.warm += 1

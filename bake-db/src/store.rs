@@ -48,6 +48,12 @@ pub enum DbError {
         /// Version this build reads.
         expected: u32,
     },
+    /// The run was cancelled; everything committed before stays in the database.
+    #[error("bake cancelled ({done} vertices committed)")]
+    Cancelled {
+        /// Vertices whose results reached the database.
+        done: usize,
+    },
     /// An I/O or storage failure while running.
     #[error("{path}: {detail}")]
     Storage {

@@ -179,3 +179,25 @@ fn check_finds_damaged_artefacts_and_gc_drops_unreferenced_ones() {
     let (again, ..) = bake(&store, &scene("move"));
     assert_eq!((again.cold, again.warm), (0, 0));
 }
+
+#[test]
+fn a_cancelled_run_keeps_what_it_committed_and_the_next_run_finishes_the_rest() {
+    use std::sync::atomic::{AtomicBool, Ordering};
+    let store = Store::open(&scratch("cancel")).unwrap();
+    let s = scene("");
+    let flat = flatten(&s);
+    let p = plan(&store, &s, &flat, Some(BSPVT), Some(prt_settings())).unwrap();
+    let cancel = AtomicBool::new(false);
+    // Cancel once the first chunk reports: later jobs are never started.
+    let e = kage_bake_db::run_cancellable(&store, &s, &flat, &p, &|_| cancel.store(true, Ordering::Relaxed), &cancel)
+        .err()
+        .expect("the run was cancelled");
+    let DbError::Cancelled { done } = e else { panic!("{e}") };
+    let total: usize = p.misses().map(|j| j.vertices.len()).sum();
+    assert!(done > 0 && done < total, "committed {done} of {total} vertices");
+    let again = plan(&store, &s, &flat, Some(BSPVT), Some(prt_settings())).unwrap();
+    let left: usize = again.misses().map(|j| j.vertices.len()).sum();
+    assert_eq!(left, total - done, "what was committed is cached");
+    let out = run(&store, &s, &flat, &again, &|_| {}).unwrap();
+    assert_eq!(out.bspvt.unwrap().instances, bspvt::bake(&s, &flat, &BSPVT, &|_| {}).instances);
+}

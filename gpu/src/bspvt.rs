@@ -74,10 +74,17 @@ impl BspvtShader {
         }
         bytes.resize(bytes.len().next_multiple_of(4).max(4), 0);
         Ok(Self {
-            pipeline: pipeline(gpu, "bspvt", &module),
+            pipeline: pipeline(gpu, "bspvt", &module)?,
             records: storage(gpu, "bspvt records", &bytes),
             starts: storage(gpu, "bspvt record starts", &starts),
         })
+    }
+
+    /// Rebuilds the pipeline from `shaders` (hot reload); on error the previous one stays.
+    pub fn reload(&mut self, gpu: &Gpu, shaders: &Shaders) -> Result<(), GpuError> {
+        let module = shaders.module(&gpu.device, "bspvt.wgsl")?;
+        self.pipeline = pipeline(gpu, "bspvt", &module)?;
+        Ok(())
     }
 
     /// Outgoing radiance at every vertex (`shaders`: the CPU's per-vertex LTC setup, in the

@@ -29,15 +29,28 @@ pub fn uniform<T: bytemuck::Pod>(gpu: &Gpu, label: &str, value: &T) -> wgpu::Buf
     })
 }
 
+/// Runs `f` inside a validation error scope: what the device rejects becomes an error naming
+/// `what` instead of wgpu's default panic.
+pub fn checked<T>(gpu: &Gpu, what: &str, f: impl FnOnce() -> T) -> Result<T, GpuError> {
+    let scope = gpu.device.push_error_scope(wgpu::ErrorFilter::Validation);
+    let value = f();
+    match pollster::block_on(scope.pop()) {
+        None => Ok(value),
+        Some(e) => Err(GpuError::Unsupported(format!("{what}: {e}"))),
+    }
+}
+
 /// A compute pipeline over shader module `module`'s `main`, with an automatic layout.
-pub fn pipeline(gpu: &Gpu, label: &str, module: &wgpu::ShaderModule) -> wgpu::ComputePipeline {
-    gpu.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-        label: Some(label),
-        layout: None,
-        module,
-        entry_point: Some("main"),
-        compilation_options: Default::default(),
-        cache: None,
+pub fn pipeline(gpu: &Gpu, label: &str, module: &wgpu::ShaderModule) -> Result<wgpu::ComputePipeline, GpuError> {
+    checked(gpu, label, || {
+        gpu.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some(label),
+            layout: None,
+            module,
+            entry_point: Some("main"),
+            compilation_options: Default::default(),
+            cache: None,
+        })
     })
 }
 
@@ -59,11 +72,14 @@ pub fn dispatch(
         .enumerate()
         .map(|(i, b)| wgpu::BindGroupEntry { binding: i as u32, resource: b.as_entire_binding() })
         .collect();
-    let bind = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
-        label: None,
-        layout: &pipeline.get_bind_group_layout(0),
-        entries: &entries,
-    });
+    // A shader edited to bind other buffers than the host provides fails here, not in a panic.
+    let bind = checked(gpu, "binding the shader's buffers", || {
+        gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: None,
+            layout: &pipeline.get_bind_group_layout(0),
+            entries: &entries,
+        })
+    })?;
     let staging: Vec<wgpu::Buffer> = read
         .iter()
         .map(|&i| {

@@ -3,6 +3,7 @@
 use crate::GpuError;
 
 /// A device and its queue.
+#[derive(Clone)]
 pub struct Gpu {
     /// The device.
     pub device: wgpu::Device,
@@ -22,7 +23,13 @@ impl Gpu {
         Self::from_adapter(&adapter)
     }
 
-    /// A device on `adapter` (shared with an eframe window in the editor).
+    /// Shares a device created elsewhere (the editor's window); the shaders need no more than
+    /// wgpu's default limits.
+    pub fn from_parts(device: wgpu::Device, queue: wgpu::Queue, info: wgpu::AdapterInfo) -> Self {
+        Self { device, queue, info }
+    }
+
+    /// A device on `adapter`.
     pub fn from_adapter(adapter: &wgpu::Adapter) -> Result<Self, GpuError> {
         let (device, queue) = pollster::block_on(adapter.request_device(&Self::descriptor(adapter)))
             .map_err(|e| GpuError::NoDevice(e.to_string()))?;
@@ -35,7 +42,6 @@ impl Gpu {
         let limits = wgpu::Limits {
             max_storage_buffer_binding_size: have.max_storage_buffer_binding_size,
             max_buffer_size: have.max_buffer_size,
-            max_storage_buffers_per_shader_stage: have.max_storage_buffers_per_shader_stage.min(16),
             ..wgpu::Limits::default()
         };
         wgpu::DeviceDescriptor { label: Some("kage"), required_limits: limits, ..Default::default() }

@@ -59,12 +59,19 @@ impl PrtShader {
         let n = sh::num_coeffs(bake.order);
         let sizes: Vec<usize> = bake.instances.iter().map(|t| t.len() / n).collect();
         Ok(Self {
-            pipeline: pipeline(gpu, "prt", &module),
+            pipeline: pipeline(gpu, "prt", &module)?,
             transfer: storage(gpu, "prt transfer", &transfer),
             order: bake.order,
             vertices: sizes.iter().sum(),
             sizes,
         })
+    }
+
+    /// Rebuilds the pipeline from `shaders` (hot reload); on error the previous one stays.
+    pub fn reload(&mut self, gpu: &Gpu, shaders: &Shaders) -> Result<(), GpuError> {
+        let module = shaders.module(&gpu.device, "prt.wgsl")?;
+        self.pipeline = pipeline(gpu, "prt", &module)?;
+        Ok(())
     }
 
     /// Radiance at every vertex (instance order) for lighting `posed` (at this shader's order),
@@ -95,7 +102,7 @@ impl PrtShader {
             .zip(&posed.widths)
             .map(|(r, w)| [r.power.x as f32, r.power.y as f32, r.power.z as f32, *w])
             .collect();
-        let (silhouettes, sat, far) = silhouettes(posed);
+        let (silhouettes, tables) = silhouettes(posed);
         let params = Params {
             vertex_count: vertices.len() as u32,
             coeffs: sh::num_coeffs(self.order) as u32,
@@ -111,19 +118,19 @@ impl PrtShader {
             &storage(gpu, "prt region basis", &basis),
             &storage(gpu, "prt regions", &regions),
             &storage(gpu, "prt silhouettes", &silhouettes),
-            &storage(gpu, "prt sat", &sat),
-            &storage(gpu, "prt far", &far),
+            &storage(gpu, "prt tables", &tables),
             &out,
         ];
-        let read = dispatch(gpu, &self.pipeline, &buffers, params.vertex_count, &[9])?;
+        let read = dispatch(gpu, &self.pipeline, &buffers, params.vertex_count, &[8])?;
         let values: &[[f32; 4]] = &bytemuck::cast_slice::<u8, [f32; 4]>(&read[0])[..vertices.len()];
         Ok(values.iter().map(|v| Vec3::new(v[0], v[1], v[2])).collect())
     }
 }
 
-/// Every (group, region) silhouette's parameters, with the tables concatenated.
-fn silhouettes(posed: &Posed) -> (Vec<GpuSilhouette>, Vec<f32>, Vec<f32>) {
-    let (mut params, mut sat, mut far) = (Vec::new(), Vec::new(), Vec::new());
+/// Every (group, region) silhouette's parameters, with their tables (summed areas, then far
+/// depths) concatenated.
+fn silhouettes(posed: &Posed) -> (Vec<GpuSilhouette>, Vec<f32>) {
+    let (mut params, mut tables) = (Vec::new(), Vec::new());
     for s in posed.silhouettes.iter().flat_map(|g| g.iter()) {
         let p = s.params();
         params.push(GpuSilhouette {
@@ -136,13 +143,13 @@ fn silhouettes(posed: &Posed) -> (Vec<GpuSilhouette>, Vec<f32>, Vec<f32>) {
             offset: p.offset.to_array(),
             lo: p.covered.0.to_array(),
             hi: p.covered.1.to_array(),
-            sat_base: sat.len() as u32,
-            far_base: far.len() as u32,
+            sat_base: tables.len() as u32,
+            far_base: (tables.len() + s.sat().len()) as u32,
         });
-        sat.extend_from_slice(s.sat());
-        far.extend_from_slice(s.far());
+        tables.extend_from_slice(s.sat());
+        tables.extend_from_slice(s.far());
     }
-    (params, sat, far)
+    (params, tables)
 }
 
 /// Per instance and vertex, the GPU counterpart of `kage_engine::prt::Frame::vertex_values`.

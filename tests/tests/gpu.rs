@@ -91,7 +91,9 @@ fn a_light_with_too_many_corners_is_refused_not_truncated() {
     let mut lights = flat.lights.clone();
     let l = &mut lights[0];
     let c: Vec3 = l.points.iter().copied().sum::<Vec3>() / l.points.len() as f32;
-    l.points = (0..12).map(|k| c + Quat::from_axis_angle(l.normal, k as f32 * std::f32::consts::FRAC_PI_6) * (l.points[0] - c)).collect();
+    l.points = (0..12)
+        .map(|k| c + Quat::from_axis_angle(l.normal, k as f32 * std::f32::consts::FRAC_PI_6) * (l.points[0] - c))
+        .collect();
     let shaders = gpu_bspvt::point_shaders(&scene, &flat, Vec3::new(0.0, 3.0, 6.0));
     let e = shader.shade(&gpu, &shaders, &lights, gpu_bspvt::Mode::Unshadowed).unwrap_err();
     assert!(e.to_string().contains("12 corners"), "{e}");

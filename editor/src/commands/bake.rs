@@ -17,9 +17,9 @@ use std::time::Instant;
 #[derive(clap::Args, Debug)]
 pub struct Args {
     #[command(flatten)]
-    pub scene: SceneArgs,
+    pub(crate) scene: SceneArgs,
     #[command(flatten)]
-    pub db: DbArgs,
+    pub(crate) db: DbArgs,
     /// Print the plan and stop.
     #[arg(long)]
     pub dry_run: bool,
@@ -27,7 +27,7 @@ pub struct Args {
     #[arg(long)]
     pub watch: bool,
     #[command(flatten)]
-    pub options: BakeOptions,
+    pub(crate) options: BakeOptions,
 }
 
 /// Bake parameters shared by `bake` and `export`.
@@ -43,7 +43,7 @@ pub struct BakeOptions {
     #[arg(long)]
     pub error_budget: Option<f64>,
     #[command(flatten)]
-    pub prt: PrtArgs,
+    pub(crate) prt: PrtArgs,
 }
 
 impl BakeOptions {

@@ -84,9 +84,60 @@ impl Scene {
         propagate_transforms(&mut self.world);
     }
 
+    /// An independent copy with the same entity ids (a snapshot for a background bake while the
+    /// original keeps being edited). Copies every component type the importer and builders
+    /// create; meshes and textures are shared.
+    pub fn duplicate(&self) -> Self {
+        let mut world = hecs::World::new();
+        for e in self.world.iter() {
+            let mut b = hecs::EntityBuilder::new();
+            copy::<Name>(&e, &mut b);
+            copy::<NodeId>(&e, &mut b);
+            copy::<Transform>(&e, &mut b);
+            copy::<RigidGroup>(&e, &mut b);
+            copy::<InGroup>(&e, &mut b);
+            copy::<PrimitiveId>(&e, &mut b);
+            copy::<MeshRef>(&e, &mut b);
+            copy::<Material>(&e, &mut b);
+            copy::<PolygonLight>(&e, &mut b);
+            copy::<Camera>(&e, &mut b);
+            copy::<EnvironmentLight>(&e, &mut b);
+            world.spawn_at(e.entity(), b.build());
+        }
+        Self {
+            world,
+            meshes: self.meshes.clone(),
+            textures: self.textures.clone(),
+            source: self.source.clone(),
+            warnings: self.warnings.clone(),
+        }
+    }
+
     /// Sets the environment (see [`Scene::set_environment`]) and returns `self`, for chaining.
     pub fn with_environment(mut self, env: EnvironmentLight) -> Self {
         self.set_environment(env);
         self
+    }
+}
+
+fn copy<T: hecs::Component + Clone>(e: &hecs::EntityRef, b: &mut hecs::EntityBuilder) {
+    if let Some(c) = e.get::<&T>() {
+        b.add((*c).clone());
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::scene::{default_scene, flatten};
+
+    #[test]
+    fn a_duplicate_flattens_to_the_same_snapshot() {
+        let scene = default_scene();
+        let copy = scene.duplicate();
+        let (a, b) = (flatten(&scene), flatten(&copy));
+        assert_eq!(a.triangles, b.triangles);
+        assert_eq!(a.instances.len(), b.instances.len());
+        assert_eq!(a.lights.len(), b.lights.len());
+        assert_eq!(scene.world.len(), copy.world.len());
     }
 }

@@ -1,0 +1,67 @@
+//! `File` menu actions: save the edited scene and export an asset pack, both as glTF binary
+//! through the pack writer (so poses, materials, lights and cameras round-trip through
+//! `kage_bake_db::pack::read`).
+
+use super::state::Editor;
+use kage_bake_db::pack::{self, Export};
+use std::path::PathBuf;
+
+/// `SCENE_DIR/<stem><suffix>`, or `kage-default<suffix>` in the working folder.
+fn beside_scene(ed: &Editor, suffix: &str) -> PathBuf {
+    match &ed.options.scene_path {
+        Some(p) => {
+            let stem = p.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "scene".into());
+            p.with_file_name(format!("{stem}{suffix}"))
+        }
+        None => PathBuf::from(format!("kage-default{suffix}")),
+    }
+}
+
+fn write(ed: &mut Editor, path: PathBuf, with_bakes: bool) -> String {
+    let zeros: Vec<Vec<glam::Vec3>>;
+    let radiance = if ed.radiance.len() == ed.flat.instances.len() {
+        &ed.radiance
+    } else {
+        zeros = ed
+            .flat
+            .instances
+            .iter()
+            .map(|i| vec![glam::Vec3::ZERO; ed.scene.meshes[i.mesh as usize].positions.len()])
+            .collect();
+        &zeros
+    };
+    let prt = match (&ed.bakes.prt, &ed.bakes.lighting) {
+        (Some(b), Some(l)) if with_bakes => Some((b, l, &ed.options.prt)),
+        _ => None,
+    };
+    let export = Export {
+        scene: &ed.scene,
+        flat: &ed.flat,
+        bspvt: ed.bakes.bspvt.as_ref().filter(|_| with_bakes && !ed.bakes.bspvt_stale),
+        prt,
+        radiance,
+        exposure: ed.exposure,
+    };
+    let message = match pack::write(&path, &export) {
+        Ok(()) => format!("wrote {}", path.display()),
+        Err(e) => format!("{}: {e}", path.display()),
+    };
+    if message.starts_with("wrote") {
+        ed.info(message.clone())
+    } else {
+        ed.error(message.clone())
+    }
+    message
+}
+
+/// Writes the edited scene (no bakes) beside the original as `<stem>.edited.glb`.
+pub fn save(ed: &mut Editor) -> String {
+    let path = beside_scene(ed, ".edited.glb");
+    write(ed, path, false)
+}
+
+/// Writes an asset pack with the current bakes as `<stem>.pack.glb`.
+pub fn export_pack(ed: &mut Editor) -> String {
+    let path = beside_scene(ed, ".pack.glb");
+    write(ed, path, true)
+}

@@ -1,0 +1,487 @@
+//! The editor's model: the scene (an ECS world), the view, the bakes and the shading results,
+//! with the edits the UI (and the tests) make. Nothing here draws; [`super::systems`] advances
+//! it once per frame.
+
+use super::bake_job::BakeJob;
+use super::camera::Orbit;
+use super::reload::Watcher;
+use super::worker::Worker;
+use glam::{Affine3A, Quat, Vec3};
+use kage_bake_db::Store;
+use kage_engine::scene::{
+    Camera, EnvironmentLight, FlatScene, InGroup, Material, Name, PolygonLight, PrimitiveId, RigidGroup, Scene,
+    Transform, flatten,
+};
+use kage_engine::{bspvt, prt};
+use kage_gpu::bspvt::BspvtShader;
+use kage_gpu::prt::PrtShader;
+use kage_gpu::{Gpu, Shaders};
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::time::Instant;
+
+/// The shading methods, as on the command line.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Method {
+    /// BSP visibility trees + LTC (GPU).
+    Bspvt,
+    /// LTC without shadows (GPU).
+    LtcUnshadowed,
+    /// LTC clipped per visible cube-map texel (CPU, in the background).
+    LtcExactVis,
+    /// PRT with shadows between groups (GPU).
+    Prt,
+    /// PRT self-shadowing only (GPU).
+    PrtSelf,
+    /// The reference integrator, refined progressively (CPU, in the background).
+    Reference,
+}
+
+impl Method {
+    /// Every method, in menu order.
+    pub const ALL: [Method; 6] =
+        [Method::Bspvt, Method::LtcUnshadowed, Method::LtcExactVis, Method::Prt, Method::PrtSelf, Method::Reference];
+
+    /// The CLI's name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::Bspvt => "bspvt",
+            Method::LtcUnshadowed => "ltc-unshadowed",
+            Method::LtcExactVis => "ltc-exact-vis",
+            Method::Prt => "prt",
+            Method::PrtSelf => "prt-self",
+            Method::Reference => "reference",
+        }
+    }
+
+    /// True for the polygonal-light methods (the environment is not theirs).
+    pub fn polygonal(self) -> bool {
+        matches!(self, Method::Bspvt | Method::LtcUnshadowed | Method::LtcExactVis)
+    }
+}
+
+/// What is selected in the outliner.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Selection {
+    /// Nothing.
+    None,
+    /// A rigid group (its entity).
+    Group(hecs::Entity),
+    /// A mesh instance (its entity).
+    Instance(hecs::Entity),
+    /// A polygonal light (its entity).
+    Light(hecs::Entity),
+    /// The environment.
+    Environment,
+}
+
+/// One line of the log.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LogLine {
+    /// Seconds since the editor started.
+    pub at: f64,
+    /// True for errors.
+    pub error: bool,
+    /// The message.
+    pub text: String,
+}
+
+/// Timings shown in the statistics panel.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Stats {
+    /// Seconds between the last two frames.
+    pub frame: f64,
+    /// Seconds of the last shading.
+    pub shading: f64,
+    /// Vertices per second of the last finished bake (per technique: BSPVT, PRT).
+    pub bake_rate: [f64; 2],
+    /// Seconds from the last edit to its shaded result.
+    pub edit_to_shade: f64,
+    /// Seconds from the last shader file change to its rebuilt pipeline.
+    pub shader_reload: f64,
+}
+
+/// What changed since the last frame.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Dirty {
+    /// Transforms must be propagated and the snapshot rebuilt.
+    pub pose: bool,
+    /// The shading must be redone (view, lights, materials, bakes, method).
+    pub shade: bool,
+    /// Occluder geometry changed: an incremental BSPVT re-bake is due.
+    pub geometry: bool,
+    /// The environment changed: PRT's lighting must be projected again.
+    pub environment: bool,
+    /// The viewport's meshes must be uploaded again.
+    pub meshes: bool,
+}
+
+/// The bakes the shading uses.
+#[derive(Default)]
+pub struct Bakes {
+    /// BSPVT trees (possibly of an earlier geometry while a re-bake runs).
+    pub bspvt: Option<bspvt::Bake>,
+    /// True while the trees predate the latest geometry edit.
+    pub bspvt_stale: bool,
+    /// PRT transfer.
+    pub prt: Option<prt::Bake>,
+    /// PRT's lighting for the current environment.
+    pub lighting: Option<prt::Lighting>,
+}
+
+/// Options `kage edit` starts with.
+#[derive(Clone, Debug)]
+pub struct Options {
+    /// The scene file (`None`: the built-in scene).
+    pub scene_path: Option<PathBuf>,
+    /// The environment map file, when given.
+    pub env_path: Option<PathBuf>,
+    /// Where WGSL is read from (`None`: the embedded shaders, no hot reload).
+    pub shader_dir: Option<PathBuf>,
+    /// The bake database.
+    pub db_path: PathBuf,
+    /// BSPVT parameters.
+    pub bspvt: bspvt::Settings,
+    /// PRT parameters.
+    pub prt: prt::Settings,
+    /// Start baking at once.
+    pub bake_on_start: bool,
+}
+
+/// The editor's state.
+pub struct Editor {
+    /// The scene being edited.
+    pub scene: Scene,
+    /// Its current snapshot.
+    pub flat: FlatScene,
+    /// How it was opened.
+    pub options: Options,
+    /// The displayed method.
+    pub method: Method,
+    /// The viewport camera.
+    pub orbit: Orbit,
+    /// The scene's own cameras.
+    pub cameras: Vec<Camera>,
+    /// The outliner's selection.
+    pub selection: Selection,
+    /// Per instance and vertex: the displayed radiance (or the error overlay's colours).
+    pub values: Vec<Vec<Vec3>>,
+    /// Per instance and vertex: the method's radiance (what the overlay compares).
+    pub radiance: Vec<Vec<Vec3>>,
+    /// Show the error against the progressive reference as a heat map.
+    pub overlay: bool,
+    /// Display exposure in stops.
+    pub exposure: f32,
+    /// Everything that happened, errors included.
+    pub log: Vec<LogLine>,
+    /// Timings.
+    pub stats: Stats,
+    /// The bake database.
+    pub store: Option<Arc<Store>>,
+    /// The bakes in use.
+    pub bakes: Bakes,
+    /// The running bake, if any.
+    pub job: Option<BakeJob>,
+    /// The last shader error (cleared by a good reload).
+    pub shader_error: Option<kage_gpu::ShaderError>,
+    /// Bumped whenever the viewport must rebuild its pipeline.
+    pub shader_generation: u64,
+    /// What changed since the last frame.
+    pub dirty: Dirty,
+    /// The progressive reference: running sums and passes.
+    pub reference: (Vec<Vec<Vec3>>, u32),
+    pub(super) gpu: Gpu,
+    pub(super) shaders: Shaders,
+    pub(super) bspvt_gpu: Option<BspvtShader>,
+    pub(super) prt_gpu: Option<PrtShader>,
+    pub(super) shadow_cache: prt::ShadowCache,
+    pub(super) watcher: Option<Watcher>,
+    pub(super) reference_worker: Option<Worker<Vec<Vec<Vec3>>>>,
+    pub(super) exact_worker: Option<Worker<Vec<Vec<Vec3>>>>,
+    pub(super) wake: Arc<dyn Fn() + Send + Sync>,
+    pub(super) started: Instant,
+    pub(super) edited_at: Option<Instant>,
+}
+
+impl Editor {
+    /// Opens `scene` on `gpu`; `wake` asks the UI for a repaint (from any thread).
+    pub fn new(scene: Scene, options: Options, gpu: Gpu, wake: Arc<dyn Fn() + Send + Sync>) -> Self {
+        let flat = flatten(&scene);
+        let cameras = cameras(&scene);
+        let orbit = initial_orbit(&flat, cameras.first());
+        let shaders = options.shader_dir.clone().map_or_else(Shaders::embedded, Shaders::from_dir);
+        let mut ed = Self {
+            scene,
+            flat,
+            method: Method::Bspvt,
+            orbit,
+            cameras,
+            selection: Selection::None,
+            values: Vec::new(),
+            radiance: Vec::new(),
+            overlay: false,
+            exposure: 0.0,
+            log: Vec::new(),
+            stats: Stats::default(),
+            store: None,
+            bakes: Bakes::default(),
+            job: None,
+            shader_error: None,
+            shader_generation: 0,
+            dirty: Dirty { shade: true, environment: true, meshes: true, ..Dirty::default() },
+            reference: (Vec::new(), 0),
+            gpu,
+            shaders,
+            bspvt_gpu: None,
+            prt_gpu: None,
+            shadow_cache: prt::ShadowCache::default(),
+            watcher: None,
+            reference_worker: None,
+            exact_worker: None,
+            wake,
+            started: Instant::now(),
+            edited_at: None,
+            options,
+        };
+        ed.info(format!("{}: GPU {}", ed.scene.source, ed.gpu.describe()));
+        ed.open_store();
+        ed.start_watching();
+        if ed.options.bake_on_start {
+            ed.dirty.geometry = true;
+        }
+        ed
+    }
+
+    fn open_store(&mut self) {
+        let path = self.options.db_path.clone();
+        if let Some(dir) = path.parent() {
+            let _ = std::fs::create_dir_all(dir);
+        }
+        match Store::open(&path) {
+            Ok(s) => self.store = Some(Arc::new(s)),
+            Err(e) => self.error(format!("bake database: {e}")),
+        }
+    }
+
+    fn start_watching(&mut self) {
+        let wake = self.wake.clone();
+        let o = &self.options;
+        if o.shader_dir.is_none() && o.scene_path.is_none() && o.env_path.is_none() {
+            return;
+        }
+        match Watcher::new(o.shader_dir.as_deref(), o.scene_path.as_deref(), o.env_path.as_deref(), move || wake()) {
+            Ok(w) => self.watcher = Some(w),
+            Err(e) => self.error(format!("{e:#}")),
+        }
+    }
+
+    /// Logs a message.
+    pub fn info(&mut self, text: String) {
+        self.log.push(LogLine { at: self.started.elapsed().as_secs_f64(), error: false, text });
+    }
+
+    /// Logs an error.
+    pub fn error(&mut self, text: String) {
+        self.log.push(LogLine { at: self.started.elapsed().as_secs_f64(), error: true, text });
+    }
+
+    /// The GPU the editor shades on.
+    pub fn gpu(&self) -> &Gpu {
+        &self.gpu
+    }
+
+    /// Where shaders come from.
+    pub fn shaders(&self) -> &Shaders {
+        &self.shaders
+    }
+
+    fn edited(&mut self) {
+        self.edited_at = Some(Instant::now());
+        self.dirty.shade = true;
+    }
+
+    /// Switches the displayed method.
+    pub fn set_method(&mut self, m: Method) {
+        if m != self.method {
+            self.method = m;
+            self.reference_worker = None;
+            self.exact_worker = None;
+            self.edited();
+        }
+    }
+
+    /// Turns the error overlay on or off.
+    pub fn set_overlay(&mut self, on: bool) {
+        if on != self.overlay {
+            self.overlay = on;
+            self.edited();
+        }
+    }
+
+    /// Moves the viewport camera (the view-dependent shading follows).
+    pub fn set_orbit(&mut self, orbit: Orbit) {
+        if orbit != self.orbit {
+            self.orbit = orbit;
+            self.restart_reference();
+            self.edited();
+        }
+    }
+
+    /// Looks through scene camera `k`.
+    pub fn use_camera(&mut self, k: usize) {
+        if let Some(c) = self.cameras.get(k) {
+            let distance = self.orbit.target.distance(self.orbit.eye()).max(1.0);
+            self.set_orbit(Orbit::from_camera(c, distance));
+        }
+    }
+
+    /// Moves a polygonal light by `offset` (world units) and turns it by `rotation` about its
+    /// centre: re-shaded at once, nothing re-baked (lights do not occlude).
+    pub fn move_light(&mut self, light: hecs::Entity, offset: Vec3, rotation: Quat) {
+        let pose = self.group_pose_of(light);
+        let Ok(mut member) = self.scene.world.get::<&mut InGroup>(light) else { return };
+        let centre = self.scene.world.get::<&PolygonLight>(light).map_or(Vec3::ZERO, |l| {
+            member.local.transform_point3(l.points.iter().copied().sum::<Vec3>() / l.points.len().max(1) as f32)
+        });
+        // In the group's frame: about the light's centre, then along the world offset.
+        let turn =
+            Affine3A::from_translation(centre) * Affine3A::from_quat(rotation) * Affine3A::from_translation(-centre);
+        let shift = Affine3A::from_translation(pose.inverse().transform_vector3(offset));
+        member.local = shift * turn * member.local;
+        drop(member);
+        self.dirty.pose = true;
+        self.restart_reference();
+        self.edited();
+    }
+
+    /// Scales a light's polygon about its centre by `factor` and sets its radiance.
+    pub fn set_light(&mut self, light: hecs::Entity, radiance: Vec3, factor: f32) {
+        if let Ok(mut l) = self.scene.world.get::<&mut PolygonLight>(light) {
+            let c = l.points.iter().copied().sum::<Vec3>() / l.points.len().max(1) as f32;
+            l.points.iter_mut().for_each(|p| *p = c + (*p - c) * factor);
+            l.radiance = radiance;
+        }
+        self.dirty.pose = true;
+        self.restart_reference();
+        self.edited();
+    }
+
+    /// Moves and turns a rigid group about its origin: PRT shading and the shadows between
+    /// groups update at once; BSPVT visibility is re-baked incrementally in the background.
+    pub fn move_group(&mut self, group: hecs::Entity, offset: Vec3, rotation: Quat) {
+        self.scene.pose_group(group, rotation, offset);
+        self.dirty.pose = true;
+        self.dirty.geometry = true;
+        self.dirty.meshes = true;
+        self.restart_reference();
+        self.edited();
+    }
+
+    /// Sets an instance's material (no re-bake: bakes exclude albedo).
+    pub fn set_material(&mut self, instance: hecs::Entity, m: Material) {
+        if let Ok(mut mat) = self.scene.world.get::<&mut Material>(instance) {
+            *mat = m;
+        }
+        self.dirty.pose = true;
+        self.restart_reference();
+        self.edited();
+    }
+
+    /// Sets the environment's intensity and rotation (radians about +Y).
+    pub fn set_environment(&mut self, intensity: f32, rotation: f32) {
+        for env in self.scene.world.query_mut::<&mut EnvironmentLight>() {
+            env.intensity = intensity;
+            env.rotation = rotation;
+        }
+        self.dirty.pose = true;
+        self.dirty.environment = true;
+        self.restart_reference();
+        self.edited();
+    }
+
+    /// Replaces an instance's mesh (a geometry edit: BSPVT and PRT re-bake what it affects).
+    pub fn replace_mesh(&mut self, instance: hecs::Entity, mesh: kage_engine::scene::Mesh) {
+        let index = self.scene.meshes.len() as u32;
+        let hash = mesh.hash;
+        self.scene.meshes.push(Arc::new(mesh));
+        if let Ok(mut r) = self.scene.world.get::<&mut kage_engine::scene::MeshRef>(instance) {
+            *r = kage_engine::scene::MeshRef { index, hash };
+        }
+        self.dirty.pose = true;
+        self.dirty.geometry = true;
+        self.dirty.meshes = true;
+        self.restart_reference();
+        self.edited();
+    }
+
+    /// Stops a running bake after its chunks in flight (finished batches stay in the database).
+    pub fn cancel_bake(&mut self) {
+        if let Some(job) = &self.job {
+            job.cancel();
+            self.info("bake: cancelling after the chunks in flight".into());
+        }
+    }
+
+    /// Re-plans and bakes what the current scene misses.
+    pub fn bake_now(&mut self) {
+        self.dirty.geometry = true;
+    }
+
+    /// The progressive reference restarts from zero (its scene or view changed).
+    pub(super) fn restart_reference(&mut self) {
+        self.reference_worker = None;
+        self.exact_worker = None;
+        self.reference = (Vec::new(), 0);
+    }
+
+    fn group_pose_of(&self, member: hecs::Entity) -> Affine3A {
+        let group = self.scene.world.get::<&InGroup>(member).map(|g| g.group).ok();
+        group.and_then(|g| self.scene.world.get::<&Transform>(g).ok().map(|t| t.world)).unwrap_or_default()
+    }
+
+    /// The outliner's rows: (entity, label, kind) for groups, their instances and lights.
+    pub fn outline(&self) -> Vec<(Selection, String, usize)> {
+        let name = |e: hecs::Entity| self.scene.world.get::<&Name>(e).map(|n| n.0.clone()).unwrap_or_default();
+        let mut groups: Vec<(u32, hecs::Entity)> =
+            self.scene.world.query::<(hecs::Entity, &RigidGroup)>().iter().map(|(e, g)| (g.index, e)).collect();
+        groups.sort();
+        let mut rows = Vec::new();
+        for (index, g) in groups {
+            rows.push((Selection::Group(g), format!("group {index}: {}", name(g)), 0));
+            let mut members: Vec<(u32, Selection, String)> = Vec::new();
+            for (e, member, id) in self.scene.world.query::<(hecs::Entity, &InGroup, &PrimitiveId)>().iter() {
+                if member.group == g {
+                    members.push((id.node, Selection::Instance(e), format!("mesh {}: {}", id.mesh, name(e))));
+                }
+            }
+            for (e, member, _) in self.scene.world.query::<(hecs::Entity, &InGroup, &PolygonLight)>().iter() {
+                if member.group == g {
+                    members.push((u32::MAX, Selection::Light(e), format!("light {}", name(g))));
+                }
+            }
+            members.sort_by_key(|m| m.0);
+            rows.extend(members.into_iter().map(|(_, s, l)| (s, l, 1)));
+        }
+        if self.flat.environment.is_some() {
+            rows.push((Selection::Environment, "environment".into(), 0));
+        }
+        rows
+    }
+}
+
+fn cameras(scene: &Scene) -> Vec<Camera> {
+    let mut cams: Vec<(u32, Camera)> =
+        scene.world.query::<(&Camera, &kage_engine::scene::NodeId)>().iter().map(|(c, n)| (n.0, c.clone())).collect();
+    cams.sort_by_key(|(n, _)| *n);
+    cams.into_iter().map(|(_, c)| c).collect()
+}
+
+/// The first scene camera, or a view of the whole scene from the front and above.
+fn initial_orbit(flat: &FlatScene, camera: Option<&Camera>) -> Orbit {
+    let (lo, hi) = flat.triangles.iter().flatten().fold((Vec3::MAX, Vec3::MIN), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
+    let (centre, radius) = if lo.x <= hi.x { (0.5 * (lo + hi), 0.5 * (hi - lo).length()) } else { (Vec3::ZERO, 1.0) };
+    match camera {
+        Some(c) => Orbit::from_camera(c, c.eye().distance(centre).max(1e-3)),
+        None => Orbit { target: centre, distance: 2.5 * radius.max(1e-3), yaw: 0.0, pitch: 0.45, yfov: 0.8 },
+    }
+}

@@ -1,0 +1,378 @@
+//! The editor's schedule: plain functions over the editor state and its ECS world, run in a
+//! fixed order once per frame ([`run_frame`]). Nothing here blocks on a bake or a reference
+//! pass: those run on rayon in the background and land here when done.
+
+use super::bake_job::{BakeJob, Landed};
+use super::reload::Change;
+use super::state::{Editor, Method};
+use super::worker::Worker;
+use glam::Vec3;
+use kage_bake_db::DbError;
+use kage_engine::reference::{Renderer, Settings};
+use kage_engine::scene::{EnvMap, EnvironmentLight, flatten, import};
+use kage_engine::{bspvt, prt};
+use kage_gpu::bspvt::{BspvtShader, Mode};
+use kage_gpu::prt::PrtShader;
+use std::sync::atomic::Ordering;
+use std::time::Instant;
+
+/// Samples per vertex of one progressive reference pass.
+const REFERENCE_SPP: u32 = 4;
+/// Passes after which the reference stops refining (REFERENCE_SPP × this samples).
+const REFERENCE_PASSES: u32 = 256;
+
+/// Runs every system once, in dependency order.
+pub fn run_frame(ed: &mut Editor) {
+    reload_system(ed);
+    pose_system(ed);
+    environment_system(ed);
+    bake_system(ed);
+    reference_system(ed);
+    shade_system(ed);
+}
+
+/// Hot reload: rebuilds pipelines after a shader save (keeping the last good ones when the new
+/// source does not compile) and re-imports the scene or environment after theirs.
+pub fn reload_system(ed: &mut Editor) {
+    let Some(watcher) = &ed.watcher else { return };
+    let (changes, errors) = watcher.changes();
+    errors.into_iter().for_each(|e| ed.error(e));
+    for change in changes {
+        match change {
+            Change::Shader(name) => reload_shader(ed, &name),
+            Change::Scene => reimport_scene(ed),
+            Change::Environment => reload_environment(ed),
+        }
+    }
+}
+
+fn reload_shader(ed: &mut Editor, name: &str) {
+    let start = Instant::now();
+    let checked = ed.shaders.source(name).and_then(|(label, text)| kage_gpu::shader::validate(&label, &text));
+    if let Err(e) = checked {
+        ed.error(format!("shader {}: keeping the last good pipeline\n{}", e.file, e.report));
+        ed.shader_error = Some(e);
+        return;
+    }
+    let gpu = ed.gpu.clone();
+    let result = match name {
+        "bspvt.wgsl" => ed.bspvt_gpu.as_mut().map(|s| s.reload(&gpu, &ed.shaders)),
+        "prt.wgsl" => ed.prt_gpu.as_mut().map(|s| s.reload(&gpu, &ed.shaders)),
+        _ => None,
+    };
+    if let Some(Err(e)) = result {
+        ed.error(format!("{name}: {e}; keeping the last good pipeline"));
+        return;
+    }
+    ed.shader_error = None;
+    ed.shader_generation += 1;
+    ed.stats.shader_reload = start.elapsed().as_secs_f64();
+    ed.info(format!("{name}: reloaded in {:.1} ms", 1e3 * ed.stats.shader_reload));
+    ed.dirty.shade = true;
+}
+
+fn reimport_scene(ed: &mut Editor) {
+    let Some(path) = ed.options.scene_path.clone() else { return };
+    match import::import(&path, Default::default()) {
+        Ok(mut scene) => {
+            if let Some(env) = ed.scene.world.query::<&EnvironmentLight>().iter().next().cloned() {
+                scene.set_environment(env);
+            }
+            ed.scene = scene;
+            ed.selection = super::state::Selection::None;
+            ed.dirty.pose = true;
+            ed.dirty.geometry = true;
+            ed.dirty.meshes = true;
+            ed.dirty.environment = true;
+            ed.restart_reference();
+            ed.info(format!("{}: re-imported", path.display()));
+        }
+        Err(e) => ed.error(format!("{}: {e} (keeping the previous scene)", path.display())),
+    }
+}
+
+fn reload_environment(ed: &mut Editor) {
+    let Some(path) = ed.options.env_path.clone() else { return };
+    match EnvMap::load(&path) {
+        Ok(map) => {
+            ed.scene.set_environment(EnvironmentLight::new(map));
+            ed.dirty.pose = true;
+            ed.dirty.environment = true;
+            ed.restart_reference();
+            ed.info(format!("{}: re-loaded", path.display()));
+        }
+        Err(e) => ed.error(format!("{}: {e} (keeping the previous environment)", path.display())),
+    }
+}
+
+/// Propagates group poses to their members and rebuilds the snapshot.
+pub fn pose_system(ed: &mut Editor) {
+    if ed.dirty.pose {
+        ed.scene.update_transforms();
+        ed.flat = flatten(&ed.scene);
+        ed.dirty.pose = false;
+        ed.dirty.shade = true;
+    }
+}
+
+/// Projects the environment for PRT again after it changed.
+pub fn environment_system(ed: &mut Editor) {
+    if ed.dirty.environment {
+        ed.bakes.lighting = prt::Lighting::new(&ed.scene, &ed.options.prt);
+        ed.dirty.environment = false;
+        ed.dirty.shade = true;
+    }
+}
+
+/// Starts (or restarts) the background bake after geometry edits and takes in what landed.
+pub fn bake_system(ed: &mut Editor) {
+    if ed.dirty.geometry {
+        ed.dirty.geometry = false;
+        start_bake(ed);
+    }
+    let Some(job) = &mut ed.job else { return };
+    let landed = job.landed();
+    let running = job.running();
+    for l in landed {
+        take(ed, l);
+    }
+    if !running {
+        ed.job = None;
+    }
+}
+
+fn start_bake(ed: &mut Editor) {
+    let Some(store) = ed.store.clone() else { return };
+    if let Some(old) = ed.job.take() {
+        old.cancel();
+    }
+    let wake = ed.wake.clone();
+    match BakeJob::start(store, &ed.scene, Some(ed.options.bspvt), Some(ed.options.prt), move || wake()) {
+        Ok(job) => {
+            let line = |name: &str, t: &Option<super::bake_job::Track>| {
+                t.as_ref().map(|t| format!("{name}: {} chunks cached, {} vertices to bake", t.cached, t.total))
+            };
+            let text = [line("BSPVT", &job.bspvt), line("PRT", &job.prt)].into_iter().flatten().collect::<Vec<_>>();
+            ed.bakes.bspvt_stale = ed.bakes.bspvt.is_some() && job.bspvt.as_ref().is_some_and(|t| t.total > 0);
+            ed.info(format!("bake plan: {}", text.join("; ")));
+            ed.job = Some(job);
+        }
+        Err(e) => ed.error(format!("bake: {e}")),
+    }
+}
+
+fn take(ed: &mut Editor, landed: Landed) {
+    let gpu = ed.gpu.clone();
+    match landed {
+        Landed::Bspvt(Ok((bake, stats))) => {
+            ed.stats.bake_rate[0] = stats.vertices_baked as f64 / stats.seconds.max(1e-9);
+            ed.info(format!(
+                "BSPVT: {} cached, {} cold, {} warm chunks ({} vertices) in {:.2} s",
+                stats.cached, stats.cold, stats.warm, stats.vertices_baked, stats.seconds
+            ));
+            match BspvtShader::new(&gpu, &ed.shaders, Some(&bake)) {
+                Ok(s) => ed.bspvt_gpu = Some(s),
+                Err(e) => ed.error(format!("BSPVT on the GPU: {e} (shading on the CPU)")),
+            }
+            ed.bakes.bspvt = Some(bake);
+            ed.bakes.bspvt_stale = false;
+        }
+        Landed::Prt(Ok((bake, stats))) => {
+            ed.stats.bake_rate[1] = stats.vertices_baked as f64 / stats.seconds.max(1e-9);
+            ed.info(format!("PRT: {} cached, {} cold chunks in {:.2} s", stats.cached, stats.cold, stats.seconds));
+            match PrtShader::new(&gpu, &ed.shaders, &bake, bake.order) {
+                Ok(s) => ed.prt_gpu = Some(s),
+                Err(e) => ed.error(format!("PRT on the GPU: {e}")),
+            }
+            ed.bakes.prt = Some(bake);
+        }
+        Landed::Bspvt(Err(DbError::Cancelled { done })) | Landed::Prt(Err(DbError::Cancelled { done })) => {
+            ed.info(format!("bake cancelled; {done} vertices committed stay in the database"))
+        }
+        Landed::Bspvt(Err(e)) | Landed::Prt(Err(e)) => ed.error(format!("bake: {e}")),
+    }
+    ed.dirty.shade = true;
+}
+
+/// Refines the reference progressively while it is shown or compared against.
+pub fn reference_system(ed: &mut Editor) {
+    if ed.method != Method::Reference && !ed.overlay {
+        ed.reference_worker = None;
+        return;
+    }
+    if ed.reference_worker.is_none() && ed.reference.1 < REFERENCE_PASSES {
+        ed.reference_worker = Some(spawn_reference(ed));
+    }
+    let passes = ed.reference_worker.as_ref().map(|w| w.results()).unwrap_or_default();
+    for pass in passes {
+        let (sum, n) = &mut ed.reference;
+        if sum.is_empty() {
+            *sum = pass;
+        } else {
+            sum.iter_mut().flatten().zip(pass.iter().flatten()).for_each(|(s, p)| *s += *p);
+        }
+        *n += 1;
+        ed.dirty.shade = true;
+    }
+}
+
+/// The scene the reference renders for the current method: polygonal-light methods without the
+/// environment, PRT without the polygonal lights, the reference itself with everything.
+fn spawn_reference(ed: &Editor) -> Worker<Vec<Vec<Vec3>>> {
+    let mut scene = ed.scene.duplicate();
+    match ed.method {
+        m if m.polygonal() => scene.clear_environment(),
+        Method::Prt | Method::PrtSelf => scene.remove_polygon_lights(),
+        _ => {}
+    }
+    let (eye, first) = (ed.orbit.eye(), ed.reference.1);
+    let wake = ed.wake.clone();
+    Worker::spawn(
+        move |stop, send| {
+            let renderer = Renderer::new(&scene);
+            for pass in first..REFERENCE_PASSES {
+                if stop.load(Ordering::Relaxed) {
+                    return;
+                }
+                let s = Settings { spp: REFERENCE_SPP, seed: pass as u64, max_bounces: 0, min_bounces: 0 };
+                let est = renderer.render_vertices(eye, &s, &|_| {});
+                send(est.iter().map(|v| v.iter().map(|e| e.mean).collect()).collect());
+            }
+        },
+        move || wake(),
+    )
+}
+
+/// Shades the current method when anything it depends on changed, then the overlay.
+pub fn shade_system(ed: &mut Editor) {
+    if !ed.dirty.shade {
+        return;
+    }
+    ed.dirty.shade = false;
+    let start = Instant::now();
+    if let Some(values) = shade(ed) {
+        ed.radiance = values;
+        ed.stats.shading = start.elapsed().as_secs_f64();
+        if let Some(t) = ed.edited_at.take() {
+            ed.stats.edit_to_shade = t.elapsed().as_secs_f64();
+        }
+    }
+    ed.values = if ed.overlay { overlay(ed) } else { ed.radiance.clone() };
+}
+
+/// The method's per-vertex radiance, or `None` while a background result is pending.
+fn shade(ed: &mut Editor) -> Option<Vec<Vec<glam::Vec3>>> {
+    let eye = ed.orbit.eye();
+    match ed.method {
+        Method::Bspvt | Method::LtcUnshadowed => {
+            let trees = ed.method == Method::Bspvt && ed.bakes.bspvt.is_some();
+            Some(polygonal_gpu(ed, if trees { Mode::Trees } else { Mode::Unshadowed }, eye))
+        }
+        Method::LtcExactVis => exact_vis(ed, eye),
+        Method::Prt | Method::PrtSelf => Some(prt_gpu(ed, eye)),
+        Method::Reference => {
+            let (sum, n) = &ed.reference;
+            let scale = 1.0 / (*n).max(1) as f32;
+            Some(if sum.is_empty() {
+                zeros(ed)
+            } else {
+                sum.iter().map(|v| v.iter().map(|x| *x * scale).collect()).collect()
+            })
+        }
+    }
+}
+
+fn zeros(ed: &Editor) -> Vec<Vec<Vec3>> {
+    ed.flat.instances.iter().map(|i| vec![Vec3::ZERO; ed.scene.meshes[i.mesh as usize].positions.len()]).collect()
+}
+
+/// BSPVT or unshadowed LTC on the GPU; on the CPU when the GPU path refuses the scene.
+fn polygonal_gpu(ed: &mut Editor, mode: Mode, eye: Vec3) -> Vec<Vec<Vec3>> {
+    let gpu = ed.gpu.clone();
+    if ed.bspvt_gpu.is_none() {
+        match BspvtShader::new(&gpu, &ed.shaders, None) {
+            Ok(s) => ed.bspvt_gpu = Some(s),
+            Err(e) => ed.error(format!("BSPVT on the GPU: {e}")),
+        }
+    }
+    let result =
+        ed.bspvt_gpu.as_ref().map(|s| kage_gpu::bspvt::shade_vertices(&gpu, s, &ed.scene, &ed.flat, mode, eye));
+    match result {
+        Some(Ok(v)) => v,
+        other => {
+            if let Some(Err(e)) = other {
+                ed.error(format!("GPU shading: {e}; shading on the CPU"));
+            }
+            let m = if mode == Mode::Trees { bspvt::Method::Bspvt } else { bspvt::Method::Unshadowed };
+            bspvt::shade_vertices(&ed.scene, &ed.flat, m, ed.bakes.bspvt.as_ref(), &ed.options.bspvt, eye)
+        }
+    }
+}
+
+/// The exact-visibility comparison casts cube maps per vertex: in the background.
+fn exact_vis(ed: &mut Editor, eye: Vec3) -> Option<Vec<Vec<Vec3>>> {
+    if let Some(v) = ed.exact_worker.as_ref().and_then(|w| w.results().pop()) {
+        return Some(v);
+    }
+    if ed.exact_worker.is_none() {
+        let scene = ed.scene.duplicate();
+        let s = ed.options.bspvt;
+        let wake = ed.wake.clone();
+        ed.exact_worker = Some(Worker::spawn(
+            move |_, send| {
+                let flat = flatten(&scene);
+                send(bspvt::shade_vertices(&scene, &flat, bspvt::Method::ExactVis, None, &s, eye));
+            },
+            move || wake(),
+        ));
+        ed.info("ltc-exact-vis: casting visibility per vertex in the background".into());
+    }
+    ed.dirty.shade = ed.exact_worker.is_some();
+    None
+}
+
+fn prt_gpu(ed: &mut Editor, eye: Vec3) -> Vec<Vec<Vec3>> {
+    let (Some(bake), Some(light), Some(shader)) = (&ed.bakes.prt, &ed.bakes.lighting, &ed.prt_gpu) else {
+        return zeros(ed);
+    };
+    let method = if ed.method == Method::Prt { prt::Method::WithOthers } else { prt::Method::SelfOnly };
+    let posed = prt::Posed::new(&ed.scene, &ed.flat, bake.order, light, method, &ed.options.prt, &mut ed.shadow_cache);
+    let gpu = ed.gpu.clone();
+    match kage_gpu::prt::shade_vertices(&gpu, shader, &ed.scene, &ed.flat, &posed, eye) {
+        Ok(v) => v,
+        Err(e) => {
+            let cpu = prt::Frame::prepare(&ed.scene, &ed.flat, bake, light, method, &ed.options.prt, eye)
+                .vertex_values(&ed.scene, &ed.flat);
+            ed.error(format!("PRT on the GPU: {e}; shading on the CPU"));
+            cpu
+        }
+    }
+}
+
+/// Relative error against the reference as a heat map (blue 0 → red ≥ 50 %).
+fn overlay(ed: &Editor) -> Vec<Vec<Vec3>> {
+    let (sum, n) = &ed.reference;
+    if sum.is_empty() || sum.len() != ed.radiance.len() {
+        return ed.radiance.iter().map(|v| vec![Vec3::splat(0.05); v.len()]).collect();
+    }
+    let scale = 1.0 / *n as f32;
+    ed.radiance
+        .iter()
+        .zip(sum)
+        .map(|(m, r)| {
+            m.iter()
+                .zip(r)
+                .map(|(m, r)| {
+                    let r = *r * scale;
+                    heat((*m - r).length() / (r.length() + 1e-3))
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// A blue–green–red ramp over relative error 0 … 0.5.
+pub fn heat(e: f32) -> Vec3 {
+    let t = (e / 0.5).clamp(0.0, 1.0);
+    if t < 0.5 { Vec3::new(0.0, 2.0 * t, 1.0 - 2.0 * t) } else { Vec3::new(2.0 * t - 1.0, 2.0 - 2.0 * t, 0.0) }
+}

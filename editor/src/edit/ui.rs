@@ -1,0 +1,330 @@
+//! The editor window: menu, outliner, inspector, method switches, bake panel, statistics, log,
+//! and the viewport. Each frame runs the systems first, then draws.
+
+use super::state::{Editor, Method, Selection};
+use super::systems::run_frame;
+use super::viewport::Viewport;
+use eframe::egui;
+use glam::{Quat, Vec3};
+use kage_engine::scene::{EnvironmentLight, Material, PolygonLight, Transform};
+use std::sync::atomic::Ordering;
+use std::time::Instant;
+
+/// The eframe application.
+pub struct App {
+    /// The editor's state (public for tests).
+    pub editor: Editor,
+    viewport: Option<Viewport>,
+    last_frame: Option<Instant>,
+    /// The last pack or save written, for the status line.
+    status: String,
+}
+
+impl App {
+    /// Wraps `editor`, building the viewport on its GPU.
+    pub fn new(mut editor: Editor) -> Self {
+        let viewport = match Viewport::new(editor.gpu(), editor.shaders()) {
+            Ok(v) => Some(v),
+            Err(e) => {
+                editor.error(format!("preview shader: {}", e.report));
+                None
+            }
+        };
+        Self { editor, viewport, last_frame: None, status: String::new() }
+    }
+
+    /// Advances the systems and keeps the viewport's GPU data current.
+    fn step(&mut self) {
+        let now = Instant::now();
+        if let Some(t) = self.last_frame.replace(now) {
+            self.editor.stats.frame = (now - t).as_secs_f64();
+        }
+        let meshes = self.editor.dirty.meshes;
+        run_frame(&mut self.editor);
+        let ed = &mut self.editor;
+        let Some(vp) = &mut self.viewport else { return };
+        if vp.generation != ed.shader_generation
+            && let Err(e) = vp.reload(ed.gpu(), ed.shaders(), ed.shader_generation)
+        {
+            ed.error(format!("preview shader: {}", e.report));
+            ed.shader_error = Some(e);
+        }
+        if meshes || ed.dirty.meshes {
+            vp.upload_geometry(ed.gpu(), &ed.scene, &ed.flat);
+            ed.dirty.meshes = false;
+        }
+        vp.upload_radiance(ed.gpu(), &ed.values);
+    }
+}
+
+impl eframe::App for App {
+    fn ui(&mut self, ui: &mut egui::Ui, frame: &mut eframe::Frame) {
+        self.step();
+        menu(ui, self);
+        egui::Panel::left("outliner").resizable(true).default_size(220.0).show(ui, |ui| outliner(ui, &mut self.editor));
+        egui::Panel::right("inspector").resizable(true).default_size(280.0).show(ui, |ui| {
+            egui::ScrollArea::vertical().show(ui, |ui| {
+                methods(ui, &mut self.editor);
+                ui.separator();
+                inspector(ui, &mut self.editor);
+                ui.separator();
+                bake_panel(ui, &mut self.editor);
+                ui.separator();
+                statistics(ui, &self.editor);
+            });
+        });
+        egui::Panel::bottom("log").resizable(true).default_size(120.0).show(ui, |ui| log(ui, &self.editor));
+        egui::CentralPanel::default().show(ui, |ui| self.view(ui, frame));
+        if self.editor.job.is_some() || self.editor.dirty.shade {
+            ui.ctx().request_repaint_after(std::time::Duration::from_millis(100));
+        }
+    }
+}
+
+impl App {
+    fn view(&mut self, ui: &mut egui::Ui, frame: &eframe::Frame) {
+        if !self.status.is_empty() {
+            ui.label(&self.status);
+        }
+        let size = ui.available_size();
+        let (rect, response) = ui.allocate_exact_size(size, egui::Sense::click_and_drag());
+        let mut orbit = self.editor.orbit;
+        if response.dragged_by(egui::PointerButton::Primary) {
+            let d = response.drag_delta();
+            orbit.rotate(d.x * 0.01, d.y * 0.01);
+        }
+        if response.dragged_by(egui::PointerButton::Secondary) || response.dragged_by(egui::PointerButton::Middle) {
+            let d = response.drag_delta() / rect.height().max(1.0);
+            orbit.pan(d.x, d.y);
+        }
+        if response.hovered() {
+            let scroll = ui.input(|i| i.smooth_scroll_delta.y);
+            if scroll != 0.0 {
+                orbit.zoom((-scroll * 0.002).exp());
+            }
+        }
+        self.editor.set_orbit(orbit);
+        let (Some(vp), Some(rs)) = (&mut self.viewport, frame.wgpu_render_state()) else {
+            ui.painter().text(
+                rect.center(),
+                egui::Align2::CENTER_CENTER,
+                "no preview",
+                Default::default(),
+                ui.visuals().text_color(),
+            );
+            return;
+        };
+        let ppp = ui.ctx().pixels_per_point();
+        let px = [(rect.width() * ppp) as u32, (rect.height() * ppp) as u32];
+        let ed = &self.editor;
+        let id = vp.paint(ed.gpu(), &mut rs.renderer.write(), px, &ed.orbit, ed.exposure, ed.overlay);
+        let uv = egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0));
+        ui.painter().image(id, rect, uv, egui::Color32::WHITE);
+    }
+}
+
+fn menu(ui: &mut egui::Ui, app: &mut App) {
+    egui::Panel::top("menu").show(ui, |ui| {
+        egui::MenuBar::new().ui(ui, |ui| {
+            ui.menu_button("File", |ui| {
+                if ui.button("Save").clicked() {
+                    app.status = super::files::save(&mut app.editor);
+                }
+                if ui.button("Export pack").clicked() {
+                    app.status = super::files::export_pack(&mut app.editor);
+                }
+            });
+            ui.menu_button("View", |ui| {
+                for k in 0..app.editor.cameras.len() {
+                    if ui.button(format!("Scene camera {k}")).clicked() {
+                        app.editor.use_camera(k);
+                    }
+                }
+            });
+        });
+    });
+}
+
+fn outliner(ui: &mut egui::Ui, ed: &mut Editor) {
+    ui.heading("Outliner");
+    egui::ScrollArea::vertical().show(ui, |ui| {
+        for (sel, label, depth) in ed.outline() {
+            ui.horizontal(|ui| {
+                ui.add_space(16.0 * depth as f32);
+                if ui.selectable_label(ed.selection == sel, label).clicked() {
+                    ed.selection = sel;
+                }
+            });
+        }
+    });
+}
+
+fn methods(ui: &mut egui::Ui, ed: &mut Editor) {
+    ui.heading("Method");
+    let mut method = ed.method;
+    ui.horizontal_wrapped(|ui| {
+        for m in Method::ALL {
+            ui.selectable_value(&mut method, m, m.name());
+        }
+    });
+    ed.set_method(method);
+    let mut overlay = ed.overlay;
+    ui.checkbox(&mut overlay, "Error overlay (vs progressive reference)");
+    ed.set_overlay(overlay);
+    if ed.overlay || ed.method == Method::Reference {
+        ui.label(format!("reference: {} samples per vertex", ed.reference.1 * 4));
+    }
+    ui.add(egui::Slider::new(&mut ed.exposure, -6.0..=6.0).text("exposure (stops)"));
+}
+
+fn vec3_drag(ui: &mut egui::Ui, label: &str, v: &mut Vec3, speed: f32) -> bool {
+    ui.horizontal(|ui| {
+        ui.label(label);
+        let mut changed = false;
+        for c in [&mut v.x, &mut v.y, &mut v.z] {
+            changed |= ui.add(egui::DragValue::new(c).speed(speed)).changed();
+        }
+        changed
+    })
+    .inner
+}
+
+fn inspector(ui: &mut egui::Ui, ed: &mut Editor) {
+    ui.heading("Inspector");
+    match ed.selection {
+        Selection::None => {
+            ui.label("Select a group, mesh, light or the environment in the outliner.");
+        }
+        Selection::Group(g) => group_inspector(ui, ed, g),
+        Selection::Instance(e) => material_inspector(ui, ed, e),
+        Selection::Light(e) => light_inspector(ui, ed, e),
+        Selection::Environment => environment_inspector(ui, ed),
+    }
+}
+
+fn group_inspector(ui: &mut egui::Ui, ed: &mut Editor, g: hecs::Entity) {
+    let at = ed.scene.world.get::<&Transform>(g).map(|t| Vec3::from(t.world.translation)).unwrap_or_default();
+    let mut moved = at;
+    let mut turn = 0.0f32;
+    if vec3_drag(ui, "position", &mut moved, 0.02) {
+        ed.move_group(g, moved - at, Quat::IDENTITY);
+    }
+    ui.horizontal(|ui| {
+        ui.label("turn about Y (deg)");
+        if ui.add(egui::DragValue::new(&mut turn).speed(1.0)).changed() && turn != 0.0 {
+            ed.move_group(g, Vec3::ZERO, Quat::from_rotation_y(turn.to_radians()));
+        }
+    });
+    ui.label("PRT shading follows at once; BSPVT re-bakes incrementally in the background.");
+}
+
+fn material_inspector(ui: &mut egui::Ui, ed: &mut Editor, e: hecs::Entity) {
+    let Some(mut m) = ed.scene.world.get::<&Material>(e).ok().map(|m| *m) else { return };
+    let before = m;
+    let mut rgb = m.base_color.to_array();
+    ui.horizontal(|ui| {
+        ui.label("base colour");
+        ui.color_edit_button_rgb(&mut rgb);
+    });
+    m.base_color = Vec3::from_array(rgb);
+    ui.add(egui::Slider::new(&mut m.roughness, 0.0..=1.0).text("roughness"));
+    ui.add(egui::Slider::new(&mut m.metallic, 0.0..=1.0).text("metallic"));
+    if m != before {
+        ed.set_material(e, m);
+    }
+}
+
+fn light_inspector(ui: &mut egui::Ui, ed: &mut Editor, e: hecs::Entity) {
+    let Some(light) = ed.scene.world.get::<&PolygonLight>(e).ok().map(|l| (*l).clone()) else { return };
+    let mut offset = Vec3::ZERO;
+    if vec3_drag(ui, "move by", &mut offset, 0.02) && offset != Vec3::ZERO {
+        ed.move_light(e, offset, Quat::IDENTITY);
+    }
+    let mut tilt = 0.0f32;
+    ui.horizontal(|ui| {
+        ui.label("tilt about X (deg)");
+        if ui.add(egui::DragValue::new(&mut tilt).speed(1.0)).changed() && tilt != 0.0 {
+            ed.move_light(e, Vec3::ZERO, Quat::from_rotation_x(tilt.to_radians()));
+        }
+    });
+    let mut radiance = light.radiance;
+    let mut size = 1.0f32;
+    let mut changed = vec3_drag(ui, "radiance", &mut radiance, 0.1);
+    ui.horizontal(|ui| {
+        ui.label("size ×");
+        changed |= ui.add(egui::DragValue::new(&mut size).speed(0.01).range(0.5..=2.0)).changed();
+    });
+    if changed {
+        ed.set_light(e, radiance.max(Vec3::ZERO), size);
+    }
+    ui.label("Lights move, turn and resize with no re-bake.");
+}
+
+fn environment_inspector(ui: &mut egui::Ui, ed: &mut Editor) {
+    let Some(env) = ed.scene.world.query::<&EnvironmentLight>().iter().next().cloned() else { return };
+    let (mut intensity, mut degrees) = (env.intensity, env.rotation.to_degrees());
+    let a = ui.add(egui::Slider::new(&mut intensity, 0.0..=10.0).text("intensity")).changed();
+    let b = ui.add(egui::Slider::new(&mut degrees, -180.0..=180.0).text("rotation (deg)")).changed();
+    if a || b {
+        ed.set_environment(intensity, degrees.to_radians());
+    }
+}
+
+fn bake_panel(ui: &mut egui::Ui, ed: &mut Editor) {
+    ui.heading("Bake");
+    if let Some(job) = &ed.job {
+        for (name, t) in [("BSPVT", &job.bspvt), ("PRT", &job.prt)] {
+            let Some(t) = t else { continue };
+            let done = t.done.load(Ordering::Relaxed);
+            let fraction = if t.total == 0 { 1.0 } else { done as f32 / t.total as f32 };
+            let secs = job.started.elapsed().as_secs_f64();
+            let eta = if done > 0 && t.running {
+                format!(", ETA {:.0} s", secs * (t.total - done.min(t.total)) as f64 / done as f64)
+            } else {
+                String::new()
+            };
+            ui.label(format!("{name}: {} chunks cached, {done} / {} vertices{eta}", t.cached, t.total));
+            ui.add(egui::ProgressBar::new(fraction).show_percentage());
+        }
+        if ui.button("Cancel bake").clicked() {
+            ed.cancel_bake();
+        }
+    } else {
+        let state = match (&ed.bakes.bspvt, ed.bakes.bspvt_stale) {
+            (Some(_), false) => "BSPVT baked",
+            (Some(_), true) => "BSPVT stale",
+            (None, _) => "BSPVT not baked",
+        };
+        ui.label(format!("{state}; PRT {}", if ed.bakes.prt.is_some() { "baked" } else { "not baked" }));
+        if ui.button("Bake").clicked() {
+            ed.bake_now();
+        }
+    }
+}
+
+fn statistics(ui: &mut egui::Ui, ed: &Editor) {
+    ui.heading("Statistics");
+    let s = ed.stats;
+    ui.label(format!("frame {:.1} ms, shading {:.1} ms", 1e3 * s.frame, 1e3 * s.shading));
+    ui.label(format!("edit to shaded frame {:.1} ms", 1e3 * s.edit_to_shade));
+    ui.label(format!("bake: BSPVT {:.0} vertices/s, PRT {:.0} vertices/s", s.bake_rate[0], s.bake_rate[1]));
+    ui.label(format!("shader reload {:.1} ms", 1e3 * s.shader_reload));
+    let verts: usize = ed.values.iter().map(Vec::len).sum();
+    ui.label(format!("{verts} vertices, {} lights", ed.flat.lights.len()));
+    if let Some(e) = &ed.shader_error {
+        ui.colored_label(egui::Color32::LIGHT_RED, format!("shader error: {e}"));
+    }
+}
+
+fn log(ui: &mut egui::Ui, ed: &Editor) {
+    egui::ScrollArea::vertical().stick_to_bottom(true).show(ui, |ui| {
+        for line in &ed.log {
+            let text = format!("{:8.2} s  {}", line.at, line.text);
+            if line.error {
+                ui.colored_label(egui::Color32::LIGHT_RED, text);
+            } else {
+                ui.label(text);
+            }
+        }
+    });
+}

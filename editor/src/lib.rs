@@ -1,0 +1,81 @@
+//! `kage`: bake and preview shadows for real-time rendering.
+//!
+//! Subcommands: `info` (what a scene holds), `render` (images and per-vertex radiance with a
+//! chosen method), `bake` and `db` (the bake database), `report` (speed against error), `edit`
+//! (the scene editor). With no scene argument every command uses the built-in default scene.
+
+pub mod commands;
+mod db_args;
+pub mod edit;
+mod progress;
+mod prt_args;
+mod scene_args;
+mod watch;
+
+use clap::{Parser, Subcommand};
+use std::process::ExitCode;
+
+/// kage (影): bakes and previews shadows from area and environment lights.
+#[derive(Parser)]
+#[command(name = "kage", version, about)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+    /// Worker threads (default: all cores).
+    #[arg(long, global = true)]
+    threads: Option<usize>,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Meshes, vertices, triangles, lights, groups, cameras and content hashes of a scene.
+    Info(commands::info::Args),
+    /// Render an image and/or per-vertex radiance.
+    Render(commands::render::Args),
+    /// Plan and run the scene's bakes against the bake database (incremental, resumable).
+    Bake(commands::bake::Args),
+    /// Inspect, check or clean the bake database.
+    Db(commands::db::Args),
+    /// Write an asset pack: the scene, its baked data and an unlit preview, as glTF binary.
+    Export(commands::export::Args),
+    /// Speed against error of the polygonal-light methods, as Markdown, CSV and a PNG plot.
+    Report(commands::report::Args),
+    /// Open the scene editor with live preview (egui + wgpu).
+    Edit(edit::Args),
+    /// Fit the GGX LTC table and write it as Rust source (developer tool).
+    FitLtc(commands::fit_ltc::Args),
+}
+
+/// Writes to stdout, ignoring a closed pipe (`kage info | head` is not an error).
+pub fn emit(text: &str) {
+    use std::io::Write;
+    let _ = std::io::stdout().lock().write_all(text.as_bytes());
+}
+
+/// Runs the `kage` command line (the binary's `main`).
+pub fn main() -> ExitCode {
+    let cli = Cli::parse();
+    if let Some(n) = cli.threads
+        && let Err(e) = rayon::ThreadPoolBuilder::new().num_threads(n).build_global()
+    {
+        eprintln!("error: cannot start {n} threads: {e}");
+        return ExitCode::FAILURE;
+    }
+    let result = match cli.command {
+        Command::Info(a) => commands::info::run(&a),
+        Command::Render(a) => commands::render::run(&a),
+        Command::FitLtc(a) => commands::fit_ltc::run(&a),
+        Command::Report(a) => commands::report::run(&a),
+        Command::Bake(a) => commands::bake::run(&a),
+        Command::Db(a) => commands::db::run(&a),
+        Command::Export(a) => commands::export::run(&a),
+        Command::Edit(a) => edit::run(&a),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
