@@ -56,6 +56,8 @@ pub struct BspvtShader {
     pipeline: wgpu::ComputePipeline,
     records: wgpu::Buffer,
     starts: wgpu::Buffer,
+    /// Vertices with trees on the device.
+    baked: usize,
 }
 
 impl BspvtShader {
@@ -72,8 +74,9 @@ impl BspvtShader {
                 bytes.extend_from_slice(record);
             }
         }
-        bytes.resize(bytes.len().next_multiple_of(4).max(4), 0);
+        bytes.resize(bytes.len().next_multiple_of(4), 0);
         Ok(Self {
+            baked: starts.len(),
             pipeline: pipeline(gpu, "bspvt", &module)?,
             records: storage(gpu, "bspvt records", &bytes),
             starts: storage(gpu, "bspvt record starts", &starts),
@@ -96,7 +99,7 @@ impl BspvtShader {
         lights: &[FlatLight],
         mode: Mode,
     ) -> Result<Vec<Vec3>, GpuError> {
-        if mode == Mode::Trees && self.starts.size() < 4 * shaders.len() as u64 {
+        if mode == Mode::Trees && self.baked != shaders.len() {
             return Err(GpuError::Unsupported("BSPVT shading needs a bake of every vertex".into()));
         }
         let vertices: Vec<GpuVertex> = shaders.iter().map(gpu_vertex).collect();

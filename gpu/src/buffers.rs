@@ -3,19 +3,15 @@
 use crate::{Gpu, GpuError};
 use wgpu::util::DeviceExt;
 
-/// A storage buffer holding `data` (at least 4 bytes: wgpu rejects empty bindings).
+/// A storage buffer holding `data`, padded to a multiple of 4 bytes and to at least 256 (an
+/// empty array still binds: wgpu wants one element of the shader's type, at most 256 bytes here).
 pub fn storage<T: bytemuck::Pod>(gpu: &Gpu, label: &str, data: &[T]) -> wgpu::Buffer {
     let bytes: &[u8] = bytemuck::cast_slice(data);
-    let padded;
-    let contents = if !bytes.len().is_multiple_of(4) || bytes.is_empty() {
-        padded = [bytes, &[0u8; 4][..(4 - bytes.len() % 4)]].concat();
-        &padded[..]
-    } else {
-        bytes
-    };
+    let mut contents = bytes.to_vec();
+    contents.resize(bytes.len().next_multiple_of(4).max(256), 0);
     gpu.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
         label: Some(label),
-        contents,
+        contents: &contents,
         usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
     })
 }

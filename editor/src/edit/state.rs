@@ -99,6 +99,8 @@ pub struct Stats {
     pub edit_to_shade: f64,
     /// Seconds from the last shader file change to its rebuilt pipeline.
     pub shader_reload: f64,
+    /// What the last finished bake runs did (BSPVT, PRT).
+    pub runs: [Option<kage_bake_db::RunStats>; 2],
 }
 
 /// What changed since the last frame.
@@ -188,6 +190,8 @@ pub struct Editor {
     pub shader_generation: u64,
     /// What changed since the last frame.
     pub dirty: Dirty,
+    /// blake3 of the scene file's bytes as last imported.
+    pub scene_hash: Option<blake3::Hash>,
     /// The progressive reference: running sums and passes.
     pub reference: (Vec<Vec<Vec3>>, u32),
     pub(super) gpu: Gpu,
@@ -230,6 +234,7 @@ impl Editor {
             shader_generation: 0,
             dirty: Dirty { shade: true, environment: true, meshes: true, ..Dirty::default() },
             reference: (Vec::new(), 0),
+            scene_hash: options.scene_path.as_ref().and_then(|p| std::fs::read(p).ok()).map(|b| blake3::hash(&b)),
             gpu,
             shaders,
             bspvt_gpu: None,

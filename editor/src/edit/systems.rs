@@ -50,7 +50,7 @@ fn reload_shader(ed: &mut Editor, name: &str) {
     let start = Instant::now();
     let checked = ed.shaders.source(name).and_then(|(label, text)| kage_gpu::shader::validate(&label, &text));
     if let Err(e) = checked {
-        ed.error(format!("shader {}: keeping the last good pipeline\n{}", e.file, e.report));
+        ed.error(format!("shader {}: keeping the last good pipeline\n{}", e.file, plain_frames(&e.report)));
         ed.shader_error = Some(e);
         return;
     }
@@ -61,7 +61,7 @@ fn reload_shader(ed: &mut Editor, name: &str) {
         _ => None,
     };
     if let Some(Err(e)) = result {
-        ed.error(format!("{name}: {e}; keeping the last good pipeline"));
+        ed.error(format!("{name}: {}; keeping the last good pipeline", plain_frames(&e.to_string())));
         return;
     }
     ed.shader_error = None;
@@ -71,14 +71,33 @@ fn reload_shader(ed: &mut Editor, name: &str) {
     ed.dirty.shade = true;
 }
 
+/// The compiler's diagnostic with its box-drawing frame in ASCII (the UI font has no glyphs
+/// for U+2500–U+257F).
+fn plain_frames(report: &str) -> String {
+    report
+        .chars()
+        .map(|c| match c {
+            '│' | '┃' | '╎' => '|',
+            '\u{2500}'..='\u{257F}' => '-',
+            c => c,
+        })
+        .collect()
+}
+
 fn reimport_scene(ed: &mut Editor) {
     let Some(path) = ed.options.scene_path.clone() else { return };
+    // Editors often write a file more than once per save: unchanged bytes change nothing.
+    let hash = std::fs::read(&path).ok().map(|b| blake3::hash(&b));
+    if hash.is_some() && hash == ed.scene_hash {
+        return;
+    }
     match import::import(&path, Default::default()) {
         Ok(mut scene) => {
             if let Some(env) = ed.scene.world.query::<&EnvironmentLight>().iter().next().cloned() {
                 scene.set_environment(env);
             }
             ed.scene = scene;
+            ed.scene_hash = hash;
             ed.selection = super::state::Selection::None;
             ed.dirty.pose = true;
             ed.dirty.geometry = true;
@@ -166,6 +185,7 @@ fn take(ed: &mut Editor, landed: Landed) {
     match landed {
         Landed::Bspvt(Ok((bake, stats))) => {
             ed.stats.bake_rate[0] = stats.vertices_baked as f64 / stats.seconds.max(1e-9);
+            ed.stats.runs[0] = Some(stats);
             ed.info(format!(
                 "BSPVT: {} cached, {} cold, {} warm chunks ({} vertices) in {:.2} s",
                 stats.cached, stats.cold, stats.warm, stats.vertices_baked, stats.seconds
@@ -179,6 +199,7 @@ fn take(ed: &mut Editor, landed: Landed) {
         }
         Landed::Prt(Ok((bake, stats))) => {
             ed.stats.bake_rate[1] = stats.vertices_baked as f64 / stats.seconds.max(1e-9);
+            ed.stats.runs[1] = Some(stats);
             ed.info(format!("PRT: {} cached, {} cold chunks in {:.2} s", stats.cached, stats.cold, stats.seconds));
             match PrtShader::new(&gpu, &ed.shaders, &bake, bake.order) {
                 Ok(s) => ed.prt_gpu = Some(s),
@@ -349,13 +370,17 @@ fn prt_gpu(ed: &mut Editor, eye: Vec3) -> Vec<Vec<Vec3>> {
     }
 }
 
-/// Relative error against the reference as a heat map (blue 0 → red ≥ 50 %).
+/// Relative error against the reference as a heat map (blue 0 → red ≥ 50 %). Errors are
+/// relative to the reference, floored at a tenth of its mean so that shadows (where a small
+/// absolute error is a large relative one) do not drown the map.
 fn overlay(ed: &Editor) -> Vec<Vec<Vec3>> {
     let (sum, n) = &ed.reference;
     if sum.is_empty() || sum.len() != ed.radiance.len() {
         return ed.radiance.iter().map(|v| vec![Vec3::splat(0.05); v.len()]).collect();
     }
     let scale = 1.0 / *n as f32;
+    let count = sum.iter().map(Vec::len).sum::<usize>().max(1) as f32;
+    let floor = 0.1 * sum.iter().flatten().map(|r| (*r * scale).length()).sum::<f32>() / count;
     ed.radiance
         .iter()
         .zip(sum)
@@ -364,7 +389,7 @@ fn overlay(ed: &Editor) -> Vec<Vec<Vec3>> {
                 .zip(r)
                 .map(|(m, r)| {
                     let r = *r * scale;
-                    heat((*m - r).length() / (r.length() + 1e-3))
+                    heat((*m - r).length() / r.length().max(floor).max(1e-6))
                 })
                 .collect()
         })

@@ -26,7 +26,7 @@ impl App {
         let viewport = match Viewport::new(editor.gpu(), editor.shaders()) {
             Ok(v) => Some(v),
             Err(e) => {
-                editor.error(format!("preview shader: {}", e.report));
+                editor.error(format!("preview shader: {e}"));
                 None
             }
         };
@@ -46,7 +46,7 @@ impl App {
         if vp.generation != ed.shader_generation
             && let Err(e) = vp.reload(ed.gpu(), ed.shaders(), ed.shader_generation)
         {
-            ed.error(format!("preview shader: {}", e.report));
+            ed.error(format!("preview shader: {e}"));
             ed.shader_error = Some(e);
         }
         if meshes || ed.dirty.meshes {

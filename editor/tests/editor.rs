@@ -1,0 +1,248 @@
+//! The editor, headless: egui_kittest drives the real app (UI, systems, background bakes) with
+//! kittest's wgpu renderer — lavapipe in CI, no skipping. Rendered frames are written to
+//! `target/editor-snapshots/` for inspection and compared with each other.
+
+use eframe::egui;
+use egui_kittest::Harness;
+use egui_kittest::kittest::Queryable;
+use glam::{Quat, Vec3};
+use kage_editor::edit::state::{Editor, Method, Options, Selection};
+use kage_editor::edit::ui::App;
+use kage_engine::scene::{Scene, default_scene, import};
+use kage_engine::{bspvt, prt};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+fn scratch(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("kage-editor-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn shared(rel: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/assets").join(rel)
+}
+
+fn options(dir: &Path, scene_path: Option<PathBuf>, shader_dir: Option<PathBuf>) -> Options {
+    Options {
+        scene_path,
+        env_path: None,
+        shader_dir,
+        db_path: dir.join("bake.redb"),
+        bspvt: bspvt::Settings { res: 16, epsilon: 2.0 },
+        prt: prt::Settings { order: 4, directions: 256, regions: 16, ..prt::Settings::default() },
+        bake_on_start: true,
+    }
+}
+
+fn harness(scene: Scene, options: Options) -> Harness<'static, App> {
+    Harness::builder().with_size(egui::Vec2::new(1280.0, 800.0)).wgpu().build_eframe(move |cc| {
+        let rs = cc.wgpu_render_state.as_ref().expect("kittest's wgpu renderer");
+        let gpu = kage_gpu::Gpu::from_parts(rs.device.clone(), rs.queue.clone(), rs.adapter.get_info());
+        App::new(Editor::new(scene, options, gpu, Arc::new(|| {})))
+    })
+}
+
+/// Steps until `done` holds (at most 300 s: bakes run in the background).
+fn step_until(h: &mut Harness<App>, what: &str, done: impl Fn(&Editor) -> bool) {
+    let start = Instant::now();
+    while !done(&h.state().editor) {
+        assert!(
+            start.elapsed() < Duration::from_secs(300),
+            "timed out waiting for {what}; log: {:#?}",
+            h.state().editor.log
+        );
+        h.step();
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    h.step();
+}
+
+fn settled(ed: &Editor) -> bool {
+    ed.job.is_none() && !ed.dirty.shade && ed.bakes.bspvt.is_some()
+}
+
+/// Renders the window and keeps a copy; returns the pixels.
+fn snapshot(h: &mut Harness<App>, name: &str) -> image::RgbaImage {
+    let img = h.render().expect("the wgpu renderer draws");
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../target/editor-snapshots");
+    std::fs::create_dir_all(&dir).unwrap();
+    img.save(dir.join(format!("{name}.png"))).unwrap();
+    img
+}
+
+/// Distinct colours in the viewport's middle region (blank or failed views have few).
+fn viewport_colours(img: &image::RgbaImage) -> usize {
+    let (w, h) = img.dimensions();
+    let mut seen = std::collections::HashSet::new();
+    for y in (h / 4..3 * h / 4).step_by(3) {
+        for x in (w / 4..3 * w / 4).step_by(3) {
+            seen.insert(img.get_pixel(x, y).0);
+        }
+    }
+    seen.len()
+}
+
+fn values(h: &Harness<App>) -> Vec<Vec3> {
+    h.state().editor.values.iter().flatten().copied().collect()
+}
+
+fn changed(a: &[Vec3], b: &[Vec3]) -> usize {
+    a.iter().zip(b).filter(|(x, y)| (**x - **y).abs().max_element() > 1e-4).count()
+}
+
+fn errors(ed: &Editor) -> Vec<String> {
+    ed.log.iter().filter(|l| l.error).map(|l| l.text.clone()).collect()
+}
+
+#[test]
+fn the_default_scene_bakes_in_the_background_and_every_method_shades() {
+    let dir = scratch("default");
+    let mut h = harness(default_scene(), options(&dir, None, None));
+    step_until(&mut h, "the first bakes", settled);
+    let ed = &h.state().editor;
+    assert!(ed.bakes.prt.is_some() && ed.bakes.lighting.is_some(), "{:?}", ed.log);
+    assert!(errors(ed).is_empty(), "{:?}", errors(ed));
+    let bspvt = values(&h);
+    assert!(bspvt.iter().any(|v| v.max_element() > 0.01) && bspvt.iter().all(|v| v.is_finite()));
+    let img = snapshot(&mut h, "default-bspvt");
+    assert!(viewport_colours(&img) > 200, "the viewport shows the scene ({} colours)", viewport_colours(&img));
+    let mut seen = vec![bspvt];
+    for (label, method) in
+        [("prt", Method::Prt), ("prt-self", Method::PrtSelf), ("ltc-unshadowed", Method::LtcUnshadowed)]
+    {
+        h.get_by_label(label).click();
+        step_until(&mut h, label, |ed| ed.method == method && !ed.dirty.shade);
+        let v = values(&h);
+        assert!(v.iter().all(|x| x.is_finite() && x.min_element() >= 0.0), "{label}");
+        assert!(seen.iter().all(|s| changed(s, &v) > 100), "{label} shades differently from the others");
+        snapshot(&mut h, &format!("default-{label}"));
+        seen.push(v);
+    }
+    // The error overlay refines against the progressive reference.
+    h.get_by_label("bspvt").click();
+    h.get_by_label("Error overlay (vs progressive reference)").click();
+    step_until(&mut h, "reference passes", |ed| ed.overlay && ed.reference.1 >= 2 && !ed.dirty.shade);
+    let img = snapshot(&mut h, "default-overlay");
+    assert!(viewport_colours(&img) > 20);
+    let ed = &h.state().editor;
+    assert!(errors(ed).is_empty(), "{:?}", errors(ed));
+}
+
+#[test]
+fn light_moves_reshade_at_once_and_group_moves_rebake_bspvt_incrementally() {
+    let dir = scratch("moves");
+    let mut h = harness(default_scene(), options(&dir, None, None));
+    step_until(&mut h, "the first bakes", settled);
+    let before = values(&h);
+    let light = h.state().editor.outline().into_iter().find_map(|(s, ..)| match s {
+        Selection::Light(e) => Some(e),
+        _ => None,
+    });
+    h.state_mut().editor.move_light(
+        light.expect("the default scene has a light"),
+        Vec3::new(0.6, 0.0, 0.0),
+        Quat::IDENTITY,
+    );
+    h.step();
+    let ed = &h.state().editor;
+    assert!(ed.job.is_none(), "a light move re-bakes nothing");
+    assert!(changed(&before, &values(&h)) > 1000, "the light move re-shaded in the same frame");
+    assert!(ed.stats.edit_to_shade > 0.0);
+    snapshot(&mut h, "moves-light");
+
+    // A group move: PRT (with shadows between groups) follows in the same frame, BSPVT re-bakes.
+    h.get_by_label("prt").click();
+    step_until(&mut h, "prt", |ed| ed.method == Method::Prt && !ed.dirty.shade);
+    let prt_before = values(&h);
+    let sphere = h.state().editor.scene.find_group("sphere").unwrap();
+    h.state_mut().editor.move_group(sphere, Vec3::new(-0.8, 0.0, 0.3), Quat::IDENTITY);
+    h.step();
+    let ed = &h.state().editor;
+    assert!(changed(&prt_before, &values(&h)) > 50, "PRT shading follows the move at once");
+    assert!(ed.job.is_some() && ed.bakes.bspvt_stale, "an incremental BSPVT re-bake started");
+    step_until(&mut h, "the re-bake", settled);
+    let ed = &h.state().editor;
+    let (b, p) = (ed.stats.runs[0].unwrap(), ed.stats.runs[1].unwrap());
+    // The moved sphere's own chunks bake cold; every other receiver re-bakes only faces that can
+    // see the sphere's old or new bounds.
+    assert!(
+        b.warm > 0 && b.cold < b.warm && b.faces_baked < 6 * b.vertices_baked,
+        "BSPVT re-baked incrementally: {b:?}"
+    );
+    assert!(p.cold == 0 && p.warm == 0 && p.cached > 0, "PRT transfer is cached after a rigid move: {p:?}");
+    assert!(!ed.bakes.bspvt_stale);
+    snapshot(&mut h, "moves-group");
+}
+
+#[test]
+fn shader_saves_rebuild_pipelines_and_broken_shaders_keep_the_last_good_one() {
+    let dir = scratch("reload");
+    let shaders = dir.join("shaders");
+    std::fs::create_dir_all(&shaders).unwrap();
+    let repo_shaders = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shaders");
+    for f in ["bspvt.wgsl", "prt.wgsl", "preview.wgsl"] {
+        std::fs::copy(repo_shaders.join(f), shaders.join(f)).unwrap();
+    }
+    let mut h = harness(default_scene(), options(&dir, None, Some(shaders.clone())));
+    step_until(&mut h, "the first bakes", settled);
+    let good = snapshot(&mut h, "reload-before");
+    let generation = h.state().editor.shader_generation;
+
+    // A valid edit (the preview inverts its colours), saved by writing in place.
+    let source = std::fs::read_to_string(shaders.join("preview.wgsl")).unwrap();
+    let inverted = source.replace("return vec4<f32>(srgb(", "return vec4<f32>(vec3<f32>(1.0) - srgb(");
+    assert_ne!(inverted, source);
+    std::fs::write(shaders.join("preview.wgsl"), &inverted).unwrap();
+    step_until(&mut h, "the reload", |ed| ed.shader_generation > generation);
+    assert!(h.state().editor.shader_error.is_none());
+    let changed_img = snapshot(&mut h, "reload-inverted");
+    let differ = good.pixels().zip(changed_img.pixels()).filter(|(a, b)| a != b).count();
+    assert!(differ > 100_000, "the new pipeline draws differently ({differ} pixels)");
+
+    // A broken edit, saved by rename-replace: the error names file and line, drawing goes on.
+    let broken = inverted.replacen("fn fs_main", "fn fs_main(", 1);
+    std::fs::write(dir.join("tmp.wgsl"), &broken).unwrap();
+    std::fs::rename(dir.join("tmp.wgsl"), shaders.join("preview.wgsl")).unwrap();
+    step_until(&mut h, "the shader error", |ed| ed.shader_error.is_some());
+    let ed = &h.state().editor;
+    let e = ed.shader_error.clone().unwrap();
+    assert!(e.file.ends_with("preview.wgsl") && e.line > 0, "{e:?}");
+    assert!(errors(ed).iter().any(|l| l.contains("keeping the last good pipeline")));
+    let still = snapshot(&mut h, "reload-broken");
+    assert_eq!(viewport_colours(&still), viewport_colours(&changed_img), "the last good pipeline keeps drawing");
+
+    // Fixed again: the error clears.
+    std::fs::write(shaders.join("preview.wgsl"), &source).unwrap();
+    step_until(&mut h, "the fix", |ed| ed.shader_error.is_none());
+}
+
+#[test]
+fn touching_the_scene_file_reimports_it_and_rebakes_only_what_changed() {
+    let dir = scratch("touch");
+    let scene_path = dir.join("cube_on_plane.gltf");
+    std::fs::copy(shared("scenes/cube_on_plane.gltf"), &scene_path).unwrap();
+    let scene = import::import(&scene_path, Default::default()).unwrap();
+    let mut opts = options(&dir, Some(scene_path.clone()), None);
+    opts.prt = prt::Settings { order: 3, directions: 64, ..opts.prt };
+    let mut h = harness(scene, opts);
+    step_until(&mut h, "the first bakes", settled);
+    let first = h.state().editor.stats.runs[0].unwrap();
+    assert!(first.cold > 0, "{first:?}");
+
+    // Move the cube 0.3 along x in the file, saved by rename-replace.
+    let mut gltf: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&scene_path).unwrap()).unwrap();
+    assert_eq!(gltf["nodes"][1]["name"], "cube");
+    gltf["nodes"][1]["translation"] = serde_json::json!([0.3, 1.5, 0.0]);
+    std::fs::write(dir.join("save.tmp"), serde_json::to_string_pretty(&gltf).unwrap()).unwrap();
+    std::fs::rename(dir.join("save.tmp"), &scene_path).unwrap();
+    step_until(&mut h, "the re-import", |ed| ed.log.iter().any(|l| l.text.contains("re-imported")));
+    step_until(&mut h, "the re-bake", |ed| settled(ed) && !ed.bakes.bspvt_stale);
+    let ed = &h.state().editor;
+    let again = ed.stats.runs[0].unwrap();
+    assert!(again.cold < first.cold, "only the moved cube's own chunks bake cold: {again:?} vs {first:?}");
+    assert!(again.warm > 0 && again.faces_baked < again.vertices_baked * 6, "only dirty faces re-bake: {again:?}");
+    assert!(errors(ed).is_empty(), "{:?}", errors(ed));
+}
