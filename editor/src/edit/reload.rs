@@ -1,11 +1,14 @@
 //! Hot reload: notify (debounced) on the shader folder and on the folders holding the scene and
 //! environment files. Folders are watched rather than files, so saves by rename-replace or
 //! delete-recreate are seen; a half-written file fails to load, is reported, and the next
-//! change is waited for.
+//! change is waited for. A change is reported only when the file's bytes differ from the last
+//! seen (blake3): notify also reports reads (loading a file would otherwise re-trigger its own
+//! reload) and editors often write a file more than once per save.
 
 use anyhow::{Context, Result};
 use notify_debouncer_mini::notify::{RecommendedWatcher, RecursiveMode};
 use notify_debouncer_mini::{DebounceEventResult, Debouncer, new_debouncer};
+use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::mpsc::Receiver;
 use std::time::Duration;
@@ -28,6 +31,12 @@ pub struct Watcher {
     shaders: Option<PathBuf>,
     scene: Option<PathBuf>,
     env: Option<PathBuf>,
+    /// The content hash of every relevant file as last seen (`None`: absent).
+    seen: HashMap<PathBuf, Option<blake3::Hash>>,
+}
+
+fn content(path: &Path) -> Option<blake3::Hash> {
+    std::fs::read(path).ok().map(|b| blake3::hash(&b))
 }
 
 fn folder(p: &Path) -> PathBuf {
@@ -66,20 +75,46 @@ impl Watcher {
                 .watch(d, RecursiveMode::NonRecursive)
                 .with_context(|| format!("watching {}", d.display()))?;
         }
-        Ok(Self { _debouncer: debouncer, rx, shaders, scene, env })
+        let mut w = Self { _debouncer: debouncer, rx, shaders, scene, env, seen: HashMap::new() };
+        for d in &dirs {
+            for entry in std::fs::read_dir(d).into_iter().flatten().flatten() {
+                let path = canonical_file(&entry.path());
+                if w.classify(&path).is_some() {
+                    w.seen.insert(path.clone(), content(&path));
+                }
+            }
+        }
+        Ok(w)
     }
 
     /// The changes since the last call (never blocks), without repeats; watcher errors are
     /// returned as messages.
-    pub fn changes(&self) -> (Vec<Change>, Vec<String>) {
+    pub fn changes(&mut self) -> (Vec<Change>, Vec<String>) {
+        let batches: Vec<DebounceEventResult> = self.rx.try_iter().collect();
+        self.sort(batches)
+    }
+
+    /// Waits for the next batch of events and sorts it like [`Self::changes`] (for `--watch`).
+    pub fn wait(&mut self) -> Option<(Vec<Change>, Vec<String>)> {
+        let first = self.rx.recv().ok()?;
+        let batches: Vec<DebounceEventResult> = std::iter::once(first).chain(self.rx.try_iter()).collect();
+        Some(self.sort(batches))
+    }
+
+    fn sort(&mut self, batches: Vec<DebounceEventResult>) -> (Vec<Change>, Vec<String>) {
         let (mut changes, mut errors) = (Vec::new(), Vec::new());
-        for batch in self.rx.try_iter() {
+        for batch in batches {
             match batch {
-                Ok(events) => events.iter().filter_map(|e| self.classify(&e.path)).for_each(|c| {
-                    if !changes.contains(&c) {
-                        changes.push(c);
+                Ok(events) => {
+                    for e in events {
+                        let path = canonical_file(&e.path);
+                        let Some(c) = self.classify(&path) else { continue };
+                        let now = content(&path);
+                        if self.seen.insert(path, now) != Some(now) && !changes.contains(&c) {
+                            changes.push(c);
+                        }
                     }
-                }),
+                }
                 Err(e) => errors.push(format!("file watcher: {e}")),
             }
         }
@@ -87,14 +122,50 @@ impl Watcher {
     }
 
     fn classify(&self, path: &Path) -> Option<Change> {
-        let path = canonical_file(path);
-        let same_stem = |f: &PathBuf| folder(f) == folder(&path) && f.file_stem() == path.file_stem();
-        if self.shaders.as_ref().is_some_and(|d| folder(&path) == *d) && path.extension().is_some_and(|e| e == "wgsl") {
+        let same_stem = |f: &PathBuf| folder(f) == folder(path) && f.file_stem() == path.file_stem();
+        if self.shaders.as_ref().is_some_and(|d| folder(path) == *d) && path.extension().is_some_and(|e| e == "wgsl") {
             return Some(Change::Shader(path.file_name()?.to_string_lossy().into_owned()));
         }
-        if self.env.as_ref().is_some_and(|f| *f == path) {
+        if self.env.as_deref() == Some(path) {
             return Some(Change::Environment);
         }
         self.scene.as_ref().filter(|f| same_stem(f)).map(|_| Change::Scene)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::time::{Duration, Instant};
+
+    fn wait_changes(w: &mut Watcher, quiet: Duration) -> Vec<Change> {
+        let start = Instant::now();
+        let mut all = Vec::new();
+        while start.elapsed() < quiet {
+            all.extend(w.changes().0);
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        all
+    }
+
+    #[test]
+    fn reads_are_not_changes_and_writes_are() {
+        let dir = std::env::temp_dir().join(format!("kage-watch-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        std::fs::write(dir.join("a.wgsl"), "// one").unwrap();
+        std::fs::write(dir.join("scene.gltf"), "{}").unwrap();
+        let mut w = Watcher::new(Some(&dir), Some(&dir.join("scene.gltf")), None, || {}).unwrap();
+        // Loading files (what a reload does) is not a change.
+        let _ = std::fs::read(dir.join("a.wgsl")).unwrap();
+        let _ = std::fs::read(dir.join("scene.gltf")).unwrap();
+        assert_eq!(wait_changes(&mut w, Duration::from_millis(600)), vec![]);
+        // Re-writing the same bytes is not either; new bytes are.
+        std::fs::write(dir.join("scene.gltf"), "{}").unwrap();
+        std::fs::write(dir.join("a.wgsl"), "// two").unwrap();
+        std::fs::write(dir.join("scene.bin"), "new").unwrap();
+        let got = wait_changes(&mut w, Duration::from_millis(800));
+        assert!(got.contains(&Change::Shader("a.wgsl".into())) && got.contains(&Change::Scene), "{got:?}");
+        assert_eq!(got.len(), 2, "{got:?}");
     }
 }

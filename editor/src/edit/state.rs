@@ -190,8 +190,6 @@ pub struct Editor {
     pub shader_generation: u64,
     /// What changed since the last frame.
     pub dirty: Dirty,
-    /// blake3 of the scene file's bytes as last imported.
-    pub scene_hash: Option<blake3::Hash>,
     /// The progressive reference: running sums and passes.
     pub reference: (Vec<Vec<Vec3>>, u32),
     pub(super) gpu: Gpu,
@@ -234,7 +232,6 @@ impl Editor {
             shader_generation: 0,
             dirty: Dirty { shade: true, environment: true, meshes: true, ..Dirty::default() },
             reference: (Vec::new(), 0),
-            scene_hash: options.scene_path.as_ref().and_then(|p| std::fs::read(p).ok()).map(|b| blake3::hash(&b)),
             gpu,
             shaders,
             bspvt_gpu: None,

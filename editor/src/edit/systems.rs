@@ -34,7 +34,7 @@ pub fn run_frame(ed: &mut Editor) {
 /// Hot reload: rebuilds pipelines after a shader save (keeping the last good ones when the new
 /// source does not compile) and re-imports the scene or environment after theirs.
 pub fn reload_system(ed: &mut Editor) {
-    let Some(watcher) = &ed.watcher else { return };
+    let Some(watcher) = &mut ed.watcher else { return };
     let (changes, errors) = watcher.changes();
     errors.into_iter().for_each(|e| ed.error(e));
     for change in changes {
@@ -86,18 +86,12 @@ fn plain_frames(report: &str) -> String {
 
 fn reimport_scene(ed: &mut Editor) {
     let Some(path) = ed.options.scene_path.clone() else { return };
-    // Editors often write a file more than once per save: unchanged bytes change nothing.
-    let hash = std::fs::read(&path).ok().map(|b| blake3::hash(&b));
-    if hash.is_some() && hash == ed.scene_hash {
-        return;
-    }
     match import::import(&path, Default::default()) {
         Ok(mut scene) => {
             if let Some(env) = ed.scene.world.query::<&EnvironmentLight>().iter().next().cloned() {
                 scene.set_environment(env);
             }
             ed.scene = scene;
-            ed.scene_hash = hash;
             ed.selection = super::state::Selection::None;
             ed.dirty.pose = true;
             ed.dirty.geometry = true;

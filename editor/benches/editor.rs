@@ -1,0 +1,125 @@
+//! The editor on the teapot scene (`../shared/assets/scenes/teapot_quad_light.gltf`, 64² faces,
+//! ε 2), headless through egui_kittest on the wgpu device wgpu picks (lavapipe without a GPU):
+//! - `frame_ui`: one editor frame with nothing to re-shade (systems, UI, viewport draw);
+//! - `frame_rendered`: the same plus egui's render of the window and its read-back;
+//! - `shade_bspvt` / `shade_prt`: one re-shade of every vertex on the GPU (view changed);
+//! - `light_drag_to_frame`: a light moved by a drag step until the frame shows it;
+//! - `shader_save_to_pipeline`: `bspvt.wgsl` re-written on disk until its pipeline is rebuilt
+//!   (includes the watcher's 150 ms debounce).
+//!
+//! The first run bakes into `target/bench-editor/bake.redb`; later runs find it cached.
+
+use criterion::{Criterion, criterion_group, criterion_main};
+use eframe::egui;
+use egui_kittest::Harness;
+use glam::{Quat, Vec3};
+use kage_editor::edit::state::{Editor, Method, Options, Selection};
+use kage_editor::edit::ui::App;
+use kage_engine::scene::{EnvMap, EnvironmentLight, import};
+use kage_engine::{bspvt, prt};
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::time::Duration;
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+fn teapot_editor() -> Harness<'static, App> {
+    let assets = root().join("../shared/assets");
+    let mut scene = import::import(&assets.join("scenes/teapot_quad_light.gltf"), Default::default()).unwrap();
+    scene.set_environment(EnvironmentLight::new(EnvMap::load(&assets.join("envmaps/studio.hdr")).unwrap()));
+    let work = root().join("target/bench-editor");
+    let shaders = work.join("shaders");
+    std::fs::create_dir_all(&shaders).unwrap();
+    for f in ["bspvt.wgsl", "prt.wgsl", "preview.wgsl"] {
+        std::fs::copy(root().join("shaders").join(f), shaders.join(f)).unwrap();
+    }
+    let options = Options {
+        scene_path: None,
+        env_path: None,
+        shader_dir: Some(shaders),
+        db_path: work.join("bake.redb"),
+        bspvt: bspvt::Settings::default(),
+        prt: prt::Settings::default(),
+        bake_on_start: true,
+    };
+    let mut h = Harness::builder().with_size(egui::Vec2::new(1280.0, 800.0)).wgpu().build_eframe(move |cc| {
+        let rs = cc.wgpu_render_state.as_ref().expect("kittest's wgpu renderer");
+        let gpu = kage_gpu::Gpu::from_parts(rs.device.clone(), rs.queue.clone(), rs.adapter.get_info());
+        App::new(Editor::new(scene, options, gpu, Arc::new(|| {})))
+    });
+    while h.state().editor.job.is_some() || h.state().editor.bakes.bspvt.is_none() {
+        h.step();
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    h.step();
+    h
+}
+
+fn vertices(h: &Harness<App>) -> usize {
+    h.state().editor.values.iter().map(Vec::len).sum()
+}
+
+fn bench(c: &mut Criterion) {
+    let mut h = teapot_editor();
+    let mut g = c.benchmark_group(format!("editor_teapot_{}v", vertices(&h)));
+    g.sample_size(10);
+    g.bench_function("frame_ui", |b| b.iter(|| h.step()));
+    g.bench_function("frame_rendered", |b| {
+        b.iter(|| {
+            h.step();
+            h.render().unwrap()
+        })
+    });
+    for (name, method) in [("shade_bspvt", Method::Bspvt), ("shade_prt", Method::Prt)] {
+        h.state_mut().editor.set_method(method);
+        h.step();
+        g.bench_function(name, |b| {
+            b.iter(|| {
+                let ed = &mut h.state_mut().editor;
+                ed.dirty.shade = true;
+                kage_editor::edit::systems::shade_system(ed);
+            })
+        });
+    }
+    h.state_mut().editor.set_method(Method::Bspvt);
+    let light = h.state().editor.outline().into_iter().find_map(|(s, ..)| match s {
+        Selection::Light(e) => Some(e),
+        _ => None,
+    });
+    let light = light.expect("the teapot scene has a light");
+    let mut sign = 1.0;
+    g.bench_function("light_drag_to_frame", |b| {
+        b.iter(|| {
+            sign = -sign;
+            h.state_mut().editor.move_light(light, Vec3::new(0.05 * sign, 0.0, 0.0), Quat::IDENTITY);
+            h.step();
+            h.render().unwrap()
+        })
+    });
+    let path = root().join("target/bench-editor/shaders/bspvt.wgsl");
+    let source = std::fs::read_to_string(&path).unwrap();
+    let mut k = 0u32;
+    g.bench_function("shader_save_to_pipeline", |b| {
+        b.iter(|| {
+            k += 1;
+            let generation = h.state().editor.shader_generation;
+            std::fs::write(&path, format!("{source}\n// save {k}\n")).unwrap();
+            while h.state().editor.shader_generation == generation {
+                h.step();
+                std::thread::sleep(Duration::from_millis(2));
+            }
+        })
+    });
+    g.finish();
+    let s = h.state().editor.stats;
+    println!(
+        "editor stats: edit to shaded frame {:.1} ms, shader validate + rebuild {:.1} ms",
+        1e3 * s.edit_to_shade,
+        1e3 * s.shader_reload
+    );
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);
