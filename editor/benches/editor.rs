@@ -13,13 +13,18 @@ use criterion::{Criterion, criterion_group, criterion_main};
 use eframe::egui;
 use egui_kittest::Harness;
 use glam::{Quat, Vec3};
-use kage_editor::edit::state::{Editor, Method, Options, Selection};
+use kage_editor::edit::state::{Editor, Method, Options, Selection, ShadeOn};
 use kage_editor::edit::ui::App;
 use kage_engine::scene::{EnvMap, EnvironmentLight, import};
 use kage_engine::{bspvt, prt};
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Duration;
+
+/// `KAGE_SHADE_ON=cpu` measures the CPU path for polygonal lights; the default, the GPU's.
+fn shade_on() -> ShadeOn {
+    if std::env::var("KAGE_SHADE_ON").as_deref() == Ok("cpu") { ShadeOn::Cpu } else { ShadeOn::Gpu }
+}
 
 fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..")
@@ -43,6 +48,7 @@ fn teapot_editor() -> Harness<'static, App> {
         bspvt: bspvt::Settings::default(),
         prt: prt::Settings::default(),
         bake_on_start: true,
+        shade_on: shade_on(),
     };
     let mut h = Harness::builder().with_size(egui::Vec2::new(1280.0, 800.0)).wgpu().build_eframe(move |cc| {
         let rs = cc.wgpu_render_state.as_ref().expect("kittest's wgpu renderer");
@@ -63,7 +69,7 @@ fn vertices(h: &Harness<App>) -> usize {
 
 fn bench(c: &mut Criterion) {
     let mut h = teapot_editor();
-    let mut g = c.benchmark_group(format!("editor_teapot_{}v", vertices(&h)));
+    let mut g = c.benchmark_group(format!("editor_teapot_{}v_{:?}", vertices(&h), shade_on()));
     g.sample_size(10);
     g.bench_function("frame_ui", |b| b.iter(|| h.step()));
     g.bench_function("frame_rendered", |b| {

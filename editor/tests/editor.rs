@@ -6,7 +6,7 @@ use eframe::egui;
 use egui_kittest::Harness;
 use egui_kittest::kittest::Queryable;
 use glam::{Quat, Vec3};
-use kage_editor::edit::state::{Editor, Method, Options, Selection};
+use kage_editor::edit::state::{Editor, Method, Options, Selection, ShadeOn};
 use kage_editor::edit::ui::App;
 use kage_engine::scene::{Scene, default_scene, import};
 use kage_engine::{bspvt, prt};
@@ -25,6 +25,9 @@ fn shared(rel: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/assets").join(rel)
 }
 
+/// The tests exercise the WGSL path on lavapipe (auto would pick the CPU there).
+const SHADE_ON: ShadeOn = ShadeOn::Gpu;
+
 fn options(dir: &Path, scene_path: Option<PathBuf>, shader_dir: Option<PathBuf>) -> Options {
     Options {
         scene_path,
@@ -34,6 +37,7 @@ fn options(dir: &Path, scene_path: Option<PathBuf>, shader_dir: Option<PathBuf>)
         bspvt: bspvt::Settings { res: 16, epsilon: 2.0 },
         prt: prt::Settings { order: 4, directions: 256, regions: 16, ..prt::Settings::default() },
         bake_on_start: true,
+        shade_on: SHADE_ON,
     }
 }
 
@@ -245,4 +249,17 @@ fn touching_the_scene_file_reimports_it_and_rebakes_only_what_changed() {
     assert!(again.cold < first.cold, "only the moved cube's own chunks bake cold: {again:?} vs {first:?}");
     assert!(again.warm > 0 && again.faces_baked < again.vertices_baked * 6, "only dirty faces re-bake: {again:?}");
     assert!(errors(ed).is_empty(), "{:?}", errors(ed));
+
+    // A geometry edit in the editor: the cube's mesh replaced by a sphere.
+    let cube = h.state().editor.outline().into_iter().find_map(|(s, label, _)| match s {
+        Selection::Instance(e) if label.contains("cube") => Some(e),
+        _ => None,
+    });
+    let sphere = kage_engine::scene::shapes::sphere(0.5, 16, 8);
+    h.state_mut().editor.replace_mesh(cube.expect("the cube is listed"), sphere);
+    h.step();
+    assert!(h.state().editor.job.is_some(), "a mesh replacement re-bakes");
+    step_until(&mut h, "the re-bake after the mesh edit", |ed| settled(ed) && !ed.bakes.bspvt_stale);
+    let edit = h.state().editor.stats.runs[0].unwrap();
+    assert!(edit.cold > 0 && edit.warm > 0, "the new mesh bakes cold, the ground warm: {edit:?}");
 }

@@ -44,6 +44,9 @@ pub struct Args {
     /// Do not start baking when the editor opens.
     #[arg(long)]
     no_bake: bool,
+    /// Where polygonal lights shade: auto (the GPU unless it is a CPU emulation), gpu, cpu.
+    #[arg(long, value_enum, default_value = "auto")]
+    shade_on: state::ShadeOn,
     /// Window size as WxH.
     #[arg(long, default_value = "1280x800", value_parser = crate::commands::render::parse_size)]
     size: (usize, usize),
@@ -65,6 +68,7 @@ impl Args {
             bspvt: bspvt::Settings { res: self.face_res, epsilon: self.epsilon },
             prt: prt::Settings::default(),
             bake_on_start: !self.no_bake,
+            shade_on: self.shade_on,
         })
     }
 }

@@ -281,7 +281,7 @@ fn shade(ed: &mut Editor) -> Option<Vec<Vec<glam::Vec3>>> {
     match ed.method {
         Method::Bspvt | Method::LtcUnshadowed => {
             let trees = ed.method == Method::Bspvt && ed.bakes.bspvt.is_some();
-            Some(polygonal_gpu(ed, if trees { Mode::Trees } else { Mode::Unshadowed }, eye))
+            Some(polygonal(ed, if trees { Mode::Trees } else { Mode::Unshadowed }, eye))
         }
         Method::LtcExactVis => exact_vis(ed, eye),
         Method::Prt | Method::PrtSelf => Some(prt_gpu(ed, eye)),
@@ -301,17 +301,18 @@ fn zeros(ed: &Editor) -> Vec<Vec<Vec3>> {
     ed.flat.instances.iter().map(|i| vec![Vec3::ZERO; ed.scene.meshes[i.mesh as usize].positions.len()]).collect()
 }
 
-/// BSPVT or unshadowed LTC on the GPU; on the CPU when the GPU path refuses the scene.
-fn polygonal_gpu(ed: &mut Editor, mode: Mode, eye: Vec3) -> Vec<Vec<Vec3>> {
+/// BSPVT or unshadowed LTC: on the GPU, or on the CPU when chosen (see
+/// [`super::state::ShadeOn`]) or when the GPU path refuses the scene.
+fn polygonal(ed: &mut Editor, mode: Mode, eye: Vec3) -> Vec<Vec<Vec3>> {
     let gpu = ed.gpu.clone();
-    if ed.bspvt_gpu.is_none() {
+    if ed.bspvt_gpu.is_none() && ed.polygonal_on_gpu() {
         match BspvtShader::new(&gpu, &ed.shaders, None) {
             Ok(s) => ed.bspvt_gpu = Some(s),
             Err(e) => ed.error(format!("BSPVT on the GPU: {e}")),
         }
     }
-    let result =
-        ed.bspvt_gpu.as_ref().map(|s| kage_gpu::bspvt::shade_vertices(&gpu, s, &ed.scene, &ed.flat, mode, eye));
+    let on_gpu = ed.bspvt_gpu.as_ref().filter(|_| ed.polygonal_on_gpu());
+    let result = on_gpu.map(|s| kage_gpu::bspvt::shade_vertices(&gpu, s, &ed.scene, &ed.flat, mode, eye));
     match result {
         Some(Ok(v)) => v,
         other => {
