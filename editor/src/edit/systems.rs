@@ -280,7 +280,8 @@ fn shade(ed: &mut Editor) -> Option<Vec<Vec<glam::Vec3>>> {
     let eye = ed.orbit.eye();
     match ed.method {
         Method::Bspvt | Method::LtcUnshadowed => {
-            let trees = ed.method == Method::Bspvt && ed.bakes.bspvt.is_some();
+            let trees = ed.method == Method::Bspvt
+                && ed.bakes.bspvt.as_ref().is_some_and(|b| fits(ed, &b.instances, |i| i.offsets.len() - 1));
             Some(polygonal(ed, if trees { Mode::Trees } else { Mode::Unshadowed }, eye))
         }
         Method::LtcExactVis => exact_vis(ed, eye),
@@ -295,6 +296,16 @@ fn shade(ed: &mut Editor) -> Option<Vec<Vec<glam::Vec3>>> {
             })
         }
     }
+}
+
+/// True when a bake's per-instance vertex counts match the current snapshot (a mesh replaced
+/// since the bake leaves a stale bake that cannot shade it until the re-bake lands).
+fn fits<T>(ed: &Editor, instances: &[T], vertices: impl Fn(&T) -> usize) -> bool {
+    instances.len() == ed.flat.instances.len()
+        && instances
+            .iter()
+            .zip(&ed.flat.instances)
+            .all(|(b, i)| vertices(b) == ed.scene.meshes[i.mesh as usize].positions.len())
 }
 
 fn zeros(ed: &Editor) -> Vec<Vec<Vec3>> {
@@ -351,6 +362,10 @@ fn prt_gpu(ed: &mut Editor, eye: Vec3) -> Vec<Vec<Vec3>> {
     let (Some(bake), Some(light), Some(shader)) = (&ed.bakes.prt, &ed.bakes.lighting, &ed.prt_gpu) else {
         return zeros(ed);
     };
+    let n = kage_engine::math::sh::num_coeffs(bake.order);
+    if !fits(ed, &bake.instances, |t| t.len() / n) {
+        return zeros(ed);
+    }
     let method = if ed.method == Method::Prt { prt::Method::WithOthers } else { prt::Method::SelfOnly };
     let posed = prt::Posed::new(&ed.scene, &ed.flat, bake.order, light, method, &ed.options.prt, &mut ed.shadow_cache);
     let gpu = ed.gpu.clone();
