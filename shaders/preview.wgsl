@@ -1,5 +1,6 @@
 // The editor's viewport: meshes drawn with per-vertex radiance (the shading methods' results),
-// exposed and clamped like `kage render`'s PNGs.
+// exposed and clamped like `kage render`'s PNGs (vs_main, fs_main); and PRT with the shadows
+// between groups evaluated per pixel (vs_prt, fs_prt), as `kage render` images do.
 
 struct View {
     view_proj: mat4x4<f32>,
@@ -32,11 +33,92 @@ fn srgb(c: vec3<f32>) -> vec3<f32> {
     return select(1.055 * pow(c, vec3<f32>(1.0 / 2.4)) - 0.055, 12.92 * c, c <= vec3<f32>(0.0031308));
 }
 
+// Radiance as shown: exposed, clamped like the PNGs and sRGB-encoded, or as it is (overlay).
+fn display(radiance: vec3<f32>) -> vec4<f32> {
+    if (view.exposure.y > 0.5) {
+        return vec4<f32>(radiance, 1.0);
+    }
+    return vec4<f32>(srgb(clamp(radiance * view.exposure.x, vec3<f32>(0.0), vec3<f32>(1.0))), 1.0);
+}
+
 @fragment
 fn fs_main(v: VertexOut) -> @location(0) vec4<f32> {
-    if (view.exposure.y > 0.5) {
-        return vec4<f32>(v.radiance, 1.0);
-    }
-    // Clamped like the PNGs.
-    return vec4<f32>(srgb(clamp(v.radiance * view.exposure.x, vec3<f32>(0.0), vec3<f32>(1.0))), 1.0);
+    return display(v.radiance);
 }
+
+// Per-pixel PRT (engine/src/prt/mod.rs, Frame::shade_hit):
+//   L = ρ · max(0, Ls − Σ_i B_i T_i (1 − Π_o (1 − V_o(p, w_i))))
+// with ρ, Ls and T_i interpolated across the triangle and V_o looked up at the pixel's point.
+// Triangles are drawn unindexed: each vertex reads its triangle's corners, so the fragment can
+// interpolate any number of T_i from storage.
+
+struct PrtParams {
+    regions: u32,
+    groups: u32,
+}
+
+struct PrtVertex {
+    // xyz world position; w = group index.
+    p: vec4<f32>,
+    // rgb Ls (albedo not applied).
+    ls: vec4<f32>,
+    // rgb diffuse albedo toward the eye.
+    albedo: vec4<f32>,
+}
+
+@group(1) @binding(0) var<uniform> prt: PrtParams;
+@group(1) @binding(1) var<storage, read> indices: array<u32>;
+@group(1) @binding(2) var<storage, read> prt_vertices: array<PrtVertex>;
+// T_i per vertex, vertex-major.
+@group(1) @binding(3) var<storage, read> shadow_t: array<f32>;
+@group(1) @binding(4) var<storage, read> regions: array<Region>;
+// Per group and region.
+@group(1) @binding(5) var<storage, read> silhouettes: array<Silhouette>;
+@group(1) @binding(6) var<storage, read> tables: array<f32>;
+
+struct PrtOut {
+    @builtin(position) clip: vec4<f32>,
+    @location(0) position: vec3<f32>,
+    @location(1) bary: vec3<f32>,
+    @location(2) @interpolate(flat) corners: vec3<u32>,
+}
+
+@vertex
+fn vs_prt(@builtin(vertex_index) vi: u32) -> PrtOut {
+    let base = vi - vi % 3u;
+    let corners = vec3<u32>(indices[base], indices[base + 1u], indices[base + 2u]);
+    let k = vi % 3u;
+    let p = prt_vertices[corners[k]].p.xyz;
+    var out: PrtOut;
+    out.clip = view.view_proj * vec4<f32>(p, 1.0);
+    out.position = p;
+    out.bary = vec3<f32>(select(0.0, 1.0, k == 0u), select(0.0, 1.0, k == 1u), select(0.0, 1.0, k == 2u));
+    out.corners = corners;
+    return out;
+}
+
+@fragment
+fn fs_prt(v: PrtOut) -> @location(0) vec4<f32> {
+    let a = prt_vertices[v.corners.x];
+    let b = prt_vertices[v.corners.y];
+    let c = prt_vertices[v.corners.z];
+    let w = v.bary;
+    let albedo = a.albedo.xyz * w.x + b.albedo.xyz * w.y + c.albedo.xyz * w.z;
+    var l = a.ls.xyz * w.x + b.ls.xyz * w.y + c.ls.xyz * w.z;
+    let own = u32(a.p.w);
+    let q = prt.regions;
+    for (var r = 0u; r < q; r = r + 1u) {
+        let t = shadow_t[v.corners.x * q + r] * w.x + shadow_t[v.corners.y * q + r] * w.y
+            + shadow_t[v.corners.z * q + r] * w.z;
+        if (t <= 0.0) {
+            continue;
+        }
+        let open = open_fraction(own, r, prt.groups, q, v.position, regions[r].power.w);
+        if (open < 1.0) {
+            l = l - regions[r].power.xyz * (t * (1.0 - open));
+        }
+    }
+    return display(albedo * max(l, vec3<f32>(0.0)));
+}
+
+// #include "silhouette.wgsl"

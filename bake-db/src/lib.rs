@@ -30,5 +30,5 @@ pub mod store;
 
 pub use key::Key;
 pub use plan::{Plan, plan};
-pub use run::{Outcome, RunStats, run, run_cancellable};
+pub use run::{Chunk, Hooks, Outcome, RunStats, run, run_cancellable};
 pub use store::{DbError, Store};

@@ -58,7 +58,8 @@ pub struct Outcome {
 }
 
 /// One finished artefact on its way to the writer.
-struct Baked {
+struct Baked<'a> {
+    job: &'a Job,
     key: Key,
     bytes: Vec<u8>,
     info: Info,
@@ -77,31 +78,63 @@ pub fn run(
     plan: &Plan,
     progress: &(dyn Fn(usize) + Sync),
 ) -> Result<Outcome> {
-    run_cancellable(store, scene, flat, plan, progress, &AtomicBool::new(false))
+    run_cancellable(store, scene, flat, plan, Hooks { progress, cancel: &AtomicBool::new(false), chunk: None })
 }
 
-/// [`run`] that stops starting jobs once `cancel` is set: the jobs in flight finish and are
-/// committed with the rest of their batch, then [`DbError::Cancelled`] is returned; the next
-/// run finds their results cached.
-pub fn run_cancellable(
-    store: &Store,
-    scene: &Scene,
-    flat: &FlatScene,
-    plan: &Plan,
-    progress: &(dyn Fn(usize) + Sync),
-    cancel: &AtomicBool,
-) -> Result<Outcome> {
+/// How a caller follows and steers a run.
+#[derive(Clone, Copy)]
+pub struct Hooks<'a> {
+    /// Gets the number of vertices done among the misses.
+    pub progress: &'a (dyn Fn(usize) + Sync),
+    /// Once set, no further job starts.
+    pub cancel: &'a AtomicBool,
+    /// Gets every chunk of the plan: the cached ones before baking starts, then each baked one
+    /// right after the batch holding it is committed (so a preview can refine batch by batch).
+    pub chunk: Option<&'a (dyn Fn(Chunk<'_>) + Sync)>,
+}
+
+/// A chunk's artefact, as [`Hooks::chunk`] sees it.
+#[derive(Clone, Copy)]
+pub struct Chunk<'a> {
+    /// The job (technique, instance, vertex range).
+    pub job: &'a Job,
+    /// The artefact's bytes.
+    pub bytes: &'a [u8],
+}
+
+impl Chunk<'_> {
+    /// A BSPVT chunk's vertex records (`None` when malformed or not BSPVT).
+    pub fn bspvt_records(&self) -> Option<Vec<Vec<u8>>> {
+        (self.job.kind == Kind::Bspvt).then(|| decode_records(self.bytes)).flatten()
+    }
+
+    /// A PRT chunk's transfer coefficients, vertex-major (`None` when not PRT).
+    pub fn prt_transfer(&self) -> Option<Vec<f32>> {
+        (self.job.kind == Kind::Prt).then(|| bytemuck::pod_collect_to_vec(self.bytes))
+    }
+}
+
+/// [`run`] steered by `hooks`: once `hooks.cancel` is set no job starts; the jobs in flight
+/// finish and are committed with the rest of their batch, then [`DbError::Cancelled`] is
+/// returned, and the next run finds their results cached.
+pub fn run_cancellable(store: &Store, scene: &Scene, flat: &FlatScene, plan: &Plan, hooks: Hooks) -> Result<Outcome> {
     let start = Instant::now();
+    let Hooks { progress, cancel, chunk } = hooks;
+    if let Some(f) = chunk {
+        for job in plan.jobs.iter().filter(|j| j.cached) {
+            f(Chunk { job, bytes: &store.get::<u8>(&job.key)?.unwrap_or_default() });
+        }
+    }
     let occluders = plan.bspvt.map(|_| bspvt::occluder_bvh(flat));
     let transfer = plan.prt.map(|s| prt::Baker::new(scene, flat, &s));
     let ctx = Context { scene, flat, plan, store, occluders: occluders.as_ref(), transfer: transfer.as_ref() };
     let misses: Vec<&Job> = plan.misses().collect();
     let done = AtomicUsize::new(0);
-    let (tx, rx) = mpsc::channel::<Baked>();
+    let (tx, rx) = mpsc::channel::<Baked<'_>>();
     let mut fresh: HashMap<Key, Vec<u8>> = HashMap::new();
     let mut stats = RunStats { cached: plan.jobs.len() - misses.len(), ..RunStats::default() };
     let written = std::thread::scope(|scope| -> Result<()> {
-        let writer = scope.spawn(|| write_batches(store, rx));
+        let writer = scope.spawn(|| write_batches(store, rx, chunk));
         let baking = misses.par_iter().try_for_each_with(tx, |tx, job| -> Result<()> {
             if cancel.load(Ordering::Relaxed) {
                 return Err(DbError::Cancelled { done: 0 });
@@ -143,7 +176,11 @@ pub fn run_cancellable(
 }
 
 /// Receives finished artefacts and commits them in batches; returns them all.
-fn write_batches(store: &Store, rx: mpsc::Receiver<Baked>) -> Result<Vec<Baked>> {
+fn write_batches<'a>(
+    store: &Store,
+    rx: mpsc::Receiver<Baked<'a>>,
+    chunk: Option<&(dyn Fn(Chunk<'_>) + Sync)>,
+) -> Result<Vec<Baked<'a>>> {
     let mut all: Vec<Baked> = Vec::new();
     let mut pending = 0usize;
     let mut last = Instant::now();
@@ -160,6 +197,9 @@ fn write_batches(store: &Store, rx: mpsc::Receiver<Baked>) -> Result<Vec<Baked>>
                 batch.iter().map(|b| (b.key, b.bytes.clone(), b.info.clone())).collect();
             let lineage: Vec<(Key, Vec<u8>)> = batch.iter().filter_map(|b| b.lineage.clone()).collect();
             store.put_batch(&arts, &lineage)?;
+            if let Some(f) = chunk {
+                batch.iter().for_each(|b| f(Chunk { job: b.job, bytes: &b.bytes }));
+            }
             pending = 0;
             last = Instant::now();
         }
@@ -179,7 +219,7 @@ struct Context<'a> {
 }
 
 impl Context<'_> {
-    fn bake(&self, job: &Job) -> Result<Baked> {
+    fn bake<'j>(&self, job: &'j Job) -> Result<Baked<'j>> {
         let t = Instant::now();
         let (bytes, params, warm, faces, vertices) = match job.kind {
             Kind::Prt => {
@@ -211,7 +251,7 @@ impl Context<'_> {
             v.extend(encode_occluders(&self.plan.snapshot.occluders));
             (slot, v)
         });
-        Ok(Baked { key: job.key, bytes, info, lineage, warm, vertices, faces })
+        Ok(Baked { job, key: job.key, bytes, info, lineage, warm, vertices, faces })
     }
 
     /// The chunk's vertex records, whether warm, how many faces were built and how many

@@ -3,7 +3,7 @@
 
 use glam::{Affine3A, Quat, Vec3};
 use kage_bake_db::run::RunStats;
-use kage_bake_db::{DbError, Store, plan, run};
+use kage_bake_db::{DbError, Hooks, Store, plan, run};
 use kage_engine::scene::{EnvMap, EnvironmentLight, Material, Scene, flatten, shapes};
 use kage_engine::{bspvt, prt};
 use std::path::PathBuf;
@@ -189,9 +189,8 @@ fn a_cancelled_run_keeps_what_it_committed_and_the_next_run_finishes_the_rest() 
     let p = plan(&store, &s, &flat, Some(BSPVT), Some(prt_settings())).unwrap();
     let cancel = AtomicBool::new(false);
     // Cancel once the first chunk reports: later jobs are never started.
-    let e = kage_bake_db::run_cancellable(&store, &s, &flat, &p, &|_| cancel.store(true, Ordering::Relaxed), &cancel)
-        .err()
-        .expect("the run was cancelled");
+    let hooks = Hooks { progress: &|_| cancel.store(true, Ordering::Relaxed), cancel: &cancel, chunk: None };
+    let e = kage_bake_db::run_cancellable(&store, &s, &flat, &p, hooks).err().expect("the run was cancelled");
     let DbError::Cancelled { done } = e else { panic!("{e}") };
     let total: usize = p.misses().map(|j| j.vertices.len()).sum();
     assert!(done > 0 && done < total, "committed {done} of {total} vertices");
@@ -200,4 +199,51 @@ fn a_cancelled_run_keeps_what_it_committed_and_the_next_run_finishes_the_rest() 
     assert_eq!(left, total - done, "what was committed is cached");
     let out = run(&store, &s, &flat, &again, &|_| {}).unwrap();
     assert_eq!(out.bspvt.unwrap().instances, bspvt::bake(&s, &flat, &BSPVT, &|_| {}).instances);
+}
+
+#[test]
+fn every_chunk_streams_once_cached_first_and_the_chunks_assemble_into_the_outcome() {
+    use kage_bake_db::plan::Kind;
+    use std::sync::Mutex;
+    use std::sync::atomic::AtomicBool;
+    let store = Store::open(&scratch("stream")).unwrap();
+    let s = scene("");
+    let flat = flatten(&s);
+    let p = plan(&store, &s, &flat, Some(BSPVT), Some(prt_settings())).unwrap();
+    run(&store, &s, &flat, &p, &|_| {}).unwrap();
+    // Move a box: PRT of the other groups stays cached, BSPVT is re-baked (warm).
+    let moved = scene("move");
+    let flat = flatten(&moved);
+    let p = plan(&store, &moved, &flat, Some(BSPVT), Some(prt_settings())).unwrap();
+    let cached = p.jobs.iter().filter(|j| j.cached).count();
+    assert!(cached > 0 && cached < p.jobs.len(), "{cached} of {}", p.jobs.len());
+    let seen: Mutex<Vec<(usize, bool, Vec<u8>)>> = Mutex::default();
+    let record = |c: kage_bake_db::Chunk| {
+        let index = p.jobs.iter().position(|j| j.key == c.job.key).expect("a job of the plan");
+        seen.lock().unwrap().push((index, c.job.cached, c.bytes.to_vec()));
+    };
+    let hooks = Hooks { progress: &|_| {}, cancel: &AtomicBool::new(false), chunk: Some(&record) };
+    let out = kage_bake_db::run_cancellable(&store, &moved, &flat, &p, hooks).unwrap();
+    let seen = seen.into_inner().unwrap();
+    let mut order: Vec<usize> = seen.iter().map(|c| c.0).collect();
+    order.sort();
+    assert_eq!(order, (0..p.jobs.len()).collect::<Vec<_>>(), "every chunk once");
+    assert!(seen[..cached].iter().all(|c| c.1) && seen[cached..].iter().all(|c| !c.1), "cached chunks first");
+    let (trees, transfer) = (out.bspvt.unwrap(), out.prt.unwrap());
+    for (index, _, bytes) in seen {
+        let job = &p.jobs[index];
+        let chunk = kage_bake_db::Chunk { job, bytes: &bytes };
+        match job.kind {
+            Kind::Bspvt => {
+                let inst = &trees.instances[job.instance];
+                let expected: Vec<Vec<u8>> = job.vertices.clone().map(|v| inst.record(v).to_vec()).collect();
+                assert_eq!(chunk.bspvt_records(), Some(expected), "chunk {index}");
+            }
+            Kind::Prt => {
+                let n = transfer.order * transfer.order;
+                let expected = &transfer.instances[job.instance][job.vertices.start * n..job.vertices.end * n];
+                assert_eq!(chunk.prt_transfer().as_deref(), Some(expected), "chunk {index}");
+            }
+        }
+    }
 }

@@ -9,16 +9,18 @@
 //!
 //! The first run bakes into `target/bench-editor/bake.redb`; later runs find it cached.
 
+#[path = "../tests/common/mod.rs"]
+mod common;
+
+use common::harness;
 use criterion::{Criterion, criterion_group, criterion_main};
-use eframe::egui;
 use egui_kittest::Harness;
 use glam::{Quat, Vec3};
-use kage_editor::edit::state::{Editor, Method, Options, Selection, ShadeOn};
+use kage_editor::edit::state::{Method, Options, Selection, ShadeOn};
 use kage_editor::edit::ui::App;
 use kage_engine::scene::{EnvMap, EnvironmentLight, import};
 use kage_engine::{bspvt, prt};
 use std::path::PathBuf;
-use std::sync::Arc;
 use std::time::Duration;
 
 /// `KAGE_SHADE_ON=cpu` measures the CPU path for polygonal lights; the default, the GPU's.
@@ -47,14 +49,11 @@ fn teapot_editor() -> Harness<'static, App> {
         db_path: work.join("bake.redb"),
         bspvt: bspvt::Settings::default(),
         prt: prt::Settings::default(),
+        cache: Default::default(),
         bake_on_start: true,
         shade_on: shade_on(),
     };
-    let mut h = Harness::builder().with_size(egui::Vec2::new(1280.0, 800.0)).wgpu().build_eframe(move |cc| {
-        let rs = cc.wgpu_render_state.as_ref().expect("kittest's wgpu renderer");
-        let gpu = kage_gpu::Gpu::from_parts(rs.device.clone(), rs.queue.clone(), rs.adapter.get_info());
-        App::new(Editor::new(scene, options, gpu, Arc::new(|| {})))
-    });
+    let mut h = harness(scene, options);
     while h.state().editor.job.is_some() || h.state().editor.bakes.bspvt.is_none() {
         h.step();
         std::thread::sleep(Duration::from_millis(50));

@@ -2,16 +2,18 @@
 //! kittest's wgpu renderer — lavapipe in CI, no skipping. Rendered frames are written to
 //! `target/editor-snapshots/` for inspection and compared with each other.
 
+mod common;
+
+use common::harness;
 use eframe::egui;
 use egui_kittest::Harness;
 use egui_kittest::kittest::Queryable;
 use glam::{Quat, Vec3};
 use kage_editor::edit::state::{Editor, Method, Options, Selection, ShadeOn};
 use kage_editor::edit::ui::App;
-use kage_engine::scene::{Scene, default_scene, import};
+use kage_engine::scene::{default_scene, import};
 use kage_engine::{bspvt, prt};
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 fn scratch(name: &str) -> PathBuf {
@@ -36,17 +38,10 @@ fn options(dir: &Path, scene_path: Option<PathBuf>, shader_dir: Option<PathBuf>)
         db_path: dir.join("bake.redb"),
         bspvt: bspvt::Settings { res: 16, epsilon: 2.0 },
         prt: prt::Settings { order: 4, directions: 256, regions: 16, ..prt::Settings::default() },
+        cache: Default::default(),
         bake_on_start: true,
         shade_on: SHADE_ON,
     }
-}
-
-fn harness(scene: Scene, options: Options) -> Harness<'static, App> {
-    Harness::builder().with_size(egui::Vec2::new(1280.0, 800.0)).wgpu().build_eframe(move |cc| {
-        let rs = cc.wgpu_render_state.as_ref().expect("kittest's wgpu renderer");
-        let gpu = kage_gpu::Gpu::from_parts(rs.device.clone(), rs.queue.clone(), rs.adapter.get_info());
-        App::new(Editor::new(scene, options, gpu, Arc::new(|| {})))
-    })
 }
 
 /// Steps until `done` holds (at most 300 s: bakes run in the background).
@@ -182,13 +177,101 @@ fn light_moves_reshade_at_once_and_group_moves_rebake_bspvt_incrementally() {
 }
 
 #[test]
+fn the_preview_refines_batch_by_batch_while_the_bakes_stream_in() {
+    let dir = scratch("stream");
+    let scene = import::import(&shared("scenes/teapot_quad_light.gltf"), Default::default()).unwrap();
+    let mut o = options(&dir, None, None);
+    o.bspvt.res = 32;
+    // Building the harness runs frames until the app is idle: start the bake afterwards.
+    o.bake_on_start = false;
+    let mut h = harness(scene, o);
+    h.state_mut().editor.bake_now();
+    h.step();
+    // BSPVT previews seen while its bake is still running (each different from the last).
+    let mut previews: Vec<Vec<Vec3>> = Vec::new();
+    let start = Instant::now();
+    while !settled(&h.state().editor) {
+        assert!(start.elapsed() < Duration::from_secs(300), "{:#?}", h.state().editor.log);
+        h.step();
+        let ed = &h.state().editor;
+        let baking = ed.job.as_ref().is_some_and(|j| j.bspvt.as_ref().is_some_and(|t| t.running));
+        let v = values(&h);
+        if baking && ed.bakes.bspvt.is_some() && previews.last().is_none_or(|p| changed(p, &v) > 0) {
+            previews.push(v);
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    h.step();
+    let ed = &h.state().editor;
+    assert!(errors(ed).is_empty(), "{:?}", errors(ed));
+    assert!(previews.len() >= 3, "the preview refined {} times during the bake", previews.len());
+    // Vertices whose trees have not landed show unshadowed LTC; trees only take light away,
+    // so each refinement darkens the view until the final bake.
+    let total = |v: &[Vec3]| v.iter().map(|x| x.element_sum() as f64).sum::<f64>();
+    let mut sums: Vec<f64> = previews.iter().map(|p| total(p)).collect();
+    sums.push(total(&values(&h)));
+    for w in sums.windows(2) {
+        assert!(w[1] <= w[0] * (1.0 + 1e-4), "each landed batch only adds shadows: {sums:?}");
+    }
+    assert!(sums[sums.len() - 1] < 0.99 * sums[0], "the shadows landed: {sums:?}");
+    assert!(ed.bakes.refinements >= previews.len(), "{} refinements", ed.bakes.refinements);
+}
+
+#[test]
+fn the_cached_indirect_term_lands_in_the_background_follows_edits_and_persists() {
+    use kage_editor::edit::systems::gathering;
+    let dir = scratch("indirect");
+    let mut o = options(&dir, None, None);
+    o.cache.rays = 64;
+    let mut h = harness(default_scene(), o);
+    step_until(&mut h, "the first bakes", settled);
+    let direct = values(&h);
+    h.get_by_label("Indirect light (HSH radiance cache)").click();
+    let landed = |ed: &Editor| !ed.indirect_values.is_empty() && !gathering(ed) && !ed.dirty.shade;
+    step_until(&mut h, "the indirect term", landed);
+    let ed = &h.state().editor;
+    assert!(errors(ed).is_empty(), "{:?}", errors(ed));
+    let with = values(&h);
+    let total = |v: &[Vec3]| v.iter().map(|x| x.element_sum() as f64).sum::<f64>();
+    assert!(with.iter().zip(&direct).all(|(w, d)| w.is_finite() && (*w - *d).min_element() >= -1e-6));
+    assert!(total(&with) > 1.01 * total(&direct), "one bounce adds light: {} vs {}", total(&with), total(&direct));
+    let gathered = |ed: &Editor| ed.log.iter().filter(|l| l.text.starts_with("indirect: ")).count();
+    assert_eq!(gathered(ed), 1);
+    snapshot(&mut h, "indirect");
+
+    // A light move re-shades the direct term at once; the indirect term follows when gathered.
+    let first = h.state().editor.indirect_values.clone();
+    let light = h.state().editor.outline().into_iter().find_map(|(s, ..)| match s {
+        Selection::Light(e) => Some(e),
+        _ => None,
+    });
+    h.state_mut().editor.move_light(light.unwrap(), Vec3::new(0.5, 0.0, 0.0), Quat::IDENTITY);
+    h.step();
+    assert!(changed(&with, &values(&h)) > 100, "the direct term follows at once");
+    step_until(&mut h, "the new indirect term", |ed| landed(ed) && gathered(ed) == 2);
+    let ed = &h.state().editor;
+    let second: Vec<Vec3> = ed.indirect_values.iter().flatten().copied().collect();
+    assert!(changed(&first.concat(), &second) > 100, "the indirect term follows the light");
+
+    // Off and on again with the same lighting: the records come from the bake database.
+    h.get_by_label("Indirect light (HSH radiance cache)").click();
+    h.step();
+    h.get_by_label("Indirect light (HSH radiance cache)").click();
+    step_until(&mut h, "the stored indirect term", |ed| landed(ed) && gathered(ed) == 3);
+    let ed = &h.state().editor;
+    let last = ed.log.iter().rev().find(|l| l.text.starts_with("indirect: ")).unwrap();
+    assert!(last.text.contains("from the bake database"), "{}", last.text);
+    assert_eq!(ed.indirect_values.concat(), second, "the stored records give the same term");
+}
+
+#[test]
 fn shader_saves_rebuild_pipelines_and_broken_shaders_keep_the_last_good_one() {
     let dir = scratch("reload");
     let shaders = dir.join("shaders");
     std::fs::create_dir_all(&shaders).unwrap();
     let repo_shaders = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shaders");
-    for f in ["bspvt.wgsl", "prt.wgsl", "preview.wgsl"] {
-        std::fs::copy(repo_shaders.join(f), shaders.join(f)).unwrap();
+    for f in std::fs::read_dir(&repo_shaders).unwrap().map(|e| e.unwrap().path()) {
+        std::fs::copy(&f, shaders.join(f.file_name().unwrap())).unwrap();
     }
     let mut h = harness(default_scene(), options(&dir, None, Some(shaders.clone())));
     step_until(&mut h, "the first bakes", settled);
@@ -250,15 +333,22 @@ fn touching_the_scene_file_reimports_it_and_rebakes_only_what_changed() {
     assert!(again.warm > 0 && again.faces_baked < again.vertices_baked * 6, "only dirty faces re-bake: {again:?}");
     assert!(errors(ed).is_empty(), "{:?}", errors(ed));
 
-    // A geometry edit in the editor: the cube's mesh replaced by a sphere.
+    // A geometry edit through the inspector: the cube's mesh replaced by the bunny's.
     let cube = h.state().editor.outline().into_iter().find_map(|(s, label, _)| match s {
         Selection::Instance(e) if label.contains("cube") => Some(e),
         _ => None,
     });
-    let sphere = kage_engine::scene::shapes::sphere(0.5, 16, 8);
-    h.state_mut().editor.replace_mesh(cube.expect("the cube is listed"), sphere);
+    h.state_mut().editor.selection = Selection::Instance(cube.expect("the cube is listed"));
     h.step();
-    assert!(h.state().editor.job.is_some(), "a mesh replacement re-bakes");
+    let field = h.get_by_role_and_label(egui::accesskit::Role::TextInput, "glTF file");
+    field.focus();
+    field.type_text(shared("models/bunny.glb").to_str().unwrap());
+    h.step();
+    h.get_by_label("Replace mesh").click();
+    h.step();
+    let ed = &h.state().editor;
+    assert!(ed.log.iter().any(|l| l.text.contains("replaced the mesh by")), "{:#?}", ed.log);
+    step_until(&mut h, "a mesh replacement re-bakes", |ed| ed.job.is_some());
     step_until(&mut h, "the re-bake after the mesh edit", |ed| settled(ed) && !ed.bakes.bspvt_stale);
     let edit = h.state().editor.stats.runs[0].unwrap();
     assert!(edit.cold > 0 && edit.warm > 0, "the new mesh bakes cold, the ground warm: {edit:?}");

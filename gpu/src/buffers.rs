@@ -101,7 +101,8 @@ pub fn dispatch(
     staging.iter().map(|s| map_read(gpu, s)).collect()
 }
 
-fn map_read(gpu: &Gpu, buffer: &wgpu::Buffer) -> Result<Vec<u8>, GpuError> {
+/// The bytes of a `MAP_READ` buffer, once the queue's work on it is done.
+pub fn map_read(gpu: &Gpu, buffer: &wgpu::Buffer) -> Result<Vec<u8>, GpuError> {
     let slice = buffer.slice(..);
     let (tx, rx) = std::sync::mpsc::channel();
     slice.map_async(wgpu::MapMode::Read, move |r| {

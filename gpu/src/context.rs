@@ -23,8 +23,7 @@ impl Gpu {
         Self::from_adapter(&adapter)
     }
 
-    /// Shares a device created elsewhere (the editor's window); the shaders need no more than
-    /// wgpu's default limits.
+    /// Shares a device created elsewhere (the editor's window, created with [`Gpu::descriptor`]).
     pub fn from_parts(device: wgpu::Device, queue: wgpu::Queue, info: wgpu::AdapterInfo) -> Self {
         Self { device, queue, info }
     }
@@ -36,14 +35,18 @@ impl Gpu {
         Ok(Self { device, queue, info: adapter.get_info() })
     }
 
-    /// The device descriptor kage needs on `adapter`: the adapter's own buffer limits.
+    /// The device descriptor kage needs on `adapter`: wgpu's default limits where the adapter
+    /// has them (a GL adapter may have fewer; the shaders that need more then refuse to build
+    /// with a message), its own buffer sizes, and 8192² textures for a window of any size.
     pub fn descriptor(adapter: &wgpu::Adapter) -> wgpu::DeviceDescriptor<'static> {
         let have = adapter.limits();
         let limits = wgpu::Limits {
             max_storage_buffer_binding_size: have.max_storage_buffer_binding_size,
             max_buffer_size: have.max_buffer_size,
+            max_texture_dimension_2d: 8192,
             ..wgpu::Limits::default()
-        };
+        }
+        .or_worse_values_from(&have);
         wgpu::DeviceDescriptor { label: Some("kage"), required_limits: limits, ..Default::default() }
     }
 

@@ -14,7 +14,7 @@
 //! frame uploads only what the camera, lights and group poses change.
 
 pub mod bspvt;
-mod buffers;
+pub mod buffers;
 pub mod context;
 pub mod prt;
 pub mod shader;

@@ -24,9 +24,10 @@ struct GpuVertex {
     group: u32,
 }
 
+/// One silhouette's parameters as `silhouette.wgsl` reads them.
 #[repr(C)]
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
-struct GpuSilhouette {
+pub struct GpuSilhouette {
     w: [f32; 3],
     plane: f32,
     u_axis: [f32; 3],
@@ -96,13 +97,7 @@ impl PrtShader {
         let lighting: Vec<[f32; 4]> =
             posed.lighting.iter().flatten().map(|c| [c.x as f32, c.y as f32, c.z as f32, 0.0]).collect();
         let basis: Vec<f32> = posed.region_basis.iter().flatten().map(|&y| y as f32).collect();
-        let regions: Vec<[f32; 4]> = posed
-            .regions
-            .iter()
-            .zip(&posed.widths)
-            .map(|(r, w)| [r.power.x as f32, r.power.y as f32, r.power.z as f32, *w])
-            .collect();
-        let (silhouettes, tables) = silhouettes(posed);
+        let shadows = ShadowArrays::new(posed);
         let params = Params {
             vertex_count: vertices.len() as u32,
             coeffs: sh::num_coeffs(self.order) as u32,
@@ -116,9 +111,9 @@ impl PrtShader {
             &self.transfer,
             &storage(gpu, "prt lighting", &lighting),
             &storage(gpu, "prt region basis", &basis),
-            &storage(gpu, "prt regions", &regions),
-            &storage(gpu, "prt silhouettes", &silhouettes),
-            &storage(gpu, "prt tables", &tables),
+            &storage(gpu, "prt regions", &shadows.regions),
+            &storage(gpu, "prt silhouettes", &shadows.silhouettes),
+            &storage(gpu, "prt tables", &shadows.tables),
             &out,
         ];
         let read = dispatch(gpu, &self.pipeline, &buffers, params.vertex_count, &[8])?;
@@ -127,29 +122,46 @@ impl PrtShader {
     }
 }
 
-/// Every (group, region) silhouette's parameters, with their tables (summed areas, then far
-/// depths) concatenated.
-fn silhouettes(posed: &Posed) -> (Vec<GpuSilhouette>, Vec<f32>) {
-    let (mut params, mut tables) = (Vec::new(), Vec::new());
-    for s in posed.silhouettes.iter().flat_map(|g| g.iter()) {
-        let p = s.params();
-        params.push(GpuSilhouette {
-            w: p.w.to_array(),
-            plane: p.plane,
-            u_axis: p.u_axis.to_array(),
-            texels_per_unit: p.texels_per_unit,
-            v_axis: p.v_axis.to_array(),
-            res: p.res,
-            offset: p.offset.to_array(),
-            lo: p.covered.0.to_array(),
-            hi: p.covered.1.to_array(),
-            sat_base: tables.len() as u32,
-            far_base: (tables.len() + s.sat().len()) as u32,
-        });
-        tables.extend_from_slice(s.sat());
-        tables.extend_from_slice(s.far());
+/// The shadows between groups of a posed frame, as `silhouette.wgsl` reads them.
+pub struct ShadowArrays {
+    /// Per region: RGB power B_i and the box filter's angular width.
+    pub regions: Vec<[f32; 4]>,
+    /// Per group and region: the silhouette's parameters.
+    pub silhouettes: Vec<GpuSilhouette>,
+    /// Every silhouette's summed-area table, then its far depths, concatenated.
+    pub tables: Vec<f32>,
+}
+
+impl ShadowArrays {
+    /// The arrays of `posed` (empty without shadows between groups).
+    pub fn new(posed: &Posed) -> Self {
+        let regions = posed
+            .regions
+            .iter()
+            .zip(&posed.widths)
+            .map(|(r, w)| [r.power.x as f32, r.power.y as f32, r.power.z as f32, *w])
+            .collect();
+        let (mut silhouettes, mut tables) = (Vec::new(), Vec::new());
+        for s in posed.silhouettes.iter().flat_map(|g| g.iter()) {
+            let p = s.params();
+            silhouettes.push(GpuSilhouette {
+                w: p.w.to_array(),
+                plane: p.plane,
+                u_axis: p.u_axis.to_array(),
+                texels_per_unit: p.texels_per_unit,
+                v_axis: p.v_axis.to_array(),
+                res: p.res,
+                offset: p.offset.to_array(),
+                lo: p.covered.0.to_array(),
+                hi: p.covered.1.to_array(),
+                sat_base: tables.len() as u32,
+                far_base: (tables.len() + s.sat().len()) as u32,
+            });
+            tables.extend_from_slice(s.sat());
+            tables.extend_from_slice(s.far());
+        }
+        Self { regions, silhouettes, tables }
     }
-    (params, tables)
 }
 
 /// Per instance and vertex, the GPU counterpart of `kage_engine::prt::Frame::vertex_values`.

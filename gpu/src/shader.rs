@@ -5,15 +5,28 @@
 //! file changes. Every source is parsed and validated by naga before it reaches the device:
 //! a broken file yields a [`ShaderError`] naming the file and line, and the caller keeps its last
 //! good pipeline.
+//!
+//! WGSL has no includes; kage's loader has one: a line `// #include "name.wgsl"` is replaced by
+//! that file's text (one level deep), so shaders share code (the silhouette lookups of
+//! `silhouette.wgsl`) without copies. Errors are mapped back to the file and line they are in.
 
 use std::path::{Path, PathBuf};
 
 /// The shaders kage ships, with their embedded sources.
-const EMBEDDED: [(&str, &str); 3] = [
+const EMBEDDED: [(&str, &str); 4] = [
     ("bspvt.wgsl", include_str!("../../shaders/bspvt.wgsl")),
     ("prt.wgsl", include_str!("../../shaders/prt.wgsl")),
     ("preview.wgsl", include_str!("../../shaders/preview.wgsl")),
+    ("silhouette.wgsl", include_str!("../../shaders/silhouette.wgsl")),
 ];
+
+/// The include directive, up to the quoted file name.
+const INCLUDE: &str = "// #include \"";
+
+/// The file a line includes, if it is an include directive.
+fn included(line: &str) -> Option<&str> {
+    line.trim().strip_prefix(INCLUDE)?.strip_suffix('"')
+}
 
 /// A shader that failed to load, parse or validate.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
@@ -27,6 +40,16 @@ pub struct ShaderError {
     pub message: String,
     /// The full diagnostic with the source excerpt.
     pub report: String,
+}
+
+/// A shader's source with its includes expanded.
+struct Expanded {
+    /// The label errors carry (the file's path or embedded name).
+    label: String,
+    /// The expanded text.
+    text: String,
+    /// For every line of `text`, the (file label, 1-based line) it came from.
+    origin: Vec<(String, u32)>,
 }
 
 /// Where shader sources come from.
@@ -51,8 +74,60 @@ impl Shaders {
         self.dir.as_deref()
     }
 
-    /// The source of shader `name` and the label errors carry (its path or name).
+    /// The shaders that must be rebuilt when file `name` changes: itself, or (for a file others
+    /// include) every shader that includes it.
+    pub fn dependents(&self, name: &str) -> Vec<String> {
+        let mut names: Vec<String> = match &self.dir {
+            Some(dir) => std::fs::read_dir(dir)
+                .into_iter()
+                .flatten()
+                .flatten()
+                .filter_map(|e| e.file_name().into_string().ok())
+                .filter(|n| n.ends_with(".wgsl"))
+                .collect(),
+            None => EMBEDDED.iter().map(|(n, _)| n.to_string()).collect(),
+        };
+        names.sort();
+        names.retain(|n| self.raw(n).is_ok_and(|(_, t)| t.lines().any(|l| included(l) == Some(name))));
+        if names.is_empty() { vec![name.to_string()] } else { names }
+    }
+
+    /// The source of shader `name` with its includes expanded, and the label errors carry.
     pub fn source(&self, name: &str) -> Result<(String, String), ShaderError> {
+        self.expanded(name).map(|e| (e.label, e.text))
+    }
+
+    /// The source with its includes expanded, and where every line came from.
+    fn expanded(&self, name: &str) -> Result<Expanded, ShaderError> {
+        let (label, raw) = self.raw(name)?;
+        let (mut text, mut origin) = (String::new(), Vec::new());
+        for (k, line) in raw.lines().enumerate() {
+            match included(line) {
+                Some(part) => {
+                    let (part_label, part_text) = self.raw(part).map_err(|e| ShaderError {
+                        file: label.clone(),
+                        line: k as u32 + 1,
+                        message: format!("cannot include {part}: {}", e.message),
+                        report: format!("{label}:{}: cannot include {part}: {}", k + 1, e.report),
+                    })?;
+                    for (j, l) in part_text.lines().enumerate() {
+                        text.push_str(l);
+                        text.push('\n');
+                        origin.push((part_label.clone(), j as u32 + 1));
+                    }
+                }
+                None => {
+                    text.push_str(line);
+                    text.push('\n');
+                    origin.push((label.clone(), k as u32 + 1));
+                }
+            }
+        }
+        Ok(Expanded { label, text, origin })
+    }
+
+    /// One file's text as stored, and its label (its path or name).
+    fn raw(&self, name: &str) -> Result<(String, String), ShaderError> {
         match &self.dir {
             Some(dir) => {
                 let path = dir.join(name);
@@ -78,14 +153,30 @@ impl Shaders {
         }
     }
 
-    /// Loads, validates and creates shader module `name` on `device`.
+    /// Loads, expands, validates and creates shader module `name` on `device`.
     pub fn module(&self, device: &wgpu::Device, name: &str) -> Result<wgpu::ShaderModule, ShaderError> {
-        let (label, text) = self.source(name)?;
-        validate(&label, &text)?;
+        let text = self.checked(name)?;
         Ok(device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some(name),
             source: wgpu::ShaderSource::Wgsl(text.into()),
         }))
+    }
+
+    /// The expanded source of `name`, validated; an error names the file and line it is in,
+    /// included files too.
+    pub fn checked(&self, name: &str) -> Result<String, ShaderError> {
+        let Expanded { label, text, origin } = self.expanded(name)?;
+        validate(&label, &text).map_err(|e| match origin.get((e.line as usize).wrapping_sub(1)) {
+            Some((file, line)) if *file != label => ShaderError {
+                report: format!("{file}:{line}: {} (included by {label})\n{}", e.message, e.report),
+                file: file.clone(),
+                line: *line,
+                ..e
+            },
+            Some((_, line)) => ShaderError { line: *line, ..e },
+            None => e,
+        })?;
+        Ok(text)
     }
 }
 
@@ -114,10 +205,37 @@ mod tests {
     use super::*;
 
     #[test]
-    fn every_shipped_shader_validates() {
-        for (name, text) in EMBEDDED {
-            validate(name, text).unwrap_or_else(|e| panic!("{}", e.report));
+    fn every_shipped_shader_validates_with_its_includes() {
+        let shaders = Shaders::embedded();
+        let mains: Vec<String> = EMBEDDED.iter().flat_map(|(n, _)| shaders.dependents(n)).collect();
+        assert!(mains.contains(&"preview.wgsl".into()) && !mains.contains(&"silhouette.wgsl".into()), "{mains:?}");
+        for name in mains {
+            shaders.checked(&name).unwrap_or_else(|e| panic!("{}", e.report));
         }
+    }
+
+    #[test]
+    fn an_error_in_an_included_file_names_that_file_and_line() {
+        let dir = std::env::temp_dir().join(format!("kage-include-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let main = "fn f() -> f32 {\n    return g();\n}\n// #include \"lib.wgsl\"\n";
+        std::fs::write(dir.join("main.wgsl"), main).unwrap();
+        std::fs::write(dir.join("lib.wgsl"), "// a library\nfn g() -> f32 {\n    return 1u;\n}\n").unwrap();
+        let shaders = Shaders::from_dir(&dir);
+        assert_eq!(shaders.dependents("lib.wgsl"), ["main.wgsl"]);
+        assert_eq!(shaders.dependents("main.wgsl"), ["main.wgsl"]);
+        let e = shaders.checked("main.wgsl").unwrap_err();
+        // naga places a bad return at its function, line 2 of lib.wgsl (line 5 of the whole).
+        assert!(e.file.ends_with("lib.wgsl") && e.line == 2, "{e:?}");
+        assert!(e.report.contains("included by"), "{}", e.report);
+        std::fs::write(dir.join("lib.wgsl"), "fn g() -> f32 {\n    return 1.0;\n}\n").unwrap();
+        std::fs::write(dir.join("main.wgsl"), "fn f() -> f32 {\n    return g() + ;\n}\n// #include \"lib.wgsl\"\n")
+            .unwrap();
+        let e = shaders.checked("main.wgsl").unwrap_err();
+        assert!(e.file.ends_with("main.wgsl") && e.line == 2, "{e:?}");
+        std::fs::write(dir.join("main.wgsl"), "// #include \"missing.wgsl\"\n").unwrap();
+        let e = shaders.checked("main.wgsl").unwrap_err();
+        assert!(e.file.ends_with("main.wgsl") && e.line == 1 && e.message.contains("missing.wgsl"), "{e:?}");
     }
 
     #[test]

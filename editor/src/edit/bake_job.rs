@@ -1,18 +1,31 @@
 //! The editor's bake system: BSPVT and PRT bakes run in parallel on rayon (one `join`), off the
-//! UI thread, through the bake database. Results land per technique as each finishes, so the
-//! preview refines (PRT's fast bake first); a cancel stops starting new chunks and keeps every
+//! UI thread (on a thread pool of their own, so the UI's parallel shading never waits behind
+//! them), through the bake database. Chunks stream to the editor as the database finds
+//! them cached or commits them, so the preview refines batch by batch; each technique's
+//! assembled bake lands when it finishes. A cancel stops starting new chunks and keeps every
 //! committed batch for the next run.
 
-use kage_bake_db::{DbError, Plan, RunStats, Store, plan, run_cancellable};
+use kage_bake_db::plan::Kind;
+use kage_bake_db::{Chunk, DbError, Hooks, Plan, RunStats, Store, plan, run_cancellable};
 use kage_engine::scene::{Scene, flatten};
 use kage_engine::{bspvt, prt};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
-use std::sync::mpsc::{Receiver, channel};
+use std::sync::mpsc::{Receiver, Sender, channel};
 use std::time::Instant;
 
-/// A finished bake (or why it stopped).
+/// What a chunk holds for its vertices.
+pub enum ChunkData {
+    /// BSPVT vertex records.
+    Trees(Vec<Vec<u8>>),
+    /// PRT transfer, vertex-major.
+    Transfer(Vec<f32>),
+}
+
+/// A streamed chunk, a finished bake, or why a bake stopped.
 pub enum Landed {
+    /// One chunk: its instance (snapshot order), first vertex and data.
+    Chunk(usize, usize, ChunkData),
     /// BSPVT trees.
     Bspvt(Result<(bspvt::Bake, RunStats), DbError>),
     /// PRT transfer.
@@ -67,33 +80,52 @@ impl BakeJob {
         let (bt, pt) = ((bp.bspvt.is_some()).then(|| track(&bp)), (pp.prt.is_some()).then(|| track(&pp)));
         let done = [bt.as_ref().map(|t| t.done.clone()), pt.as_ref().map(|t| t.done.clone())];
         let stop = cancel.clone();
+        // A pool of its own: on rayon's global pool the UI thread's parallel shading would queue
+        // behind the bake's chunks and freeze the window until the bake ends.
+        let pool = rayon::ThreadPoolBuilder::new().thread_name(|k| format!("kage-bake-{k}")).build().map_err(|e| {
+            DbError::Storage { path: store.path().to_path_buf(), detail: format!("cannot start the bake threads: {e}") }
+        })?;
         std::thread::spawn(move || {
-            let run = |p: &Plan, done: &Option<Arc<AtomicUsize>>| {
+            let land = &on_land;
+            let run = |p: &Plan, done: &Option<Arc<AtomicUsize>>, tx: &Sender<Landed>| {
                 let progress = |n: usize| {
                     if let Some(d) = done {
                         d.store(n, Ordering::Relaxed)
                     }
                 };
-                run_cancellable(&store, &snapshot, &flat, p, &progress, &stop)
+                let chunk = |c: Chunk| {
+                    let data = match c.job.kind {
+                        Kind::Bspvt => c.bspvt_records().map(ChunkData::Trees),
+                        Kind::Prt => c.prt_transfer().map(ChunkData::Transfer),
+                    };
+                    // A malformed chunk is reported by the assembly at the end of the run.
+                    if let Some(data) = data {
+                        let _ = tx.send(Landed::Chunk(c.job.instance, c.job.vertices.start, data));
+                        land();
+                    }
+                };
+                let hooks = Hooks { progress: &progress, cancel: &stop, chunk: Some(&chunk) };
+                run_cancellable(&store, &snapshot, &flat, p, hooks)
             };
             let (tx_b, tx_p) = (tx.clone(), tx);
-            let land = &on_land;
-            rayon::join(
-                || {
-                    if bp.bspvt.is_some() {
-                        let r = run(&bp, &done[0]).map(|o| (o.bspvt.expect("BSPVT was planned"), o.stats));
-                        let _ = tx_b.send(Landed::Bspvt(r));
-                        land();
-                    }
-                },
-                || {
-                    if pp.prt.is_some() {
-                        let r = run(&pp, &done[1]).map(|o| (o.prt.expect("PRT was planned"), o.stats));
-                        let _ = tx_p.send(Landed::Prt(r));
-                        land();
-                    }
-                },
-            );
+            pool.install(|| {
+                rayon::join(
+                    || {
+                        if bp.bspvt.is_some() {
+                            let r = run(&bp, &done[0], &tx_b).map(|o| (o.bspvt.expect("BSPVT was planned"), o.stats));
+                            let _ = tx_b.send(Landed::Bspvt(r));
+                            land();
+                        }
+                    },
+                    || {
+                        if pp.prt.is_some() {
+                            let r = run(&pp, &done[1], &tx_p).map(|o| (o.prt.expect("PRT was planned"), o.stats));
+                            let _ = tx_p.send(Landed::Prt(r));
+                            land();
+                        }
+                    },
+                )
+            });
             // Each run recorded only its own keys as the scene's; gc must keep both.
             let keys: Vec<_> = bp.keys().into_iter().chain(pp.keys()).collect();
             let _ = store.put_scene(&snapshot.source, &keys);
@@ -106,6 +138,7 @@ impl BakeJob {
         let landed: Vec<Landed> = self.rx.try_iter().collect();
         for l in &landed {
             let t = match l {
+                Landed::Chunk(..) => None,
                 Landed::Bspvt(_) => self.bspvt.as_mut(),
                 Landed::Prt(_) => self.prt.as_mut(),
             };

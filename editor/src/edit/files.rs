@@ -1,10 +1,10 @@
-//! `File` menu actions: save the edited scene and export an asset pack, both as glTF binary
-//! through the pack writer (so poses, materials, lights and cameras round-trip through
-//! `kage_bake_db::pack::read`).
+//! File actions: save the edited scene and export an asset pack, both as glTF binary through
+//! the pack writer (so poses, materials, lights and cameras round-trip through
+//! `kage_bake_db::pack::read`), and replace a mesh by one read from a glTF file.
 
 use super::state::Editor;
 use kage_bake_db::pack::{self, Export};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// `SCENE_DIR/<stem><suffix>`, or `kage-default<suffix>` in the working folder.
 fn beside_scene(ed: &Editor, suffix: &str) -> PathBuf {
@@ -64,4 +64,26 @@ pub fn save(ed: &mut Editor) -> String {
 pub fn export_pack(ed: &mut Editor) -> String {
     let path = beside_scene(ed, ".pack.glb");
     write(ed, path, true)
+}
+
+/// Replaces `instance`'s mesh by the first mesh of the glTF file at `path` (in its own frame: the
+/// instance keeps its transform); a geometry edit, so the affected bakes re-run.
+pub fn replace_mesh_from(ed: &mut Editor, instance: hecs::Entity, path: &Path) -> String {
+    let options = kage_engine::scene::import::ImportOptions::default();
+    let imported = kage_engine::scene::import::import(path, options).map_err(|e| e.to_string());
+    let mesh = imported.and_then(|s| {
+        s.meshes.first().map(|m| (**m).clone()).ok_or_else(|| format!("{}: the file has no mesh", path.display()))
+    });
+    match mesh {
+        Ok(mesh) => {
+            let message = format!("replaced the mesh by {}'s ({} vertices)", path.display(), mesh.positions.len());
+            ed.replace_mesh(instance, mesh);
+            ed.info(message.clone());
+            message
+        }
+        Err(e) => {
+            ed.error(format!("replace mesh: {e}"));
+            e
+        }
+    }
 }

@@ -20,6 +20,7 @@ mod worker;
 use crate::db_args::DbArgs;
 use crate::scene_args::SceneArgs;
 use anyhow::{Context, Result};
+use eframe::egui_wgpu::{WgpuConfiguration, WgpuSetup, WgpuSetupCreateNew};
 use kage_engine::{bspvt, prt};
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -67,10 +68,17 @@ impl Args {
             db_path: self.db.path(&self.scene),
             bspvt: bspvt::Settings { res: self.face_res, epsilon: self.epsilon },
             prt: prt::Settings::default(),
+            cache: Default::default(),
             bake_on_start: !self.no_bake,
             shade_on: self.shade_on,
         })
     }
+}
+
+/// `setup` asking for the device limits kage's shaders need ([`kage_gpu::Gpu::descriptor`];
+/// egui's default asks a GL adapter for WebGL 2 limits, which bind no storage buffers).
+pub fn with_kage_limits(setup: WgpuSetupCreateNew) -> WgpuSetup {
+    WgpuSetup::CreateNew(WgpuSetupCreateNew { device_descriptor: Arc::new(kage_gpu::Gpu::descriptor), ..setup })
 }
 
 /// Opens the editor window (eframe with the wgpu renderer).
@@ -82,6 +90,10 @@ pub fn run(args: &Args) -> Result<()> {
         viewport: eframe::egui::ViewportBuilder::default()
             .with_inner_size([args.size.0 as f32, args.size.1 as f32])
             .with_title(format!("kage — {}", scene.source)),
+        wgpu_options: WgpuConfiguration {
+            wgpu_setup: with_kage_limits(WgpuSetupCreateNew::without_display_handle()),
+            ..Default::default()
+        },
         ..Default::default()
     };
     eframe::run_native(

@@ -54,6 +54,12 @@ impl Method {
         }
     }
 
+    /// True for the methods computing direct light per vertex (all but the reference), to which
+    /// the radiance cache can add one bounce of indirect light.
+    pub fn direct(self) -> bool {
+        self != Method::Reference
+    }
+
     /// True for the polygonal-light methods (the environment is not theirs).
     pub fn polygonal(self) -> bool {
         matches!(self, Method::Bspvt | Method::LtcUnshadowed | Method::LtcExactVis)
@@ -116,6 +122,8 @@ pub struct Dirty {
     pub environment: bool,
     /// The viewport's meshes must be uploaded again.
     pub meshes: bool,
+    /// The viewport's per-pixel PRT terms ([`Editor::per_pixel`]) changed.
+    pub per_pixel: bool,
 }
 
 /// The bakes the shading uses.
@@ -129,6 +137,8 @@ pub struct Bakes {
     pub prt: Option<prt::Bake>,
     /// PRT's lighting for the current environment.
     pub lighting: Option<prt::Lighting>,
+    /// Frames in which streamed chunks refined the preview.
+    pub refinements: usize,
 }
 
 /// Options `kage edit` starts with.
@@ -146,6 +156,8 @@ pub struct Options {
     pub bspvt: bspvt::Settings,
     /// PRT parameters.
     pub prt: prt::Settings,
+    /// Radiance-cache parameters (the indirect term).
+    pub cache: kage_engine::cache::Settings,
     /// Start baking at once.
     pub bake_on_start: bool,
     /// Where polygonal-light shading (BSPVT, LTC) runs.
@@ -182,8 +194,16 @@ pub struct Editor {
     pub selection: Selection,
     /// Per instance and vertex: the displayed radiance (or the error overlay's colours).
     pub values: Vec<Vec<Vec3>>,
-    /// Per instance and vertex: the method's radiance (what the overlay compares).
+    /// Per instance and vertex: the method's radiance, plus the cached indirect term when on
+    /// (what the overlay compares).
     pub radiance: Vec<Vec<Vec3>>,
+    /// Per instance and vertex: the method's direct radiance alone.
+    pub direct: Vec<Vec<Vec3>>,
+    /// Add one bounce of indirect light from the HSH radiance cache.
+    pub indirect: bool,
+    /// Per instance and vertex: the last indirect term (lit by an earlier direct result while a
+    /// new one is gathered).
+    pub indirect_values: Vec<Vec<Vec3>>,
     /// Show the error against the progressive reference as a heat map.
     pub overlay: bool,
     /// Display exposure in stops.
@@ -206,6 +226,8 @@ pub struct Editor {
     pub dirty: Dirty,
     /// The progressive reference: running sums and passes.
     pub reference: (Vec<Vec<Vec3>>, u32),
+    /// PRT's per-vertex terms when the viewport shades PRT per pixel (method `prt`, no overlay).
+    pub per_pixel: Option<prt::Frame>,
     pub(super) gpu: Gpu,
     pub(super) shaders: Shaders,
     pub(super) bspvt_gpu: Option<BspvtShader>,
@@ -214,6 +236,9 @@ pub struct Editor {
     pub(super) watcher: Option<Watcher>,
     pub(super) reference_worker: Option<Worker<Vec<Vec<Vec3>>>>,
     pub(super) exact_worker: Option<Worker<Vec<Vec<Vec3>>>>,
+    pub(super) indirect_worker: Option<Worker<(Vec<Vec<Vec3>>, String)>>,
+    /// Bumped whenever `direct` changes; the generation the indirect term was started from.
+    pub(super) generations: (u64, u64),
     pub(super) wake: Arc<dyn Fn() + Send + Sync>,
     pub(super) started: Instant,
     pub(super) edited_at: Option<Instant>,
@@ -235,6 +260,9 @@ impl Editor {
             selection: Selection::None,
             values: Vec::new(),
             radiance: Vec::new(),
+            direct: Vec::new(),
+            indirect: false,
+            indirect_values: Vec::new(),
             overlay: false,
             exposure: 0.0,
             log: Vec::new(),
@@ -246,6 +274,7 @@ impl Editor {
             shader_generation: 0,
             dirty: Dirty { shade: true, environment: true, meshes: true, ..Dirty::default() },
             reference: (Vec::new(), 0),
+            per_pixel: None,
             gpu,
             shaders,
             bspvt_gpu: None,
@@ -254,6 +283,8 @@ impl Editor {
             watcher: None,
             reference_worker: None,
             exact_worker: None,
+            indirect_worker: None,
+            generations: (0, 0),
             wake,
             started: Instant::now(),
             edited_at: None,
@@ -326,12 +357,21 @@ impl Editor {
         self.dirty.shade = true;
     }
 
-    /// Switches the displayed method.
+    /// Switches the displayed method (the reference restarts: each method is compared with the
+    /// reference of its own lights).
     pub fn set_method(&mut self, m: Method) {
         if m != self.method {
             self.method = m;
-            self.reference_worker = None;
-            self.exact_worker = None;
+            self.restart_reference();
+            self.edited();
+        }
+    }
+
+    /// Turns the cached indirect term on or off (the reference follows: one bounce or none).
+    pub fn set_indirect(&mut self, on: bool) {
+        if on != self.indirect {
+            self.indirect = on;
+            self.restart_reference();
             self.edited();
         }
     }

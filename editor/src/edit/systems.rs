@@ -2,14 +2,19 @@
 //! fixed order once per frame ([`run_frame`]). Nothing here blocks on a bake or a reference
 //! pass: those run on rayon in the background and land here when done.
 
-use super::bake_job::{BakeJob, Landed};
+use super::bake_job::{BakeJob, ChunkData, Landed};
 use super::reload::Change;
 use super::state::{Editor, Method};
 use super::worker::Worker;
 use glam::Vec3;
 use kage_bake_db::DbError;
+use kage_bake_db::records::load_or_place;
+use kage_engine::cache::{
+    self,
+    record::{GLOSSY_SPP, Source},
+};
 use kage_engine::reference::{Renderer, Settings};
-use kage_engine::scene::{EnvMap, EnvironmentLight, flatten, import};
+use kage_engine::scene::{EnvMap, EnvironmentLight, Scene, flatten, import};
 use kage_engine::{bspvt, prt};
 use kage_gpu::bspvt::{BspvtShader, Mode};
 use kage_gpu::prt::PrtShader;
@@ -29,6 +34,7 @@ pub fn run_frame(ed: &mut Editor) {
     bake_system(ed);
     reference_system(ed);
     shade_system(ed);
+    indirect_system(ed);
 }
 
 /// Hot reload: rebuilds pipelines after a shader save (keeping the last good ones when the new
@@ -46,28 +52,31 @@ pub fn reload_system(ed: &mut Editor) {
     }
 }
 
-fn reload_shader(ed: &mut Editor, name: &str) {
+fn reload_shader(ed: &mut Editor, changed: &str) {
     let start = Instant::now();
-    let checked = ed.shaders.source(name).and_then(|(label, text)| kage_gpu::shader::validate(&label, &text));
-    if let Err(e) = checked {
+    // A file other shaders include rebuilds every one of them.
+    let names = ed.shaders.dependents(changed);
+    if let Some(e) = names.iter().find_map(|n| ed.shaders.checked(n).err()) {
         ed.error(format!("shader {}: keeping the last good pipeline\n{}", e.file, plain_frames(&e.report)));
         ed.shader_error = Some(e);
         return;
     }
     let gpu = ed.gpu.clone();
-    let result = match name {
-        "bspvt.wgsl" => ed.bspvt_gpu.as_mut().map(|s| s.reload(&gpu, &ed.shaders)),
-        "prt.wgsl" => ed.prt_gpu.as_mut().map(|s| s.reload(&gpu, &ed.shaders)),
-        _ => None,
-    };
-    if let Some(Err(e)) = result {
-        ed.error(format!("{name}: {}; keeping the last good pipeline", plain_frames(&e.to_string())));
-        return;
+    for name in &names {
+        let result = match name.as_str() {
+            "bspvt.wgsl" => ed.bspvt_gpu.as_mut().map(|s| s.reload(&gpu, &ed.shaders)),
+            "prt.wgsl" => ed.prt_gpu.as_mut().map(|s| s.reload(&gpu, &ed.shaders)),
+            _ => None,
+        };
+        if let Some(Err(e)) = result {
+            ed.error(format!("{name}: {}; keeping the last good pipeline", plain_frames(&e.to_string())));
+            return;
+        }
     }
     ed.shader_error = None;
     ed.shader_generation += 1;
     ed.stats.shader_reload = start.elapsed().as_secs_f64();
-    ed.info(format!("{name}: reloaded in {:.1} ms", 1e3 * ed.stats.shader_reload));
+    ed.info(format!("{changed}: reloaded {} in {:.1} ms", names.join(", "), 1e3 * ed.stats.shader_reload));
     ed.dirty.shade = true;
 }
 
@@ -146,11 +155,84 @@ pub fn bake_system(ed: &mut Editor) {
     let Some(job) = &mut ed.job else { return };
     let landed = job.landed();
     let running = job.running();
+    let mut patched = [false; 2];
     for l in landed {
-        take(ed, l);
+        take(ed, l, &mut patched);
+    }
+    if patched[0] {
+        upload_bspvt(ed);
+    }
+    if patched[1] {
+        upload_prt(ed);
+    }
+    if patched.contains(&true) {
+        ed.bakes.refinements += 1;
+        ed.dirty.shade = true;
     }
     if !running {
         ed.job = None;
+    }
+}
+
+/// Writes a streamed chunk into the preview's bakes (BSPVT, PRT: `patched`). A bake that does
+/// not fit the snapshot is replaced first by a placeholder: unshadowed records for BSPVT
+/// (vertices show LTC without shadows until their trees land), zero transfer for PRT.
+fn patch(ed: &mut Editor, instance: usize, first: usize, data: ChunkData, patched: &mut [bool; 2]) {
+    let counts: Vec<usize> =
+        ed.flat.instances.iter().map(|i| ed.scene.meshes[i.mesh as usize].positions.len()).collect();
+    let fits = |have: &[usize]| have == counts;
+    match data {
+        ChunkData::Trees(records) => {
+            let bake = ed.bakes.bspvt.get_or_insert_with(|| placeholder_trees(&counts, ed.options.bspvt));
+            if !fits(&bake.instances.iter().map(bspvt::BakedInstance::vertices).collect::<Vec<_>>()) {
+                *bake = placeholder_trees(&counts, ed.options.bspvt);
+            }
+            if first + records.len() <= counts.get(instance).copied().unwrap_or(0) {
+                bake.instances[instance].splice(first, &records);
+                patched[0] = true;
+            }
+        }
+        ChunkData::Transfer(t) => {
+            let order = ed.options.prt.order;
+            let n = order * order;
+            let zeros = || prt::Bake {
+                order,
+                instances: counts.iter().map(|c| vec![0.0; c * n]).collect(),
+                stats: Default::default(),
+            };
+            let bake = ed.bakes.prt.get_or_insert_with(zeros);
+            if bake.order != order || !fits(&bake.instances.iter().map(|t| t.len() / n).collect::<Vec<_>>()) {
+                *bake = zeros();
+            }
+            if let Some(dst) = bake.instances.get_mut(instance).and_then(|d| d.get_mut(first * n..first * n + t.len()))
+            {
+                dst.copy_from_slice(&t);
+                patched[1] = true;
+            }
+        }
+    }
+}
+
+fn placeholder_trees(counts: &[usize], settings: bspvt::Settings) -> bspvt::Bake {
+    let instances = counts.iter().map(|&c| bspvt::BakedInstance::unshadowed(c)).collect();
+    bspvt::Bake { settings, instances, stats: Default::default() }
+}
+
+/// Puts the current BSPVT trees on the device (the CPU path reads them in place).
+fn upload_bspvt(ed: &mut Editor) {
+    let Some(bake) = &ed.bakes.bspvt else { return };
+    match BspvtShader::new(&ed.gpu, &ed.shaders, Some(bake)) {
+        Ok(s) => ed.bspvt_gpu = Some(s),
+        Err(e) => ed.error(format!("BSPVT on the GPU: {e} (shading on the CPU)")),
+    }
+}
+
+/// Puts the current PRT transfer on the device.
+fn upload_prt(ed: &mut Editor) {
+    let Some(bake) = &ed.bakes.prt else { return };
+    match PrtShader::new(&ed.gpu, &ed.shaders, bake, bake.order) {
+        Ok(s) => ed.prt_gpu = Some(s),
+        Err(e) => ed.error(format!("PRT on the GPU: {e}")),
     }
 }
 
@@ -174,9 +256,11 @@ fn start_bake(ed: &mut Editor) {
     }
 }
 
-fn take(ed: &mut Editor, landed: Landed) {
-    let gpu = ed.gpu.clone();
+/// Takes in what landed: a chunk is patched into the preview's bakes (`patched`), a finished
+/// bake replaces them.
+fn take(ed: &mut Editor, landed: Landed, patched: &mut [bool; 2]) {
     match landed {
+        Landed::Chunk(instance, first, data) => return patch(ed, instance, first, data, patched),
         Landed::Bspvt(Ok((bake, stats))) => {
             ed.stats.bake_rate[0] = stats.vertices_baked as f64 / stats.seconds.max(1e-9);
             ed.stats.runs[0] = Some(stats);
@@ -184,22 +268,16 @@ fn take(ed: &mut Editor, landed: Landed) {
                 "BSPVT: {} cached, {} cold, {} warm chunks ({} vertices) in {:.2} s",
                 stats.cached, stats.cold, stats.warm, stats.vertices_baked, stats.seconds
             ));
-            match BspvtShader::new(&gpu, &ed.shaders, Some(&bake)) {
-                Ok(s) => ed.bspvt_gpu = Some(s),
-                Err(e) => ed.error(format!("BSPVT on the GPU: {e} (shading on the CPU)")),
-            }
             ed.bakes.bspvt = Some(bake);
             ed.bakes.bspvt_stale = false;
+            upload_bspvt(ed);
         }
         Landed::Prt(Ok((bake, stats))) => {
             ed.stats.bake_rate[1] = stats.vertices_baked as f64 / stats.seconds.max(1e-9);
             ed.stats.runs[1] = Some(stats);
             ed.info(format!("PRT: {} cached, {} cold chunks in {:.2} s", stats.cached, stats.cold, stats.seconds));
-            match PrtShader::new(&gpu, &ed.shaders, &bake, bake.order) {
-                Ok(s) => ed.prt_gpu = Some(s),
-                Err(e) => ed.error(format!("PRT on the GPU: {e}")),
-            }
             ed.bakes.prt = Some(bake);
+            upload_prt(ed);
         }
         Landed::Bspvt(Err(DbError::Cancelled { done })) | Landed::Prt(Err(DbError::Cancelled { done })) => {
             ed.info(format!("bake cancelled; {done} vertices committed stay in the database"))
@@ -231,15 +309,22 @@ pub fn reference_system(ed: &mut Editor) {
     }
 }
 
-/// The scene the reference renders for the current method: polygonal-light methods without the
+/// The scene with the current method's lights: polygonal-light methods without the
 /// environment, PRT without the polygonal lights, the reference itself with everything.
-fn spawn_reference(ed: &Editor) -> Worker<Vec<Vec<Vec3>>> {
+fn lit_scene(ed: &Editor) -> Scene {
     let mut scene = ed.scene.duplicate();
     match ed.method {
         m if m.polygonal() => scene.clear_environment(),
         Method::Prt | Method::PrtSelf => scene.remove_polygon_lights(),
         _ => {}
     }
+    scene
+}
+
+/// The reference for the current method's lights, with one bounce when the indirect term is on.
+fn spawn_reference(ed: &Editor) -> Worker<Vec<Vec<Vec3>>> {
+    let scene = lit_scene(ed);
+    let bounces = u32::from(ed.indirect && ed.method.direct());
     let (eye, first) = (ed.orbit.eye(), ed.reference.1);
     let wake = ed.wake.clone();
     Worker::spawn(
@@ -249,7 +334,7 @@ fn spawn_reference(ed: &Editor) -> Worker<Vec<Vec<Vec3>>> {
                 if stop.load(Ordering::Relaxed) {
                     return;
                 }
-                let s = Settings { spp: REFERENCE_SPP, seed: pass as u64, max_bounces: 0, min_bounces: 0 };
+                let s = Settings { spp: REFERENCE_SPP, seed: pass as u64, max_bounces: bounces, min_bounces: 0 };
                 let est = renderer.render_vertices(eye, &s, &|_| {});
                 send(est.iter().map(|v| v.iter().map(|e| e.mean).collect()).collect());
             }
@@ -265,14 +350,92 @@ pub fn shade_system(ed: &mut Editor) {
     }
     ed.dirty.shade = false;
     let start = Instant::now();
+    if ed.method != Method::Prt || ed.overlay {
+        ed.per_pixel = None;
+    }
+    ed.dirty.per_pixel = true;
     if let Some(values) = shade(ed) {
-        ed.radiance = values;
+        ed.direct = values;
+        ed.generations.0 += 1;
         ed.stats.shading = start.elapsed().as_secs_f64();
         if let Some(t) = ed.edited_at.take() {
             ed.stats.edit_to_shade = t.elapsed().as_secs_f64();
         }
     }
+    compose(ed);
+}
+
+/// What the viewport shows: direct plus (when on and of the same shape) the indirect term,
+/// or the error overlay of that.
+fn compose(ed: &mut Editor) {
+    let shapes = |v: &[Vec<Vec3>]| v.iter().map(Vec::len).collect::<Vec<_>>();
+    let add = ed.indirect && ed.method.direct() && shapes(&ed.indirect_values) == shapes(&ed.direct);
+    ed.radiance = if add {
+        ed.direct
+            .iter()
+            .zip(&ed.indirect_values)
+            .map(|(d, i)| d.iter().zip(i).map(|(d, i)| *d + *i).collect())
+            .collect()
+    } else {
+        ed.direct.clone()
+    };
     ed.values = if ed.overlay { overlay(ed) } else { ed.radiance.clone() };
+}
+
+/// One bounce of indirect light from the HSH radiance cache, lit by the current direct result:
+/// gathered in the background (one gather at a time; a newer direct result starts the next when
+/// it ends), its records kept in the bake database. The preview adds the last term that landed.
+pub fn indirect_system(ed: &mut Editor) {
+    if !ed.indirect || !ed.method.direct() {
+        ed.indirect_worker = None;
+        return;
+    }
+    let landed = ed.indirect_worker.as_ref().map(|w| w.results()).unwrap_or_default();
+    if let Some((values, what)) = landed.into_iter().last() {
+        ed.indirect_worker = None;
+        ed.indirect_values = values;
+        ed.info(format!("indirect: {what}"));
+        compose(ed);
+    }
+    let (direct, started) = ed.generations;
+    if ed.indirect_worker.is_none() && started != direct && !ed.direct.is_empty() {
+        ed.generations.1 = direct;
+        ed.indirect_worker = Some(spawn_indirect(ed));
+    }
+}
+
+/// True while an indirect gather runs.
+pub fn gathering(ed: &Editor) -> bool {
+    ed.indirect_worker.is_some()
+}
+
+fn spawn_indirect(ed: &Editor) -> Worker<(Vec<Vec<Vec3>>, String)> {
+    let scene = lit_scene(ed);
+    let direct = ed.direct.clone();
+    let (eye, s, store) = (ed.orbit.eye(), ed.options.cache, ed.store.clone());
+    let wake = ed.wake.clone();
+    Worker::spawn(
+        move |_, send| {
+            let start = Instant::now();
+            let renderer = Renderer::new(&scene);
+            let src = Source { renderer: &renderer, direct: &direct, glossy_spp: GLOSSY_SPP };
+            let (cache, note) = match store.as_deref().map(|st| load_or_place(st, &scene, &src, &s)) {
+                Some(Ok((cache, true))) => (cache, " from the bake database".to_string()),
+                Some(Ok((cache, false))) => (cache, String::new()),
+                Some(Err(e)) => (cache::place_at_vertices(&src, &s), format!(" (not stored: {e})")),
+                None => (cache::place_at_vertices(&src, &s), String::new()),
+            };
+            let values = cache::shade_vertices(&src, &cache, eye);
+            let what = format!(
+                "{} records{note}, {} rays, {:.2} s",
+                cache.records.len(),
+                cache.rays(),
+                start.elapsed().as_secs_f64()
+            );
+            send((values, what));
+        },
+        move || wake(),
+    )
 }
 
 /// The method's per-vertex radiance, or `None` while a background result is pending.
@@ -369,15 +532,17 @@ fn prt_gpu(ed: &mut Editor, eye: Vec3) -> Vec<Vec<Vec3>> {
     let method = if ed.method == Method::Prt { prt::Method::WithOthers } else { prt::Method::SelfOnly };
     let posed = prt::Posed::new(&ed.scene, &ed.flat, bake.order, light, method, &ed.options.prt, &mut ed.shadow_cache);
     let gpu = ed.gpu.clone();
-    match kage_gpu::prt::shade_vertices(&gpu, shader, &ed.scene, &ed.flat, &posed, eye) {
-        Ok(v) => v,
-        Err(e) => {
-            let cpu = prt::Frame::prepare(&ed.scene, &ed.flat, bake, light, method, &ed.options.prt, eye)
-                .vertex_values(&ed.scene, &ed.flat);
-            ed.error(format!("PRT on the GPU: {e}; shading on the CPU"));
-            cpu
-        }
+    let values = kage_gpu::prt::shade_vertices(&gpu, shader, &ed.scene, &ed.flat, &posed, eye);
+    // The viewport shades the shadows between groups per pixel from the frame's vertex terms.
+    let frame = prt::Frame::from_posed(&ed.scene, &ed.flat, bake, posed, eye);
+    let values = values.map_err(|e| (e, frame.vertex_values(&ed.scene, &ed.flat)));
+    if method == prt::Method::WithOthers && !ed.overlay {
+        ed.per_pixel = Some(frame);
     }
+    values.unwrap_or_else(|(e, cpu)| {
+        ed.error(format!("PRT on the GPU: {e}; shading on the CPU"));
+        cpu
+    })
 }
 
 /// Relative error against the reference as a heat map (blue 0 → red ≥ 50 %). Errors are

@@ -24,6 +24,10 @@ impl App {
     /// Wraps `editor`, building the viewport on its GPU.
     pub fn new(mut editor: Editor) -> Self {
         let viewport = match Viewport::new(editor.gpu(), editor.shaders()) {
+            Ok(v) if !v.per_pixel_prt() => {
+                editor.info("this device binds too few storage buffers per shader stage for per-pixel PRT: the viewport interpolates PRT per vertex".into());
+                Some(v)
+            }
             Ok(v) => Some(v),
             Err(e) => {
                 editor.error(format!("preview shader: {e}"));
@@ -54,6 +58,10 @@ impl App {
             ed.dirty.meshes = false;
         }
         vp.upload_radiance(ed.gpu(), &ed.values);
+        if ed.dirty.per_pixel {
+            vp.upload_prt(ed.gpu(), &ed.scene, &ed.flat, ed.per_pixel.as_ref());
+            ed.dirty.per_pixel = false;
+        }
     }
 }
 
@@ -75,7 +83,7 @@ impl eframe::App for App {
         });
         egui::Panel::bottom("log").resizable(true).default_size(120.0).show(ui, |ui| log(ui, &self.editor));
         egui::CentralPanel::default().show(ui, |ui| self.view(ui, frame));
-        if self.editor.job.is_some() || self.editor.dirty.shade {
+        if self.editor.job.is_some() || self.editor.dirty.shade || super::systems::gathering(&self.editor) {
             ui.ctx().request_repaint_after(std::time::Duration::from_millis(100));
         }
     }
@@ -171,6 +179,15 @@ fn methods(ui: &mut egui::Ui, ed: &mut Editor) {
     let mut overlay = ed.overlay;
     ui.checkbox(&mut overlay, "Error overlay (vs progressive reference)");
     ed.set_overlay(overlay);
+    let mut indirect = ed.indirect;
+    ui.checkbox(&mut indirect, "Indirect light (HSH radiance cache)");
+    ed.set_indirect(indirect);
+    if ed.indirect && super::systems::gathering(ed) {
+        ui.horizontal(|ui| {
+            ui.spinner();
+            ui.label("gathering indirect light");
+        });
+    }
     if ed.overlay || ed.method == Method::Reference {
         ui.label(format!("reference: {} samples per vertex", ed.reference.1 * 4));
     }
@@ -196,7 +213,10 @@ fn inspector(ui: &mut egui::Ui, ed: &mut Editor) {
             ui.label("Select a group, mesh, light or the environment in the outliner.");
         }
         Selection::Group(g) => group_inspector(ui, ed, g),
-        Selection::Instance(e) => material_inspector(ui, ed, e),
+        Selection::Instance(e) => {
+            material_inspector(ui, ed, e);
+            mesh_inspector(ui, ed, e);
+        }
         Selection::Light(e) => light_inspector(ui, ed, e),
         Selection::Environment => environment_inspector(ui, ed),
     }
@@ -232,6 +252,21 @@ fn material_inspector(ui: &mut egui::Ui, ed: &mut Editor, e: hecs::Entity) {
     if m != before {
         ed.set_material(e, m);
     }
+}
+
+/// Geometry edit: the instance's mesh replaced by the first mesh of a glTF file.
+fn mesh_inspector(ui: &mut egui::Ui, ed: &mut Editor, e: hecs::Entity) {
+    ui.separator();
+    let id = egui::Id::unique(("replace mesh", e));
+    let mut path = ui.data_mut(|d| d.get_temp::<String>(id)).unwrap_or_default();
+    ui.horizontal(|ui| {
+        let label = ui.label("glTF file");
+        ui.add(egui::TextEdit::singleline(&mut path).hint_text("path/to/mesh.glb")).labelled_by(label.id);
+    });
+    if ui.add_enabled(!path.trim().is_empty(), egui::Button::new("Replace mesh")).clicked() {
+        super::files::replace_mesh_from(ed, e, std::path::Path::new(path.trim()));
+    }
+    ui.data_mut(|d| d.insert_temp(id, path));
 }
 
 fn light_inspector(ui: &mut egui::Ui, ed: &mut Editor, e: hecs::Entity) {
@@ -286,6 +321,7 @@ fn bake_panel(ui: &mut egui::Ui, ed: &mut Editor) {
             ui.label(format!("{name}: {} chunks cached, {done} / {} vertices{eta}", t.cached, t.total));
             ui.add(egui::ProgressBar::new(fraction).show_percentage());
         }
+        ui.label(format!("preview refined {} times as chunks landed", ed.bakes.refinements));
         if ui.button("Cancel bake").clicked() {
             ed.cancel_bake();
         }

@@ -1,11 +1,16 @@
 //! The 3D view: the scene's meshes (and light polygons) drawn with per-vertex radiance by
-//! `shaders/preview.wgsl` into an offscreen texture that egui shows as an image.
+//! `shaders/preview.wgsl` into an offscreen texture that egui shows as an image. PRT is drawn
+//! per pixel instead when a frame's terms are given ([`Viewport::upload_prt`]): the shadows
+//! between groups are looked up at every pixel, not interpolated between vertices.
 
 use super::camera::Orbit;
 use bytemuck::{Pod, Zeroable};
 use eframe::{egui, egui_wgpu};
 use glam::Vec3;
+use kage_engine::prt;
 use kage_engine::scene::{FlatScene, Scene};
+use kage_gpu::buffers::{storage, uniform};
+use kage_gpu::prt::ShadowArrays;
 use kage_gpu::{Gpu, Shaders};
 use wgpu::util::DeviceExt;
 
@@ -28,6 +33,30 @@ struct Mesh {
     vertices: usize,
 }
 
+/// PRT per pixel: one unindexed draw of every instance's triangles.
+struct PrtDraw {
+    bind: wgpu::BindGroup,
+    count: u32,
+}
+
+/// `PrtParams` of preview.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct PrtParams {
+    regions: u32,
+    groups: u32,
+    pad: [u32; 2],
+}
+
+/// `PrtVertex` of preview.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct PrtVertex {
+    p: [f32; 4],
+    ls: [f32; 4],
+    albedo: [f32; 4],
+}
+
 /// The offscreen target.
 struct Target {
     size: [u32; 2],
@@ -39,10 +68,15 @@ struct Target {
 /// The viewport renderer.
 pub struct Viewport {
     pipeline: wgpu::RenderPipeline,
+    /// The per-pixel PRT pipeline; `None` where the device cannot bind its storage buffers in
+    /// the fragment stage (e.g. a GL adapter), which then interpolates PRT per vertex.
+    prt_pipeline: Option<wgpu::RenderPipeline>,
     uniform: wgpu::Buffer,
     bind: wgpu::BindGroup,
     layout: wgpu::BindGroupLayout,
+    prt_layout: Option<wgpu::BindGroupLayout>,
     meshes: Vec<Mesh>,
+    prt: Option<PrtDraw>,
     /// Flat-coloured light polygons.
     lights: Vec<Mesh>,
     target: Option<Target>,
@@ -77,13 +111,17 @@ impl Viewport {
             layout: &layout,
             entries: &[wgpu::BindGroupEntry { binding: 0, resource: uniform.as_entire_binding() }],
         });
-        let pipeline = build_pipeline(gpu, shaders, &layout)?;
+        let prt_layout = prt_layout(gpu);
+        let (pipeline, prt_pipeline) = build_pipelines(gpu, shaders, &layout, prt_layout.as_ref())?;
         Ok(Self {
             pipeline,
+            prt_pipeline,
             uniform,
             bind,
             layout,
+            prt_layout,
             meshes: Vec::new(),
+            prt: None,
             lights: Vec::new(),
             target: None,
             generation: 0,
@@ -93,8 +131,22 @@ impl Viewport {
     /// Rebuilds the pipeline (hot reload); on error the previous one stays.
     pub fn reload(&mut self, gpu: &Gpu, shaders: &Shaders, generation: u64) -> Result<(), kage_gpu::ShaderError> {
         self.generation = generation;
-        self.pipeline = build_pipeline(gpu, shaders, &self.layout)?;
+        (self.pipeline, self.prt_pipeline) = build_pipelines(gpu, shaders, &self.layout, self.prt_layout.as_ref())?;
         Ok(())
+    }
+
+    /// Whether this device draws PRT per pixel.
+    pub fn per_pixel_prt(&self) -> bool {
+        self.prt_pipeline.is_some()
+    }
+
+    /// Draws the receivers with PRT per pixel from `frame`'s terms (`None`, or a device that
+    /// cannot: per-vertex radiance).
+    pub fn upload_prt(&mut self, gpu: &Gpu, scene: &Scene, flat: &FlatScene, frame: Option<&prt::Frame>) {
+        self.prt = match (frame, &self.prt_layout) {
+            (Some(f), Some(layout)) => Some(prt_draw(gpu, layout, scene, flat, f)),
+            _ => None,
+        };
     }
 
     /// Uploads every instance's world-space triangles and every light polygon.
@@ -146,6 +198,38 @@ impl Viewport {
             self.target = Some(make_target(gpu, size, renderer, old));
         }
         let target = self.target.as_ref().expect("made above");
+        let background = wgpu::Color { r: 0.02, g: 0.02, b: 0.025, a: 1.0 };
+        self.draw(gpu, (&target.color, &target.depth), size, orbit, (exposure, raw), background);
+        target.id.expect("registered with egui")
+    }
+
+    /// The view from `orbit` as an 8-bit sRGB image, misses black (as `kage render`'s PNGs).
+    pub fn render_image(
+        &self,
+        gpu: &Gpu,
+        size: [u32; 2],
+        orbit: &Orbit,
+        exposure: f32,
+    ) -> Result<image::RgbaImage, kage_gpu::GpuError> {
+        let [w, h] = [size[0].clamp(1, 4096), size[1].clamp(1, 4096)];
+        let usage = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC;
+        let color = texture(gpu, [w, h], COLOR, usage);
+        let depth = texture(gpu, [w, h], DEPTH, wgpu::TextureUsages::RENDER_ATTACHMENT);
+        let views = (color.create_view(&Default::default()), depth.create_view(&Default::default()));
+        self.draw(gpu, (&views.0, &views.1), [w, h], orbit, (exposure, false), wgpu::Color::BLACK);
+        read_back(gpu, &color, [w, h])
+    }
+
+    /// One frame: per-pixel PRT (when uploaded) or per-vertex radiance, then the lights.
+    fn draw(
+        &self,
+        gpu: &Gpu,
+        (color, depth): (&wgpu::TextureView, &wgpu::TextureView),
+        size: [u32; 2],
+        orbit: &Orbit,
+        (exposure, raw): (f32, bool),
+        background: wgpu::Color,
+    ) {
         let view = View {
             view_proj: orbit.view_proj(size[0] as f32 / size[1] as f32).to_cols_array_2d(),
             exposure: [exposure.exp2(), if raw { 1.0 } else { 0.0 }, 0.0, 0.0],
@@ -156,24 +240,30 @@ impl Viewport {
             let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
                 label: Some("preview"),
                 color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                    view: &target.color,
+                    view: color,
                     resolve_target: None,
                     depth_slice: None,
-                    ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(wgpu::Color { r: 0.02, g: 0.02, b: 0.025, a: 1.0 }),
-                        store: wgpu::StoreOp::Store,
-                    },
+                    ops: wgpu::Operations { load: wgpu::LoadOp::Clear(background), store: wgpu::StoreOp::Store },
                 })],
                 depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                    view: &target.depth,
+                    view: depth,
                     depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(1.0), store: wgpu::StoreOp::Store }),
                     stencil_ops: None,
                 }),
                 ..Default::default()
             });
-            pass.set_pipeline(&self.pipeline);
             pass.set_bind_group(0, &self.bind, &[]);
-            for m in self.meshes.iter().chain(&self.lights) {
+            let per_vertex = match (&self.prt, &self.prt_pipeline) {
+                (Some(prt), Some(pipeline)) => {
+                    pass.set_pipeline(pipeline);
+                    pass.set_bind_group(1, &prt.bind, &[]);
+                    pass.draw(0..prt.count, 0..1);
+                    &self.meshes[..0]
+                }
+                _ => &self.meshes[..],
+            };
+            pass.set_pipeline(&self.pipeline);
+            for m in per_vertex.iter().chain(&self.lights) {
                 pass.set_vertex_buffer(0, m.positions.slice(..));
                 pass.set_vertex_buffer(1, m.radiance.slice(..));
                 pass.set_index_buffer(m.indices.slice(..), wgpu::IndexFormat::Uint32);
@@ -181,39 +271,172 @@ impl Viewport {
             }
         }
         gpu.queue.submit([encoder.finish()]);
-        target.id.expect("registered with egui")
     }
 }
 
-fn build_pipeline(
+fn texture(gpu: &Gpu, [w, h]: [u32; 2], format: wgpu::TextureFormat, usage: wgpu::TextureUsages) -> wgpu::Texture {
+    gpu.device.create_texture(&wgpu::TextureDescriptor {
+        label: Some("preview"),
+        size: wgpu::Extent3d { width: w, height: h, depth_or_array_layers: 1 },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format,
+        usage,
+        view_formats: &[],
+    })
+}
+
+/// Copies an Rgba8 texture into an image (rows padded to wgpu's 256-byte alignment on the way).
+fn read_back(gpu: &Gpu, color: &wgpu::Texture, [w, h]: [u32; 2]) -> Result<image::RgbaImage, kage_gpu::GpuError> {
+    let row = (4 * w).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
+    let buffer = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("preview read-back"),
+        size: (row * h) as u64,
+        usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+        mapped_at_creation: false,
+    });
+    let mut encoder = gpu.device.create_command_encoder(&Default::default());
+    encoder.copy_texture_to_buffer(
+        color.as_image_copy(),
+        wgpu::TexelCopyBufferInfo {
+            buffer: &buffer,
+            layout: wgpu::TexelCopyBufferLayout { offset: 0, bytes_per_row: Some(row), rows_per_image: Some(h) },
+        },
+        wgpu::Extent3d { width: w, height: h, depth_or_array_layers: 1 },
+    );
+    gpu.queue.submit([encoder.finish()]);
+    let data = kage_gpu::buffers::map_read(gpu, &buffer)?;
+    let pixels = (0..h as usize).flat_map(|y| data[y * row as usize..][..4 * w as usize].to_vec()).collect();
+    Ok(image::RgbaImage::from_raw(w, h, pixels).expect("w × h × 4 bytes"))
+}
+
+/// The per-pixel PRT draw of every receiver: its triangles, per-vertex terms and the shadow
+/// arrays, bound to `layout`.
+fn prt_draw(gpu: &Gpu, layout: &wgpu::BindGroupLayout, scene: &Scene, flat: &FlatScene, frame: &prt::Frame) -> PrtDraw {
+    let terms = frame.vertex_terms();
+    let posed = frame.posed();
+    let (mut vertices, mut indices) = (Vec::new(), Vec::new());
+    for i in 0..flat.instances.len() {
+        let mesh = &scene.meshes[flat.instances[i].mesh as usize];
+        let base = vertices.len() as u32;
+        indices.extend(mesh.triangles.iter().flatten().map(|k| base + k));
+        let group = posed.group_of[i] as f32;
+        vertices.extend((0..mesh.positions.len()).map(|v| {
+            let p = flat.vertex(&scene.meshes, i, v).0;
+            PrtVertex {
+                p: [p.x, p.y, p.z, group],
+                ls: terms.ls[i][v].extend(0.0).into(),
+                albedo: terms.albedo[i][v].extend(0.0).into(),
+            }
+        }));
+    }
+    let shadows = ShadowArrays::new(posed);
+    let params = PrtParams { regions: posed.regions.len() as u32, groups: posed.silhouettes.len() as u32, pad: [0; 2] };
+    let buffers = [
+        uniform(gpu, "preview prt params", &params),
+        storage(gpu, "preview indices", &indices),
+        storage(gpu, "preview prt vertices", &vertices),
+        storage(gpu, "preview shadow t", &terms.shadow_t.concat()),
+        storage(gpu, "preview regions", &shadows.regions),
+        storage(gpu, "preview silhouettes", &shadows.silhouettes),
+        storage(gpu, "preview tables", &shadows.tables),
+    ];
+    let entries: Vec<wgpu::BindGroupEntry> = buffers
+        .iter()
+        .enumerate()
+        .map(|(k, b)| wgpu::BindGroupEntry { binding: k as u32, resource: b.as_entire_binding() })
+        .collect();
+    let bind = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("preview prt"),
+        layout,
+        entries: &entries,
+    });
+    PrtDraw { bind, count: indices.len() as u32 }
+}
+
+/// Group 1 of the per-pixel PRT pipeline: parameters, then six storage arrays (see preview.wgsl);
+/// `None` when the device allows fewer storage buffers per stage than the fragment stage binds.
+fn prt_layout(gpu: &Gpu) -> Option<wgpu::BindGroupLayout> {
+    use wgpu::ShaderStages as S;
+    if gpu.device.limits().max_storage_buffers_per_shader_stage < 5 {
+        return None;
+    }
+    let visibility = [S::FRAGMENT, S::VERTEX, S::VERTEX_FRAGMENT, S::FRAGMENT, S::FRAGMENT, S::FRAGMENT, S::FRAGMENT];
+    let entries: Vec<wgpu::BindGroupLayoutEntry> = visibility
+        .iter()
+        .enumerate()
+        .map(|(k, &visibility)| wgpu::BindGroupLayoutEntry {
+            binding: k as u32,
+            visibility,
+            ty: wgpu::BindingType::Buffer {
+                ty: if k == 0 {
+                    wgpu::BufferBindingType::Uniform
+                } else {
+                    wgpu::BufferBindingType::Storage { read_only: true }
+                },
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            count: None,
+        })
+        .collect();
+    Some(
+        gpu.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("preview prt"),
+            entries: &entries,
+        }),
+    )
+}
+
+/// The per-vertex pipeline and the per-pixel PRT pipeline, both from preview.wgsl.
+fn build_pipelines(
     gpu: &Gpu,
     shaders: &Shaders,
     layout: &wgpu::BindGroupLayout,
-) -> Result<wgpu::RenderPipeline, kage_gpu::ShaderError> {
+    prt_layout: Option<&wgpu::BindGroupLayout>,
+) -> Result<(wgpu::RenderPipeline, Option<wgpu::RenderPipeline>), kage_gpu::ShaderError> {
     let module = shaders.module(&gpu.device, "preview.wgsl")?;
-    let pipeline_layout = gpu.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-        label: Some("preview"),
-        bind_group_layouts: &[Some(layout)],
-        immediate_size: 0,
-    });
     let attributes = [0, 1].map(|location| {
         [wgpu::VertexAttribute { format: wgpu::VertexFormat::Float32x3, offset: 0, shader_location: location }]
     });
     let layout_of =
         |a| wgpu::VertexBufferLayout { array_stride: 12, step_mode: wgpu::VertexStepMode::Vertex, attributes: a };
-    let (positions, radiance) = (layout_of(&attributes[0]), layout_of(&attributes[1]));
-    Ok(gpu.device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+    let per_vertex = [Some(layout_of(&attributes[0])), Some(layout_of(&attributes[1]))];
+    // The device may still refuse what naga accepted (e.g. storage buffers in the vertex stage).
+    kage_gpu::buffers::checked(gpu, "preview pipelines", || {
+        let main = render_pipeline(gpu, &module, &[Some(layout)], ("vs_main", "fs_main"), &per_vertex);
+        let prt =
+            prt_layout.map(|prt| render_pipeline(gpu, &module, &[Some(layout), Some(prt)], ("vs_prt", "fs_prt"), &[]));
+        (main, prt)
+    })
+    .map_err(|e| kage_gpu::ShaderError {
+        file: "preview.wgsl".into(),
+        line: 0,
+        message: e.to_string(),
+        report: format!("preview.wgsl: {e}"),
+    })
+}
+
+fn render_pipeline(
+    gpu: &Gpu,
+    module: &wgpu::ShaderModule,
+    groups: &[Option<&wgpu::BindGroupLayout>],
+    (vs, fs): (&str, &str),
+    buffers: &[Option<wgpu::VertexBufferLayout>],
+) -> wgpu::RenderPipeline {
+    let pipeline_layout = gpu.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: Some("preview"),
+        bind_group_layouts: groups,
+        immediate_size: 0,
+    });
+    gpu.device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
         label: Some("preview"),
         layout: Some(&pipeline_layout),
-        vertex: wgpu::VertexState {
-            module: &module,
-            entry_point: Some("vs_main"),
-            buffers: &[Some(positions), Some(radiance)],
-            compilation_options: Default::default(),
-        },
+        vertex: wgpu::VertexState { module, entry_point: Some(vs), buffers, compilation_options: Default::default() },
         fragment: Some(wgpu::FragmentState {
-            module: &module,
-            entry_point: Some("fs_main"),
+            module,
+            entry_point: Some(fs),
             targets: &[Some(COLOR.into())],
             compilation_options: Default::default(),
         }),
@@ -228,7 +451,7 @@ fn build_pipeline(
         multisample: Default::default(),
         multiview_mask: None,
         cache: None,
-    }))
+    })
 }
 
 fn mesh_buffers(gpu: &Gpu, positions: &[Vec3], radiance: &[Vec3], indices: &[u32]) -> Mesh {
@@ -246,22 +469,9 @@ fn mesh_buffers(gpu: &Gpu, positions: &[Vec3], radiance: &[Vec3], indices: &[u32
 }
 
 fn make_target(gpu: &Gpu, size: [u32; 2], renderer: &mut egui_wgpu::Renderer, old: Option<egui::TextureId>) -> Target {
-    let texture = |format, usage| {
-        gpu.device
-            .create_texture(&wgpu::TextureDescriptor {
-                label: Some("preview"),
-                size: wgpu::Extent3d { width: size[0], height: size[1], depth_or_array_layers: 1 },
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
-                format,
-                usage,
-                view_formats: &[],
-            })
-            .create_view(&Default::default())
-    };
-    let color = texture(COLOR, wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING);
-    let depth = texture(DEPTH, wgpu::TextureUsages::RENDER_ATTACHMENT);
+    let view = |format, usage| texture(gpu, size, format, usage).create_view(&Default::default());
+    let color = view(COLOR, wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING);
+    let depth = view(DEPTH, wgpu::TextureUsages::RENDER_ATTACHMENT);
     let id = match old {
         Some(id) => {
             renderer.update_egui_texture_from_wgpu_texture(&gpu.device, &color, wgpu::FilterMode::Linear, id);

@@ -1,4 +1,6 @@
-//! A background computation that streams results to the UI thread and stops when dropped.
+//! A background computation that streams results to the UI thread and stops when dropped. Each
+//! runs on a rayon pool of its own: on the global pool the UI thread's parallel shading would
+//! queue behind it.
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -19,13 +21,18 @@ impl<T: Send + 'static> Worker<T> {
         let (tx, rx) = channel();
         let stop = Arc::new(AtomicBool::new(false));
         let flag = stop.clone();
-        std::thread::spawn(move || {
+        let run = move || {
             let send = |t: T| {
                 if tx.send(t).is_ok() {
                     wake();
                 }
             };
             work(&flag, &send);
+        };
+        std::thread::spawn(move || match rayon::ThreadPoolBuilder::new().build() {
+            Ok(pool) => pool.install(run),
+            // Without threads to spare, share the global pool.
+            Err(_) => run(),
         });
         Self { rx, stop }
     }

@@ -44,8 +44,9 @@ impl Occluders {
     }
 }
 
-/// Ray–box slab test (NaNs from 0·∞ are ignored by `max`/`min`).
-fn slab_hits(o: Vec3, inv: Vec3, tmax: f32, lo: Vec3, hi: Vec3) -> bool {
+/// Ray–box slab test for the segment from `o` within `[0, tmax]`, `inv` the reciprocal
+/// direction (NaNs from 0·∞ are ignored by `max`/`min`).
+pub(crate) fn slab_hits(o: Vec3, inv: Vec3, tmax: f32, lo: Vec3, hi: Vec3) -> bool {
     let (t1, t2) = ((lo - o) * inv, (hi - o) * inv);
     let near = t1.min(t2).max_element().max(0.0);
     let far = t1.max(t2).min_element().min(tmax);

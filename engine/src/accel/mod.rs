@@ -7,6 +7,7 @@
 mod instances;
 
 pub use instances::Occluders;
+pub(crate) use instances::slab_hits;
 
 use glam::{Vec2, Vec3, Vec3A};
 use obvhs::{BvhBuildParams, cwbvh::CwBvh, ray::Ray, rt_triangle::RtTriangle, triangle::Triangle};

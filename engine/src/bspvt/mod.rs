@@ -53,6 +53,33 @@ impl BakedInstance {
     pub fn record(&self, v: usize) -> &[u8] {
         &self.data[self.offsets[v] as usize..self.offsets[v + 1] as usize]
     }
+
+    /// Vertices held.
+    pub fn vertices(&self) -> usize {
+        self.offsets.len() - 1
+    }
+
+    /// An instance of `vertices` records that all see their whole hemisphere: what unshadowed
+    /// LTC computes, the placeholder while the trees bake.
+    pub fn unshadowed(vertices: usize) -> Self {
+        let open = layout::encode_vertex(&std::array::from_fn(|_| Some(vec![tree::Node::Leaf(1.0)])));
+        Self { offsets: (0..=vertices).map(|v| (v * open.len()) as u32).collect(), data: open.repeat(vertices) }
+    }
+
+    /// Replaces the records of vertices `first..first + records.len()` (which must exist).
+    pub fn splice(&mut self, first: usize, records: &[Vec<u8>]) {
+        let end = first + records.len();
+        let (a, b) = (self.offsets[first] as usize, self.offsets[end] as usize);
+        let fresh: Vec<u8> = records.concat();
+        let shift = fresh.len() as i64 - (b - a) as i64;
+        self.data.splice(a..b, fresh);
+        let mut at = a as u32;
+        for (k, r) in records.iter().enumerate() {
+            self.offsets[first + k] = at;
+            at += r.len() as u32;
+        }
+        self.offsets[end..].iter_mut().for_each(|o| *o = (*o as i64 + shift) as u32);
+    }
 }
 
 /// Statistics of a bake.
@@ -243,4 +270,47 @@ pub fn shade_vertices(
                 .collect()
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn from_records(records: &[Vec<u8>]) -> BakedInstance {
+        let mut offsets = vec![0u32];
+        records.iter().for_each(|r| offsets.push(offsets[offsets.len() - 1] + r.len() as u32));
+        BakedInstance { offsets, data: records.concat() }
+    }
+
+    #[test]
+    fn splicing_records_equals_building_from_them() {
+        let records: Vec<Vec<u8>> = (0..7u8).map(|v| vec![v; 1 + (v as usize * 3) % 5]).collect();
+        let mut inst = BakedInstance::unshadowed(7);
+        assert_eq!(inst.vertices(), 7);
+        inst.splice(4, &records[4..]);
+        inst.splice(0, &records[..2]);
+        inst.splice(2, &records[2..4]);
+        assert_eq!(inst, from_records(&records));
+        inst.splice(3, &[vec![9; 12]]);
+        let mut edited = records.clone();
+        edited[3] = vec![9; 12];
+        assert_eq!(inst, from_records(&edited));
+    }
+
+    #[test]
+    fn the_placeholder_shades_like_unshadowed_ltc() {
+        let scene = crate::scene::default_scene();
+        let flat = crate::scene::flatten(&scene);
+        let s = Settings { res: 8, epsilon: 2.0 };
+        let instances = (0..flat.instances.len())
+            .map(|i| BakedInstance::unshadowed(scene.meshes[flat.instances[i].mesh as usize].positions.len()))
+            .collect();
+        let bake = Bake { settings: s, instances, stats: Stats::default() };
+        let eye = glam::Vec3::new(0.0, 2.0, 5.0);
+        let placeholder = shade_vertices(&scene, &flat, Method::Bspvt, Some(&bake), &s, eye);
+        let open = shade_vertices(&scene, &flat, Method::Unshadowed, None, &s, eye);
+        for (a, b) in placeholder.iter().flatten().zip(open.iter().flatten()) {
+            assert!((*a - *b).abs().max_element() <= 1e-4 * b.max_element().max(1.0), "{a} vs {b}");
+        }
+    }
 }

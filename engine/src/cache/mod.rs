@@ -15,9 +15,10 @@
 
 pub mod record;
 
+use crate::accel::Hit;
 use crate::math::hsh;
 use glam::{DMat3, DVec3, Vec3};
-use record::{Record, Source, gather};
+use record::{Change, Record, Source};
 use std::collections::HashMap;
 
 /// SH order of the rotation between record and receiver frames.
@@ -67,10 +68,23 @@ impl Settings {
     }
 }
 
+/// What [`Cache::refresh`] did.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Refresh {
+    /// Records integrated again from their kept (and re-cast) hits.
+    pub relit: usize,
+    /// Records gathered anew (stored records have no hits).
+    pub gathered: usize,
+    /// Rays cast again because they crossed moved geometry.
+    pub recast: usize,
+}
+
 /// Records with a uniform grid over their areas of influence.
 pub struct Cache {
-    /// The records, in creation order.
+    /// The records, in creation order (record `i` gathered with ray stream `i`).
     pub records: Vec<Record>,
+    /// What each record's rays hit, for [`Cache::refresh`] (empty for stored records).
+    hits: Vec<Vec<Option<Hit>>>,
     settings: Settings,
     bounds: (f32, f32),
     cell: f32,
@@ -94,6 +108,7 @@ impl Cache {
         let bounds = (settings.radius_bounds.0 * diagonal, settings.radius_bounds.1 * diagonal);
         Self {
             records: Vec::new(),
+            hits: Vec::new(),
             settings,
             bounds,
             cell: (settings.accuracy * bounds.1).max(1e-6),
@@ -115,18 +130,24 @@ impl Cache {
         (p / self.cell).floor().as_ivec3().to_array()
     }
 
-    fn insert(&mut self, r: Record) {
+    fn insert(&mut self, r: Record, hits: Vec<Option<Hit>>) {
+        self.records.push(r);
+        self.hits.push(hits);
+        self.index(self.records.len() - 1);
+    }
+
+    /// Enters record `id` in the grid cells its area of influence overlaps.
+    fn index(&mut self, id: usize) {
+        let r = &self.records[id];
         let reach = Vec3::splat(self.settings.accuracy * r.radius);
         let (lo, hi) = (self.cell_of(r.p - reach), self.cell_of(r.p + reach));
-        let id = self.records.len() as u32;
         for x in lo[0]..=hi[0] {
             for y in lo[1]..=hi[1] {
                 for z in lo[2]..=hi[2] {
-                    self.grid.entry([x, y, z]).or_default().push(id);
+                    self.grid.entry([x, y, z]).or_default().push(id as u32);
                 }
             }
         }
-        self.records.push(r);
     }
 
     /// Records usable at `p` (normal `n`) with their weights: weight above 1/a, and not in
@@ -150,11 +171,55 @@ impl Cache {
         for &(p, n) in points {
             if self.usable(p, n).is_empty() {
                 let index = self.records.len() as u64;
-                let r = gather(src, p, n, self.settings.order, self.settings.side(), index, self.bounds);
-                self.insert(r);
+                let (r, hits) =
+                    record::gather_with_hits(src, p, n, self.settings.order, self.settings.side(), index, self.bounds);
+                self.insert(r, hits);
             }
         }
         self.records.len() - before
+    }
+
+    /// Re-lights the records after `change` (in parallel; each as [`record::relight`]): only
+    /// records whose rays see changed radiance are integrated again, only rays crossing moved
+    /// geometry are cast again, and records without their hits (stored ones) are gathered anew.
+    /// The records keep their places; each equals a fresh gather there under the new lighting.
+    pub fn refresh(&mut self, src: &Source, change: &Change) -> Refresh {
+        use rayon::prelude::*;
+        let (order, side, bounds) = (self.settings.order, self.settings.side(), self.bounds);
+        let outcomes: Vec<(Option<Record>, usize, bool)> = self
+            .records
+            .par_iter()
+            .zip(self.hits.par_iter_mut())
+            .enumerate()
+            .map(|(i, (r, hits))| {
+                let (p, n) = (r.p, r.frame.n);
+                if hits.is_empty() {
+                    let (fresh, cast) = record::gather_with_hits(src, p, n, order, side, i as u64, bounds);
+                    *hits = cast;
+                    return (Some(fresh), 0, true);
+                }
+                let (fresh, relit) = record::relight(src, p, n, order, i as u64, bounds, hits, change);
+                (fresh, relit.recast, false)
+            })
+            .collect();
+        let mut out = Refresh::default();
+        for (r, (fresh, recast, gathered)) in self.records.iter_mut().zip(outcomes) {
+            out.recast += recast;
+            out.gathered += usize::from(gathered);
+            out.relit += usize::from(fresh.is_some() && !gathered);
+            if let Some(fresh) = fresh {
+                *r = fresh;
+            }
+        }
+        // Radii may have changed with what the rays hit.
+        self.grid.clear();
+        (0..self.records.len()).for_each(|i| self.index(i));
+        out
+    }
+
+    /// The clamp of the record radius R_i, in scene units.
+    pub fn radius_bounds(&self) -> (f32, f32) {
+        self.bounds
     }
 
     /// Rays cast so far.
@@ -240,6 +305,21 @@ fn vertices(src: &Source) -> Vec<(usize, usize, Vec3, Vec3)> {
         .collect()
 }
 
+/// The boxes a re-light must re-cast through when the lights went from `old` to `new`: the old
+/// and new bounds of every light that moved, turned or resized (of every light when lights
+/// were added or removed), padded so that grazing rays count.
+pub fn moved_lights(old: &[crate::scene::FlatLight], new: &[crate::scene::FlatLight]) -> Vec<(Vec3, Vec3)> {
+    let bounds = |l: &crate::scene::FlatLight| {
+        let (lo, hi) = l.points.iter().fold((Vec3::MAX, Vec3::MIN), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
+        let pad = Vec3::splat(1e-4 * (hi - lo).length() + 1e-5);
+        (lo - pad, hi + pad)
+    };
+    if old.len() != new.len() {
+        return old.iter().chain(new).map(bounds).collect();
+    }
+    old.iter().zip(new).filter(|(a, b)| a.points != b.points).flat_map(|(a, b)| [bounds(a), bounds(b)]).collect()
+}
+
 /// The scene's bounding diagonal.
 fn diagonal(src: &Source) -> f32 {
     let (lo, hi) = src
@@ -271,7 +351,7 @@ pub fn place_at_vertices(src: &Source, s: &Settings) -> Cache {
 /// A cache from stored records (e.g. the bake database's), as [`place_at_vertices`] made them.
 pub fn from_records(src: &Source, s: &Settings, records: Vec<Record>) -> Cache {
     let mut cache = Cache::new(*s, diagonal(src));
-    records.into_iter().for_each(|r| cache.insert(r));
+    records.into_iter().for_each(|r| cache.insert(r, Vec::new()));
     cache
 }
 

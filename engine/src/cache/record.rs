@@ -14,7 +14,7 @@
 //! (q = hit − record, n the hit's normal facing the record, ξ its angle to −ω_j), cos ξ clamped
 //! at [`MIN_COS_XI`]: grazing hits would otherwise dominate (Křivánek et al. note the same).
 
-use crate::accel::offset_ray_origin;
+use crate::accel::{Hit, offset_ray_origin, slab_hits};
 use crate::math::frame::Frame;
 use crate::math::{hsh, rng};
 use crate::reference::Renderer;
@@ -51,15 +51,20 @@ struct Sample {
 impl Source<'_> {
     /// What a gather ray from `o` along `d` finds; `stream` seeds glossy hits' estimates.
     fn trace(&self, o: Vec3, d: Vec3, stream: u64) -> Option<Sample> {
+        let hit = self.renderer.bvh.closest_hit(o, d, f32::INFINITY)?;
+        Some(self.light(hit, d, stream))
+    }
+
+    /// The radiance `hit` (of a ray along `d`) sends back along the ray.
+    fn light(&self, hit: Hit, d: Vec3, stream: u64) -> Sample {
         let r = self.renderer;
-        let hit = r.bvh.closest_hit(o, d, f32::INFINITY)?;
         let tri = r.flat.triangles[hit.triangle as usize];
         let normal = (tri[1] - tri[0]).cross(tri[2] - tri[0]).normalize_or_zero();
         let tref = r.flat.refs[hit.triangle as usize];
         // Emitters are direct light; a back face is the inside of a closed object (a ray that
         // started in contact geometry): neither reflects one bounce toward the record.
         if tref.light != crate::scene::NO_LIGHT || normal.dot(d) > 0.0 {
-            return Some(Sample { radiance: Vec3::ZERO, t: hit.t, normal });
+            return Sample { radiance: Vec3::ZERO, t: hit.t, normal };
         }
         let inst = tref.owner as usize;
         let m = r.flat.instances[inst].material;
@@ -68,15 +73,36 @@ impl Source<'_> {
             let sp = r.surface_at(hit, inst, tref.local as usize, d);
             let s = crate::reference::Settings { spp: self.glossy_spp, seed: 0x6105, ..Default::default() };
             let radiance = r.estimate_point(&sp, -d, &s, stream).mean;
-            return Some(Sample { radiance, t: hit.t, normal });
+            return Sample { radiance, t: hit.t, normal };
         }
+        let radiance = self.corners(hit, self.direct).iter().zip(barycentrics(hit)).map(|(v, b)| *v * b).sum();
+        Sample { radiance, t: hit.t, normal }
+    }
+
+    /// The direct radiance in `direct` at the corners of a receiver `hit`'s triangle, in the
+    /// order of [`barycentrics`].
+    fn corners(&self, hit: Hit, direct: &[Vec<Vec3>]) -> [Vec3; 3] {
+        let r = self.renderer;
+        let tref = r.flat.refs[hit.triangle as usize];
+        let inst = tref.owner as usize;
         let idx = r.mesh(inst).triangles[tref.local as usize];
         let (i1, i2) = if r.flat.instances[inst].mirrored { (idx[2], idx[1]) } else { (idx[1], idx[2]) };
-        let v = &self.direct[inst];
-        let (b1, b2) = (hit.bary.x, hit.bary.y);
-        let radiance = v[idx[0] as usize] * (1.0 - b1 - b2) + v[i1 as usize] * b1 + v[i2 as usize] * b2;
-        Some(Sample { radiance, t: hit.t, normal })
+        [idx[0], i1, i2].map(|i| direct[inst][i as usize])
     }
+
+    /// Whether the radiance `hit` sends may differ from what it sent under direct radiance
+    /// `old`: a receiver whose corners' direct radiance changed (for a glossy hit, whose
+    /// estimate toward the record reads the lights themselves, the corners' camera-facing values
+    /// stand in: light that changes it changes them). A light's triangle sends nothing either way.
+    fn changed(&self, hit: Hit, old: &[Vec<Vec3>]) -> bool {
+        self.renderer.flat.refs[hit.triangle as usize].light == crate::scene::NO_LIGHT
+            && self.corners(hit, old) != self.corners(hit, self.direct)
+    }
+}
+
+/// Weights of a hit's triangle corners (b0, b1, b2).
+fn barycentrics(hit: Hit) -> [f32; 3] {
+    [1.0 - hit.bary.x - hit.bary.y, hit.bary.x, hit.bary.y]
 }
 
 /// A record.
@@ -138,32 +164,70 @@ impl Record {
 
 /// Gathers a record at `p` (unit normal `n`) with `side²` stratified rays of stream `index`,
 /// HSH `order`, the harmonic mean distance clamped to `[r_min, r_max]`.
-pub fn gather(
+pub fn gather(src: &Source, p: Vec3, n: Vec3, order: usize, side: usize, index: u64, bounds: (f32, f32)) -> Record {
+    gather_with_hits(src, p, n, order, side, index, bounds).0
+}
+
+/// [`gather`], also returning what each ray hit (for [`relight`]).
+pub fn gather_with_hits(
     src: &Source,
     p: Vec3,
     n: Vec3,
     order: usize,
     side: usize,
     index: u64,
+    bounds: (f32, f32),
+) -> (Record, Vec<Option<Hit>>) {
+    let frame = Frame::from_normal(n);
+    let dirs = directions(side, index);
+    let hits: Vec<Option<Hit>> = dirs
+        .iter()
+        .map(|l| {
+            let d = frame.to_world(*l);
+            src.renderer.bvh.closest_hit(offset_ray_origin(p, n, d), d, f32::INFINITY)
+        })
+        .collect();
+    (integrate(src, p, frame, order, &dirs, &hits, index, bounds), hits)
+}
+
+/// A record's gather directions in its frame: `side²` rays stratified uniformly in solid angle,
+/// jittered by stream `index`.
+fn directions(side: usize, index: u64) -> Vec<Vec3> {
+    let mut r = rng::stream(0xCAC4E, index);
+    (0..side * side)
+        .map(|j| {
+            let (u, v) = (
+                ((j % side) as f32 + r.random::<f32>()) / side as f32,
+                ((j / side) as f32 + r.random::<f32>()) / side as f32,
+            );
+            let (z, phi) = (u, 2.0 * std::f32::consts::PI * v);
+            let s = (1.0 - z * z).max(0.0).sqrt();
+            Vec3::new(s * phi.cos(), s * phi.sin(), z)
+        })
+        .collect()
+}
+
+/// The record at `p` from its rays' local directions `dirs` and `hits`: coefficients, analytic
+/// gradients and the clamped harmonic mean distance.
+#[allow(clippy::too_many_arguments)]
+fn integrate(
+    src: &Source,
+    p: Vec3,
+    frame: Frame,
+    order: usize,
+    dirs: &[Vec3],
+    hits: &[Option<Hit>],
+    index: u64,
     (r_min, r_max): (f32, f32),
 ) -> Record {
-    let frame = Frame::from_normal(n);
-    let count = side * side;
-    let omega = 2.0 * std::f64::consts::PI / count as f64;
+    let omega = 2.0 * std::f64::consts::PI / dirs.len() as f64;
     let k = hsh::num_coeffs(order);
     let (mut c, mut gx, mut gy) = (vec![DVec3::ZERO; k], vec![DVec3::ZERO; k], vec![DVec3::ZERO; k]);
     let mut inverse_distance = 0.0f64;
-    let mut r = rng::stream(0xCAC4E, index);
-    for j in 0..count {
-        let (u, v) = (
-            ((j % side) as f32 + r.random::<f32>()) / side as f32,
-            ((j / side) as f32 + r.random::<f32>()) / side as f32,
-        );
-        let (z, phi) = (u, 2.0 * std::f32::consts::PI * v);
-        let s = (1.0 - z * z).max(0.0).sqrt();
-        let local = Vec3::new(s * phi.cos(), s * phi.sin(), z);
+    for (j, (&local, hit)) in dirs.iter().zip(hits).enumerate() {
+        let Some(hit) = hit else { continue };
         let d = frame.to_world(local);
-        let Some(hit) = src.trace(offset_ray_origin(p, n, d), d, rng::mix64(index) ^ j as u64) else { continue };
+        let hit = src.light(*hit, d, rng::mix64(index) ^ j as u64);
         inverse_distance += 1.0 / hit.t.max(1e-6) as f64;
         if hit.radiance == Vec3::ZERO {
             continue;
@@ -184,8 +248,64 @@ pub fn gather(
             gy[i] += l * (ty[i] / t * omega + h[i] * doy);
         }
     }
-    let harmonic = if inverse_distance > 0.0 { (count as f64 / inverse_distance) as f32 } else { f32::INFINITY };
+    let harmonic = if inverse_distance > 0.0 { (dirs.len() as f64 / inverse_distance) as f32 } else { f32::INFINITY };
     Record { p, frame, radius: harmonic.clamp(r_min, r_max), coeffs: c, grad_x: gx, grad_y: gy }
+}
+
+/// What changed since a record's rays were cast: the direct radiance they read before, and the
+/// boxes (lo, hi) of geometry that moved (lights' old and new polygons; every light's when
+/// lights were added or removed), which rays crossing them must be cast again. The receivers'
+/// geometry is the same.
+pub struct Change<'a> {
+    /// Per instance and vertex: the direct radiance the record was gathered with.
+    pub old_direct: &'a [Vec<Vec3>],
+    /// Boxes of moved geometry, old and new places.
+    pub moved: &'a [(Vec3, Vec3)],
+}
+
+/// What a re-light did.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Relit {
+    /// Rays cast again (they crossed moved geometry).
+    pub recast: usize,
+    /// The record's radiance may have changed, and it was integrated again.
+    pub changed: bool,
+}
+
+/// Re-lights the record at `p` (normal `n`, stream `index`) whose rays found `hits`, after
+/// `change`: rays crossing moved geometry are cast again, and when any
+/// ray's radiance may differ the record is integrated again — equal to a fresh
+/// [`gather`] at the same place under the new lighting. `None`: nothing it sees changed.
+#[allow(clippy::too_many_arguments)]
+pub fn relight(
+    src: &Source,
+    p: Vec3,
+    n: Vec3,
+    order: usize,
+    index: u64,
+    bounds: (f32, f32),
+    hits: &mut [Option<Hit>],
+    change: &Change,
+) -> (Option<Record>, Relit) {
+    let frame = Frame::from_normal(n);
+    let side = (hits.len() as f64).sqrt() as usize;
+    let dirs = directions(side, index);
+    let mut relit = Relit::default();
+    for (local, hit) in dirs.iter().zip(hits.iter_mut()) {
+        let d = frame.to_world(*local);
+        let o = offset_ray_origin(p, n, d);
+        let reach = hit.map_or(f32::INFINITY, |h| h.t);
+        let crosses = change.moved.iter().any(|&(lo, hi)| slab_hits(o, d.recip(), reach, lo, hi));
+        if crosses {
+            let again = src.renderer.bvh.closest_hit(o, d, f32::INFINITY);
+            relit.recast += 1;
+            relit.changed |= again != *hit;
+            *hit = again;
+        }
+        relit.changed |= hit.is_some_and(|h| src.changed(h, change.old_direct));
+    }
+    let record = relit.changed.then(|| integrate(src, p, frame, order, &dirs, hits, index, bounds));
+    (record, relit)
 }
 
 /// Radiance leaving `p` toward local `wo` from one bounce, by `side²` BSDF-sampled gather rays

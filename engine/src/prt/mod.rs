@@ -284,6 +284,16 @@ fn albedo_at(scene: &Scene, flat: &FlatScene, i: usize, v: usize, eye: Vec3) -> 
     Bsdf::new(&flat.instances[i].material, wo).diffuse_albedo()
 }
 
+/// Per instance and vertex, the terms per-pixel PRT shading interpolates (see [`Frame::vertex_terms`]).
+pub struct VertexTerms<'a> {
+    /// `Ls` (RGB, albedo not applied).
+    pub ls: &'a [Vec<Vec3>],
+    /// The diffuse albedo toward the eye.
+    pub albedo: &'a [Vec<Vec3>],
+    /// `T(v, w_i)`, q per vertex, vertex-major.
+    pub shadow_t: &'a [Vec<f32>],
+}
+
 /// Everything one frame's shading needs, after groups, lights and the camera are posed.
 pub struct Frame {
     /// Per instance and vertex: unclamped `Ls` (RGB, albedo not applied).
@@ -343,6 +353,11 @@ impl Frame {
         cache: &mut ShadowCache,
     ) -> Self {
         let posed = Posed::new(scene, flat, bake.order, light, method, s, cache);
+        Self::from_posed(scene, flat, bake, posed, eye)
+    }
+
+    /// Reconstructs `Ls` and `T(v, w_i)` per vertex from `bake` under lighting already posed.
+    pub fn from_posed(scene: &Scene, flat: &FlatScene, bake: &Bake, posed: Posed, eye: Vec3) -> Self {
         let (order, q) = (posed.order, posed.regions.len());
         let (mut ls, mut albedo, mut shadow_t) = (Vec::new(), Vec::new(), Vec::new());
         for i in 0..flat.instances.len() {
@@ -367,6 +382,17 @@ impl Frame {
             shadow_t.push(rows.into_iter().flat_map(|r| r.2).collect());
         }
         Self { ls, albedo, shadow_t, posed }
+    }
+
+    /// The lighting this frame was posed with.
+    pub fn posed(&self) -> &Posed {
+        &self.posed
+    }
+
+    /// Per instance and vertex: `Ls` (RGB, albedo not applied), the diffuse albedo toward the
+    /// eye, and `T(v, w_i)` (q per vertex, vertex-major) — what per-pixel shading interpolates.
+    pub fn vertex_terms(&self) -> VertexTerms<'_> {
+        VertexTerms { ls: &self.ls, albedo: &self.albedo, shadow_t: &self.shadow_t }
     }
 
     /// `ρ · max(0, Ls − Σ_i B_i T_i V_o)` at `p` from interpolated `ls`, `albedo` and `t`, with
