@@ -249,19 +249,32 @@ fn the_cached_indirect_term_lands_in_the_background_follows_edits_and_persists()
     h.step();
     assert!(changed(&with, &values(&h)) > 100, "the direct term follows at once");
     step_until(&mut h, "the new indirect term", |ed| landed(ed) && gathered(ed) == 2);
+    let last = |ed: &Editor| ed.log.iter().rev().find(|l| l.text.starts_with("indirect: ")).unwrap().text.clone();
     let ed = &h.state().editor;
+    assert!(last(ed).contains("refreshed") && last(ed).contains("re-cast"), "{}", last(ed));
     let second: Vec<Vec3> = ed.indirect_values.iter().flatten().copied().collect();
     assert!(changed(&first.concat(), &second) > 100, "the indirect term follows the light");
 
-    // Off and on again with the same lighting: the records come from the bake database.
+    // Off and on again with the same lighting: nothing to re-light.
     h.get_by_label("Indirect light (HSH radiance cache)").click();
     h.step();
     h.get_by_label("Indirect light (HSH radiance cache)").click();
-    step_until(&mut h, "the stored indirect term", |ed| landed(ed) && gathered(ed) == 3);
+    step_until(&mut h, "the same indirect term", |ed| landed(ed) && gathered(ed) == 3);
     let ed = &h.state().editor;
-    let last = ed.log.iter().rev().find(|l| l.text.starts_with("indirect: ")).unwrap();
-    assert!(last.text.contains("from the bake database"), "{}", last.text);
-    assert_eq!(ed.indirect_values.concat(), second, "the stored records give the same term");
+    assert!(last(ed).contains("refreshed: 0 re-lit, 0 gathered anew, 0 of"), "{}", last(ed));
+    assert_eq!(ed.indirect_values.concat(), second, "the same records give the same term");
+
+    // Another session on the same database and lighting: the records come from the database.
+    drop(h);
+    let mut o = options(&dir, None, None);
+    o.cache.rays = 64;
+    let mut h = harness(default_scene(), o);
+    step_until(&mut h, "the cached bakes", settled);
+    h.get_by_label("Indirect light (HSH radiance cache)").click();
+    step_until(&mut h, "the stored indirect term", landed);
+    let ed = &h.state().editor;
+    assert!(last(ed).contains("from the bake database"), "{}", last(ed));
+    assert_eq!(ed.indirect_values, first, "the stored records give the same term");
 }
 
 #[test]

@@ -236,7 +236,9 @@ pub struct Editor {
     pub(super) watcher: Option<Watcher>,
     pub(super) reference_worker: Option<Worker<Vec<Vec<Vec3>>>>,
     pub(super) exact_worker: Option<Worker<Vec<Vec<Vec3>>>>,
-    pub(super) indirect_worker: Option<Worker<(Vec<Vec<Vec3>>, String)>>,
+    pub(super) indirect_worker: Option<Worker<super::systems::Indirect>>,
+    /// The last indirect cache with what it was lit by, for the next refresh.
+    pub(super) indirect_base: Option<Box<super::systems::IndirectBase>>,
     /// Bumped whenever `direct` changes; the generation the indirect term was started from.
     pub(super) generations: (u64, u64),
     pub(super) wake: Arc<dyn Fn() + Send + Sync>,
@@ -284,6 +286,7 @@ impl Editor {
             reference_worker: None,
             exact_worker: None,
             indirect_worker: None,
+            indirect_base: None,
             generations: (0, 0),
             wake,
             started: Instant::now(),

@@ -391,10 +391,11 @@ pub fn indirect_system(ed: &mut Editor) {
         return;
     }
     let landed = ed.indirect_worker.as_ref().map(|w| w.results()).unwrap_or_default();
-    if let Some((values, what)) = landed.into_iter().last() {
+    if let Some(done) = landed.into_iter().last() {
         ed.indirect_worker = None;
-        ed.indirect_values = values;
-        ed.info(format!("indirect: {what}"));
+        ed.indirect_values = done.values;
+        ed.indirect_base = Some(done.base);
+        ed.info(format!("indirect: {}", done.what));
         compose(ed);
     }
     let (direct, started) = ed.generations;
@@ -404,38 +405,89 @@ pub fn indirect_system(ed: &mut Editor) {
     }
 }
 
+/// A landed indirect term.
+pub struct Indirect {
+    /// Per instance and vertex.
+    values: Vec<Vec<Vec3>>,
+    /// For the log.
+    what: String,
+    /// The cache and what lit it.
+    base: Box<IndirectBase>,
+}
+
+/// A radiance cache with the inputs it was lit by: a later lighting change over the same
+/// receivers refreshes it ([`cache::Cache::refresh`]) instead of gathering again.
+pub struct IndirectBase {
+    cache: cache::Cache,
+    settings: cache::Settings,
+    direct: Vec<Vec<Vec3>>,
+    lights: Vec<kage_engine::scene::FlatLight>,
+    receivers: Vec<(u32, glam::Affine3A)>,
+}
+
+impl IndirectBase {
+    /// The base when `renderer`'s receivers and `settings` are those it was made for.
+    fn fits(self: Box<Self>, renderer: &Renderer, settings: &cache::Settings) -> Option<Box<Self>> {
+        (self.settings == *settings && self.receivers == receivers(renderer)).then_some(self)
+    }
+}
+
+fn receivers(renderer: &Renderer) -> Vec<(u32, glam::Affine3A)> {
+    renderer.flat.instances.iter().map(|i| (i.mesh, i.world)).collect()
+}
 /// True while an indirect gather runs.
 pub fn gathering(ed: &Editor) -> bool {
     ed.indirect_worker.is_some()
 }
 
-fn spawn_indirect(ed: &Editor) -> Worker<(Vec<Vec<Vec3>>, String)> {
+fn spawn_indirect(ed: &mut Editor) -> Worker<Indirect> {
     let scene = lit_scene(ed);
     let direct = ed.direct.clone();
     let (eye, s, store) = (ed.orbit.eye(), ed.options.cache, ed.store.clone());
+    let base = ed.indirect_base.take();
     let wake = ed.wake.clone();
     Worker::spawn(
         move |_, send| {
             let start = Instant::now();
             let renderer = Renderer::new(&scene);
             let src = Source { renderer: &renderer, direct: &direct, glossy_spp: GLOSSY_SPP };
-            let (cache, note) = match store.as_deref().map(|st| load_or_place(st, &scene, &src, &s)) {
-                Some(Ok((cache, true))) => (cache, " from the bake database".to_string()),
-                Some(Ok((cache, false))) => (cache, String::new()),
-                Some(Err(e)) => (cache::place_at_vertices(&src, &s), format!(" (not stored: {e})")),
-                None => (cache::place_at_vertices(&src, &s), String::new()),
+            let (cache, note) = match base.and_then(|b| b.fits(&renderer, &s)) {
+                Some(b) => refreshed(*b, &src),
+                None => match store.as_deref().map(|st| load_or_place(st, &scene, &src, &s)) {
+                    Some(Ok((cache, true))) => (cache, "from the bake database".to_string()),
+                    Some(Ok((cache, false))) => (cache, "gathered".to_string()),
+                    Some(Err(e)) => (cache::place_at_vertices(&src, &s), format!("gathered (not stored: {e})")),
+                    None => (cache::place_at_vertices(&src, &s), "gathered".to_string()),
+                },
             };
             let values = cache::shade_vertices(&src, &cache, eye);
-            let what = format!(
-                "{} records{note}, {} rays, {:.2} s",
-                cache.records.len(),
-                cache.rays(),
-                start.elapsed().as_secs_f64()
-            );
-            send((values, what));
+            let what = format!("{} records {note}, {:.2} s", cache.records.len(), start.elapsed().as_secs_f64());
+            let base = IndirectBase {
+                cache,
+                settings: s,
+                direct,
+                lights: renderer.flat.lights.clone(),
+                receivers: receivers(&renderer),
+            };
+            send(Indirect { values, what, base: Box::new(base) });
         },
         move || wake(),
     )
+}
+
+/// `base`'s cache re-lit for `src` (same receivers): only records that see changed light.
+fn refreshed(mut base: IndirectBase, src: &Source) -> (cache::Cache, String) {
+    let moved = cache::moved_lights(&base.lights, &src.renderer.flat.lights);
+    let change = cache::record::Change { old_direct: &base.direct, moved: &moved };
+    let done = base.cache.refresh(src, &change);
+    let note = format!(
+        "refreshed: {} re-lit, {} gathered anew, {} of {} rays re-cast",
+        done.relit,
+        done.gathered,
+        done.recast,
+        base.cache.rays()
+    );
+    (base.cache, note)
 }
 
 /// The method's per-vertex radiance, or `None` while a background result is pending.
