@@ -6,7 +6,7 @@
 use crate::key::{Key, KeyHasher};
 use crate::plan::{Snapshot, encode_occluders};
 use crate::store::{Info, Result, Store};
-use kage_engine::cache::record::{Record, Source};
+use kage_engine::cache::record::{GradientForm, Record, Source};
 use kage_engine::cache::{self, Cache, Settings};
 use kage_engine::scene::Scene;
 
@@ -27,7 +27,12 @@ pub fn key(scene: &Scene, src: &Source, s: &Settings) -> Key {
         .collect();
     let lights: Vec<f32> = flat.lights.iter().flat_map(|l| l.points.iter().flat_map(|p| p.to_array())).collect();
     let direct: Vec<f32> = src.direct.iter().flatten().flat_map(|v| v.to_array()).collect();
-    KeyHasher::new("hsh-cache")
+    let mut hasher = KeyHasher::new("hsh-cache");
+    // Only the numerical form joins the key, so records stored before it existed stay valid.
+    if s.gradient_form == GradientForm::Numerical {
+        hasher = hasher.u64("numerical gradients", 1);
+    }
+    hasher
         .u64("version", VERSION as u64)
         .u64("order", s.order as u64)
         .u64("rays", s.side().pow(2) as u64)

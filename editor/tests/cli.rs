@@ -198,12 +198,13 @@ fn report_writes_markdown_csv_and_plot() {
         "| indirect-gather | 256 rays per vertex",
         "| hsh-cache | order 3, a 0.3:",
         "| hsh-cache-no-gradients |",
+        "| hsh-cache-numerical-gradients |",
     ] {
         assert!(md.contains(method), "{method} missing:\n{md}");
     }
     let csv = std::fs::read_to_string(out.join("report.csv")).unwrap();
-    // 13 polygonal-light rows, then 3 gathers and 11 cache configurations.
-    assert_eq!(csv.lines().count(), 1 + 13 + 3 + 11);
+    // 13 polygonal-light rows, then 3 gathers and 12 cache configurations.
+    assert_eq!(csv.lines().count(), 1 + 13 + 3 + 12);
     let png = image::open(out.join("report.png")).unwrap();
     assert_eq!((png.width(), png.height()), (640, 400));
     std::fs::remove_dir_all(d).unwrap();

@@ -7,6 +7,7 @@ use crate::scene_args::SceneArgs;
 use anyhow::{Context, Result, bail};
 use glam::Vec3;
 use kage_bake_db::pack::Contents;
+use kage_engine::cache::record::GradientForm;
 use kage_engine::output::{VertexRow, write_image, write_vertex_csv};
 use kage_engine::reference::{Estimate, Renderer, Settings};
 use kage_engine::scene::{Camera, Scene};
@@ -42,6 +43,15 @@ pub enum Indirect {
     Gather,
     /// The reference integrator's one-bounce term (--spp paths per vertex).
     Reference,
+}
+
+/// The radiance cache's gradient form (`--gradient`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Gradient {
+    /// Closed form (H9–H18).
+    Analytic,
+    /// Hit points held fixed while the record moves a small step (H7–H8).
+    Numerical,
 }
 
 /// Arguments of `kage render`.
@@ -114,6 +124,9 @@ pub struct Args {
     /// Interpolate without the records' translational gradients.
     #[arg(long)]
     no_gradients: bool,
+    /// How the records' gradients are computed: analytic (H9–H18) or numerical (H7–H8).
+    #[arg(long, value_enum, default_value_t = Gradient::Analytic)]
+    gradient: Gradient,
     /// Shade from an asset pack written by `kage export` (its scene and bakes) instead of a scene.
     #[arg(long, conflicts_with = "scene")]
     pack: Option<PathBuf>,
@@ -444,6 +457,10 @@ fn indirect(
         rays: args.cache_rays as usize,
         accuracy: args.cache_accuracy,
         gradients: !args.no_gradients,
+        gradient_form: match args.gradient {
+            Gradient::Analytic => GradientForm::Analytic,
+            Gradient::Numerical => GradientForm::Numerical,
+        },
         ..Default::default()
     };
     let (values, what) = match args.indirect {

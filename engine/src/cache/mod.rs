@@ -41,6 +41,8 @@ pub struct Settings {
     pub accuracy: f32,
     /// Use the translational gradients.
     pub gradients: bool,
+    /// How gradients are computed.
+    pub gradient_form: record::GradientForm,
     /// Bounds of the record radius R_i, as fractions of the scene's bounding diagonal.
     pub radius_bounds: (f32, f32),
     /// Glossy receivers smoother than this gather directly (BSDF-sampled, `rays` rays)
@@ -55,6 +57,7 @@ impl Default for Settings {
             rays: 256,
             accuracy: 0.3,
             gradients: true,
+            gradient_form: record::GradientForm::Analytic,
             radius_bounds: (0.01, 0.2),
             glossy_fallback: GLOSSY_FALLBACK_ROUGHNESS,
         }
@@ -171,8 +174,7 @@ impl Cache {
         for &(p, n) in points {
             if self.usable(p, n).is_empty() {
                 let index = self.records.len() as u64;
-                let (r, hits) =
-                    record::gather_with_hits(src, p, n, self.settings.order, self.settings.side(), index, self.bounds);
+                let (r, hits) = record::gather_with_hits(src, p, n, &self.params(), index);
                 self.insert(r, hits);
             }
         }
@@ -185,7 +187,7 @@ impl Cache {
     /// The records keep their places; each equals a fresh gather there under the new lighting.
     pub fn refresh(&mut self, src: &Source, change: &Change) -> Refresh {
         use rayon::prelude::*;
-        let (order, side, bounds) = (self.settings.order, self.settings.side(), self.bounds);
+        let params = self.params();
         let outcomes: Vec<(Option<Record>, usize, bool)> = self
             .records
             .par_iter()
@@ -194,11 +196,11 @@ impl Cache {
             .map(|(i, (r, hits))| {
                 let (p, n) = (r.p, r.frame.n);
                 if hits.is_empty() {
-                    let (fresh, cast) = record::gather_with_hits(src, p, n, order, side, i as u64, bounds);
+                    let (fresh, cast) = record::gather_with_hits(src, p, n, &params, i as u64);
                     *hits = cast;
                     return (Some(fresh), 0, true);
                 }
-                let (fresh, relit) = record::relight(src, p, n, order, i as u64, bounds, hits, change);
+                let (fresh, relit) = record::relight(src, p, n, &params, i as u64, hits, change);
                 (fresh, relit.recast, false)
             })
             .collect();
@@ -217,9 +219,11 @@ impl Cache {
         out
     }
 
-    /// The clamp of the record radius R_i, in scene units.
-    pub fn radius_bounds(&self) -> (f32, f32) {
-        self.bounds
+    /// What this cache's gathers compute.
+    pub fn params(&self) -> record::Params {
+        let s = &self.settings;
+        let form = s.gradient_form;
+        record::Params { order: s.order, side: s.side(), bounds: self.bounds, form, min_cos_xi: record::MIN_COS_XI }
     }
 
     /// Rays cast so far.

@@ -21,7 +21,7 @@ use crate::reference::Renderer;
 use glam::{DVec3, Vec3};
 use rand::Rng;
 
-/// Smallest cos ξ the solid-angle gradient uses.
+/// Smallest cos ξ the solid-angle gradient uses by default.
 pub const MIN_COS_XI: f32 = 0.1;
 
 /// Where gather rays find radiance: the scene, each instance's per-vertex direct radiance
@@ -162,24 +162,41 @@ impl Record {
     }
 }
 
-/// Gathers a record at `p` (unit normal `n`) with `side²` stratified rays of stream `index`,
-/// HSH `order`, the harmonic mean distance clamped to `[r_min, r_max]`.
-pub fn gather(src: &Source, p: Vec3, n: Vec3, order: usize, side: usize, index: u64, bounds: (f32, f32)) -> Record {
-    gather_with_hits(src, p, n, order, side, index, bounds).0
+/// How a gradient is computed (seed H6–H18).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum GradientForm {
+    /// The derivative of H4 in closed form (H9–H18, corrected).
+    #[default]
+    Analytic,
+    /// Each ray's hit point held fixed while the record moves by a small step (H7–H8), as a
+    /// central difference with a step of 10⁻³ of the ray's length.
+    Numerical,
+}
+
+/// What a gather computes: HSH order, `side²` rays, the clamp of R_i and the gradient form.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Params {
+    /// HSH order.
+    pub order: usize,
+    /// Side of the stratified ray grid.
+    pub side: usize,
+    /// Clamp of the harmonic mean distance R_i.
+    pub bounds: (f32, f32),
+    /// Gradient form.
+    pub form: GradientForm,
+    /// Smallest cos ξ the gradients use ([`MIN_COS_XI`]; 0 for the exact derivative).
+    pub min_cos_xi: f32,
+}
+
+/// Gathers a record at `p` (unit normal `n`) with ray stream `index`.
+pub fn gather(src: &Source, p: Vec3, n: Vec3, params: &Params, index: u64) -> Record {
+    gather_with_hits(src, p, n, params, index).0
 }
 
 /// [`gather`], also returning what each ray hit (for [`relight`]).
-pub fn gather_with_hits(
-    src: &Source,
-    p: Vec3,
-    n: Vec3,
-    order: usize,
-    side: usize,
-    index: u64,
-    bounds: (f32, f32),
-) -> (Record, Vec<Option<Hit>>) {
+pub fn gather_with_hits(src: &Source, p: Vec3, n: Vec3, params: &Params, index: u64) -> (Record, Vec<Option<Hit>>) {
     let frame = Frame::from_normal(n);
-    let dirs = directions(side, index);
+    let dirs = directions(params.side, index);
     let hits: Vec<Option<Hit>> = dirs
         .iter()
         .map(|l| {
@@ -187,7 +204,7 @@ pub fn gather_with_hits(
             src.renderer.bvh.closest_hit(offset_ray_origin(p, n, d), d, f32::INFINITY)
         })
         .collect();
-    (integrate(src, p, frame, order, &dirs, &hits, index, bounds), hits)
+    (integrate(src, p, frame, params, &dirs, &hits, index), hits)
 }
 
 /// A record's gather directions in its frame: `side²` rays stratified uniformly in solid angle,
@@ -207,21 +224,19 @@ fn directions(side: usize, index: u64) -> Vec<Vec3> {
         .collect()
 }
 
-/// The record at `p` from its rays' local directions `dirs` and `hits`: coefficients, analytic
+/// The record at `p` from its rays' local directions `dirs` and `hits`: coefficients,
 /// gradients and the clamped harmonic mean distance.
-#[allow(clippy::too_many_arguments)]
 fn integrate(
     src: &Source,
     p: Vec3,
     frame: Frame,
-    order: usize,
+    params: &Params,
     dirs: &[Vec3],
     hits: &[Option<Hit>],
     index: u64,
-    (r_min, r_max): (f32, f32),
 ) -> Record {
     let omega = 2.0 * std::f64::consts::PI / dirs.len() as f64;
-    let k = hsh::num_coeffs(order);
+    let k = hsh::num_coeffs(params.order);
     let (mut c, mut gx, mut gy) = (vec![DVec3::ZERO; k], vec![DVec3::ZERO; k], vec![DVec3::ZERO; k]);
     let mut inverse_distance = 0.0f64;
     for (j, (&local, hit)) in dirs.iter().zip(hits).enumerate() {
@@ -233,23 +248,72 @@ fn integrate(
             continue;
         }
         let l = hit.radiance.as_dvec3();
-        let dl = local.as_dvec3();
-        let h = hsh::eval(order, dl);
-        let (tx, ty) = hsh::gradient_terms(order, dl);
-        let t = hit.t.max(1e-6) as f64;
-        let q = frame.to_local(d * hit.t).as_dvec3();
-        let nk = frame.to_local(hit.normal).as_dvec3();
-        let cos_xi = (nk.dot(-dl)).max(MIN_COS_XI as f64);
-        let d_omega = |nx: f64, qx: f64| omega * (t * nx + 3.0 * qx * cos_xi) / (t * t * cos_xi);
-        let (dox, doy) = (d_omega(nk.x, q.x), d_omega(nk.y, q.y));
+        let ray = Ray {
+            min_cos_xi: params.min_cos_xi as f64,
+            dir: local.as_dvec3(),
+            t: hit.t.max(1e-6) as f64,
+            q: frame.to_local(d * hit.t).as_dvec3(),
+            normal: frame.to_local(hit.normal).as_dvec3(),
+        };
+        let h = hsh::eval(params.order, ray.dir);
+        let (dx, dy) = match params.form {
+            GradientForm::Analytic => ray.analytic(params.order, &h, omega),
+            GradientForm::Numerical => ray.numerical(params.order, omega),
+        };
         for i in 0..k {
             c[i] += l * (h[i] * omega);
-            gx[i] += l * (tx[i] / t * omega + h[i] * dox);
-            gy[i] += l * (ty[i] / t * omega + h[i] * doy);
+            gx[i] += l * dx[i];
+            gy[i] += l * dy[i];
         }
     }
     let harmonic = if inverse_distance > 0.0 { (dirs.len() as f64 / inverse_distance) as f32 } else { f32::INFINITY };
-    Record { p, frame, radius: harmonic.clamp(r_min, r_max), coeffs: c, grad_x: gx, grad_y: gy }
+    let radius = harmonic.clamp(params.bounds.0, params.bounds.1);
+    Record { p, frame, radius, coeffs: c, grad_x: gx, grad_y: gy }
+}
+
+/// One gather ray in the record's frame: direction, length, hit point and the hit's normal
+/// (facing back along the ray).
+struct Ray {
+    min_cos_xi: f64,
+    dir: DVec3,
+    t: f64,
+    q: DVec3,
+    normal: DVec3,
+}
+
+impl Ray {
+    /// cos ξ, the hit normal's angle to the ray, clamped (grazing hits would dominate).
+    fn cos_xi(&self, dir: DVec3) -> f64 {
+        self.normal.dot(-dir).max(self.min_cos_xi)
+    }
+
+    /// `∂(Ω H_k)/∂x` and `∂(Ω H_k)/∂y` in closed form (H9, H10 and the HSH derivatives).
+    fn analytic(&self, order: usize, h: &[f64], omega: f64) -> (Vec<f64>, Vec<f64>) {
+        let (tx, ty) = hsh::gradient_terms(order, self.dir);
+        let (t, cos_xi) = (self.t, self.cos_xi(self.dir));
+        let d_omega = |nx: f64, qx: f64| omega * (t * nx + 3.0 * qx * cos_xi) / (t * t * cos_xi);
+        let (dox, doy) = (d_omega(self.normal.x, self.q.x), d_omega(self.normal.y, self.q.y));
+        let along = |terms: &[f64], d_o: f64| terms.iter().zip(h).map(|(g, h)| g / t * omega + h * d_o).collect();
+        (along(&tx, dox), along(&ty, doy))
+    }
+
+    /// The same by H7–H8: `Ω' H_k(ω')` with the hit point fixed and the record moved by ±δ
+    /// along each axis, `Ω' = Ω (r/r')² cos ξ'/cos ξ`, as a central difference.
+    fn numerical(&self, order: usize, omega: f64) -> (Vec<f64>, Vec<f64>) {
+        let delta = 1e-3 * self.t;
+        let moved = |offset: DVec3| {
+            let q = self.q - offset;
+            let r = q.length();
+            let dir = q / r;
+            let weight = omega * (self.t * self.t) / (r * r) * self.cos_xi(dir) / self.cos_xi(self.dir);
+            let above = DVec3::new(dir.x, dir.y, dir.z.max(0.0)).normalize();
+            hsh::eval(order, above).into_iter().map(move |h| weight * h)
+        };
+        let along = |axis: DVec3| {
+            moved(axis * delta).zip(moved(-axis * delta)).map(|(plus, minus)| (plus - minus) / (2.0 * delta)).collect()
+        };
+        (along(DVec3::X), along(DVec3::Y))
+    }
 }
 
 /// What changed since a record's rays were cast: the direct radiance they read before, and the
@@ -276,20 +340,17 @@ pub struct Relit {
 /// `change`: rays crossing moved geometry are cast again, and when any
 /// ray's radiance may differ the record is integrated again — equal to a fresh
 /// [`gather`] at the same place under the new lighting. `None`: nothing it sees changed.
-#[allow(clippy::too_many_arguments)]
 pub fn relight(
     src: &Source,
     p: Vec3,
     n: Vec3,
-    order: usize,
+    params: &Params,
     index: u64,
-    bounds: (f32, f32),
     hits: &mut [Option<Hit>],
     change: &Change,
 ) -> (Option<Record>, Relit) {
     let frame = Frame::from_normal(n);
-    let side = (hits.len() as f64).sqrt() as usize;
-    let dirs = directions(side, index);
+    let dirs = directions(params.side, index);
     let mut relit = Relit::default();
     for (local, hit) in dirs.iter().zip(hits.iter_mut()) {
         let d = frame.to_world(*local);
@@ -304,7 +365,7 @@ pub fn relight(
         }
         relit.changed |= hit.is_some_and(|h| src.changed(h, change.old_direct));
     }
-    let record = relit.changed.then(|| integrate(src, p, frame, order, &dirs, hits, index, bounds));
+    let record = relit.changed.then(|| integrate(src, p, frame, params, &dirs, hits, index));
     (record, relit)
 }
 

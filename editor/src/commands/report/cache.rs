@@ -65,5 +65,7 @@ pub fn run(args: &Args, eye: Vec3, rows: &mut Vec<Row>) -> Result<String> {
         }
     }
     cache_row("hsh-cache-no-gradients", CacheSettings { gradients: false, ..CacheSettings::default() });
+    let numerical = kage_engine::cache::record::GradientForm::Numerical;
+    cache_row("hsh-cache-numerical-gradients", CacheSettings { gradient_form: numerical, ..CacheSettings::default() });
     Ok(format!("{} ({n} vertices; hits lit by the reference's direct light at {direct_spp} spp)", truth.line))
 }

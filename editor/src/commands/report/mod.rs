@@ -206,7 +206,7 @@ fn write_files(args: &Args, header: &str, rows: &[Row]) -> Result<()> {
     plot(rows).save(args.out.join("report.png")).context("writing report.png")
 }
 
-const METHODS: [(&str, [u8; 3]); 10] = [
+const METHODS: [(&str, [u8; 3]); 11] = [
     ("bspvt", [220, 50, 40]),
     ("ltc-exact-vis", [40, 120, 220]),
     ("ltc-unshadowed", [120, 120, 120]),
@@ -217,6 +217,7 @@ const METHODS: [(&str, [u8; 3]); 10] = [
     ("indirect-gather", [90, 60, 20]),
     ("hsh-cache", [230, 100, 180]),
     ("hsh-cache-no-gradients", [160, 160, 40]),
+    ("hsh-cache-numerical-gradients", [60, 200, 120]),
 ];
 
 /// A log–log scatter with lines joining each method's points (no text: the Markdown says
