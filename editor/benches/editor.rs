@@ -39,8 +39,8 @@ fn teapot_editor() -> Harness<'static, App> {
     let work = root().join("target/bench-editor");
     let shaders = work.join("shaders");
     std::fs::create_dir_all(&shaders).unwrap();
-    for f in ["bspvt.wgsl", "prt.wgsl", "preview.wgsl"] {
-        std::fs::copy(root().join("shaders").join(f), shaders.join(f)).unwrap();
+    for f in std::fs::read_dir(root().join("shaders")).unwrap().map(|e| e.unwrap().path()) {
+        std::fs::copy(&f, shaders.join(f.file_name().unwrap())).unwrap();
     }
     let options = Options {
         scene_path: None,
@@ -68,6 +68,8 @@ fn vertices(h: &Harness<App>) -> usize {
 
 fn bench(c: &mut Criterion) {
     let mut h = teapot_editor();
+    let errors: Vec<&str> = h.state().editor.log.iter().filter(|l| l.error).map(|l| l.text.as_str()).collect();
+    assert!(errors.is_empty(), "the editor must measure a working state: {errors:#?}");
     let mut g = c.benchmark_group(format!("editor_teapot_{}v_{:?}", vertices(&h), shade_on()));
     g.sample_size(10);
     g.bench_function("frame_ui", |b| b.iter(|| h.step()));

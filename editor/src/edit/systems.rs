@@ -422,18 +422,21 @@ pub struct IndirectBase {
     settings: cache::Settings,
     direct: Vec<Vec<Vec3>>,
     lights: Vec<kage_engine::scene::FlatLight>,
-    receivers: Vec<(u32, glam::Affine3A)>,
+    receivers: Vec<(u32, glam::Affine3A, bool)>,
 }
 
 impl IndirectBase {
     /// The base when `renderer`'s receivers and `settings` are those it was made for.
     fn fits(self: Box<Self>, renderer: &Renderer, settings: &cache::Settings) -> Option<Box<Self>> {
-        (self.settings == *settings && self.receivers == receivers(renderer)).then_some(self)
+        (self.settings == *settings && self.receivers == receivers(renderer, settings)).then_some(self)
     }
 }
 
-fn receivers(renderer: &Renderer) -> Vec<(u32, glam::Affine3A)> {
-    renderer.flat.instances.iter().map(|i| (i.mesh, i.world)).collect()
+/// What a cache's record placement depends on besides lighting: each receiver's mesh, pose and
+/// whether it reads the cache (a glossy receiver made rough would have no records).
+fn receivers(renderer: &Renderer, s: &cache::Settings) -> Vec<(u32, glam::Affine3A, bool)> {
+    let instances = renderer.flat.instances.iter().enumerate();
+    instances.map(|(k, i)| (i.mesh, i.world, cache::falls_back(renderer, s, k))).collect()
 }
 /// True while an indirect gather runs.
 pub fn gathering(ed: &Editor) -> bool {
@@ -467,7 +470,7 @@ fn spawn_indirect(ed: &mut Editor) -> Worker<Indirect> {
                 settings: s,
                 direct,
                 lights: renderer.flat.lights.clone(),
-                receivers: receivers(&renderer),
+                receivers: receivers(&renderer, &s),
             };
             send(Indirect { values, what, base: Box::new(base) });
         },

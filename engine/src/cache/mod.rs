@@ -336,9 +336,10 @@ fn diagonal(src: &Source) -> f32 {
     (hi - lo).length().max(1e-6)
 }
 
-/// True when instance `i` is a glossy receiver smoother than the cache can serve.
-fn falls_back(src: &Source, s: &Settings, i: usize) -> bool {
-    let m = &src.renderer.flat.instances[i].material;
+/// True when instance `i` of `renderer`'s scene is a glossy receiver smoother than the cache
+/// can serve (it gathers directly; no records are placed on it).
+pub fn falls_back(renderer: &crate::reference::Renderer, s: &Settings, i: usize) -> bool {
+    let m = &renderer.flat.instances[i].material;
     crate::reference::Bsdf::new(m, Vec3::Z).has_specular() && m.roughness < s.glossy_fallback
 }
 
@@ -347,7 +348,7 @@ fn falls_back(src: &Source, s: &Settings, i: usize) -> bool {
 pub fn place_at_vertices(src: &Source, s: &Settings) -> Cache {
     let mut cache = Cache::new(*s, diagonal(src));
     let points: Vec<(Vec3, Vec3)> =
-        vertices(src).iter().filter(|v| !falls_back(src, s, v.0)).map(|&(_, _, p, n)| (p, n)).collect();
+        vertices(src).iter().filter(|v| !falls_back(src.renderer, s, v.0)).map(|&(_, _, p, n)| (p, n)).collect();
     cache.place(src, &points);
     cache
 }
@@ -371,7 +372,7 @@ pub fn shade_vertices(src: &Source, cache: &Cache, eye: Vec3) -> Vec<Vec<Vec3>> 
             let frame = crate::math::frame::Frame::from_normal(n);
             let wo = frame.to_local((eye - p).normalize_or(n));
             let bsdf = crate::reference::Bsdf::new(&src.renderer.flat.instances[i].material, wo);
-            if falls_back(src, s, i) {
+            if falls_back(src.renderer, s, i) {
                 return record::gather_bsdf(src, p, n, &bsdf, wo, s.side(), k as u64);
             }
             cache.incoming(p, n).map_or(Vec3::ZERO, |c| cache.outgoing(&c, &bsdf, wo))
