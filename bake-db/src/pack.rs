@@ -330,7 +330,12 @@ pub fn read(path: &Path) -> kage_engine::Result<(Scene, Contents)> {
                 if !ok {
                     return Err(bad(path, format!("mesh {k}: BSPVT data does not match the mesh")));
                 }
-                Ok(bspvt::BakedInstance { offsets, data: data.to_vec() })
+                let instance = bspvt::BakedInstance { offsets, data: data.to_vec() };
+                for v in 0..instance.vertices() {
+                    bspvt::layout::check_record(instance.record(v))
+                        .map_err(|e| bad(path, format!("mesh {k}, vertex {v}: malformed BSPVT record: {e}")))?;
+                }
+                Ok(instance)
             })
             .collect::<kage_engine::Result<Vec<_>>>()?;
         Ok(bspvt::Bake { settings, instances, stats: bspvt::Stats::default() })

@@ -447,10 +447,39 @@ fn export_writes_valid_packs_that_render_like_the_database() {
         // Any glTF tool can read it: kage's own importer sees the groups and the preview.
         let o = kage(&["info", pack.to_str().unwrap()]);
         assert!(o.status.success(), "{}", stderr(&o));
+        if method == "bspvt" {
+            // A damaged tree record (offsets intact) is an error naming the pack, not a panic.
+            damage_first_tree_record(&pack);
+            let o = kage(&["render", "--pack", pack.to_str().unwrap(), "--method", method]);
+            let e = stderr(&o);
+            assert!(!o.status.success() && e.contains("malformed BSPVT record") && e.contains("bspvt.glb"), "{e}");
+        }
     }
     let o = kage(&["render", "--pack", &shared("scenes/cube_on_plane.gltf"), "--method", "bspvt"]);
     assert!(!o.status.success() && stderr(&o).contains("not a kage pack"), "{}", stderr(&o));
     std::fs::remove_dir_all(d).unwrap();
+}
+
+/// Overwrites the face lengths of the first BSPVT record in `pack` (a GLB), keeping its offsets.
+fn damage_first_tree_record(pack: &Path) {
+    use serde_json::Value;
+    let mut bytes = std::fs::read(pack).unwrap();
+    let json_len = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+    let doc: Value = serde_json::from_slice(&bytes[20..20 + json_len]).unwrap();
+    fn records(v: &Value) -> Option<u64> {
+        match v {
+            Value::Object(m) => {
+                m.get("bspvt").and_then(|b| b["records"].as_u64()).or_else(|| m.values().find_map(records))
+            }
+            Value::Array(a) => a.iter().find_map(records),
+            _ => None,
+        }
+    }
+    let view = &doc["bufferViews"][records(&doc).expect("a BSPVT record view") as usize];
+    // The BIN chunk's data follows its 8-byte header.
+    let at = 20 + json_len + 8 + view["byteOffset"].as_u64().unwrap() as usize;
+    bytes[at..at + 2].copy_from_slice(&[0xFF, 0xFF]);
+    std::fs::write(pack, bytes).unwrap();
 }
 
 #[test]

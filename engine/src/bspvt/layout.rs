@@ -105,9 +105,89 @@ pub fn vertex_faces(record: &[u8]) -> [&[u8]; 6] {
     faces
 }
 
+/// Deepest tree [`check_record`] accepts: a chain over every texel of a 64² face. Deeper
+/// input (never baked by kage) would only exhaust the stack of the recursive descent.
+pub const MAX_DEPTH: usize = 4096;
+
+/// Checks that `record` is a well-formed vertex record (data read from outside, e.g. an asset
+/// pack): a 12-byte header whose six face lengths add up to the rest, and each face empty or
+/// one complete pre-order tree no deeper than [`MAX_DEPTH`].
+pub fn check_record(record: &[u8]) -> Result<(), String> {
+    if record.len() < 12 {
+        return Err(format!("{} bytes, shorter than the 12-byte header", record.len()));
+    }
+    let lengths: [usize; 6] = std::array::from_fn(|f| u16::from_le_bytes([record[2 * f], record[2 * f + 1]]) as usize);
+    let total: usize = lengths.iter().sum();
+    if 12 + total != record.len() {
+        return Err(format!("the face lengths add up to {total} bytes, the record holds {}", record.len() - 12));
+    }
+    let mut at = 12;
+    for (f, len) in lengths.into_iter().enumerate() {
+        check_tree(&record[at..at + len]).map_err(|e| format!("face {f}: {e}"))?;
+        at += len;
+    }
+    Ok(())
+}
+
+/// One face's bytes: empty, or exactly one pre-order tree.
+fn check_tree(bytes: &[u8]) -> Result<(), String> {
+    // Pending subtrees on the path from the root: each split opens two.
+    let mut pending: Vec<u8> = Vec::new();
+    let mut i = 0;
+    while i < bytes.len() {
+        if i > 0 && pending.is_empty() {
+            return Err(format!("bytes after the tree's last leaf (at {i})"));
+        }
+        if bytes[i] & 0x80 == 0 {
+            i += 1;
+            // A finished subtree completes its parent's pending children, upward.
+            while let Some(left) = pending.last_mut() {
+                *left -= 1;
+                if *left > 0 {
+                    break;
+                }
+                pending.pop();
+            }
+        } else {
+            if i + 3 > bytes.len() {
+                return Err(format!("a split cut short (at {i})"));
+            }
+            if pending.len() == MAX_DEPTH {
+                return Err(format!("deeper than {MAX_DEPTH}"));
+            }
+            pending.push(2);
+            i += 3;
+        }
+    }
+    if !pending.is_empty() {
+        return Err(format!("{} subtrees missing", pending.len()));
+    }
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn baked_records_pass_the_check_and_damaged_ones_fail_with_a_reason() {
+        let split = Node::Split { angle: 5, offset: 9 };
+        let tree = vec![split, Node::Leaf(1.0), split, Node::Leaf(0.0), Node::Leaf(0.5)];
+        let record = encode_vertex(&[Some(tree.clone()), None, Some(vec![Node::Leaf(1.0)]), None, None, Some(tree)]);
+        assert_eq!(check_record(&record), Ok(()));
+        assert!(check_record(&record[..8]).unwrap_err().contains("header"));
+        assert!(check_record(&record[..record.len() - 1]).unwrap_err().contains("add up"));
+        // The first face's tree loses its last leaf but keeps its length: a subtree is missing.
+        let mut cut = record.clone();
+        cut[12 + 8] = 0x80;
+        assert!(check_record(&cut).is_err());
+        // A lone leaf followed by more bytes in one face.
+        let extra = join_faces([&[0x7F, 0x7F], &[], &[], &[], &[], &[]]);
+        assert!(check_record(&extra).unwrap_err().contains("after the tree"));
+        // A chain of splits deeper than the limit.
+        let deep = [[0x80u8, 0, 0].repeat(MAX_DEPTH + 1), vec![0; MAX_DEPTH + 2]].concat();
+        assert!(check_record(&join_faces([&deep, &[], &[], &[], &[], &[]])).unwrap_err().contains("deeper"));
+    }
 
     #[test]
     fn lines_round_trip_within_a_quantum() {
