@@ -31,6 +31,10 @@ pub struct SceneArgs {
     /// `--rotate group_box_sphere=0,1,0,90`; applied before --move; repeatable.
     #[arg(long = "rotate", value_name = "NODE=ax,ay,az,degrees", value_parser = parse_rotate)]
     pub rotations: Vec<(String, Quat)>,
+    /// Refine the mesh of the instances (or group) named NODE to VERTICES vertices by
+    /// longest-edge bisection on its Phong surface, e.g. `--refine teapot=17000`; repeatable.
+    #[arg(long = "refine", value_name = "NODE=VERTICES", value_parser = parse_refine)]
+    pub refinements: Vec<(String, usize)>,
 }
 
 fn parse_numbers(s: &str, n: usize) -> Result<(String, Vec<f32>), String> {
@@ -49,6 +53,12 @@ fn parse_numbers(s: &str, n: usize) -> Result<(String, Vec<f32>), String> {
 fn parse_move(s: &str) -> Result<(String, Vec3), String> {
     let (node, v) = parse_numbers(s, 3)?;
     Ok((node, Vec3::new(v[0], v[1], v[2])))
+}
+
+fn parse_refine(s: &str) -> Result<(String, usize), String> {
+    let (node, count) = s.split_once('=').ok_or_else(|| format!("expected NODE=VERTICES, got '{s}'"))?;
+    let count = count.trim().parse::<usize>().map_err(|e| format!("'{s}': {e}"))?;
+    Ok((node.to_string(), count))
 }
 
 fn parse_rotate(s: &str) -> Result<(String, Quat), String> {
@@ -85,6 +95,10 @@ impl SceneArgs {
                 anyhow::ensure!(deg.is_finite(), "--env-rotation must be finite, got {deg}");
                 env.rotation = deg.to_radians();
             }
+        }
+        for (node, target) in &self.refinements {
+            let n = scene.refine_instances(node, *target)?;
+            eprintln!("refined {n} instance(s) of '{node}' to {target} vertices");
         }
         for (node, q) in &self.rotations {
             let g = scene.find_group(node)?;

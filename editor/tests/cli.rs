@@ -205,9 +205,37 @@ fn report_writes_markdown_csv_and_plot() {
     let csv = std::fs::read_to_string(out.join("report.csv")).unwrap();
     // 13 polygonal-light rows, then 3 gathers and 12 cache configurations.
     assert_eq!(csv.lines().count(), 1 + 13 + 3 + 12);
+    // The tree's own error (against exact visibility at 64²): only on 64² rows, and small.
+    let tree_error = |config: &str| {
+        let line = csv.lines().find(|l| l.starts_with(&format!("bspvt,{config},"))).unwrap();
+        line.rsplit(',').next().unwrap().to_string()
+    };
+    assert_eq!(tree_error("16² faces, ε 2"), "");
+    let e: f64 = tree_error("64² faces, ε 2").parse().unwrap();
+    assert!(e > 0.0 && e < 0.01, "tree error {e}");
     let png = image::open(out.join("report.png")).unwrap();
     assert_eq!((png.width(), png.height()), (640, 400));
+    let only = d.join("only");
+    let scene = shared("scenes/cube_on_plane.gltf");
+    let o = kage(&["report", &scene, "--out", only.to_str().unwrap(), "--reference-spp", "64", "--only", "cache"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let csv = std::fs::read_to_string(only.join("report.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 1 + 3 + 12, "only the cache section:\n{csv}");
     std::fs::remove_dir_all(d).unwrap();
+}
+
+#[test]
+fn refine_tessellates_a_named_instance_for_every_command() {
+    let scene = shared("scenes/teapot_quad_light.gltf");
+    let o = kage(&["info", &scene, "--refine", "teapot=5000"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = String::from_utf8(o.stdout).unwrap();
+    assert!(out.contains("5000 vertices") && out.contains("totals: 7601 vertices"), "{out}");
+    let o = kage(&["info", &scene, "--refine", "kettle=5000"]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("teapot_quad_light.gltf: no mesh instance or group named 'kettle'"), "{}", stderr(&o));
+    let o = kage(&["info", &scene, "--refine", "teapot=many"]);
+    assert!(!o.status.success() && stderr(&o).contains("teapot=many"), "{}", stderr(&o));
 }
 
 #[test]

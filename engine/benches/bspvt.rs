@@ -1,27 +1,40 @@
-//! BSPVT throughput on the built-in default scene (64² faces, default ε): baking vertices/s
-//! and shading vertex–light evaluations/s, on all cores with rayon. Every 9th receiver vertex
-//! is used so that setup stays short.
+//! BSPVT throughput (64² faces, default ε): baking vertices/s and shading vertex–light
+//! evaluations/s, on all cores with rayon, on two configurations:
+//! - the built-in default scene, every 9th receiver vertex (so that setup stays short);
+//! - the paper's named configuration: `teapot_quad_light.gltf` with its teapot refined to 17 000
+//!   vertices (`--refine teapot=17000`), every receiver vertex shaded (the bake is sampled).
+//!
+//! Leaves and bytes per vertex, and LTC pieces per evaluation, are printed beside the numbers.
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use kage_engine::bspvt::shade::{PointShader, Visibility};
 use kage_engine::bspvt::{Settings, bake_vertex, occluder_bvh};
 use kage_engine::math::ltc;
-use kage_engine::scene::{default_scene, flatten};
+use kage_engine::scene::{Scene, default_scene, flatten, import};
 use rayon::prelude::*;
 
-fn bench(c: &mut Criterion) {
-    let scene = default_scene();
-    let flat = flatten(&scene);
+const PAPER_SCENE: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/assets/scenes/teapot_quad_light.gltf");
+
+fn paper_scene() -> Scene {
+    let mut scene = import::import(PAPER_SCENE.as_ref(), Default::default()).expect("the shared teapot scene");
+    scene.refine_instances("teapot", 17_000).expect("the teapot refines");
+    scene.clear_environment();
+    scene
+}
+
+fn measure(c: &mut Criterion, name: &str, scene: &Scene, step: usize) {
+    let flat = flatten(scene);
     let occ = occluder_bvh(&flat);
     let s = Settings::default();
     let eye = scene.first_camera().unwrap().eye();
     let verts: Vec<(usize, usize)> = (0..flat.instances.len())
         .flat_map(|i| (0..scene.meshes[flat.instances[i].mesh as usize].positions.len()).map(move |v| (i, v)))
-        .step_by(9)
+        .step_by(step)
         .collect();
-    let mut g = c.benchmark_group("bspvt_default_scene");
+    let mut g = c.benchmark_group(name);
     g.sample_size(10);
-    let bake_sample = &verts[..64];
+    // 64 vertices spread over the receivers.
+    let bake_sample: Vec<(usize, usize)> = verts.iter().step_by(verts.len() / 64).take(64).copied().collect();
     g.throughput(Throughput::Elements(bake_sample.len() as u64));
     g.bench_function("bake_vertices", |b| {
         b.iter(|| {
@@ -43,30 +56,37 @@ fn bench(c: &mut Criterion) {
         .collect();
     let leaves: usize = baked.iter().map(|b| b.1).sum();
     let records: Vec<Vec<u8>> = baked.into_iter().map(|b| b.0).collect();
+    let table = ltc::table();
+    let shade = |v: usize, rec: &[u8]| {
+        let (i, v) = verts[v];
+        let (p, n) = flat.vertex(&scene.meshes, i, v);
+        PointShader::new(&table, p, n, eye, &flat.instances[i].material)
+            .shade_counted(&flat.lights, Visibility::Tree(rec))
+    };
+    // LTC pieces per vertex: the edge-gathering hint can only save work where a light is cut
+    // into several pieces (their shared edges).
+    let pieces: Vec<usize> = records.par_iter().enumerate().map(|(v, rec)| shade(v, rec).1).collect();
+    let evaluations = verts.len() * flat.lights.len();
     eprintln!(
-        "{} vertices, {:.1} leaves and {:.0} bytes per vertex",
+        "{name}: {} vertices, {:.1} leaves and {:.0} bytes per vertex, {:.2} LTC pieces per evaluation, \
+         {:.1} % of vertices with more pieces than lights",
         records.len(),
         leaves as f64 / records.len() as f64,
-        records.iter().map(Vec::len).sum::<usize>() as f64 / records.len() as f64
+        records.iter().map(Vec::len).sum::<usize>() as f64 / records.len() as f64,
+        pieces.iter().sum::<usize>() as f64 / evaluations as f64,
+        100.0 * pieces.iter().filter(|&&k| k > flat.lights.len()).count() as f64 / records.len() as f64,
     );
-    let table = ltc::table();
-    g.throughput(Throughput::Elements((verts.len() * flat.lights.len()) as u64));
+    g.throughput(Throughput::Elements(evaluations as u64));
     g.sample_size(20);
     g.bench_function("shade_vertex_lights", |b| {
-        b.iter(|| {
-            verts
-                .par_iter()
-                .zip(&records)
-                .map(|(&(i, v), rec)| {
-                    let (p, n) = flat.vertex(&scene.meshes, i, v);
-                    PointShader::new(&table, p, n, eye, &flat.instances[i].material)
-                        .shade(&flat.lights, Visibility::Tree(rec))
-                        .x
-                })
-                .sum::<f32>()
-        })
+        b.iter(|| records.par_iter().enumerate().map(|(v, rec)| shade(v, rec).0.x).sum::<f32>())
     });
     g.finish();
+}
+
+fn bench(c: &mut Criterion) {
+    measure(c, "bspvt_default_scene", &default_scene(), 9);
+    measure(c, "bspvt_paper_teapot", &paper_scene(), 1);
 }
 
 criterion_group!(benches, bench);

@@ -268,6 +268,8 @@ fn per_vertex(
         Method::LtcExactVis => bspvt::Method::ExactVis,
         _ => bspvt::Method::Unshadowed,
     };
+    // The GGX albedo table is built on first use: not part of shading a frame.
+    let _ = kage_engine::math::ggx::directional_albedo(1.0, 0.5, Vec3::ONE, Vec3::ONE);
     let start = Instant::now();
     let values = if args.gpu {
         let gpu = gpu_device()?;

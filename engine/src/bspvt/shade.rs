@@ -55,8 +55,9 @@ impl PointShader {
         Self { p: pd, n: nd, frame, spec_inv: lut.inv * frame, diffuse: bsdf.diffuse_albedo().as_dvec3(), spec }
     }
 
-    /// Outgoing radiance per unit light radiance from a polygon piece (points relative to p).
-    fn piece(&self, piece: &[DVec3], tex: Option<&TexturedLight>) -> DVec3 {
+    /// Adds `weight` × the outgoing radiance per unit light radiance from a polygon piece
+    /// (points relative to p) to `sum`.
+    fn piece(&self, piece: &[DVec3], tex: Option<&TexturedLight>, weight: f64, sum: &mut Sum) {
         let lobe = |m: &DMat3, space: usize| -> DVec3 {
             let t: Vec<DVec3> = piece.iter().map(|q| *m * *q).collect();
             let scalar = ltc::integrate(&t);
@@ -69,12 +70,19 @@ impl PointShader {
         if self.spec != DVec3::ZERO {
             out += self.spec * lobe(&self.spec_inv, 1);
         }
-        out
+        sum.radiance += weight * out;
+        sum.pieces += 1;
     }
 
     /// Outgoing radiance from all `lights` with the given visibility.
     pub fn shade(&self, lights: &[FlatLight], vis: Visibility) -> Vec3 {
+        self.shade_counted(lights, vis).0
+    }
+
+    /// [`Self::shade`], and how many light pieces were integrated with LTC.
+    pub fn shade_counted(&self, lights: &[FlatLight], vis: Visibility) -> (Vec3, usize) {
         let mut total = DVec3::ZERO;
+        let mut pieces = 0;
         for light in lights {
             let rel: Vec<DVec3> = light.points.iter().map(|q| q.as_dvec3() - self.p).collect();
             // One-sided lights, and lights entirely below the horizon, contribute nothing.
@@ -83,28 +91,28 @@ impl PointShader {
             }
             let tex = TexturedLight::new(light, &rel, [&self.frame, &self.spec_inv]);
             let tex = tex.as_ref();
-            let weighted = match vis {
-                Visibility::Unshadowed => self.piece(&rel, tex),
-                Visibility::Tree(record) => self.through_trees(record, &rel, tex),
-                Visibility::Exact(cube) => self.through_texels(cube, &rel, tex),
-            };
-            total += light.radiance.as_dvec3() * weighted;
+            let mut sum = Sum::default();
+            match vis {
+                Visibility::Unshadowed => self.piece(&rel, tex, 1.0, &mut sum),
+                Visibility::Tree(record) => self.through_trees(record, &rel, tex, &mut sum),
+                Visibility::Exact(cube) => self.through_texels(cube, &rel, tex, &mut sum),
+            }
+            total += light.radiance.as_dvec3() * sum.radiance;
+            pieces += sum.pieces;
         }
-        total.as_vec3()
+        (total.as_vec3(), pieces)
     }
 
-    fn through_trees(&self, record: &[u8], rel: &[DVec3], tex: Option<&TexturedLight>) -> DVec3 {
-        let mut acc = DVec3::ZERO;
+    fn through_trees(&self, record: &[u8], rel: &[DVec3], tex: Option<&TexturedLight>, acc: &mut Sum) {
         for (f, bytes) in vertex_faces(record).into_iter().enumerate() {
             if bytes.is_empty() {
                 continue;
             }
             let piece = clip_all(rel, &cubemap::face_frustum(f));
             if !piece.is_empty() {
-                self.walk(bytes, 0, f, piece, tex, &mut acc);
+                self.walk(bytes, 0, f, piece, tex, acc);
             }
         }
-        acc
     }
 
     /// Descends the pre-order tree from byte `i`, splitting `piece`; returns the next index.
@@ -115,12 +123,12 @@ impl PointShader {
         face: usize,
         piece: Vec<DVec3>,
         tex: Option<&TexturedLight>,
-        acc: &mut DVec3,
+        acc: &mut Sum,
     ) -> usize {
         if bytes[i] & 0x80 == 0 {
             let v = bytes[i] as f64 / 127.0;
             if v > 0.0 && !piece.is_empty() {
-                *acc += v * self.piece(&piece, tex);
+                self.piece(&piece, tex, v, acc);
             }
             return i + 1;
         }
@@ -136,10 +144,9 @@ impl PointShader {
         self.walk(bytes, next, face, neg, tex, acc)
     }
 
-    fn through_texels(&self, cube: &CubeVisibility, rel: &[DVec3], tex: Option<&TexturedLight>) -> DVec3 {
+    fn through_texels(&self, cube: &CubeVisibility, rel: &[DVec3], tex: Option<&TexturedLight>, acc: &mut Sum) {
         let n = cube.res;
         let edge = |k: usize| 2.0 * k as f64 / n as f64 - 1.0;
-        let mut acc = DVec3::ZERO;
         for f in 0..cubemap::FACES {
             let piece = clip_all(rel, &cubemap::face_frustum(f));
             if piece.is_empty() {
@@ -169,13 +176,19 @@ impl PointShader {
                     ];
                     let texel_piece = clip_all(&piece, &planes);
                     if !texel_piece.is_empty() {
-                        acc += self.piece(&texel_piece, tex);
+                        self.piece(&texel_piece, tex, 1.0, acc);
                     }
                 }
             }
         }
-        acc
     }
+}
+
+/// Weighted radiance of the pieces integrated so far, and their count.
+#[derive(Default)]
+struct Sum {
+    radiance: DVec3,
+    pieces: usize,
 }
 
 /// A textured light with a prefiltered texture (Heitz et al. 2016, §5.3), fetched per piece:

@@ -116,16 +116,16 @@ struct AlbedoTable {
 fn albedo_table() -> &'static AlbedoTable {
     static TABLE: OnceLock<AlbedoTable> = OnceLock::new();
     TABLE.get_or_init(|| {
-        let (mut a, mut b) = (Vec::new(), Vec::new());
-        for ri in 0..ALBEDO_N {
-            let alpha = alpha_from_roughness(ri as f32 / (ALBEDO_N - 1) as f32);
-            for mi in 0..ALBEDO_N {
-                let mu = (mi as f32 / (ALBEDO_N - 1) as f32).max(1e-3);
-                let (ea, eb) = integrate_albedo(mu, alpha);
-                a.push(ea);
-                b.push(eb);
-            }
-        }
+        use rayon::prelude::*;
+        // Entries are independent, so the parallel build gives the same table.
+        let (a, b) = (0..ALBEDO_N * ALBEDO_N)
+            .into_par_iter()
+            .map(|k| {
+                let (ri, mi) = (k / ALBEDO_N, k % ALBEDO_N);
+                let alpha = alpha_from_roughness(ri as f32 / (ALBEDO_N - 1) as f32);
+                integrate_albedo((mi as f32 / (ALBEDO_N - 1) as f32).max(1e-3), alpha)
+            })
+            .unzip();
         AlbedoTable { a, b }
     })
 }

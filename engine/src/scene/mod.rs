@@ -18,6 +18,7 @@ pub mod environment;
 mod flatten;
 pub mod import;
 pub mod mesh;
+pub mod refine;
 pub mod shapes;
 pub mod texture;
 
@@ -104,6 +105,48 @@ impl Scene {
             t.world = glam::Affine3A::from_rotation_translation(rotation, origin) * linear;
         }
         propagate_transforms(&mut self.world);
+    }
+
+    /// Refines the mesh of every instance named `name` (its own node's name, or its rigid
+    /// group's) to `target` vertices with [`refine::refine`]; returns how many instances changed.
+    pub fn refine_instances(&mut self, name: &str, target: usize) -> crate::Result<usize> {
+        let named = |e: hecs::Entity| self.world.get::<&Name>(e).map(|n| n.0 == name).unwrap_or(false);
+        let matching: Vec<(hecs::Entity, u32)> = self
+            .world
+            .query::<(hecs::Entity, &MeshRef, &InGroup)>()
+            .iter()
+            .filter(|(e, _, g)| named(*e) || named(g.group))
+            .map(|(e, r, _)| (e, r.index))
+            .collect();
+        if matching.is_empty() {
+            return Err(crate::Error::Invalid(format!(
+                "{}: no mesh instance or group named '{name}' to refine",
+                self.source
+            )));
+        }
+        let mut indices: Vec<u32> = matching.iter().map(|(_, i)| *i).collect();
+        indices.sort_unstable();
+        indices.dedup();
+        let mut refined = std::collections::HashMap::new();
+        for index in indices {
+            let mesh = refine::refine(&self.meshes[index as usize], target).map_err(|why| {
+                crate::Error::Invalid(format!("{}: refining '{name}' to {target} vertices: {why}", self.source))
+            })?;
+            // A mesh no other instance shares is replaced in place (no orphan left behind).
+            let users = self.world.query::<&MeshRef>().iter().filter(|r| r.index == index).count();
+            let shared = users > matching.iter().filter(|(_, i)| *i == index).count();
+            let slot = if shared { self.meshes.len() as u32 } else { index };
+            refined.insert(index, MeshRef { index: slot, hash: mesh.hash });
+            if shared {
+                self.meshes.push(Arc::new(mesh));
+            } else {
+                self.meshes[index as usize] = Arc::new(mesh);
+            }
+        }
+        for (entity, index) in &matching {
+            *self.world.get::<&mut MeshRef>(*entity).expect("queried above") = refined[index];
+        }
+        Ok(matching.len())
     }
 
     /// The first camera, if the scene has one.

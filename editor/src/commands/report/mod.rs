@@ -40,6 +40,26 @@ pub struct Args {
     /// PRT transfer directions per vertex.
     #[arg(long, default_value_t = 1024)]
     directions: usize,
+    /// Run only these sections (comma-separated; default: every section the scene supports).
+    #[arg(long, value_delimiter = ',')]
+    only: Vec<Section>,
+}
+
+/// A part of the report.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+enum Section {
+    /// Polygonal lights: BSPVT and its competitors.
+    Polygon,
+    /// The environment: PRT.
+    Prt,
+    /// One bounce of indirect light: the HSH radiance cache.
+    Cache,
+}
+
+impl Args {
+    fn wants(&self, section: Section) -> bool {
+        self.only.is_empty() || self.only.contains(&section)
+    }
 }
 
 /// One measured configuration.
@@ -55,6 +75,8 @@ pub(crate) struct Row {
     rel_rmse: f64,
     /// Per-pixel relative RMSE, where the method is measured per pixel.
     pixel_rel_rmse: Option<f64>,
+    /// BSPVT: relative RMSE against `ltc-exact-vis` (the tree's own error).
+    tree_rel_rmse: Option<f64>,
 }
 
 /// The reference a section measures against: per-vertex means of the instances it keeps, and
@@ -106,6 +128,7 @@ impl Truth {
             rmse,
             rel_rmse,
             pixel_rel_rmse: None,
+            tree_rel_rmse: None,
         }
     }
 }
@@ -118,18 +141,21 @@ pub fn run(args: &Args) -> Result<()> {
     let mut header = vec![format!("scene {}", scene.source)];
     let has_lights = scene.world.query::<&kage_engine::scene::PolygonLight>().iter().next().is_some();
     let has_env = scene.world.query::<&kage_engine::scene::EnvironmentLight>().iter().next().is_some();
-    if has_lights {
-        header.push(polygon::run(args, eye, &mut rows)?);
-    }
-    if has_env {
-        header.push(prt::run(args, eye, &mut rows)?);
-    }
     anyhow::ensure!(
         has_lights || has_env,
         "{}: no polygonal light and no environment: nothing to report",
         scene.source
     );
-    header.push(cache::run(args, eye, &mut rows)?);
+    if has_lights && args.wants(Section::Polygon) {
+        header.push(polygon::run(args, eye, &mut rows)?);
+    }
+    if has_env && args.wants(Section::Prt) {
+        header.push(prt::run(args, eye, &mut rows)?);
+    }
+    if args.wants(Section::Cache) {
+        header.push(cache::run(args, eye, &mut rows)?);
+    }
+    anyhow::ensure!(!rows.is_empty(), "{}: none of the chosen sections applies to this scene", scene.source);
     std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
     write_files(args, &header.join("\n\n"), &rows)?;
     crate::emit(&format!("wrote {}/report.md, report.csv, report.png\n", args.out.display()));
@@ -158,15 +184,17 @@ fn rel(values: impl Iterator<Item = Vec3>, truth: &[Vec3]) -> (f64, f64) {
 
 fn write_files(args: &Args, header: &str, rows: &[Row]) -> Result<()> {
     let mut md = format!("# kage report\n\n{header}\n\n");
-    md.push_str("| method | configuration | bake (s) | bake size (KB) | leaves / vertex | shade (s / frame) | RMSE | relative RMSE | per-pixel relative RMSE |\n");
-    md.push_str("|---|---|---|---|---|---|---|---|---|\n");
-    let mut csv =
-        String::from("method,config,bake_s,bake_bytes,leaves_per_vertex,shade_s,rmse,rel_rmse,pixel_rel_rmse\n");
+    md.push_str("| method | configuration | bake (s) | bake size (KB) | leaves / vertex | shade (s / frame) | RMSE | relative RMSE | per-pixel relative RMSE | tree error (vs exact-vis) |\n");
+    md.push_str("|---|---|---|---|---|---|---|---|---|---|\n");
+    let mut csv = String::from(
+        "method,config,bake_s,bake_bytes,leaves_per_vertex,shade_s,rmse,rel_rmse,pixel_rel_rmse,tree_rel_rmse\n",
+    );
+    let dash = |x: Option<f64>| x.map_or("—".to_string(), |p| format!("{p:.4}"));
     for r in rows {
-        let pixel = r.pixel_rel_rmse.map_or("—".to_string(), |p| format!("{p:.4}"));
+        let (pixel, tree) = (dash(r.pixel_rel_rmse), dash(r.tree_rel_rmse));
         writeln!(
             md,
-            "| {} | {} | {:.2} | {:.1} | {:.1} | {:.4} | {:.5} | {:.4} | {pixel} |",
+            "| {} | {} | {:.2} | {:.1} | {:.1} | {:.4} | {:.5} | {:.4} | {pixel} | {tree} |",
             r.method,
             r.config,
             r.bake_s,
@@ -178,7 +206,7 @@ fn write_files(args: &Args, header: &str, rows: &[Row]) -> Result<()> {
         )?;
         writeln!(
             csv,
-            "{},{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{}",
             r.method,
             r.config,
             r.bake_s,
@@ -187,7 +215,8 @@ fn write_files(args: &Args, header: &str, rows: &[Row]) -> Result<()> {
             r.shade_s,
             r.rmse,
             r.rel_rmse,
-            r.pixel_rel_rmse.map_or(String::new(), |p| p.to_string())
+            r.pixel_rel_rmse.map_or(String::new(), |p| p.to_string()),
+            r.tree_rel_rmse.map_or(String::new(), |p| p.to_string())
         )?;
     }
     md.push_str("\nPlot (`report.png`): relative RMSE (vertical) against shade time per frame (horizontal), both log scale; colours: ");

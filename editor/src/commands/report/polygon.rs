@@ -2,7 +2,7 @@
 //! visibility, and at equal time Monte Carlo shadow rays and the ratio estimator, per vertex
 //! with the environment dropped.
 
-use super::{Args, Row, Truth, announce};
+use super::{Args, Row, Truth, announce, rel};
 use anyhow::Result;
 use glam::Vec3;
 use kage_engine::reference::{Renderer, Settings};
@@ -20,25 +20,29 @@ pub fn run(args: &Args, eye: Vec3, rows: &mut Vec<Row>) -> Result<String> {
         announce(&row);
         rows.push(row);
     };
+    let exact_s = bspvt::Settings::default();
+    let t = Instant::now();
+    let exact = bspvt::shade_vertices(&scene, &renderer.flat, bspvt::Method::ExactVis, None, &exact_s, eye);
+    push(truth.row("ltc-exact-vis", "64² faces (cast per frame)".into(), t.elapsed().as_secs_f64(), &exact));
+    let exact_flat: Vec<Vec3> = exact.iter().flatten().copied().collect();
     for (res, eps) in [(16, 2.0), (32, 2.0), (64, 2.0), (64, 0.5)] {
         let s = bspvt::Settings { res, epsilon: eps };
         let b = bspvt::bake(&scene, &renderer.flat, &s, &|_| {});
         let t = Instant::now();
         let v = bspvt::shade_vertices(&scene, &renderer.flat, bspvt::Method::Bspvt, Some(&b), &s, eye);
         let st = b.stats;
+        // Against exact visibility at the tree's own face resolution (64² above).
+        let tree = (res == exact_s.res).then(|| rel(v.iter().flatten().copied(), &exact_flat).1);
         push(Row {
             bake_s: st.seconds,
             bake_bytes: st.bytes,
             leaves_per_vertex: st.leaves as f64 / st.vertices.max(1) as f64,
+            tree_rel_rmse: tree,
             ..truth.row("bspvt", format!("{res}² faces, ε {eps}"), t.elapsed().as_secs_f64(), &v)
         });
     }
-    let s = bspvt::Settings::default();
     let t = Instant::now();
-    let v = bspvt::shade_vertices(&scene, &renderer.flat, bspvt::Method::ExactVis, None, &s, eye);
-    push(truth.row("ltc-exact-vis", "64² faces (cast per frame)".into(), t.elapsed().as_secs_f64(), &v));
-    let t = Instant::now();
-    let v = bspvt::shade_vertices(&scene, &renderer.flat, bspvt::Method::Unshadowed, None, &s, eye);
+    let v = bspvt::shade_vertices(&scene, &renderer.flat, bspvt::Method::Unshadowed, None, &exact_s, eye);
     push(truth.row("ltc-unshadowed", String::new(), t.elapsed().as_secs_f64(), &v));
     for spp in [1u32, 4, 16, 64] {
         let t = Instant::now();

@@ -1,0 +1,251 @@
+//! Mesh refinement for per-vertex bakes: a per-vertex method resolves shadows only as finely
+//! as the receiver is tessellated, so a coarse mesh can be refined to a vertex budget.
+//!
+//! Longest-edge bisection (Rivara): the globally longest edge is split at a time, in every
+//! triangle that shares it, so the mesh stays conforming (no T-junctions) and, since that edge
+//! is the longest of each of its triangles, angles stay bounded. A new vertex lies on the
+//! edge's Phong-tessellation curve (Boubekeur & Alexa 2008, α = ¾) so a curved surface stays
+//! curved; its normal is the normalised mean of the edge's, and its uv the midpoint. Each split
+//! adds exactly one vertex, so the result has exactly the requested count. Deterministic: ties
+//! between equal lengths go to the smaller vertex pair.
+
+use super::mesh::{Mesh, MeshProblem};
+use glam::Vec3;
+use std::cmp::Reverse;
+use std::collections::{BinaryHeap, HashMap};
+
+/// Phong tessellation's shape factor: 0 is flat, 1 the full quadratic patch.
+const PHONG_ALPHA: f32 = 0.75;
+
+type Edge = (u32, u32);
+
+fn edge(a: u32, b: u32) -> Edge {
+    (a.min(b), a.max(b))
+}
+
+/// A mesh being refined: its arrays, which triangles use each edge, and edges by length.
+struct Refiner {
+    positions: Vec<Vec3>,
+    normals: Vec<Vec3>,
+    uvs: Vec<glam::Vec2>,
+    triangles: Vec<[u32; 3]>,
+    users: HashMap<Edge, Vec<u32>>,
+    /// (squared length bits, reversed pair): the longest first, then the smallest pair.
+    queue: BinaryHeap<(u32, Reverse<Edge>)>,
+}
+
+impl Refiner {
+    fn new(mesh: &Mesh) -> Self {
+        let mut r = Self {
+            positions: mesh.positions.clone(),
+            normals: mesh.normals.clone(),
+            uvs: mesh.uvs.clone(),
+            triangles: Vec::with_capacity(mesh.triangles.len()),
+            users: HashMap::new(),
+            queue: BinaryHeap::new(),
+        };
+        for tri in &mesh.triangles {
+            r.push_triangle(*tri);
+        }
+        r
+    }
+
+    fn push_triangle(&mut self, tri: [u32; 3]) {
+        let t = self.triangles.len() as u32;
+        self.triangles.push(tri);
+        for k in 0..3 {
+            self.use_edge(edge(tri[k], tri[(k + 1) % 3]), t);
+        }
+    }
+
+    /// Records that triangle `t` uses `e`, queueing `e` when it is new.
+    fn use_edge(&mut self, e: Edge, t: u32) {
+        let users = self.users.entry(e).or_default();
+        if users.is_empty() {
+            let len2 = self.positions[e.0 as usize].distance_squared(self.positions[e.1 as usize]);
+            // Non-negative floats order like their bits.
+            self.queue.push((len2.to_bits(), Reverse(e)));
+        }
+        users.push(t);
+    }
+
+    /// Splits the longest edge; false when there is none left.
+    fn split_longest(&mut self) -> bool {
+        while let Some((_, Reverse(e))) = self.queue.pop() {
+            if let Some(users) = self.users.remove(&e) {
+                self.split(e, &users);
+                return true;
+            }
+        }
+        false
+    }
+
+    fn split(&mut self, (a, b): Edge, users: &[u32]) {
+        let m = self.positions.len() as u32;
+        let first = self.triangles[users[0] as usize];
+        self.positions.push(self.midpoint(a, b, first));
+        let face = self.face_normal(first);
+        self.normals.push((self.normals[a as usize] + self.normals[b as usize]).normalize_or(face));
+        if !self.uvs.is_empty() {
+            self.uvs.push(0.5 * (self.uvs[a as usize] + self.uvs[b as usize]));
+        }
+        for &t in users {
+            let tri = self.triangles[t as usize];
+            // Rotate so the split edge is p → q in the triangle's winding.
+            let k = (0..3).find(|&k| edge(tri[k], tri[(k + 1) % 3]) == (a, b)).expect("the edge's user has it");
+            let (p, q, r) = (tri[k], tri[(k + 1) % 3], tri[(k + 2) % 3]);
+            self.triangles[t as usize] = [p, m, r];
+            let u = self.triangles.len() as u32;
+            self.triangles.push([m, q, r]);
+            let qr = self.users.get_mut(&edge(q, r)).expect("the triangle's edge is known");
+            *qr.iter_mut().find(|x| **x == t).expect("the edge knows its triangle") = u;
+            self.use_edge(edge(p, m), t);
+            self.use_edge(edge(m, q), u);
+            self.use_edge(edge(m, r), t);
+            self.use_edge(edge(m, r), u);
+        }
+    }
+
+    /// The edge's midpoint moved onto its Phong-tessellation curve.
+    fn midpoint(&self, a: u32, b: u32, tri: [u32; 3]) -> Vec3 {
+        let (pa, pb) = (self.positions[a as usize], self.positions[b as usize]);
+        let (na, nb) = (self.normals[a as usize], self.normals[b as usize]);
+        let mid = 0.5 * (pa + pb);
+        let onto = |p: Vec3, n: Vec3| mid - (mid - p).dot(n) * n;
+        let curved = (1.0 - PHONG_ALPHA) * mid + PHONG_ALPHA * 0.5 * (onto(pa, na) + onto(pb, nb));
+        // Normals that disagree wildly (a crease) would pull the point off: stay flat there.
+        if na.dot(nb) > 0.0 && self.face_normal(tri).dot(na + nb) > 0.0 { curved } else { mid }
+    }
+
+    fn face_normal(&self, tri: [u32; 3]) -> Vec3 {
+        let [a, b, c] = tri.map(|i| self.positions[i as usize]);
+        (b - a).cross(c - a).normalize_or_zero()
+    }
+}
+
+/// Refines `mesh` to exactly `target_vertices` vertices (a mesh already that large is returned
+/// unchanged). Fails only if a split produced a degenerate triangle.
+pub fn refine(mesh: &Mesh, target_vertices: usize) -> Result<Mesh, MeshProblem> {
+    if mesh.positions.len() >= target_vertices {
+        return Ok(mesh.clone());
+    }
+    let mut r = Refiner::new(mesh);
+    while r.positions.len() < target_vertices && r.split_longest() {}
+    Mesh::new(r.positions, Some(r.normals), r.uvs, r.triangles, false).map(|(m, _)| m)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::shapes;
+
+    /// Every edge with its number of triangles.
+    fn edge_users(m: &Mesh) -> HashMap<Edge, usize> {
+        let mut users = HashMap::new();
+        for t in &m.triangles {
+            for k in 0..3 {
+                *users.entry(edge(t[k], t[(k + 1) % 3])).or_default() += 1;
+            }
+        }
+        users
+    }
+
+    /// A closed unit icosahedron (welded: every edge has two triangles), smooth normals.
+    fn icosahedron() -> Mesh {
+        let g = (1.0 + 5f32.sqrt()) / 2.0;
+        let pairs = [(-1.0, g), (1.0, g), (-1.0, -g), (1.0, -g)];
+        let planes: [fn(f32, f32) -> Vec3; 3] =
+            [|a, b| Vec3::new(a, b, 0.0), |a, b| Vec3::new(0.0, a, b), |a, b| Vec3::new(b, 0.0, a)];
+        let p: Vec<Vec3> = planes.iter().flat_map(|f| pairs.map(|(a, b)| f(a, b).normalize())).collect();
+        #[rustfmt::skip]
+        let t = vec![
+            [0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11], [1, 5, 9], [5, 11, 4], [11, 10, 2],
+            [10, 7, 6], [7, 1, 8], [3, 9, 4], [3, 4, 2], [3, 2, 6], [3, 6, 8], [3, 8, 9], [4, 9, 5],
+            [2, 4, 11], [6, 2, 10], [8, 6, 7], [9, 8, 1],
+        ];
+        Mesh::new(p.clone(), Some(p), vec![], t, false).unwrap().0
+    }
+
+    #[test]
+    fn reaches_the_target_exactly_and_stays_closed() {
+        let sphere = icosahedron();
+        let fine = refine(&sphere, 1000).unwrap();
+        assert_eq!(fine.positions.len(), 1000);
+        // Closed before → closed after: every edge has exactly two triangles (no T-junction).
+        assert!(edge_users(&sphere).values().all(|&n| n == 2));
+        assert!(edge_users(&fine).values().all(|&n| n == 2));
+        // Euler characteristic of a sphere: V − E + F = 2.
+        let (v, e, f) = (fine.positions.len(), edge_users(&fine).len(), fine.triangles.len());
+        assert_eq!(v as i64 - e as i64 + f as i64, 2);
+    }
+
+    #[test]
+    fn new_vertices_follow_the_curved_surface() {
+        let sphere = icosahedron();
+        let fine = refine(&sphere, 42).unwrap();
+        // One split per edge (30 edges): every new vertex is a first-generation midpoint. A flat
+        // one sits 1 − cos(θ/2) inside the sphere (θ the edge's angle); Phong's far less.
+        let theta = sphere.positions[0].angle_between(sphere.positions[11]);
+        let flat_inset = 1.0 - (theta / 2.0).cos();
+        let worst = fine.positions.iter().map(|p| (p.length() - 1.0).abs()).fold(0.0, f32::max);
+        assert!(worst < 0.25 * flat_inset, "{worst} vs flat {flat_inset}");
+        assert!(fine.normals.iter().zip(&fine.positions).all(|(n, p)| n.dot(p.normalize()) > 0.98));
+    }
+
+    #[test]
+    fn a_flat_grid_stays_flat_keeps_its_area_boundary_and_winding() {
+        let grid = shapes::grid(2.0, 4);
+        let fine = refine(&grid, 200).unwrap();
+        assert_eq!(fine.positions.len(), 200);
+        assert!(fine.positions.iter().all(|p| p.y == 0.0));
+        assert!((fine.area() - grid.area()).abs() < 1e-4);
+        let boundary = |m: &Mesh| {
+            edge_users(m)
+                .iter()
+                .filter(|(_, n)| **n == 1)
+                .map(|(e, _)| m.positions[e.0 as usize].distance(m.positions[e.1 as usize]))
+                .sum::<f32>()
+        };
+        assert!((boundary(&fine) - 8.0).abs() < 1e-4);
+        assert!(fine.triangles.iter().all(|t| {
+            let [a, b, c] = t.map(|i| fine.positions[i as usize]);
+            (b - a).cross(c - a).y > 0.0
+        }));
+    }
+
+    #[test]
+    fn a_scene_refines_only_the_named_instances_and_keeps_shared_meshes_for_the_others() {
+        use crate::scene::{Material, MeshRef, Name, Scene};
+        let mut scene = Scene::new("test");
+        let m = Material::lambertian(Vec3::ONE);
+        scene.add_object("a", shapes::sphere(1.0, 8, 4), m, glam::Affine3A::IDENTITY);
+        scene.add_object("c", shapes::sphere(1.0, 8, 4), m, glam::Affine3A::IDENTITY);
+        let refs = |scene: &Scene| -> HashMap<String, MeshRef> {
+            scene.world.query::<(&Name, &MeshRef)>().iter().map(|(n, r)| (n.0.clone(), *r)).collect()
+        };
+        // "c" instances a's mesh, as glTF nodes can.
+        let shared = refs(&scene)["a"];
+        for (name, r) in scene.world.query_mut::<(&Name, &mut MeshRef)>() {
+            if name.0 == "c" {
+                *r = shared;
+            }
+        }
+        assert_eq!(scene.refine_instances("a", 100).unwrap(), 1);
+        let (a, c) = (refs(&scene)["a"], refs(&scene)["c"]);
+        assert_eq!((a.index, c), (2, shared), "a gets a new mesh, c keeps the shared one");
+        assert_eq!(scene.meshes[2].positions.len(), 100);
+        assert_eq!(scene.meshes[2].hash, a.hash);
+        // Now c alone uses mesh 0: refined in place.
+        assert_eq!(scene.refine_instances("c", 60).unwrap(), 1);
+        assert_eq!((refs(&scene)["c"].index, scene.meshes[0].positions.len()), (0, 60));
+        let e = scene.refine_instances("nope", 10).unwrap_err().to_string();
+        assert!(e.contains("test: no mesh instance or group named 'nope'"), "{e}");
+    }
+
+    #[test]
+    fn deterministic_and_a_no_op_at_or_below_the_size() {
+        let torus = shapes::torus(1.0, 0.3, 16, 8);
+        assert_eq!(refine(&torus, 500).unwrap().hash, refine(&torus, 500).unwrap().hash);
+        assert_eq!(refine(&torus, 10).unwrap().hash, torus.hash);
+    }
+}
