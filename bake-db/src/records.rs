@@ -6,7 +6,7 @@
 use crate::key::{Key, KeyHasher};
 use crate::plan::{Snapshot, encode_occluders};
 use crate::store::{Info, Result, Store};
-use kage_engine::cache::record::{GradientForm, Record, Source};
+use kage_engine::cache::record::{Glossy, GradientForm, Record, Source};
 use kage_engine::cache::{self, Cache, Settings};
 use kage_engine::scene::Scene;
 
@@ -32,7 +32,7 @@ pub fn key(scene: &Scene, src: &Source, s: &Settings) -> Key {
     if s.gradient_form == GradientForm::Numerical {
         hasher = hasher.u64("numerical gradients", 1);
     }
-    hasher
+    hasher = hasher
         .u64("version", VERSION as u64)
         .u64("order", s.order as u64)
         .u64("rays", s.side().pow(2) as u64)
@@ -40,8 +40,14 @@ pub fn key(scene: &Scene, src: &Source, s: &Settings) -> Key {
         .u64("gradients", s.gradients as u64)
         .f64("r_min", s.radius_bounds.0 as f64)
         .f64("r_max", s.radius_bounds.1 as f64)
-        .f64("glossy_fallback", s.glossy_fallback as f64)
-        .u64("glossy_spp", src.glossy_spp as u64)
+        .f64("glossy_fallback", s.glossy_fallback as f64);
+    // Keys of records lit by the reference stay those stored before the other modes existed.
+    hasher = match src.glossy {
+        Glossy::Reference(spp) => hasher.u64("glossy_spp", spp as u64),
+        Glossy::Toward(_) => hasher.u64("glossy_spp", 0).u64("glossy toward the record", 1),
+        Glossy::PerVertex => hasher.u64("glossy_spp", 0),
+    };
+    hasher
         .bytes("occluders", &encode_occluders(&snapshot.occluders))
         .bytes("lights", bytemuck::cast_slice(&lights))
         .bytes("materials", bytemuck::cast_slice(&materials))

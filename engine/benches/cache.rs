@@ -6,7 +6,7 @@
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use glam::{Quat, Vec3};
-use kage_engine::cache::record::{Change, GLOSSY_SPP, Source};
+use kage_engine::cache::record::{Change, GLOSSY_SPP, Glossy, Source};
 use kage_engine::cache::{self, Settings};
 use kage_engine::reference::{Renderer, Settings as RefSettings};
 use kage_engine::scene::default_scene;
@@ -27,7 +27,8 @@ fn lit(offset: Vec3) -> (Renderer, Vec<Vec<Vec3>>) {
 fn bench(c: &mut Criterion) {
     let s = Settings::default();
     let states = [lit(Vec3::ZERO), lit(Vec3::new(0.5, 0.0, 0.0))];
-    let source = |k: usize| Source { renderer: &states[k].0, direct: &states[k].1, glossy_spp: GLOSSY_SPP };
+    let source =
+        |k: usize| Source { renderer: &states[k].0, direct: &states[k].1, glossy: Glossy::Reference(GLOSSY_SPP) };
     let moved = cache::moved_lights(&states[0].0.flat.lights, &states[1].0.flat.lights);
     let mut g = c.benchmark_group("cache_default_scene_light_move");
     g.sample_size(10);

@@ -7,7 +7,7 @@ use crate::scene_args::SceneArgs;
 use anyhow::{Context, Result, bail};
 use glam::Vec3;
 use kage_bake_db::pack::Contents;
-use kage_engine::cache::record::GradientForm;
+use kage_engine::cache::record::{GlossyDirect, GradientForm, Source};
 use kage_engine::output::{VertexRow, write_image, write_vertex_csv};
 use kage_engine::reference::{Estimate, Renderer, Settings};
 use kage_engine::scene::{Camera, Scene};
@@ -186,13 +186,13 @@ pub fn run(args: &Args) -> Result<()> {
     if args.method == Method::Reference && args.indirect != Indirect::None {
         bail!("--indirect is for the per-vertex methods; the reference takes --bounces N");
     }
-    let (mut image, mut vertices) = match args.method {
+    let Outputs { mut image, mut vertices, glossy } = match args.method {
         Method::Reference => reference(args, &renderer, &camera, output.is_some())?,
         Method::Prt | Method::PrtSelf => prt(args, &scene, &renderer, &camera, output.is_some(), pack.as_ref())?,
         m => per_vertex(args, m, &scene, &renderer, &camera, output.is_some(), pack.as_ref())?,
     };
     if let Some(direct) = vertices.as_mut().filter(|_| args.indirect != Indirect::None) {
-        let extra = indirect(args, &scene, &renderer, direct, camera.eye())?;
+        let extra = indirect(args, &scene, &renderer, direct, &glossy, camera.eye())?;
         if let Some(pixels) = image.as_mut() {
             let more = raster::vertex_image(&renderer, &camera, args.size.0, args.size.1, args.spp.min(16), &extra);
             pixels.iter_mut().zip(more).for_each(|(p, m)| *p += m);
@@ -211,7 +211,13 @@ pub fn run(args: &Args) -> Result<()> {
     Ok(())
 }
 
-type Outputs = (Option<Vec<Vec3>>, Option<Vec<Vec<Vec3>>>);
+/// What a method produced: the image, the per-vertex values, and how the indirect term's
+/// glossy hits are lit consistently with this direct term.
+struct Outputs {
+    image: Option<Vec<Vec3>>,
+    vertices: Option<Vec<Vec<Vec3>>>,
+    glossy: GlossyDirect,
+}
 
 fn reference(args: &Args, renderer: &Renderer, camera: &Camera, want_image: bool) -> Result<Outputs> {
     let settings = Settings { spp: args.spp, seed: args.seed, max_bounces: args.bounces, min_bounces: 0 };
@@ -235,7 +241,7 @@ fn reference(args: &Args, renderer: &Renderer, camera: &Camera, want_image: bool
         report("vertices", &all, start);
         vertices = Some(per_instance.iter().map(|v| v.iter().map(|e| e.mean).collect()).collect());
     }
-    Ok((image, vertices))
+    Ok(Outputs { image, vertices, glossy: GlossyDirect::Reference })
 }
 
 fn per_vertex(
@@ -288,7 +294,8 @@ fn per_vertex(
     ));
     let image =
         want_image.then(|| raster::vertex_image(renderer, camera, args.size.0, args.size.1, args.spp.min(16), &values));
-    Ok((image, Some(values)))
+    let glossy = if kind == bspvt::Method::ExactVis { GlossyDirect::Reference } else { GlossyDirect::Ltc(bake) };
+    Ok(Outputs { image, vertices: Some(values), glossy })
 }
 
 /// Bakes BSPVT without a database, printing the bake statistics.
@@ -382,7 +389,7 @@ fn prt_shade(
         let (w, h) = args.size;
         frame.render(renderer, camera, w, h, args.spp.min(16))
     });
-    Ok((image, Some(values)))
+    Ok(Outputs { image, vertices: Some(values), glossy: GlossyDirect::PerVertex })
 }
 
 /// [`prt_shade`] on the GPU: per-vertex values, the image interpolating them.
@@ -408,7 +415,7 @@ fn prt_gpu(
     crate::emit(&format!("shade: {} vertices in {:.3} s\n", renderer.vertex_count(), start.elapsed().as_secs_f64()));
     let image =
         want_image.then(|| raster::vertex_image(renderer, camera, args.size.0, args.size.1, args.spp.min(16), &values));
-    Ok((image, Some(values)))
+    Ok(Outputs { image, vertices: Some(values), glossy: GlossyDirect::PerVertex })
 }
 
 /// The GPU device, announced on stderr.
@@ -442,18 +449,18 @@ fn from_database(
     Ok(out)
 }
 
-/// One bounce of indirect light per vertex, lit by the per-vertex `direct` values.
-/// With a bake database in use, the cache's records come from it (or are stored in it).
+/// One bounce of indirect light per vertex, lit by the per-vertex `direct` values (glossy hits
+/// as `glossy` says). With a bake database in use, the cache's records come from it (or are
+/// stored in it).
 fn indirect(
     args: &Args,
     scene: &Scene,
     renderer: &Renderer,
     direct: &[Vec<Vec3>],
+    glossy: &GlossyDirect,
     eye: Vec3,
 ) -> Result<Vec<Vec<Vec3>>> {
     let start = Instant::now();
-    let src =
-        kage_engine::cache::record::Source { renderer, direct, glossy_spp: kage_engine::cache::record::GLOSSY_SPP };
     let s = kage_engine::cache::Settings {
         order: args.hsh_order as usize,
         rays: args.cache_rays as usize,
@@ -465,27 +472,31 @@ fn indirect(
         },
         ..Default::default()
     };
-    let (values, what) = match args.indirect {
-        Indirect::Cache => {
-            let store = if args.pack.is_none() { args.db.open_if_used(&args.scene)? } else { None };
-            let (cache, stored) = match &store {
-                Some(store) => kage_bake_db::records::load_or_place(store, scene, &src, &s)?,
-                None => (kage_engine::cache::place_at_vertices(&src, &s), false),
-            };
-            let v = kage_engine::cache::shade_vertices(&src, &cache, eye);
-            let from = if stored { " from the bake database" } else { "" };
-            (v, format!("{} records{from}, {} rays", cache.records.len(), cache.rays()))
-        }
-        Indirect::Gather => {
-            let v = kage_engine::cache::gather_vertices(&src, s.rays, eye);
-            (v, format!("{} rays", renderer.vertex_count() * s.side().pow(2)))
-        }
-        _ => {
-            let settings = Settings { spp: args.spp, seed: args.seed, max_bounces: 1, min_bounces: 1 };
-            let est = renderer.render_vertices(eye, &settings, &|_| {});
-            (est.iter().map(|e| e.iter().map(|x| x.mean).collect()).collect(), format!("{} paths per vertex", args.spp))
-        }
-    };
+    let (values, what) = glossy.with(scene, &renderer.flat, |glossy| -> Result<_> {
+        let src = Source { renderer, direct, glossy };
+        Ok(match args.indirect {
+            Indirect::Cache => {
+                let store = if args.pack.is_none() { args.db.open_if_used(&args.scene)? } else { None };
+                let (cache, stored) = match &store {
+                    Some(store) => kage_bake_db::records::load_or_place(store, scene, &src, &s)?,
+                    None => (kage_engine::cache::place_at_vertices(&src, &s), false),
+                };
+                let v = kage_engine::cache::shade_vertices(&src, &cache, eye);
+                let from = if stored { " from the bake database" } else { "" };
+                (v, format!("{} records{from}, {} rays", cache.records.len(), cache.rays()))
+            }
+            Indirect::Gather => {
+                let v = kage_engine::cache::gather_vertices(&src, s.rays, eye);
+                (v, format!("{} rays", renderer.vertex_count() * s.side().pow(2)))
+            }
+            _ => {
+                let settings = Settings { spp: args.spp, seed: args.seed, max_bounces: 1, min_bounces: 1 };
+                let est = renderer.render_vertices(eye, &settings, &|_| {});
+                let v = est.iter().map(|e| e.iter().map(|x| x.mean).collect()).collect();
+                (v, format!("{} paths per vertex", args.spp))
+            }
+        })
+    })?;
     crate::emit(&format!("indirect ({:?}): {what} in {:.2} s\n", args.indirect, start.elapsed().as_secs_f64()));
     Ok(values)
 }

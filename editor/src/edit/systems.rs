@@ -11,7 +11,7 @@ use kage_bake_db::DbError;
 use kage_bake_db::records::load_or_place;
 use kage_engine::cache::{
     self,
-    record::{GLOSSY_SPP, Source},
+    record::{GlossyDirect, Source},
 };
 use kage_engine::reference::{Renderer, Settings};
 use kage_engine::scene::{EnvMap, EnvironmentLight, Scene, flatten, import};
@@ -443,8 +443,21 @@ pub fn gathering(ed: &Editor) -> bool {
     ed.indirect_worker.is_some()
 }
 
+/// What the current method offers to light glossy hits toward the cache's records.
+fn glossy_direct(ed: &Editor) -> GlossyDirect {
+    match ed.method {
+        Method::Bspvt => {
+            GlossyDirect::Ltc(ed.bakes.bspvt.clone().filter(|b| fits(ed, &b.instances, |i| i.offsets.len() - 1)))
+        }
+        Method::LtcUnshadowed => GlossyDirect::Ltc(None),
+        Method::Prt | Method::PrtSelf => GlossyDirect::PerVertex,
+        Method::LtcExactVis | Method::Reference => GlossyDirect::Reference,
+    }
+}
+
 fn spawn_indirect(ed: &mut Editor) -> Worker<Indirect> {
     let scene = lit_scene(ed);
+    let glossy = glossy_direct(ed);
     let direct = ed.direct.clone();
     let (eye, s, store) = (ed.orbit.eye(), ed.options.cache, ed.store.clone());
     let base = ed.indirect_base.take();
@@ -453,17 +466,20 @@ fn spawn_indirect(ed: &mut Editor) -> Worker<Indirect> {
         move |_, send| {
             let start = Instant::now();
             let renderer = Renderer::new(&scene);
-            let src = Source { renderer: &renderer, direct: &direct, glossy_spp: GLOSSY_SPP };
-            let (cache, note) = match base.and_then(|b| b.fits(&renderer, &s)) {
-                Some(b) => refreshed(*b, &src),
-                None => match store.as_deref().map(|st| load_or_place(st, &scene, &src, &s)) {
-                    Some(Ok((cache, true))) => (cache, "from the bake database".to_string()),
-                    Some(Ok((cache, false))) => (cache, "gathered".to_string()),
-                    Some(Err(e)) => (cache::place_at_vertices(&src, &s), format!("gathered (not stored: {e})")),
-                    None => (cache::place_at_vertices(&src, &s), "gathered".to_string()),
-                },
-            };
-            let values = cache::shade_vertices(&src, &cache, eye);
+            let (cache, note, values) = glossy.with(&scene, &renderer.flat, |glossy| {
+                let src = Source { renderer: &renderer, direct: &direct, glossy };
+                let (cache, note) = match base.and_then(|b| b.fits(&renderer, &s)) {
+                    Some(b) => refreshed(*b, &src),
+                    None => match store.as_deref().map(|st| load_or_place(st, &scene, &src, &s)) {
+                        Some(Ok((cache, true))) => (cache, "from the bake database".to_string()),
+                        Some(Ok((cache, false))) => (cache, "gathered".to_string()),
+                        Some(Err(e)) => (cache::place_at_vertices(&src, &s), format!("gathered (not stored: {e})")),
+                        None => (cache::place_at_vertices(&src, &s), "gathered".to_string()),
+                    },
+                };
+                let values = cache::shade_vertices(&src, &cache, eye);
+                (cache, note, values)
+            });
             let what = format!("{} records {note}, {:.2} s", cache.records.len(), start.elapsed().as_secs_f64());
             let base = IndirectBase {
                 cache,

@@ -25,20 +25,67 @@ use rand::Rng;
 pub const MIN_COS_XI: f32 = 0.1;
 
 /// Where gather rays find radiance: the scene, each instance's per-vertex direct radiance
-/// (used for Lambertian hits, where it is view-independent), and for glossy hits the reference's
-/// direct-light estimate toward the record with `glossy_spp` samples (0: use the per-vertex
-/// value there too, right only if it is view-independent).
+/// (used for Lambertian hits, where it is view-independent), and how glossy hits are lit.
 pub struct Source<'a> {
     /// The scene's BVH and snapshot.
     pub renderer: &'a Renderer,
     /// Per instance and vertex: radiance leaving the vertex from direct light.
     pub direct: &'a [Vec<Vec3>],
-    /// Direct-light samples per glossy hit, evaluated toward the record.
-    pub glossy_spp: u32,
+    /// How a glossy hit's radiance toward the record is found.
+    pub glossy: Glossy<'a>,
 }
 
-/// Samples per glossy hit used by the CLI and the report.
+/// The direct radiance leaving a point of one of instance `i`'s triangles toward another point:
+/// `(i, the triangle's corner vertices, the point's barycentrics, toward)`.
+pub type Toward<'a> = &'a (dyn Fn(usize, [usize; 3], [f32; 3], Vec3) -> Vec3 + Sync);
+
+/// How a gather ray's glossy hit is lit: its direct light leaves it toward the record, not
+/// toward the camera the per-vertex values were shaded for.
+#[derive(Clone, Copy)]
+pub enum Glossy<'a> {
+    /// The reference's direct-light estimate toward the record with this many samples.
+    Reference(u32),
+    /// The direct method's own shading (e.g. BSPVT) of the hit point toward the record:
+    /// consistent with the direct term, and noise-free.
+    Toward(Toward<'a>),
+    /// The per-vertex value: right only where the direct method is view-independent (PRT).
+    PerVertex,
+}
+
+/// Samples per glossy hit when the reference lights them (CLI and report).
 pub const GLOSSY_SPP: u32 = 4;
+
+/// What a direct method offers for lighting glossy hits (the owned side of [`Glossy`]).
+#[derive(Clone)]
+pub enum GlossyDirect {
+    /// Nothing of its own: the reference estimates them (the reference itself, and
+    /// `ltc-exact-vis`, whose cube maps would be cast again per hit).
+    Reference,
+    /// Its per-vertex values are view-independent (PRT shades GGX surfaces' diffuse part).
+    PerVertex,
+    /// LTC at the hit toward the record, shadowed by these trees (`None`: unshadowed).
+    Ltc(Option<crate::bspvt::Bake>),
+}
+
+impl GlossyDirect {
+    /// Runs `f` with the [`Glossy`] this stands for in `scene` (snapshot `flat`).
+    pub fn with<R>(
+        &self,
+        scene: &crate::scene::Scene,
+        flat: &crate::scene::FlatScene,
+        f: impl FnOnce(Glossy) -> R,
+    ) -> R {
+        let bake = if let Self::Ltc(b) = self { b.as_ref() } else { None };
+        let toward = |i: usize, corners: [usize; 3], bary: [f32; 3], point: Vec3| {
+            crate::bspvt::shade_point(scene, flat, bake, i, corners, bary, point)
+        };
+        f(match self {
+            Self::Reference => Glossy::Reference(GLOSSY_SPP),
+            Self::PerVertex => Glossy::PerVertex,
+            Self::Ltc(_) => Glossy::Toward(&toward),
+        })
+    }
+}
 
 /// What one gather ray found: radiance toward the record, distance, and the hit's normal
 /// facing back along the ray.
@@ -52,11 +99,11 @@ impl Source<'_> {
     /// What a gather ray from `o` along `d` finds; `stream` seeds glossy hits' estimates.
     fn trace(&self, o: Vec3, d: Vec3, stream: u64) -> Option<Sample> {
         let hit = self.renderer.bvh.closest_hit(o, d, f32::INFINITY)?;
-        Some(self.light(hit, d, stream))
+        Some(self.light(o, hit, d, stream))
     }
 
-    /// The radiance `hit` (of a ray along `d`) sends back along the ray.
-    fn light(&self, hit: Hit, d: Vec3, stream: u64) -> Sample {
+    /// The radiance `hit` (of a ray from `o` along `d`) sends back along the ray.
+    fn light(&self, o: Vec3, hit: Hit, d: Vec3, stream: u64) -> Sample {
         let r = self.renderer;
         let tri = r.flat.triangles[hit.triangle as usize];
         let normal = (tri[1] - tri[0]).cross(tri[2] - tri[0]).normalize_or_zero();
@@ -68,26 +115,39 @@ impl Source<'_> {
         }
         let inst = tref.owner as usize;
         let m = r.flat.instances[inst].material;
-        if self.glossy_spp > 0 && (m.metallic > 0.0 || m.specular > 0.0) {
-            // A glossy hit reflects direct light toward the record, not toward the camera.
-            let sp = r.surface_at(hit, inst, tref.local as usize, d);
-            let s = crate::reference::Settings { spp: self.glossy_spp, seed: 0x6105, ..Default::default() };
-            let radiance = r.estimate_point(&sp, -d, &s, stream).mean;
-            return Sample { radiance, t: hit.t, normal };
-        }
-        let radiance = self.corners(hit, self.direct).iter().zip(barycentrics(hit)).map(|(v, b)| *v * b).sum();
+        let radiance = match self.glossy {
+            _ if m.metallic == 0.0 && m.specular == 0.0 => self.interpolated(hit),
+            Glossy::Reference(spp) => {
+                let sp = r.surface_at(hit, inst, tref.local as usize, d);
+                let s = crate::reference::Settings { spp, seed: 0x6105, ..Default::default() };
+                r.estimate_point(&sp, -d, &s, stream).mean
+            }
+            Glossy::Toward(shade) => shade(inst, self.corner_indices(hit), barycentrics(hit), o),
+            Glossy::PerVertex => self.interpolated(hit),
+        };
         Sample { radiance, t: hit.t, normal }
+    }
+
+    /// The per-vertex direct radiance interpolated at a receiver `hit`.
+    fn interpolated(&self, hit: Hit) -> Vec3 {
+        self.corners(hit, self.direct).iter().zip(barycentrics(hit)).map(|(v, b)| *v * b).sum()
     }
 
     /// The direct radiance in `direct` at the corners of a receiver `hit`'s triangle, in the
     /// order of [`barycentrics`].
     fn corners(&self, hit: Hit, direct: &[Vec<Vec3>]) -> [Vec3; 3] {
+        let inst = self.renderer.flat.refs[hit.triangle as usize].owner as usize;
+        self.corner_indices(hit).map(|v| direct[inst][v])
+    }
+
+    /// The vertex indices of a receiver `hit`'s triangle corners, in [`barycentrics`] order.
+    fn corner_indices(&self, hit: Hit) -> [usize; 3] {
         let r = self.renderer;
         let tref = r.flat.refs[hit.triangle as usize];
         let inst = tref.owner as usize;
         let idx = r.mesh(inst).triangles[tref.local as usize];
         let (i1, i2) = if r.flat.instances[inst].mirrored { (idx[2], idx[1]) } else { (idx[1], idx[2]) };
-        [idx[0], i1, i2].map(|i| direct[inst][i as usize])
+        [idx[0], i1, i2].map(|i| i as usize)
     }
 
     /// Whether the radiance `hit` sends may differ from what it sent under direct radiance
@@ -242,7 +302,7 @@ fn integrate(
     for (j, (&local, hit)) in dirs.iter().zip(hits).enumerate() {
         let Some(hit) = hit else { continue };
         let d = frame.to_world(local);
-        let hit = src.light(*hit, d, rng::mix64(index) ^ j as u64);
+        let hit = src.light(p, *hit, d, rng::mix64(index) ^ j as u64);
         inverse_distance += 1.0 / hit.t.max(1e-6) as f64;
         if hit.radiance == Vec3::ZERO {
             continue;

@@ -10,7 +10,7 @@
 use super::{Args, Row, Truth, announce};
 use anyhow::Result;
 use glam::Vec3;
-use kage_engine::cache::record::{GLOSSY_SPP, Source};
+use kage_engine::cache::record::{GLOSSY_SPP, Glossy, Source};
 use kage_engine::cache::{Settings as CacheSettings, gather_vertices, indirect_vertices};
 use kage_engine::reference::{Renderer, Settings};
 use std::time::Instant;
@@ -35,7 +35,7 @@ pub fn run(args: &Args, eye: Vec3, rows: &mut Vec<Row>) -> Result<String> {
         keep,
         "one bounce of indirect light (Lambertian instances)",
     );
-    let src = Source { renderer: &renderer, direct: &direct, glossy_spp: GLOSSY_SPP };
+    let src = Source { renderer: &renderer, direct: &direct, glossy: Glossy::Reference(GLOSSY_SPP) };
     let n = renderer.vertex_count();
     let mut push = |row: Row| {
         announce(&row);
