@@ -10,8 +10,9 @@ use kage_engine::cache::record::{Glossy, GradientForm, Record, Source};
 use kage_engine::cache::{self, Cache, Settings};
 use kage_engine::scene::Scene;
 
-/// Version of the record layout and placement: part of every key.
-pub const VERSION: u32 = 1;
+/// Version of the record layout and placement: part of every key. (2: record spacing and
+/// radius bounds ignore the lights, so a refreshed cache is the cold placement.)
+pub const VERSION: u32 = 2;
 
 /// The key of the records a cache built from `src` with `s` would hold.
 pub fn key(scene: &Scene, src: &Source, s: &Settings) -> Key {
@@ -65,15 +66,31 @@ pub fn load_or_place(store: &Store, scene: &Scene, src: &Source, s: &Settings) -
     }
     let start = std::time::Instant::now();
     let cache = cache::place_at_vertices(src, s);
+    put(store, key, &cache, start.elapsed().as_secs_f64())?;
+    Ok((cache, false))
+}
+
+/// Stores `cache` — refreshed ([`Cache::refresh`]) from a cache placed over the same receivers
+/// with the same settings — under the key of `src`'s lighting: its records are those a cold
+/// placement would gather there (record places depend on the receivers alone), so the next
+/// [`load_or_place`] under this lighting loads them. Returns the key.
+pub fn store_refreshed(store: &Store, scene: &Scene, src: &Source, cache: &Cache, seconds: f64) -> Result<Key> {
+    let key = key(scene, src, cache.settings());
+    store.add_scene_keys(&scene.source, &[key])?;
+    put(store, key, cache, seconds)?;
+    Ok(key)
+}
+
+fn put(store: &Store, key: Key, cache: &Cache, seconds: f64) -> Result<()> {
+    let s = cache.settings();
     let bytes: Vec<u8> =
         cache.records.iter().flat_map(|r| bytemuck::cast_slice::<f64, u8>(&r.to_f64s()).to_vec()).collect();
     let info = Info {
         kind: "hsh-cache".into(),
         params: format!("order {}, {} rays, a {}, layout {VERSION}", s.order, s.side().pow(2), s.accuracy),
-        seconds: start.elapsed().as_secs_f64(),
+        seconds,
         vertices: 0,
         checksum: *blake3::hash(&bytes).as_bytes(),
     };
-    store.put_batch(&[(key, bytes, info)], &[])?;
-    Ok((cache, false))
+    store.put_batch(&[(key, bytes, info)], &[])
 }

@@ -247,3 +247,38 @@ fn every_chunk_streams_once_cached_first_and_the_chunks_assemble_into_the_outcom
         }
     }
 }
+
+#[test]
+fn a_refreshed_cache_is_stored_under_the_new_lightings_key_with_a_cold_placements_bytes() {
+    use kage_bake_db::records::{load_or_place, store_refreshed};
+    use kage_engine::cache::{self, record::Change, record::Glossy, record::Source};
+    use kage_engine::reference::Renderer;
+    let s = cache::Settings { rays: 64, accuracy: 0.5, ..cache::Settings::default() };
+    // Per-vertex "direct" light: an unshadowed falloff from the light's centre (cheap, exact input).
+    let lit = |scene: &Scene| {
+        let r = Renderer::new(scene);
+        let c = r.flat.lights[0].points.iter().sum::<Vec3>() / r.flat.lights[0].points.len() as f32;
+        let direct: Vec<Vec<Vec3>> = (0..r.flat.instances.len())
+            .map(|i| {
+                let falloff = |(p, n): (Vec3, Vec3)| n.dot(c - p).max(0.0) / (c - p).length().powi(3);
+                (0..r.mesh(i).positions.len()).map(|v| Vec3::splat(falloff(r.vertex(i, v)))).collect()
+            })
+            .collect();
+        (r, direct)
+    };
+    let (before, moved) = (scene(""), scene("light"));
+    let ((r0, d0), (r1, d1)) = (lit(&before), lit(&moved));
+    let src0 = Source { renderer: &r0, direct: &d0, glossy: Glossy::PerVertex };
+    let src1 = Source { renderer: &r1, direct: &d1, glossy: Glossy::PerVertex };
+    let store = Store::open(&scratch("refreshed")).unwrap();
+    let (mut c, from_db) = load_or_place(&store, &before, &src0, &s).unwrap();
+    assert!(!from_db);
+    let lights = cache::moved_lights(&r0.flat.lights, &r1.flat.lights);
+    c.refresh(&src1, &Change { old_direct: &d0, moved: &lights });
+    let key = store_refreshed(&store, &moved, &src1, &c, 0.0).unwrap();
+    let (loaded, from_db) = load_or_place(&store, &moved, &src1, &s).unwrap();
+    assert!(from_db && loaded.records == c.records, "the next session loads the refreshed records");
+    let cold = Store::open(&scratch("refreshed-cold")).unwrap();
+    load_or_place(&cold, &moved, &src1, &s).unwrap();
+    assert!(store.get::<u8>(&key).unwrap() == cold.get::<u8>(&key).unwrap(), "same key, same bytes");
+}

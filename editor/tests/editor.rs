@@ -251,7 +251,7 @@ fn the_cached_indirect_term_lands_in_the_background_follows_edits_and_persists()
     step_until(&mut h, "the new indirect term", |ed| landed(ed) && gathered(ed) == 2);
     let last = |ed: &Editor| ed.log.iter().rev().find(|l| l.text.starts_with("indirect: ")).unwrap().text.clone();
     let ed = &h.state().editor;
-    assert!(last(ed).contains("refreshed") && last(ed).contains("re-cast"), "{}", last(ed));
+    assert!(last(ed).contains("refreshed") && last(ed).contains("re-cast, stored"), "{}", last(ed));
     let second: Vec<Vec3> = ed.indirect_values.iter().flatten().copied().collect();
     assert!(changed(&first.concat(), &second) > 100, "the indirect term follows the light");
 
@@ -275,6 +275,21 @@ fn the_cached_indirect_term_lands_in_the_background_follows_edits_and_persists()
     let ed = &h.state().editor;
     assert!(last(ed).contains("from the bake database"), "{}", last(ed));
     assert_eq!(ed.indirect_values, first, "the stored records give the same term");
+
+    // The refresh after the light move was stored too: a session that moves the light the same
+    // way before turning the term on loads it.
+    drop(h);
+    let mut o = options(&dir, None, None);
+    o.cache.rays = 64;
+    let mut h = harness(default_scene(), o);
+    step_until(&mut h, "the cached bakes", settled);
+    h.state_mut().editor.move_light(light.unwrap(), Vec3::new(0.5, 0.0, 0.0), Quat::IDENTITY);
+    step_until(&mut h, "the moved light's direct term", settled);
+    h.get_by_label("Indirect light (HSH radiance cache)").click();
+    step_until(&mut h, "the stored refreshed term", landed);
+    let ed = &h.state().editor;
+    assert!(last(ed).contains("from the bake database"), "{}", last(ed));
+    assert_eq!(ed.indirect_values.concat(), second, "the refreshed records, stored");
 }
 
 #[test]

@@ -8,7 +8,7 @@ use super::state::{Editor, Method};
 use super::worker::Worker;
 use glam::Vec3;
 use kage_bake_db::DbError;
-use kage_bake_db::records::load_or_place;
+use kage_bake_db::records::{load_or_place, store_refreshed};
 use kage_engine::cache::{
     self,
     record::{GlossyDirect, Source},
@@ -18,7 +18,8 @@ use kage_engine::scene::{EnvMap, EnvironmentLight, Scene, flatten, import};
 use kage_engine::{bspvt, prt};
 use kage_gpu::bspvt::{BspvtShader, Mode};
 use kage_gpu::prt::PrtShader;
-use std::sync::atomic::Ordering;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 /// Samples per vertex of one progressive reference pass.
@@ -391,11 +392,13 @@ pub fn indirect_system(ed: &mut Editor) {
         return;
     }
     let landed = ed.indirect_worker.as_ref().map(|w| w.results()).unwrap_or_default();
-    if let Some(done) = landed.into_iter().last() {
-        ed.indirect_worker = None;
-        ed.indirect_values = done.values;
-        ed.indirect_base = Some(done.base);
-        ed.info(format!("indirect: {}", done.what));
+    if let Some(last) = landed.into_iter().last() {
+        ed.indirect_values = last.values;
+        if let Some(base) = last.base {
+            ed.indirect_worker = None;
+            ed.indirect_base = Some(base);
+            ed.info(format!("indirect: {}", last.what));
+        }
         compose(ed);
     }
     let (direct, started) = ed.generations;
@@ -411,8 +414,8 @@ pub struct Indirect {
     values: Vec<Vec<Vec3>>,
     /// For the log.
     what: String,
-    /// The cache and what lit it.
-    base: Box<IndirectBase>,
+    /// The cache and what lit it; `None` for a refresh's intermediate landing.
+    base: Option<Box<IndirectBase>>,
 }
 
 /// A radiance cache with the inputs it was lit by: a later lighting change over the same
@@ -456,57 +459,107 @@ fn glossy_direct(ed: &Editor) -> GlossyDirect {
 }
 
 fn spawn_indirect(ed: &mut Editor) -> Worker<Indirect> {
-    let scene = lit_scene(ed);
-    let glossy = glossy_direct(ed);
-    let direct = ed.direct.clone();
-    let (eye, s, store) = (ed.orbit.eye(), ed.options.cache, ed.store.clone());
-    let base = ed.indirect_base.take();
+    let job = IndirectJob {
+        scene: lit_scene(ed),
+        glossy: glossy_direct(ed),
+        direct: ed.direct.clone(),
+        eye: ed.orbit.eye(),
+        settings: ed.options.cache,
+        store: ed.store.clone(),
+        base: ed.indirect_base.take(),
+    };
     let wake = ed.wake.clone();
-    Worker::spawn(
-        move |_, send| {
-            let start = Instant::now();
-            let renderer = Renderer::new(&scene);
-            let (cache, note, values) = glossy.with(&scene, &renderer.flat, |glossy| {
-                let src = Source { renderer: &renderer, direct: &direct, glossy };
-                let (cache, note) = match base.and_then(|b| b.fits(&renderer, &s)) {
-                    Some(b) => refreshed(*b, &src),
-                    None => match store.as_deref().map(|st| load_or_place(st, &scene, &src, &s)) {
-                        Some(Ok((cache, true))) => (cache, "from the bake database".to_string()),
-                        Some(Ok((cache, false))) => (cache, "gathered".to_string()),
-                        Some(Err(e)) => (cache::place_at_vertices(&src, &s), format!("gathered (not stored: {e})")),
-                        None => (cache::place_at_vertices(&src, &s), "gathered".to_string()),
-                    },
-                };
-                let values = cache::shade_vertices(&src, &cache, eye);
-                (cache, note, values)
-            });
-            let what = format!("{} records {note}, {:.2} s", cache.records.len(), start.elapsed().as_secs_f64());
-            let base = IndirectBase {
-                cache,
-                settings: s,
-                direct,
-                lights: renderer.flat.lights.clone(),
-                receivers: receivers(&renderer, &s),
-            };
-            send(Indirect { values, what, base: Box::new(base) });
-        },
-        move || wake(),
-    )
+    Worker::spawn(move |stop, send| job.run(stop, send), move || wake())
 }
 
-/// `base`'s cache re-lit for `src` (same receivers): only records that see changed light.
-fn refreshed(mut base: IndirectBase, src: &Source) -> (cache::Cache, String) {
+/// Records re-lit per landing of a progressive refresh.
+const REFRESH_BATCH: usize = 64;
+
+/// One background indirect computation and what it needs.
+struct IndirectJob {
+    scene: Scene,
+    glossy: GlossyDirect,
+    direct: Vec<Vec<Vec3>>,
+    eye: Vec3,
+    settings: cache::Settings,
+    store: Option<Arc<kage_bake_db::Store>>,
+    base: Option<Box<IndirectBase>>,
+}
+
+impl IndirectJob {
+    /// Refreshes the base cache when it fits (sending each batch's landing, storing the result),
+    /// else loads or gathers one; sends the final term with its base. Stops quietly when the
+    /// worker is dropped mid-refresh (the half-refreshed cache is discarded).
+    fn run(self, stop: &AtomicBool, send: &dyn Fn(Indirect)) {
+        let start = Instant::now();
+        let Self { scene, glossy, direct, eye, settings: s, store, base } = self;
+        let renderer = Renderer::new(&scene);
+        let landed = glossy.with(&scene, &renderer.flat, |glossy| {
+            let src = Source { renderer: &renderer, direct: &direct, glossy };
+            let (cache, note) = match base.and_then(|b| b.fits(&renderer, &s)) {
+                Some(b) => {
+                    let partial = |c: &cache::Cache| {
+                        send(Indirect { values: cache::shade_vertices(&src, c, eye), what: String::new(), base: None })
+                    };
+                    let (cache, note) = refreshed(*b, &src, stop, &partial)?;
+                    let stored = match store.as_deref().map(|st| store_refreshed(st, &scene, &src, &cache, 0.0)) {
+                        Some(Ok(_)) => ", stored".to_string(),
+                        Some(Err(e)) => format!(" (not stored: {e})"),
+                        None => String::new(),
+                    };
+                    (cache, format!("{note}{stored}"))
+                }
+                None => match store.as_deref().map(|st| load_or_place(st, &scene, &src, &s)) {
+                    Some(Ok((cache, true))) => (cache, "from the bake database".to_string()),
+                    Some(Ok((cache, false))) => (cache, "gathered".to_string()),
+                    Some(Err(e)) => (cache::place_at_vertices(&src, &s), format!("gathered (not stored: {e})")),
+                    None => (cache::place_at_vertices(&src, &s), "gathered".to_string()),
+                },
+            };
+            let values = cache::shade_vertices(&src, &cache, eye);
+            Some((cache, note, values))
+        });
+        let Some((cache, note, values)) = landed else { return };
+        let what = format!("{} records {note}, {:.2} s", cache.records.len(), start.elapsed().as_secs_f64());
+        let base = IndirectBase {
+            cache,
+            settings: s,
+            direct,
+            lights: renderer.flat.lights.clone(),
+            receivers: receivers(&renderer, &s),
+        };
+        send(Indirect { values, what, base: Some(Box::new(base)) });
+    }
+}
+
+/// `base`'s cache re-lit for `src` (same receivers), batch by batch: only records that see
+/// changed light; `partial` sees the cache after each batch but the last. `None` when `stop`
+/// was set before the end.
+fn refreshed(
+    mut base: IndirectBase,
+    src: &Source,
+    stop: &AtomicBool,
+    partial: &dyn Fn(&cache::Cache),
+) -> Option<(cache::Cache, String)> {
     let moved = cache::moved_lights(&base.lights, &src.renderer.flat.lights);
     let change = cache::record::Change { old_direct: &base.direct, moved: &moved };
-    let done = base.cache.refresh(src, &change);
-    let note = format!(
-        "refreshed: {} re-lit, {} gathered anew, {} of {} rays re-cast",
-        done.relit,
-        done.gathered,
-        done.recast,
-        base.cache.rays()
-    );
-    (base.cache, note)
+    let done = base.cache.refresh_progressively(src, &change, REFRESH_BATCH, &mut |c, so_far| {
+        if stop.load(Ordering::Relaxed) {
+            return false;
+        }
+        if so_far.visited < c.records.len() {
+            partial(c);
+        }
+        true
+    });
+    (done.visited == base.cache.records.len()).then(|| {
+        let (relit, gathered, recast) = (done.relit, done.gathered, done.recast);
+        let note = format!(
+            "refreshed: {relit} re-lit, {gathered} gathered anew, {recast} of {} rays re-cast",
+            base.cache.rays()
+        );
+        (base.cache, note)
+    })
 }
 
 /// The method's per-vertex radiance, or `None` while a background result is pending.

@@ -74,6 +74,8 @@ impl Settings {
 /// What [`Cache::refresh`] did.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Refresh {
+    /// Records looked at so far (all of them once the refresh is complete).
+    pub visited: usize,
     /// Records integrated again from their kept (and re-cast) hits.
     pub relit: usize,
     /// Records gathered anew (stored records have no hits).
@@ -186,26 +188,58 @@ impl Cache {
     /// geometry are cast again, and records without their hits (stored ones) are gathered anew.
     /// The records keep their places; each equals a fresh gather there under the new lighting.
     pub fn refresh(&mut self, src: &Source, change: &Change) -> Refresh {
+        self.refresh_progressively(src, change, usize::MAX, &mut |_, _| true)
+    }
+
+    /// [`Cache::refresh`] in batches of `batch` records, so a preview can show the re-lit
+    /// records as they land: after each batch `landed(cache, so_far)` sees the cache with the
+    /// batches so far re-lit and the rest as before, and returns whether to go on. A refresh
+    /// stopped early leaves records of both lightings: discard the cache (or refresh it again
+    /// from the same old lighting). The result does not depend on `batch`.
+    pub fn refresh_progressively(
+        &mut self,
+        src: &Source,
+        change: &Change,
+        batch: usize,
+        landed: &mut dyn FnMut(&Cache, &Refresh) -> bool,
+    ) -> Refresh {
+        let mut out = Refresh::default();
+        let mut start = 0;
+        while start < self.records.len() {
+            let end = start.saturating_add(batch.max(1)).min(self.records.len());
+            self.refresh_range(src, change, start..end, &mut out);
+            out.visited = end;
+            // Radii may have changed with what the rays hit.
+            self.grid.clear();
+            (0..self.records.len()).for_each(|i| self.index(i));
+            if !landed(self, &out) {
+                break;
+            }
+            start = end;
+        }
+        out
+    }
+
+    fn refresh_range(&mut self, src: &Source, change: &Change, range: std::ops::Range<usize>, out: &mut Refresh) {
         use rayon::prelude::*;
         let params = self.params();
-        let outcomes: Vec<(Option<Record>, usize, bool)> = self
-            .records
+        let first = range.start;
+        let outcomes: Vec<(Option<Record>, usize, bool)> = self.records[range.clone()]
             .par_iter()
-            .zip(self.hits.par_iter_mut())
+            .zip(self.hits[range.clone()].par_iter_mut())
             .enumerate()
-            .map(|(i, (r, hits))| {
-                let (p, n) = (r.p, r.frame.n);
+            .map(|(k, (r, hits))| {
+                let (p, n, i) = (r.p, r.frame.n, (first + k) as u64);
                 if hits.is_empty() {
-                    let (fresh, cast) = record::gather_with_hits(src, p, n, &params, i as u64);
+                    let (fresh, cast) = record::gather_with_hits(src, p, n, &params, i);
                     *hits = cast;
                     return (Some(fresh), 0, true);
                 }
-                let (fresh, relit) = record::relight(src, p, n, &params, i as u64, hits, change);
+                let (fresh, relit) = record::relight(src, p, n, &params, i, hits, change);
                 (fresh, relit.recast, false)
             })
             .collect();
-        let mut out = Refresh::default();
-        for (r, (fresh, recast, gathered)) in self.records.iter_mut().zip(outcomes) {
+        for (r, (fresh, recast, gathered)) in self.records[range].iter_mut().zip(outcomes) {
             out.recast += recast;
             out.gathered += usize::from(gathered);
             out.relit += usize::from(fresh.is_some() && !gathered);
@@ -213,10 +247,11 @@ impl Cache {
                 *r = fresh;
             }
         }
-        // Radii may have changed with what the rays hit.
-        self.grid.clear();
-        (0..self.records.len()).for_each(|i| self.index(i));
-        out
+    }
+
+    /// The settings the cache was placed with.
+    pub fn settings(&self) -> &Settings {
+        &self.settings
     }
 
     /// What this cache's gathers compute.
@@ -324,14 +359,16 @@ pub fn moved_lights(old: &[crate::scene::FlatLight], new: &[crate::scene::FlatLi
     old.iter().zip(new).filter(|(a, b)| a.points != b.points).flat_map(|(a, b)| [bounds(a), bounds(b)]).collect()
 }
 
-/// The scene's bounding diagonal.
+/// The receivers' bounding diagonal.
 fn diagonal(src: &Source) -> f32 {
-    let (lo, hi) = src
-        .renderer
-        .flat
+    let flat = &src.renderer.flat;
+    // The receivers' extent: lights move at run time and must not move the radius bounds.
+    let (lo, hi) = flat
         .triangles
         .iter()
-        .flatten()
+        .zip(&flat.refs)
+        .filter(|(_, r)| r.light == crate::scene::NO_LIGHT)
+        .flat_map(|(t, _)| t)
         .fold((Vec3::MAX, Vec3::MIN), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
     (hi - lo).length().max(1e-6)
 }

@@ -302,8 +302,12 @@ fn integrate(
     for (j, (&local, hit)) in dirs.iter().zip(hits).enumerate() {
         let Some(hit) = hit else { continue };
         let d = frame.to_world(local);
+        // Lights move at run time: record spacing follows the receivers' geometry alone, so
+        // a refresh after a light moves keeps the places a cold placement would choose.
+        if src.renderer.flat.refs[hit.triangle as usize].light == crate::scene::NO_LIGHT {
+            inverse_distance += 1.0 / hit.t.max(1e-6) as f64;
+        }
         let hit = src.light(p, *hit, d, rng::mix64(index) ^ j as u64);
-        inverse_distance += 1.0 / hit.t.max(1e-6) as f64;
         if hit.radiance == Vec3::ZERO {
             continue;
         }
