@@ -92,10 +92,12 @@ impl PointShader {
             let tex = TexturedLight::new(light, &rel, [&self.frame, &self.spec_inv]);
             let tex = tex.as_ref();
             let mut sum = Sum::default();
-            match vis {
-                Visibility::Unshadowed => self.piece(&rel, tex, 1.0, &mut sum),
-                Visibility::Tree(record) => self.through_trees(record, &rel, tex, &mut sum),
-                Visibility::Exact(cube) => self.through_texels(cube, &rel, tex, &mut sum),
+            for part in tex.map_or_else(|| vec![rel.clone()], |t| t.tiles(&rel)) {
+                match vis {
+                    Visibility::Unshadowed => self.piece(&part, tex, 1.0, &mut sum),
+                    Visibility::Tree(record) => self.through_trees(record, &part, tex, &mut sum),
+                    Visibility::Exact(cube) => self.through_texels(cube, &part, tex, &mut sum),
+                }
             }
             total += light.radiance.as_dvec3() * sum.radiance;
             pieces += sum.pieces;
@@ -229,6 +231,30 @@ impl TexturedLight {
         Some(Self { texture, basis, lod, uvs: [0, 1, 2].map(|k| light.uvs[k].as_dvec2()) })
     }
 
+    /// The light (a quad; other polygons stay whole) cut into k × k tiles, k the number of
+    /// texels across at the sharper lobe's level (at most [`MAX_TILES`]): each piece the
+    /// visibility cuts is then at most a tile, so a large tree leaf fetches the texture per
+    /// tile instead of once, as the texel pieces of exact visibility do.
+    fn tiles(&self, rel: &[DVec3]) -> Vec<Vec<DVec3>> {
+        let lod = self.lod[0].min(self.lod[1]);
+        let texels = self.texture.width.max(self.texture.height) as f32 / lod.exp2();
+        let k = (texels.round() as usize).clamp(1, MAX_TILES);
+        if rel.len() != 4 || k == 1 {
+            return vec![rel.to_vec()];
+        }
+        let at = |u: f64, v: f64| {
+            let (a, b) = (rel[0].lerp(rel[1], u), rel[3].lerp(rel[2], u));
+            a.lerp(b, v)
+        };
+        let t = |i: usize| i as f64 / k as f64;
+        (0..k * k)
+            .map(|n| {
+                let (i, j) = (n % k, n / k);
+                vec![at(t(i), t(j)), at(t(i + 1), t(j)), at(t(i + 1), t(j + 1)), at(t(i), t(j + 1))]
+            })
+            .collect()
+    }
+
     /// The filtered radiance multiplier for a piece of the light (points in lobe `lobe`'s space).
     fn colour(&self, lobe: usize, moved: &[DVec3]) -> Vec3 {
         let (c0, e1, e2, n) = self.basis[lobe];
@@ -252,6 +278,9 @@ impl TexturedLight {
         self.texture.sample_lod(uv.as_vec2(), self.lod[lobe])
     }
 }
+
+/// Most tiles per side a textured light is cut into.
+const MAX_TILES: usize = 8;
 
 fn polygon_area(poly: &[DVec3]) -> f64 {
     (1..poly.len().saturating_sub(1)).map(|k| 0.5 * (poly[k] - poly[0]).cross(poly[k + 1] - poly[0]).length()).sum()

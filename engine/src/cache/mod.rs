@@ -281,8 +281,7 @@ impl Cache {
             let r = &self.records[i as usize];
             let mut c = r.coeffs.clone();
             if self.settings.gradients {
-                let d = r.frame.to_local(p - r.p).as_dvec3();
-                c.iter_mut().zip(&r.grad_x).zip(&r.grad_y).for_each(|((c, gx), gy)| *c += *gx * d.x + *gy * d.y);
+                extrapolate(&mut c, r, r.frame.to_local(p - r.p).as_dvec3());
             }
             let c = self.rotate(&c, r, &frame);
             sum.iter_mut().zip(&c).for_each(|(s, c)| *s += *c * w as f64);
@@ -357,6 +356,20 @@ pub fn moved_lights(old: &[crate::scene::FlatLight], new: &[crate::scene::FlatLi
         return old.iter().chain(new).map(bounds).collect();
     }
     old.iter().zip(new).filter(|(a, b)| a.points != b.points).flat_map(|(a, b)| [bounds(a), bounds(b)]).collect()
+}
+
+/// At most this fraction of a record's own (DC) radiance may its gradients add or remove.
+const GRADIENT_LIMIT: f64 = 0.25;
+
+/// Extrapolates record `r`'s coefficients `c` by its gradients over the tangent-frame offset
+/// `d` (H23), per channel limited so the DC term moves by at most [`GRADIENT_LIMIT`] of itself:
+/// sparse records are looked up far from where they were gathered, and a gradient steep near
+/// contact (small R_i) would otherwise swing the extrapolation far past anything gathered.
+fn extrapolate(c: &mut [DVec3], r: &Record, d: DVec3) {
+    let delta: Vec<DVec3> = r.grad_x.iter().zip(&r.grad_y).map(|(gx, gy)| *gx * d.x + *gy * d.y).collect();
+    let (c0, d0) = (c[0].abs() * GRADIENT_LIMIT, delta[0].abs());
+    let scale = DVec3::select(d0.cmpgt(c0), c0 / d0, DVec3::ONE);
+    c.iter_mut().zip(&delta).for_each(|(c, d)| *c += *d * scale);
 }
 
 /// The receivers' bounding diagonal.
@@ -450,4 +463,38 @@ fn split(src: &Source, mut values: Vec<Vec3>) -> Vec<Vec<Vec3>> {
         out.push(std::mem::replace(&mut values, rest));
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn record(c0: f64, grad: f64) -> Record {
+        Record {
+            p: Vec3::ZERO,
+            frame: crate::math::frame::Frame::from_normal(Vec3::Z),
+            radius: 0.1,
+            coeffs: vec![DVec3::new(c0, 2.0 * c0, 0.0), DVec3::splat(0.3)],
+            grad_x: vec![DVec3::splat(grad), DVec3::splat(grad)],
+            grad_y: vec![DVec3::ZERO; 2],
+        }
+    }
+
+    #[test]
+    fn gradients_extrapolate_as_is_until_they_would_move_the_record_past_its_limit() {
+        let gentle = record(1.0, 0.5);
+        let mut c = gentle.coeffs.clone();
+        extrapolate(&mut c, &gentle, DVec3::new(0.2, 0.0, 0.0));
+        // (The blue channel has no radiance at the record: its DC term may not move at all.)
+        assert_eq!(c, vec![DVec3::new(1.1, 2.1, 0.0), DVec3::new(0.4, 0.4, 0.3)]);
+        // A steep gradient far out: the DC term moves by at most the limit, per channel, and
+        // the other coefficients by the same factor; a channel with no radiance does not move.
+        let steep = record(1.0, 50.0);
+        let mut c = steep.coeffs.clone();
+        extrapolate(&mut c, &steep, DVec3::new(-0.2, 0.0, 0.0));
+        let moved = c[0] - steep.coeffs[0];
+        assert!((moved - DVec3::new(-GRADIENT_LIMIT, -2.0 * GRADIENT_LIMIT, 0.0)).abs().max_element() < 1e-12);
+        // Coefficient 1's gradient equals the DC term's here, so it moves by the same amount.
+        assert!((c[1] - (steep.coeffs[1] + moved)).abs().max_element() < 1e-12, "{c:?}");
+    }
 }
