@@ -10,8 +10,9 @@
 
 use glam::{DVec3, Vec3};
 use kage_engine::prt::{self, Lighting, lighting::Window, regions::Region};
+use kage_engine::scene::texture::{Wrap, linear_to_srgb};
 use kage_engine::scene::{
-    Camera, FlatScene, InGroup, Material, Name, NodeId, PolygonLight, Projection, RigidGroup, Scene, Transform,
+    Camera, FlatScene, InGroup, Material, Name, NodeId, PolygonLight, Projection, RigidGroup, Scene, Texture, Transform,
 };
 use kage_engine::{bspvt, scene::import::ImportOptions};
 use serde_json::{Value, json};
@@ -75,6 +76,13 @@ impl Bin {
         let view = self.view(bytemuck::cast_slice(v), Some(34962));
         self.accessors.push(json!({"bufferView": view, "componentType": 5126, "count": v.len(), "type": "VEC3",
             "min": lo.to_array(), "max": hi.to_array()}));
+        self.accessors.len() - 1
+    }
+
+    /// A float VEC2 accessor (texture coordinates).
+    fn vec2(&mut self, v: &[glam::Vec2]) -> usize {
+        let view = self.view(bytemuck::cast_slice(v), Some(34962));
+        self.accessors.push(json!({"bufferView": view, "componentType": 5126, "count": v.len(), "type": "VEC2"}));
         self.accessors.len() - 1
     }
 
@@ -146,21 +154,29 @@ pub fn write(path: &Path, e: &Export) -> std::io::Result<()> {
         .map(|(l, g, n)| (n.0, l.clone(), *g))
         .collect();
     lights.sort_by(|a, b| a.0.cmp(&b.0).then_with(|| a.1.points.len().cmp(&b.1.points.len())));
+    let mut textures = Textures::default();
     for (_, light, member) in &lights {
         let pos = bin.vec3(&light.points);
         let fan: Vec<u32> = (1..light.points.len() as u32 - 1).flat_map(|i| [0, i, i + 1]).collect();
         let ind = bin.indices(&fan);
         let strength = light.radiance.max_element().max(1e-30);
-        materials.push(json!({"name": "light", "pbrMetallicRoughness": {"baseColorFactor": [0.0, 0.0, 0.0, 1.0]},
-            "emissiveFactor": (light.radiance / strength).to_array(), "extensions": {"KHR_materials_emissive_strength": {"emissiveStrength": strength}}}));
-        // The exact radiance (factor × strength need not round-trip in f32) and polygon (the
-        // importer may start the re-imported loop at another corner).
+        let mut material = json!({"name": "light", "pbrMetallicRoughness": {"baseColorFactor": [0.0, 0.0, 0.0, 1.0]},
+            "emissiveFactor": (light.radiance / strength).to_array(), "extensions": {"KHR_materials_emissive_strength": {"emissiveStrength": strength}}});
+        // The exact radiance (factor × strength need not round-trip in f32), polygon and UVs
+        // (the importer may start the re-imported loop at another corner).
         let points: Vec<f32> = light.points.iter().flat_map(|p| p.to_array()).collect();
-        let ext = json!({"lightRadiance": light.radiance.to_array(), "lightPolygon": points});
-        meshes.push(
-            json!({"primitives": [{"attributes": {"POSITION": pos}, "indices": ind, "material": materials.len() - 1,
-            "extensions": {EXTENSION: ext}}]}),
-        );
+        let mut ext = json!({"lightRadiance": light.radiance.to_array(), "lightPolygon": points});
+        let mut attributes = json!({"POSITION": pos});
+        let textured = light.texture.filter(|_| light.uvs.len() == light.points.len());
+        if let Some(t) = textured {
+            let index = textures.add(&mut bin, t, &e.scene.textures[t as usize]);
+            material["emissiveTexture"] = json!({"index": index});
+            attributes["TEXCOORD_0"] = json!(bin.vec2(&light.uvs));
+            ext["lightUvs"] = json!(light.uvs.iter().flat_map(|uv| uv.to_array()).collect::<Vec<f32>>());
+        }
+        materials.push(material);
+        meshes.push(json!({"primitives": [{"attributes": attributes, "indices": ind, "material": materials.len() - 1,
+            "extensions": {EXTENSION: ext}}]}));
         children[group_of(member.group)].push(nodes.len() + groups.len());
         nodes.push(node(json!({"name": "light", "mesh": meshes.len() - 1}), &member.local));
     }
@@ -187,11 +203,58 @@ pub fn write(path: &Path, e: &Export) -> std::io::Result<()> {
         "accessors": bin.accessors, "bufferViews": bin.views,
         "buffers": [{"byteLength": bin.bytes.len()}],
     });
-    // glTF forbids empty top-level arrays: `cameras` only when there is one.
+    // glTF forbids empty top-level arrays: `cameras` and textures only when there are some.
     if !cameras.is_empty() {
         doc["cameras"] = json!(cameras);
     }
+    if !textures.textures.is_empty() {
+        doc["images"] = json!(textures.images);
+        doc["samplers"] = json!(textures.samplers);
+        doc["textures"] = json!(textures.textures);
+    }
     std::fs::write(path, glb(&doc.to_string(), bin.bytes))
+}
+
+/// The lights' emissive textures as 8-bit sRGB PNGs, each written once.
+#[derive(Default)]
+struct Textures {
+    /// Scene texture index → glTF texture index.
+    written: std::collections::HashMap<u32, usize>,
+    images: Vec<Value>,
+    samplers: Vec<Value>,
+    textures: Vec<Value>,
+}
+
+impl Textures {
+    /// The glTF texture for scene texture `index`, written on first use.
+    fn add(&mut self, bin: &mut Bin, index: u32, t: &Texture) -> usize {
+        if let Some(&k) = self.written.get(&index) {
+            return k;
+        }
+        let view = bin.view(&png(t), None);
+        self.images.push(json!({"bufferView": view, "mimeType": "image/png"}));
+        let wrap = |w: Wrap| match w {
+            Wrap::Clamp => 33071,
+            Wrap::Mirror => 33648,
+            Wrap::Repeat => 10497,
+        };
+        self.samplers
+            .push(json!({"magFilter": 9729, "minFilter": 9987, "wrapS": wrap(t.wrap[0]), "wrapT": wrap(t.wrap[1])}));
+        self.textures.push(json!({"sampler": self.samplers.len() - 1, "source": self.images.len() - 1}));
+        self.written.insert(index, self.textures.len() - 1);
+        self.textures.len() - 1
+    }
+}
+
+/// `t` as an sRGB PNG. Textures imported from 8-bit images come back bit for bit (every byte
+/// round-trips through [`linear_to_srgb`]; tested beside it); others round to the nearest byte.
+fn png(t: &Texture) -> Vec<u8> {
+    let encode = |x: f32| (linear_to_srgb(x.clamp(0.0, 1.0)) * 255.0).round() as u8;
+    let rgb: Vec<u8> = t.texels.iter().flat_map(|c| c.to_array().map(encode)).collect();
+    let image = image::RgbImage::from_raw(t.width as u32, t.height as u32, rgb).expect("texel count matches");
+    let mut out = std::io::Cursor::new(Vec::new());
+    image.write_to(&mut out, image::ImageFormat::Png).expect("PNG encoding into memory");
+    out.into_inner()
 }
 
 fn camera_json(c: &Camera) -> Value {
@@ -370,8 +433,13 @@ fn restore_light_radiance(scene: &mut Scene, lights: &[&Value]) -> Result<(), St
             if points.len() != l.points.len() {
                 return Err("a light polygon does not match its mesh".into());
             }
+            let uvs: Vec<glam::Vec2> = floats("lightUvs").chunks_exact(2).map(glam::Vec2::from_slice).collect();
+            if l.texture.is_some() && uvs.len() != points.len() {
+                return Err("a textured light's UVs do not match its polygon".into());
+            }
             l.radiance = Vec3::new(r, g, b);
             l.points = points;
+            l.uvs = uvs;
         }
     }
     Ok(())

@@ -426,14 +426,16 @@ fn values(csv: &Path) -> Vec<String> {
 #[test]
 fn export_writes_valid_packs_that_render_like_the_database() {
     let d = scratch("pack");
+    // The BSPVT scene's light is textured: the pack carries its texture (PNG) and UVs.
     for (file, method, extra) in [
-        ("scenes/teapot_quad_light", "bspvt", vec!["--face-res", "16"]),
+        ("scenes/textured_light", "bspvt", vec!["--face-res", "16"]),
         ("scenes/bunny_two_groups", "prt", vec!["--sh-order", "4", "--regions", "8"]),
     ] {
         let name = Path::new(file).file_name().unwrap().to_str().unwrap();
         for ext in ["gltf", "bin"] {
             std::fs::copy(shared(&format!("{file}.{ext}")), d.join(format!("{name}.{ext}"))).unwrap();
         }
+        std::fs::copy(shared("scenes/stained_glass.png"), d.join("stained_glass.png")).unwrap();
         let scene = d.join(format!("{name}.gltf")).to_str().unwrap().to_string();
         let db = d.join(format!("{method}.redb"));
         let pack = d.join(format!("{method}.glb"));

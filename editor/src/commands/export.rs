@@ -33,12 +33,6 @@ pub struct Args {
 pub fn run(args: &Args) -> Result<()> {
     let store = args.db.open(&args.scene)?;
     let scene = args.scene.load()?;
-    if scene.world.query::<&kage_engine::scene::PolygonLight>().iter().any(|l| l.texture.is_some()) {
-        eprintln!(
-            "warning: {}: textured lights are exported without their texture (see docs/KAGE_baked_shadows.md)",
-            scene.source
-        );
-    }
     let flat = flatten(&scene);
     let start = std::time::Instant::now();
     let plan = args.options.plan(&store, &scene, &flat)?;
