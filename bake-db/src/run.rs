@@ -379,12 +379,19 @@ fn assemble(
         match job.kind {
             Kind::Bspvt => {
                 let inst = &mut bspvt_instances[job.instance];
-                let Some((offsets, data)) = chunk_parts(&bytes) else {
-                    return Err(crate::store::DbError::Corrupted {
-                        path: store.path().to_path_buf(),
-                        detail: format!("BSPVT artefact {} is malformed (run `kage db check`)", job.key.short()),
-                    });
+                let malformed = |why: String| crate::store::DbError::Corrupted {
+                    path: store.path().to_path_buf(),
+                    detail: format!("BSPVT artefact {} is malformed{why} (run `kage db check`)", job.key.short()),
                 };
+                let Some((offsets, data)) = chunk_parts(&bytes).filter(|(o, _)| o.len() == job.vertices.len() + 1)
+                else {
+                    return Err(malformed(String::new()));
+                };
+                // Every tree is checked before shading descends it (a damaged one would panic there).
+                for (v, w) in offsets.windows(2).enumerate() {
+                    bspvt::layout::check_record(&data[w[0] as usize..w[1] as usize])
+                        .map_err(|e| malformed(format!(": vertex {}: {e}", job.vertices.start + v)))?;
+                }
                 let base = inst.data.len() as u32;
                 inst.offsets.extend(offsets[1..].iter().map(|o| base + o));
                 inst.data.extend_from_slice(data);

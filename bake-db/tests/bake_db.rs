@@ -282,3 +282,32 @@ fn a_refreshed_cache_is_stored_under_the_new_lightings_key_with_a_cold_placement
     load_or_place(&cold, &moved, &src1, &s).unwrap();
     assert!(store.get::<u8>(&key).unwrap() == cold.get::<u8>(&key).unwrap(), "same key, same bytes");
 }
+
+#[test]
+fn a_damaged_tree_in_a_stored_artefact_is_a_clear_error_not_a_panic() {
+    let store = Store::open(&scratch("damaged-tree")).unwrap();
+    let s = scene("");
+    bake(&store, &s);
+    let flat = flatten(&s);
+    let p = plan(&store, &s, &flat, Some(BSPVT), None).unwrap();
+    let job = p.jobs.iter().find(|j| j.kind == kage_bake_db::plan::Kind::Bspvt).unwrap();
+    let mut bytes = store.get::<u8>(&job.key).unwrap().unwrap();
+    // The chunk: vertex count, offsets, records; cut short the first record holding a tree by
+    // turning its last byte (a leaf) into a split with no children. The layout stays intact.
+    let count = u32::from_le_bytes(bytes[..4].try_into().unwrap()) as usize;
+    let offsets: Vec<u32> = bytemuck::pod_collect_to_vec(&bytes[4..8 + 4 * count]);
+    let data = 8 + 4 * count;
+    let v = offsets.windows(2).position(|w| w[1] - w[0] > 12).unwrap();
+    bytes[data + offsets[v + 1] as usize - 1] = 0xFF;
+    let info = kage_bake_db::store::Info {
+        kind: "bspvt".into(),
+        params: String::new(),
+        seconds: 0.0,
+        vertices: 0,
+        checksum: *blake3::hash(&bytes).as_bytes(),
+    };
+    store.put_batch(&[(job.key, bytes, info)], &[]).unwrap();
+    let Err(e) = run(&store, &s, &flat, &p, &|_| {}) else { panic!("a damaged tree loaded") };
+    let e = e.to_string();
+    assert!(e.contains("malformed") && e.contains(&format!("vertex {}", job.vertices.start + v)), "{e}");
+}
