@@ -116,10 +116,9 @@ struct AlbedoTable {
 fn albedo_table() -> &'static AlbedoTable {
     static TABLE: OnceLock<AlbedoTable> = OnceLock::new();
     TABLE.get_or_init(|| {
-        use rayon::prelude::*;
-        // Entries are independent, so the parallel build gives the same table.
+        // Sequential on purpose: a rayon job waiting inside this initialiser may steal another
+        // job that asks for the table on the same thread, which would deadlock the OnceLock.
         let (a, b) = (0..ALBEDO_N * ALBEDO_N)
-            .into_par_iter()
             .map(|k| {
                 let (ri, mi) = (k / ALBEDO_N, k % ALBEDO_N);
                 let alpha = alpha_from_roughness(ri as f32 / (ALBEDO_N - 1) as f32);
