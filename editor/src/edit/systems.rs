@@ -502,7 +502,10 @@ impl IndirectJob {
                         send(Indirect { values: cache::shade_vertices(&src, c, eye), what: String::new(), base: None })
                     };
                     let (cache, note) = refreshed(*b, &src, stop, &partial)?;
-                    let stored = match store.as_deref().map(|st| store_refreshed(st, &scene, &src, &cache, 0.0)) {
+                    let stored = match store
+                        .as_deref()
+                        .map(|st| store_refreshed(st, &scene, &src, &cache, start.elapsed().as_secs_f64()))
+                    {
                         Some(Ok(_)) => ", stored".to_string(),
                         Some(Err(e)) => format!(" (not stored: {e})"),
                         None => String::new(),

@@ -273,7 +273,7 @@ pub fn shade_vertices(
 /// shadowed by the trees of the nearest corner (`None`: unshadowed). The indirect term lights
 /// glossy hits so: the view-dependent lobe is evaluated where the ray hit; visibility, which
 /// varies more slowly, is the nearest vertex's (as accurate as weighting all three corners' on
-/// the test scene, at a third of the cost).
+/// the test scene, in half the time).
 pub fn shade_point(
     scene: &Scene,
     flat: &FlatScene,
@@ -289,19 +289,12 @@ pub fn shade_point(
         p += b * pv;
         n += b * nv;
     }
-    let shader = shade::PointShader::new(&crate::math::ltc::table(), p, n, eye, &flat.instances[i].material);
-    match bake {
-        Some(b) => {
-            let k = (0..3).max_by(|&x, &y| bary[x].total_cmp(&bary[y])).unwrap_or(0);
-            shader.shade(&flat.lights, shade::Visibility::Tree(b.instances[i].record(corners[k])))
-        }
-        None => shader.shade(&flat.lights, shade::Visibility::Unshadowed),
-    }
+    let nearest = corners[(0..3).max_by(|&x, &y| bary[x].total_cmp(&bary[y])).unwrap_or(0)];
+    shade_at(flat, bake.map(|b| b.instances[i].record(nearest)), i, p, n, eye)
 }
 
 /// Outgoing radiance toward `eye` from the polygonal lights at vertex `v` of instance `i`,
-/// shadowed by `bake`'s trees (`None`: unshadowed LTC). `eye` may be any point: the indirect
-/// term shades glossy surfaces toward the records that gather them.
+/// shadowed by `bake`'s trees (`None`: unshadowed LTC).
 pub fn shade_vertex(
     scene: &Scene,
     flat: &FlatScene,
@@ -310,12 +303,23 @@ pub fn shade_vertex(
     v: usize,
     eye: glam::Vec3,
 ) -> glam::Vec3 {
-    let (p, normal) = flat.vertex(&scene.meshes, i, v);
-    let shader = shade::PointShader::new(&crate::math::ltc::table(), p, normal, eye, &flat.instances[i].material);
-    match bake {
-        Some(b) => shader.shade(&flat.lights, shade::Visibility::Tree(b.instances[i].record(v))),
-        None => shader.shade(&flat.lights, shade::Visibility::Unshadowed),
-    }
+    let (p, n) = flat.vertex(&scene.meshes, i, v);
+    shade_at(flat, bake.map(|b| b.instances[i].record(v)), i, p, n, eye)
+}
+
+/// LTC shading of instance `i`'s material at `p` (normal `n`) toward `eye`, shadowed by a
+/// vertex record's trees (`None`: unshadowed).
+fn shade_at(
+    flat: &FlatScene,
+    record: Option<&[u8]>,
+    i: usize,
+    p: glam::Vec3,
+    n: glam::Vec3,
+    eye: glam::Vec3,
+) -> glam::Vec3 {
+    let shader = shade::PointShader::new(&crate::math::ltc::table(), p, n, eye, &flat.instances[i].material);
+    let vis = record.map_or(shade::Visibility::Unshadowed, shade::Visibility::Tree);
+    shader.shade(&flat.lights, vis)
 }
 
 #[cfg(test)]

@@ -92,11 +92,12 @@ impl PointShader {
             let tex = TexturedLight::new(light, &rel, [&self.frame, &self.spec_inv]);
             let tex = tex.as_ref();
             let mut sum = Sum::default();
-            for part in tex.map_or_else(|| vec![rel.clone()], |t| t.tiles(&rel)) {
+            let tiles = tex.map(|t| t.tiles(&rel));
+            for part in tiles.as_deref().unwrap_or(std::slice::from_ref(&rel)) {
                 match vis {
-                    Visibility::Unshadowed => self.piece(&part, tex, 1.0, &mut sum),
-                    Visibility::Tree(record) => self.through_trees(record, &part, tex, &mut sum),
-                    Visibility::Exact(cube) => self.through_texels(cube, &part, tex, &mut sum),
+                    Visibility::Unshadowed => self.piece(part, tex, 1.0, &mut sum),
+                    Visibility::Tree(record) => self.through_trees(record, part, tex, &mut sum),
+                    Visibility::Exact(cube) => self.through_texels(cube, part, tex, &mut sum),
                 }
             }
             total += light.radiance.as_dvec3() * sum.radiance;

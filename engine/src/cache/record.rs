@@ -115,22 +115,17 @@ impl Source<'_> {
         }
         let inst = tref.owner as usize;
         let m = r.flat.instances[inst].material;
+        let glossy = m.metallic > 0.0 || m.specular > 0.0;
         let radiance = match self.glossy {
-            _ if m.metallic == 0.0 && m.specular == 0.0 => self.interpolated(hit),
-            Glossy::Reference(spp) => {
+            Glossy::Reference(spp) if glossy => {
                 let sp = r.surface_at(hit, inst, tref.local as usize, d);
                 let s = crate::reference::Settings { spp, seed: 0x6105, ..Default::default() };
                 r.estimate_point(&sp, -d, &s, stream).mean
             }
-            Glossy::Toward(shade) => shade(inst, self.corner_indices(hit), barycentrics(hit), o),
-            Glossy::PerVertex => self.interpolated(hit),
+            Glossy::Toward(shade) if glossy => shade(inst, self.corner_indices(hit), barycentrics(hit), o),
+            _ => self.corners(hit, self.direct).iter().zip(barycentrics(hit)).map(|(v, b)| *v * b).sum(),
         };
         Sample { radiance, t: hit.t, normal }
-    }
-
-    /// The per-vertex direct radiance interpolated at a receiver `hit`.
-    fn interpolated(&self, hit: Hit) -> Vec3 {
-        self.corners(hit, self.direct).iter().zip(barycentrics(hit)).map(|(v, b)| *v * b).sum()
     }
 
     /// The direct radiance in `direct` at the corners of a receiver `hit`'s triangle, in the
