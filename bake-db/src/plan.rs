@@ -160,7 +160,13 @@ impl Plan {
     pub fn params(&self, kind: Kind) -> String {
         match kind {
             Kind::Bspvt => self.bspvt.map_or_else(String::new, |s| {
-                format!("{}² faces, ε {}, format {}", s.res, s.epsilon, bspvt::layout::FORMAT_VERSION)
+                format!(
+                    "{}² faces, ε {}, algorithm {}, format {}",
+                    s.res,
+                    s.epsilon,
+                    bspvt::ALGORITHM_VERSION,
+                    bspvt::layout::FORMAT_VERSION
+                )
             }),
             Kind::Prt => self.prt.map_or_else(String::new, |s| {
                 format!(
@@ -196,6 +202,7 @@ pub fn plan(
         for (i, inst) in flat.instances.iter().enumerate() {
             let base = KeyHasher::new("bspvt")
                 .u64("version", bspvt::layout::FORMAT_VERSION as u64)
+                .u64("algorithm", bspvt::ALGORITHM_VERSION as u64)
                 .u64("res", s.res as u64)
                 .f64("epsilon", s.epsilon)
                 .bytes("mesh", &scene.meshes[inst.mesh as usize].hash.0)

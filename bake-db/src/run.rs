@@ -1,10 +1,11 @@
 //! Running a plan: rayon workers bake the missing chunks while one writer thread commits them
 //! in batches, then every chunk (baked now or cached) is assembled into the engine's bakes.
 //!
-//! A BSPVT chunk whose slot has lineage is re-baked *warm*: only the cube faces of its vertices
-//! that can see the old or new bounds of an occluder that changed are cast and built again; the
-//! other faces' bytes are copied. The result is byte-identical to a cold bake, because a clean
-//! face's rays cannot meet anything that changed.
+//! A BSPVT chunk whose slot has lineage is re-baked *warm*: only the cube-face tiles of its
+//! vertices that can see the old or new bounds of an occluder that changed are cast and built
+//! again; the other tiles' subtrees are kept. The result is byte-identical to a cold bake,
+//! because a clean tile's rays cannot meet anything that changed and a face's tree is its
+//! tiles' subtrees joined by a fixed grid (`bspvt::tree::TILE`).
 
 use crate::key::Key;
 use crate::plan::{Job, Kind, Occluder, Plan, decode_occluders, encode_occluders};
@@ -41,8 +42,9 @@ pub struct RunStats {
     pub warm: usize,
     /// Vertices whose data was computed (all of a cold chunk, the touched ones of a warm one).
     pub vertices_baked: usize,
-    /// BSPVT cube faces built (6 per vertex cold; only the dirty ones warm).
-    pub faces_baked: usize,
+    /// BSPVT cube-face tiles built (6 · tiles per face for each vertex cold; only the dirty ones
+    /// warm).
+    pub tiles_baked: usize,
     /// Wall-clock seconds.
     pub seconds: f64,
 }
@@ -66,7 +68,7 @@ struct Baked<'a> {
     lineage: Option<(Key, Vec<u8>)>,
     warm: bool,
     vertices: usize,
-    faces: usize,
+    tiles: usize,
 }
 
 /// Bakes the plan's misses (committing as they finish), then assembles every chunk.
@@ -161,7 +163,7 @@ pub fn run_cancellable(store: &Store, scene: &Scene, flat: &FlatScene, plan: &Pl
                 stats.cold += 1
             }
             stats.vertices_baked += b.vertices;
-            stats.faces_baked += b.faces;
+            stats.tiles_baked += b.tiles;
             fresh.insert(b.key, b.bytes);
         }
         Ok(())
@@ -221,7 +223,7 @@ struct Context<'a> {
 impl Context<'_> {
     fn bake<'j>(&self, job: &'j Job) -> Result<Baked<'j>> {
         let t = Instant::now();
-        let (bytes, params, warm, faces, vertices) = match job.kind {
+        let (bytes, params, warm, tiles, vertices) = match job.kind {
             Kind::Prt => {
                 let s = self.plan.prt.expect("PRT job without PRT settings");
                 let n = s.order * s.order;
@@ -234,8 +236,8 @@ impl Context<'_> {
             }
             Kind::Bspvt => {
                 let s = self.plan.bspvt.expect("BSPVT job without BSPVT settings");
-                let (records, warm, faces, touched) = self.bake_bspvt(job, &s)?;
-                (encode_records(&records), self.plan.params(Kind::Bspvt), warm, faces, touched)
+                let (records, warm, tiles, touched) = self.bake_bspvt(job, &s)?;
+                (encode_records(&records), self.plan.params(Kind::Bspvt), warm, tiles, touched)
             }
         };
         let info = Info {
@@ -251,40 +253,40 @@ impl Context<'_> {
             v.extend(encode_occluders(&self.plan.snapshot.occluders));
             (slot, v)
         });
-        Ok(Baked { job, key: job.key, bytes, info, lineage, warm, vertices, faces })
+        Ok(Baked { job, key: job.key, bytes, info, lineage, warm, vertices, tiles })
     }
 
-    /// The chunk's vertex records, whether warm, how many faces were built and how many
+    /// The chunk's vertex records, whether warm, how many tiles were built and how many
     /// vertices were touched.
     fn bake_bspvt(&self, job: &Job, s: &bspvt::Settings) -> Result<(Vec<Vec<u8>>, bool, usize, usize)> {
         let occ = self.occluders.expect("built for BSPVT plans");
         let vertex = |v: usize| self.flat.vertex(&self.scene.meshes, job.instance, v);
         if let Some((old, boxes)) = self.lineage_of(job)? {
-            let (mut faces, mut touched) = (0, 0);
+            let (mut tiles, mut touched) = (0, 0);
             let records = job
                 .vertices
                 .clone()
                 .zip(old)
                 .map(|(v, rec)| {
                     let (p, n) = vertex(v);
-                    let mut dirty = [false; 6];
+                    let mut dirty = vec![false; 6 * bspvt::tiles_per_side(s.res).pow(2)];
                     for (lo, hi) in &boxes {
-                        let d = bspvt::faces_seeing_box(p, n, *lo, *hi, s.res);
+                        let d = bspvt::tiles_seeing_box(p, n, *lo, *hi, s.res);
                         dirty.iter_mut().zip(d).for_each(|(a, b)| *a |= b);
                     }
                     let count = dirty.iter().filter(|d| **d).count();
-                    faces += count;
+                    tiles += count;
                     touched += usize::from(count > 0);
-                    if count == 0 { rec } else { bspvt::rebake_faces(occ, p, n, s, &rec, dirty) }
+                    if count == 0 { rec } else { bspvt::rebake_tiles(occ, p, n, s, &rec, &dirty) }
                 })
                 .collect();
-            return Ok((records, true, faces, touched));
+            return Ok((records, true, tiles, touched));
         }
         let records = job.vertices.clone().map(|v| {
             let (p, n) = vertex(v);
             bspvt::bake_vertex(occ, p, n, s).0
         });
-        Ok((records.collect(), false, 6 * job.vertices.len(), job.vertices.len()))
+        Ok((records.collect(), false, 6 * bspvt::tiles_per_side(s.res).pow(2) * job.vertices.len(), job.vertices.len()))
     }
 
     /// The slot's previous records and the bounds (old and new) of every occluder that changed
@@ -297,7 +299,11 @@ impl Context<'_> {
         }
         let Some(then) = decode_occluders(&entry[32..]) else { return Ok(None) };
         let Some(bytes) = self.store.get::<u8>(&Key::from_slice(&entry[..32]))? else { return Ok(None) };
-        let Some(records) = decode_records(&bytes).filter(|r| r.len() == job.vertices.len()) else { return Ok(None) };
+        // The warm re-bake descends the old trees: a damaged chunk bakes cold instead.
+        let usable = |r: &Vec<Vec<u8>>| {
+            r.len() == job.vertices.len() && r.iter().all(|rec| bspvt::layout::check_record(rec).is_ok())
+        };
+        let Some(records) = decode_records(&bytes).filter(usable) else { return Ok(None) };
         Ok(Some((records, changed_bounds(&then, &self.plan.snapshot.occluders))))
     }
 }

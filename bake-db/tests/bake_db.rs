@@ -114,7 +114,7 @@ fn edits_rebake_exactly_what_they_affect_and_match_cold_bakes() {
         assert_eq!(warm.cached, owners.len() - warm.cold - warm.warm, "{edit}");
         if bspvt_warm > 0 {
             // Only the faces that can see what changed are rebuilt.
-            assert!(warm.faces_baked < cold.faces_baked, "{edit}: {} vs {}", warm.faces_baked, cold.faces_baked);
+            assert!(warm.tiles_baked < cold.tiles_baked, "{edit}: {} vs {}", warm.tiles_baked, cold.tiles_baked);
         }
     }
 }

@@ -87,11 +87,11 @@ fn bake_once(args: &Args, store: &Store) -> Result<()> {
     let outcome = with_bar(total, "baking", |p| kage_bake_db::run(store, &scene, &flat, &plan, p))?;
     let s = outcome.stats;
     crate::emit(&format!(
-        "baked {} chunks cold and {} warm ({} vertices, {} cube faces) in {:.2} s; {} cached; {}\n",
+        "baked {} chunks cold and {} warm ({} vertices, {} cube-face tiles) in {:.2} s; {} cached; {}\n",
         s.cold,
         s.warm,
         s.vertices_baked,
-        s.faces_baked,
+        s.tiles_baked,
         s.seconds,
         s.cached,
         store.path().display()

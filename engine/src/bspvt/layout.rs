@@ -32,6 +32,21 @@ pub fn dequantise_line(a: u16, o: u16) -> (f64, f64) {
     (a as f64 / ANGLE_STEPS * TAU, (o as f64 - OFFSET_HALF) / OFFSET_HALF * SQRT_2)
 }
 
+/// Index just past the encoded subtree that starts at byte `i` of a face's bytes.
+pub fn skip_encoded(bytes: &[u8], mut i: usize) -> usize {
+    let mut pending = 1;
+    while pending > 0 {
+        pending -= 1;
+        if bytes[i] & 0x80 == 0 {
+            i += 1;
+        } else {
+            pending += 2;
+            i += 3;
+        }
+    }
+    i
+}
+
 /// Appends one tree.
 pub fn encode_tree(nodes: &[Node], out: &mut Vec<u8>) {
     for n in nodes {

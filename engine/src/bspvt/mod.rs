@@ -3,7 +3,8 @@
 //!
 //! - [`visibility`]: per-vertex visibility cube maps (faces aligned to world axes), cast only
 //!   above the horizon;
-//! - [`tree`]: per face, the BSP tree of Algorithm 1 with the seed's two corrections;
+//! - [`tree`]: per face, a fixed grid of tiles and inside each the BSP tree of Algorithm 1 with
+//!   the seed's two corrections (tiles make re-bakes local: [`rebake_tiles`]);
 //! - [`layout`]: the compact versioned byte layout (≈2 bytes per node);
 //! - [`shade`]: per vertex and light, the light polygon clipped by face frusta and tree planes
 //!   (planes through the vertex) and integrated with LTC, weighted by the leaves' visibility;
@@ -19,10 +20,15 @@ pub mod tree;
 pub mod visibility;
 
 use crate::accel::Occluders;
+use crate::math::cubemap;
 use crate::scene::{FlatScene, NO_LIGHT, Scene};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
+
+/// Version of the bake algorithm, part of every bake key: bumped whenever the same inputs
+/// would give different trees (2: trees start with the tile grid of [`tree::TILE`]).
+pub const ALGORITHM_VERSION: u32 = 2;
 
 /// Bake parameters.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -141,46 +147,76 @@ pub fn bake_face(
     tree::build(&vis, s.res, s.epsilon).filter(|t| t.as_slice() != [tree::Node::Leaf(0.0)])
 }
 
-/// Re-bakes the faces of `old` (a vertex record) flagged in `dirty` and keeps the others'
-/// bytes: identical to [`bake_vertex`] when the clean faces' visibility did not change.
-pub fn rebake_faces(
+/// Tiles per face side at face resolution `res` (see [`tree::TILE`]).
+pub fn tiles_per_side(res: usize) -> usize {
+    res.div_ceil(tree::TILE)
+}
+
+/// Re-bakes the tiles of `old` (a vertex record) flagged in `dirty` (per face, row-major
+/// tiles: `6 · tiles_per_side²` flags), casting only their texels and keeping the other tiles'
+/// subtrees: identical to [`bake_vertex`] when the clean tiles' visibility did not change.
+pub fn rebake_tiles(
     occluders: &Occluders,
     p: glam::Vec3,
     n: glam::Vec3,
     s: &Settings,
     old: &[u8],
-    dirty: [bool; 6],
+    dirty: &[bool],
 ) -> Vec<u8> {
+    let k = tiles_per_side(s.res);
     let kept = layout::vertex_faces(old);
     let fresh: [Vec<u8>; 6] = std::array::from_fn(|f| {
-        if dirty[f] { layout::encode_face(bake_face(occluders, p, n, f, s).as_deref()) } else { kept[f].to_vec() }
+        let dirty = &dirty[f * k * k..(f + 1) * k * k];
+        if !dirty.contains(&true) {
+            return kept[f].to_vec();
+        }
+        let wanted = |i: usize, j: usize| dirty[(j / tree::TILE) * k + i / tree::TILE];
+        let vis = visibility::cast_face_where(occluders, p, n, f, s.res, wanted);
+        let old = if kept[f].is_empty() { vec![tree::Node::Leaf(0.0)] } else { layout::decode_tree(kept[f]) };
+        let nodes = tree::rebuild(&vis, s.res, s.epsilon, &old);
+        layout::encode_face(nodes.filter(|t| t.as_slice() != [tree::Node::Leaf(0.0)]).as_deref())
     });
     layout::join_faces(fresh.each_ref().map(Vec::as_slice))
 }
 
-/// Which faces of a vertex at `p` (unit normal `n`) can see into an axis-aligned box: the box
-/// meets the face's frustum above the horizon, with a margin of two texels for the rays cast
-/// just above the horizon (a conservative test: a clean face's visibility cannot change when
-/// only geometry inside the box does).
-pub fn faces_seeing_box(p: glam::Vec3, n: glam::Vec3, lo: glam::Vec3, hi: glam::Vec3, res: usize) -> [bool; 6] {
+/// Which tiles of a vertex at `p` (unit normal `n`) can see into an axis-aligned box (flags
+/// as in [`rebake_tiles`]): the box meets the tile's frustum above the horizon, with a margin
+/// of two texels for the rays cast just above the horizon (a conservative test: a clean tile's
+/// visibility cannot change when only geometry inside the box does).
+pub fn tiles_seeing_box(p: glam::Vec3, n: glam::Vec3, lo: glam::Vec3, hi: glam::Vec3, res: usize) -> Vec<bool> {
+    let k = tiles_per_side(res);
     let (p, n) = (p.as_dvec3(), n.as_dvec3());
     let (lo, hi) = (lo.as_dvec3(), hi.as_dvec3());
     if (p.cmpge(lo) & p.cmple(hi)).all() {
-        return [true; 6];
+        return vec![true; 6 * k * k];
     }
-    let corners: [glam::DVec3; 8] = std::array::from_fn(|k| {
+    let corners: [glam::DVec3; 8] = std::array::from_fn(|c| {
         glam::DVec3::new(
-            if k & 1 == 0 { lo.x } else { hi.x },
-            if k & 2 == 0 { lo.y } else { hi.y },
-            if k & 4 == 0 { lo.z } else { hi.z },
+            if c & 1 == 0 { lo.x } else { hi.x },
+            if c & 2 == 0 { lo.y } else { hi.y },
+            if c & 4 == 0 { lo.z } else { hi.z },
         ) - p
     });
     let margin = 4.0 / res as f64;
     let outside = |plane: glam::DVec3| corners.iter().all(|c| plane.dot(*c) < -margin * c.length());
     if outside(n) {
-        return [false; 6];
+        return vec![false; 6 * k * k];
     }
-    std::array::from_fn(|f| !crate::math::cubemap::face_frustum(f).iter().any(|pl| outside(pl.normalize())))
+    let edge = |t: usize| 2.0 * (t * tree::TILE).min(res) as f64 / res as f64 - 1.0;
+    let mut out = Vec::with_capacity(6 * k * k);
+    for f in 0..6 {
+        let face_seen = !cubemap::face_frustum(f).iter().any(|pl| outside(pl.normalize()));
+        for (tj, ti) in (0..k).flat_map(|tj| (0..k).map(move |ti| (tj, ti))) {
+            let planes = [
+                cubemap::line_plane(f, 1.0, 0.0, -edge(ti)),
+                cubemap::line_plane(f, -1.0, 0.0, edge(ti + 1)),
+                cubemap::line_plane(f, 0.0, 1.0, -edge(tj)),
+                cubemap::line_plane(f, 0.0, -1.0, edge(tj + 1)),
+            ];
+            out.push(face_seen && !planes.iter().any(|pl| outside(pl.normalize())));
+        }
+    }
+    out
 }
 
 /// Bakes every receiver vertex, in parallel; `progress` gets the number of vertices done.
@@ -330,6 +366,39 @@ mod tests {
         let mut offsets = vec![0u32];
         records.iter().for_each(|r| offsets.push(offsets[offsets.len() - 1] + r.len() as u32));
         BakedInstance { offsets, data: records.concat() }
+    }
+
+    /// Whether the ray `p + t d` (t > 0) meets the box.
+    fn ray_meets_box(p: glam::DVec3, d: glam::DVec3, lo: glam::DVec3, hi: glam::DVec3) -> bool {
+        let (a, b) = ((lo - p) / d, (hi - p) / d);
+        let (near, far) = (a.min(b).max_element(), a.max(b).min_element());
+        far >= near.max(0.0)
+    }
+
+    /// The tile test is conservative: no ray cast through a tile it leaves clean meets the box.
+    #[test]
+    fn clean_tiles_cast_no_ray_into_the_box() {
+        let (res, k) = (32, tiles_per_side(32));
+        let (lo, hi) = (glam::Vec3::new(-0.5, 1.0, -0.2), glam::Vec3::new(0.7, 1.1, 0.4));
+        let (mut clean, mut dirty) = (0, 0);
+        for (x, z) in (-3..=3).flat_map(|x| (-3..=3).map(move |z| (x as f32 * 0.7, z as f32 * 0.7))) {
+            for n in [glam::Vec3::Y, glam::Vec3::new(0.6, 0.8, 0.0), glam::Vec3::new(0.0, 0.6, -0.8)] {
+                let p = glam::Vec3::new(x, 0.0, z);
+                let flags = tiles_seeing_box(p, n, lo, hi, res);
+                for (f, i, j) in (0..6).flat_map(|f| (0..res * res).map(move |t| (f, t % res, t / res))) {
+                    if flags[f * k * k + (j / tree::TILE) * k + i / tree::TILE] {
+                        dirty += 1;
+                        continue;
+                    }
+                    clean += 1;
+                    if let Some(d) = visibility::texel_ray(f, i, j, n.as_dvec3(), res) {
+                        let hit = ray_meets_box(p.as_dvec3(), d, lo.as_dvec3(), hi.as_dvec3());
+                        assert!(!hit, "p {p}, n {n}: texel ({f}, {i}, {j}) in a clean tile meets the box");
+                    }
+                }
+            }
+        }
+        assert!(clean > 4 * dirty && dirty > 0, "{clean} clean and {dirty} dirty texels");
     }
 
     #[test]

@@ -2,7 +2,7 @@
 //! over the light polygon clipped by cube-face frusta and BSP planes — all planes through the
 //! vertex, so every split is exact 3D polygon clipping — weighted by visibility.
 
-use super::layout::{dequantise_line, split_codes, vertex_faces};
+use super::layout::{dequantise_line, skip_encoded, split_codes, vertex_faces};
 use super::visibility::{CubeVisibility, VISIBLE};
 use crate::math::{cubemap, ltc, polygon};
 use crate::reference::Bsdf;
@@ -128,21 +128,20 @@ impl PointShader {
         tex: Option<&TexturedLight>,
         acc: &mut Sum,
     ) -> usize {
+        if piece.is_empty() {
+            return skip_encoded(bytes, i);
+        }
         if bytes[i] & 0x80 == 0 {
             let v = bytes[i] as f64 / 127.0;
-            if v > 0.0 && !piece.is_empty() {
+            if v > 0.0 {
                 self.piece(&piece, tex, v, acc);
             }
             return i + 1;
         }
         let (angle, offset) = split_codes(bytes, i);
         let (theta, c) = dequantise_line(angle, offset);
-        let plane = cubemap::line_plane(face, theta.cos(), theta.sin(), -c);
-        let (pos, neg) = if piece.is_empty() {
-            (Vec::new(), Vec::new())
-        } else {
-            (polygon::clip(&piece, plane), polygon::clip(&piece, -plane))
-        };
+        let (sin, cos) = theta.sin_cos();
+        let (pos, neg) = polygon::split(piece, cubemap::line_plane(face, cos, sin, -c));
         let next = self.walk(bytes, i + 3, face, pos, tex, acc);
         self.walk(bytes, next, face, neg, tex, acc)
     }

@@ -9,7 +9,7 @@
 //! pixels are partitioned, so leaf means match the geometry the shader sees.
 
 use super::layout::{dequantise_line, quantise_line};
-use super::visibility::{BELOW, VISIBLE};
+use super::visibility::{BELOW, OCCLUDED, SKIPPED, VISIBLE};
 use crate::math::{cubemap, nelder_mead};
 use std::cmp::Ordering;
 use std::collections::BinaryHeap;
@@ -77,22 +77,117 @@ impl Ord for Queued {
     }
 }
 
+/// Texels per side of a tile. A face's tree starts with a fixed grid of tiles (axis-aligned
+/// splits at tile boundaries, halving the longer side) and Algorithm 1 runs inside each tile,
+/// so an edit that changes the visibility seen through a few tiles rebuilds only their
+/// subtrees (incremental re-bake). Sibling regions that are both uniformly visible or both
+/// uniformly occluded merge back into one leaf: the grid costs nodes only where the visibility
+/// changes.
+pub const TILE: usize = 8;
+
 /// Builds the tree of one face from its texel states; `None` when no texel is above the horizon.
 pub fn build(face: &[u8], res: usize, epsilon: f64) -> Option<Vec<Node>> {
-    let mean_w = 4.0 * std::f64::consts::PI / (6 * res * res) as f64;
-    let mut all = Vec::new();
-    for (k, &state) in face.iter().enumerate() {
-        if state != BELOW {
-            let st = cubemap::texel_center(k % res, k / res, res);
-            let w = cubemap::texel_solid_angle(k % res, k / res, res) / mean_w;
-            all.push(Pixel { s: st.x, t: st.y, w, v: if state == VISIBLE { 1.0 } else { 0.0 } });
+    rebuild(face, res, epsilon, &[])
+}
+
+/// [`build`] for a face whose texels were cast only in some tiles (the others [`SKIPPED`]):
+/// those tiles keep their subtrees from `old`, the face's previous tree (a complete tree; a
+/// face that stored none was entirely occluded: `[Leaf(0.0)]`). Equal to [`build`] of the
+/// fully cast face when the skipped tiles' visibility did not change.
+pub fn rebuild(face: &[u8], res: usize, epsilon: f64, old: &[Node]) -> Option<Vec<Node>> {
+    Grid { face, res, epsilon }.region(Rect { i0: 0, j0: 0, i1: res, j1: res }, old)
+}
+
+/// A rectangle of texels `[i0, i1) × [j0, j1)`.
+#[derive(Clone, Copy)]
+struct Rect {
+    i0: usize,
+    j0: usize,
+    i1: usize,
+    j1: usize,
+}
+
+impl Rect {
+    fn texels(self) -> impl Iterator<Item = (usize, usize)> {
+        (self.j0..self.j1).flat_map(move |j| (self.i0..self.i1).map(move |i| (i, j)))
+    }
+
+    /// The grid split: the quantised line at the middle of the longer side, and the halves on
+    /// its positive (larger s or t) and negative sides.
+    fn halves(self, res: usize) -> ((u16, u16), Rect, Rect) {
+        let edge = |k: usize| 2.0 * k as f64 / res as f64 - 1.0;
+        if self.i1 - self.i0 >= self.j1 - self.j0 {
+            let m = (self.i0 + self.i1) / 2;
+            (quantise_line(0.0, edge(m)), Rect { i0: m, ..self }, Rect { i1: m, ..self })
+        } else {
+            let m = (self.j0 + self.j1) / 2;
+            (quantise_line(std::f64::consts::FRAC_PI_2, edge(m)), Rect { j0: m, ..self }, Rect { j1: m, ..self })
         }
     }
-    if all.is_empty() {
-        return None;
+}
+
+/// One face's texel states and build parameters.
+struct Grid<'a> {
+    face: &'a [u8],
+    res: usize,
+    epsilon: f64,
+}
+
+impl Grid<'_> {
+    fn any(&self, r: Rect, pred: impl Fn(u8) -> bool) -> bool {
+        r.texels().any(|(i, j)| pred(self.face[j * self.res + i]))
     }
+
+    /// The subtree of region `r`; `old` is its previous subtree (used only by skipped tiles).
+    fn region(&self, r: Rect, old: &[Node]) -> Option<Vec<Node>> {
+        if !self.any(r, |s| s != BELOW) {
+            return None;
+        }
+        if r.i1 - r.i0 <= TILE && r.j1 - r.j0 <= TILE {
+            return Some(if self.any(r, |s| s == SKIPPED) { old.to_vec() } else { self.tile(r) });
+        }
+        let ((angle, offset), pos, neg) = r.halves(self.res);
+        let (live_pos, live_neg) = (self.any(pos, |s| s != BELOW), self.any(neg, |s| s != BELOW));
+        // How `old` was made: a merged uniform leaf covers both halves, an empty half left
+        // its sibling's subtree in place of the split.
+        let (old_pos, old_neg) = match old {
+            [Node::Split { .. }, ..] if live_pos && live_neg => old[1..].split_at(skip(old, 1) - 1),
+            _ => (old, old),
+        };
+        match (self.region(pos, old_pos), self.region(neg, old_neg)) {
+            (None, x) | (x, None) => x,
+            (Some(p), Some(n)) if p == n && matches!(p[..], [Node::Leaf(v)] if v == 0.0 || v == 1.0) => Some(p),
+            (Some(p), Some(n)) => Some([vec![Node::Split { angle, offset }], p, n].concat()),
+        }
+    }
+
+    /// Algorithm 1 on the texels of one tile above the horizon (at least one).
+    fn tile(&self, r: Rect) -> Vec<Node> {
+        let res = self.res;
+        // Most tiles are uniform: their mean is exact without the texels' solid angles.
+        for (state, v) in [(VISIBLE, 1.0), (OCCLUDED, 0.0)] {
+            if !self.any(r, |s| s != state && s != BELOW) {
+                return vec![Node::Leaf(v)];
+            }
+        }
+        let mean_w = 4.0 * std::f64::consts::PI / (6 * res * res) as f64;
+        let all: Vec<Pixel> = r
+            .texels()
+            .filter(|&(i, j)| self.face[j * res + i] != BELOW)
+            .map(|(i, j)| {
+                let st = cubemap::texel_center(i, j, res);
+                let w = cubemap::texel_solid_angle(i, j, res) / mean_w;
+                Pixel { s: st.x, t: st.y, w, v: if self.face[j * res + i] == VISIBLE { 1.0 } else { 0.0 } }
+            })
+            .collect();
+        clusters(&all, res, self.epsilon)
+    }
+}
+
+/// Splits the cluster of all `all` pixels while some cluster's error exceeds ε.
+fn clusters(all: &[Pixel], res: usize, epsilon: f64) -> Vec<Node> {
     let mut arena: Vec<(Built, Option<Cluster>)> = Vec::new();
-    let root = cluster((0..all.len() as u32).collect(), &all);
+    let root = cluster((0..all.len() as u32).collect(), all);
     let mut queue = BinaryHeap::new();
     queue.push(Queued(root.error, 0));
     arena.push((Built::Leaf(root.mean), Some(root)));
@@ -101,8 +196,8 @@ pub fn build(face: &[u8], res: usize, epsilon: f64) -> Option<Vec<Node>> {
             break;
         }
         let c = arena[id].1.take().expect("queued clusters keep their pixels");
-        let Some(Split { angle, offset, pos, neg }) = split(&c, &all, res) else { continue };
-        let (pos, neg) = (cluster(pos, &all), cluster(neg, &all));
+        let Some(Split { angle, offset, pos, neg }) = split(&c, all, res) else { continue };
+        let (pos, neg) = (cluster(pos, all), cluster(neg, all));
         let (ip, ineg) = (arena.len(), arena.len() + 1);
         queue.push(Queued(pos.error, ip));
         queue.push(Queued(neg.error, ineg));
@@ -122,7 +217,7 @@ pub fn build(face: &[u8], res: usize, epsilon: f64) -> Option<Vec<Node>> {
             }
         }
     }
-    Some(out)
+    out
 }
 
 /// A chosen split: the quantised line and the pixels on its positive and negative sides.
@@ -286,7 +381,6 @@ pub fn skip(nodes: &[Node], mut i: usize) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bspvt::visibility::OCCLUDED;
 
     fn face_from(res: usize, f: impl Fn(f64, f64) -> u8) -> Vec<u8> {
         (0..res * res)
@@ -330,12 +424,68 @@ mod tests {
     }
 
     #[test]
-    fn a_half_plane_is_one_split() {
+    fn a_straight_boundary_costs_a_split_per_tile_it_crosses() {
         let res = 32;
         let face = face_from(res, |s, t| if 0.6 * s + 0.8 * t > 0.1 { VISIBLE } else { OCCLUDED });
         let nodes = build(&face, res, 0.5).unwrap();
         check_invariants(&face, res, &nodes);
-        assert!(nodes.len() <= 5, "{} nodes for a straight boundary", nodes.len());
+        let k = res / TILE;
+        let mixed = (0..k * k)
+            .filter(|&tile| {
+                let states: Vec<u8> = (0..res * res)
+                    .filter(|&x| (x / res / TILE) * k + (x % res) / TILE == tile)
+                    .map(|x| face[x])
+                    .collect();
+                states.contains(&VISIBLE) && states.contains(&OCCLUDED)
+            })
+            .count();
+        let leaves = nodes.iter().filter(|n| matches!(n, Node::Leaf(_))).count();
+        // Each crossed tile is one split; uniform tiles on either side merge into few leaves.
+        assert!(leaves <= 2 * mixed + 2 * k, "{leaves} leaves for {mixed} crossed tiles");
+    }
+
+    /// A face whose visibility changed in some tiles: casting only those (the others
+    /// `SKIPPED`) and rebuilding from the old tree gives the tree built from scratch.
+    #[test]
+    fn rebuilding_the_changed_tiles_equals_building_from_scratch() {
+        let res = 32;
+        let horizon = |t: f64| t < -0.7;
+        let scene = |cx: f64| {
+            face_from(res, move |s, t| {
+                if horizon(t) {
+                    BELOW
+                } else if (s - cx).powi(2) + t * t < 0.15 {
+                    OCCLUDED
+                } else {
+                    VISIBLE
+                }
+            })
+        };
+        let tile_of = |x: usize| ((x / res) / TILE, (x % res) / TILE);
+        let shut = face_from(res, |_, t| if horizon(t) { BELOW } else { OCCLUDED });
+        let window = face_from(res, |s, t| {
+            if horizon(t) {
+                BELOW
+            } else if s > 0.6 && t > 0.6 {
+                VISIBLE
+            } else {
+                OCCLUDED
+            }
+        });
+        for (before, after) in [(scene(-0.3), scene(0.1)), (shut, window)] {
+            let old = build(&before, res, 1.0).unwrap();
+            let changed: Vec<(usize, usize)> = (0..res * res).filter(|&x| before[x] != after[x]).map(tile_of).collect();
+            let partial: Vec<u8> = (0..res * res)
+                .map(|x| if after[x] == BELOW || changed.contains(&tile_of(x)) { after[x] } else { SKIPPED })
+                .collect();
+            assert!(partial.contains(&SKIPPED), "some tiles are kept");
+            assert_eq!(rebuild(&partial, res, 1.0, &old), build(&after, res, 1.0));
+        }
+        // Nothing cast: the old tree, whatever its grid merged.
+        let face = scene(0.2);
+        let old = build(&face, res, 1.0).unwrap();
+        let none: Vec<u8> = face.iter().map(|&s| if s == BELOW { BELOW } else { SKIPPED }).collect();
+        assert_eq!(rebuild(&none, res, 1.0, &old), Some(old));
     }
 
     #[test]

@@ -11,6 +11,8 @@ pub const OCCLUDED: u8 = 0;
 pub const VISIBLE: u8 = 1;
 /// Texel state: below the horizon, not cast ("don't care").
 pub const BELOW: u8 = 2;
+/// Texel state: above the horizon but not cast (an incremental re-bake keeps its old result).
+pub const SKIPPED: u8 = 3;
 
 /// A visibility cube map: 6 faces of `res × res` texels, row-major per face.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -40,29 +42,53 @@ pub fn cast(occluders: &Occluders, p: Vec3, n: Vec3, res: usize) -> CubeVisibili
 
 /// The `res²` texel states of face `f` alone (see [`cast`]).
 pub fn cast_face(occluders: &Occluders, p: Vec3, n: Vec3, f: usize, res: usize) -> Vec<u8> {
-    let nd = n.as_dvec3();
+    cast_face_where(occluders, p, n, f, res, |_, _| true)
+}
+
+/// The direction cast for texel (i, j) of face `f` above the horizon of unit normal `nd`:
+/// its centre, or for a texel the horizon crosses the centre's projection onto the horizon
+/// lifted slightly above it; `None` when the texel is entirely below the horizon.
+pub fn texel_ray(f: usize, i: usize, j: usize, nd: DVec3, res: usize) -> Option<DVec3> {
     let edge = |k: usize| 2.0 * k as f64 / res as f64 - 1.0;
+    let centre: DVec3 = cubemap::face_to_dir(f, cubemap::texel_center(i, j, res));
+    let height = centre.dot(nd);
+    // A texel spans less than 2/res radians: only those near the horizon need corners.
+    let crossed = || {
+        [(i, j), (i + 1, j), (i, j + 1), (i + 1, j + 1)]
+            .iter()
+            .any(|&(a, b)| cubemap::face_to_dir(f, glam::DVec2::new(edge(a), edge(b))).dot(nd) > 0.0)
+    };
+    if height <= -2.0 / res as f64 || (height <= 0.0 && !crossed()) {
+        None
+    } else if height > 0.0 {
+        Some(centre)
+    } else {
+        Some(((centre - nd * centre.dot(nd)).normalize_or(centre) + nd * 1e-3).normalize())
+    }
+}
+
+/// [`cast_face`] casting only texels (i, j) that `wanted` accepts; the others above the horizon
+/// are [`SKIPPED`].
+pub fn cast_face_where(
+    occluders: &Occluders,
+    p: Vec3,
+    n: Vec3,
+    f: usize,
+    res: usize,
+    wanted: impl Fn(usize, usize) -> bool,
+) -> Vec<u8> {
+    let nd = n.as_dvec3();
     let mut texels = Vec::with_capacity(res * res);
     for j in 0..res {
         for i in 0..res {
-            let centre: DVec3 = cubemap::face_to_dir(f, cubemap::texel_center(i, j, res));
-            let height = centre.dot(nd);
-            // A texel spans less than 2/res radians: only those near the horizon need corners.
-            let crossed = || {
-                [(i, j), (i + 1, j), (i, j + 1), (i + 1, j + 1)]
-                    .iter()
-                    .any(|&(a, b)| cubemap::face_to_dir(f, glam::DVec2::new(edge(a), edge(b))).dot(nd) > 0.0)
-            };
-            if height <= -2.0 / res as f64 || (height <= 0.0 && !crossed()) {
+            let Some(d) = texel_ray(f, i, j, nd, res) else {
                 texels.push(BELOW);
                 continue;
-            }
-            let d = if height > 0.0 {
-                centre
-            } else {
-                // The centre's projection onto the horizon, lifted slightly above it.
-                ((centre - nd * centre.dot(nd)).normalize_or(centre) + nd * 1e-3).normalize()
             };
+            if !wanted(i, j) {
+                texels.push(SKIPPED);
+                continue;
+            }
             let d = d.as_vec3();
             texels.push(if occluders.occluded(offset_ray_origin(p, n, d), d, f32::INFINITY) {
                 OCCLUDED

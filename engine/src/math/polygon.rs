@@ -30,6 +30,21 @@ pub fn clip(poly: &[DVec3], n: DVec3) -> Vec<DVec3> {
     if out.len() < 3 { Vec::new() } else { out }
 }
 
+/// Both parts of convex polygon `poly` cut by the plane through the origin with normal `n`:
+/// exactly `(clip(poly, n), clip(poly, −n))`, without clipping a polygon that lies strictly on
+/// one side (the common case when descending a BSP tree).
+pub fn split(poly: Vec<DVec3>, n: DVec3) -> (Vec<DVec3>, Vec<DVec3>) {
+    let scale = ON_PLANE * n.length();
+    let beyond = |sign: f64| poly.len() >= 3 && poly.iter().all(|p| sign * n.dot(*p) > scale * p.length());
+    if beyond(1.0) {
+        (poly, Vec::new())
+    } else if beyond(-1.0) {
+        (Vec::new(), poly)
+    } else {
+        (clip(&poly, n), clip(&poly, -n))
+    }
+}
+
 /// Keeps the part above the local horizon (z ≥ 0).
 pub fn clip_horizon(poly: &[DVec3]) -> Vec<DVec3> {
     clip(poly, DVec3::Z)
@@ -68,6 +83,20 @@ mod tests {
 
     fn square(z: f64, h: f64) -> Vec<DVec3> {
         vec![DVec3::new(-h, -h, z), DVec3::new(h, -h, z), DVec3::new(h, h, z), DVec3::new(-h, h, z)]
+    }
+
+    #[test]
+    fn split_is_both_clips() {
+        let planes = [DVec3::X, DVec3::new(0.3, -0.2, 0.9), DVec3::new(1.0, 1.0, 0.0), DVec3::new(0.0, 0.0, -1.0)];
+        for poly in [square(1.0, 0.5), square(1.0, 2.0), square(-0.5, 0.3), square(0.0, 1.0)] {
+            for n in planes {
+                assert_eq!(split(poly.clone(), n), (clip(&poly, n), clip(&poly, -n)), "{poly:?} by {n}");
+            }
+        }
+        // A vertex on the plane takes the clipping path and keeps it on both sides.
+        let touching = vec![DVec3::new(0.0, 0.0, 1.0), DVec3::new(1.0, 0.0, 1.0), DVec3::new(1.0, 1.0, 1.0)];
+        let (pos, neg) = split(touching.clone(), DVec3::X);
+        assert_eq!((pos, neg.len()), (touching, 0));
     }
 
     #[test]
