@@ -57,10 +57,10 @@ pub fn key(scene: &Scene, src: &Source, s: &Settings) -> Key {
 }
 
 /// The cache from the store when its records are there, else placed now and stored; and
-/// whether it came from the store. The scene's reference list gains the key (kept by `gc`).
+/// whether it came from the store. The scene's extras gain the key (kept by `gc`).
 pub fn load_or_place(store: &Store, scene: &Scene, src: &Source, s: &Settings) -> Result<(Cache, bool)> {
     let key = key(scene, src, s);
-    store.add_scene_keys(&scene.source, &[key])?;
+    add_to_scene(store, scene, src, &key)?;
     if let Some(records) = store.get::<f64>(&key)?.and_then(|d| Record::from_f64s(&d, s.order)) {
         return Ok((cache::from_records(src, s, records), true));
     }
@@ -76,9 +76,15 @@ pub fn load_or_place(store: &Store, scene: &Scene, src: &Source, s: &Settings) -
 /// [`load_or_place`] under this lighting loads them. Returns the key.
 pub fn store_refreshed(store: &Store, scene: &Scene, src: &Source, cache: &Cache, seconds: f64) -> Result<Key> {
     let key = key(scene, src, cache.settings());
-    store.add_scene_keys(&scene.source, &[key])?;
+    add_to_scene(store, scene, src, &key)?;
     put(store, key, cache, seconds)?;
     Ok(key)
+}
+
+/// Records `key` among the scene's extras for its current geometry (kept by `gc` until the
+/// geometry changes and is re-baked).
+fn add_to_scene(store: &Store, scene: &Scene, src: &Source, key: &Key) -> Result<()> {
+    store.add_extra(&scene.source, key, &Snapshot::of(scene, &src.renderer.flat).hash)
 }
 
 fn put(store: &Store, key: Key, cache: &Cache, seconds: f64) -> Result<()> {

@@ -169,7 +169,7 @@ pub fn run_cancellable(store: &Store, scene: &Scene, flat: &FlatScene, plan: &Pl
         Ok(())
     });
     written?;
-    store.put_scene(&scene.source, &plan.keys())?;
+    store.put_scene(&scene.source, &plan.keys(), &plan.snapshot.hash)?;
     let meshes: Vec<([u8; 32], u32, u32)> =
         scene.meshes.iter().map(|m| (m.hash.0, m.positions.len() as u32, m.triangles.len() as u32)).collect();
     store.put_meshes(&meshes)?;

@@ -21,6 +21,10 @@ const ARTEFACTS: TableDefinition<&[u8], &[u8]> = TableDefinition::new("artefacts
 const INFO: TableDefinition<&[u8], &str> = TableDefinition::new("info");
 /// Scene name → the keys its last plan used (concatenated 32-byte keys).
 const SCENES: TableDefinition<&str, &[u8]> = TableDefinition::new("scenes");
+/// Scene name → artefacts made outside its bake plan (radiance-cache records): pairs of the
+/// artefact's key and the geometry (`plan::Snapshot::hash`) it was made for, 64 bytes each.
+/// Older files lack the table: readers treat it as empty, the first writer creates it.
+const EXTRAS: TableDefinition<&str, &[u8]> = TableDefinition::new("extras");
 /// Lineage slot → the last artefact baked there and what it was baked against.
 const LINEAGE: TableDefinition<&[u8], &[u8]> = TableDefinition::new("lineage");
 
@@ -215,27 +219,44 @@ impl Store {
         })
     }
 
-    /// Records the keys a scene's plan uses (what `gc` keeps).
-    pub fn put_scene(&self, scene: &str, keys: &[Key]) -> Result<()> {
+    /// Records the keys a scene's plan uses for its current `geometry` (what `gc` keeps), and
+    /// forgets the scene's extra artefacts made for other geometry.
+    pub fn put_scene(&self, scene: &str, keys: &[Key], geometry: &Key) -> Result<()> {
         let bytes: Vec<u8> = keys.iter().flat_map(|k| *k.as_bytes()).collect();
+        let extras: Vec<u8> = self
+            .extras(scene)?
+            .chunks_exact(64)
+            .filter(|e| &e[32..] == geometry.as_bytes())
+            .flatten()
+            .copied()
+            .collect();
         self.write(|t| {
             t.open_table(SCENES)?.insert(scene, bytes.as_slice())?;
+            t.open_table(EXTRAS)?.insert(scene, extras.as_slice())?;
             Ok(())
         })
     }
 
-    /// Adds keys to a scene's reference list (artefacts made outside the bake plan).
-    pub fn add_scene_keys(&self, scene: &str, keys: &[Key]) -> Result<()> {
-        let mut bytes =
-            self.read(|t| Ok(t.open_table(SCENES)?.get(scene)?.map(|v| v.value().to_vec()).unwrap_or_default()))?;
-        for k in keys {
-            if !bytes.chunks_exact(32).any(|c| c == k.as_bytes()) {
-                bytes.extend_from_slice(k.as_bytes());
-            }
+    /// Adds an artefact made outside the bake plan for the scene's `geometry` (kept by `gc`
+    /// until a bake records other geometry for the scene).
+    pub fn add_extra(&self, scene: &str, key: &Key, geometry: &Key) -> Result<()> {
+        let mut bytes = self.extras(scene)?;
+        let entry = [*key.as_bytes(), *geometry.as_bytes()].concat();
+        if !bytes.chunks_exact(64).any(|e| e == entry.as_slice()) {
+            bytes.extend_from_slice(&entry);
         }
         self.write(|t| {
-            t.open_table(SCENES)?.insert(scene, bytes.as_slice())?;
+            t.open_table(EXTRAS)?.insert(scene, bytes.as_slice())?;
             Ok(())
+        })
+    }
+
+    /// The scene's extra entries (key, geometry), concatenated.
+    fn extras(&self, scene: &str) -> Result<Vec<u8>> {
+        self.read(|t| match t.open_table(EXTRAS) {
+            Ok(table) => Ok(table.get(scene)?.map(|v| v.value().to_vec()).unwrap_or_default()),
+            Err(redb::TableError::TableDoesNotExist(_)) => Ok(Vec::new()),
+            Err(e) => Err(e.into()),
         })
     }
 
@@ -292,7 +313,8 @@ impl Store {
         Ok(CheckReport { ok: bad.0, bad: bad.1, clean })
     }
 
-    /// Drops artefacts (and lineage pointing at them) that no recorded scene references; returns
+    /// Drops artefacts (and lineage pointing at them) that no recorded scene references (its plan's
+    /// keys or its extras); returns
     /// how many artefacts went.
     pub fn gc(&self) -> Result<usize> {
         let keep: HashSet<[u8; 32]> = self.read(|t| {
@@ -302,6 +324,17 @@ impl Store {
                 for k in item?.1.value().chunks_exact(32) {
                     keep.insert(k.try_into().expect("32-byte chunk"));
                 }
+            }
+            match t.open_table(EXTRAS) {
+                Ok(extras) => {
+                    for item in extras.iter()? {
+                        for e in item?.1.value().chunks_exact(64) {
+                            keep.insert(e[..32].try_into().expect("32-byte key"));
+                        }
+                    }
+                }
+                Err(redb::TableError::TableDoesNotExist(_)) => {}
+                Err(e) => return Err(e.into()),
             }
             Ok(keep)
         })?;

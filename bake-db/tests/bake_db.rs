@@ -248,24 +248,54 @@ fn every_chunk_streams_once_cached_first_and_the_chunks_assemble_into_the_outcom
     }
 }
 
+fn cache_settings() -> kage_engine::cache::Settings {
+    kage_engine::cache::Settings { rays: 64, accuracy: 0.5, ..kage_engine::cache::Settings::default() }
+}
+
+/// The scene's renderer and a per-vertex "direct" light: an unshadowed falloff from the light's
+/// centre (cheap, exact input for the radiance cache).
+fn lit(scene: &Scene) -> (kage_engine::reference::Renderer, Vec<Vec<Vec3>>) {
+    let r = kage_engine::reference::Renderer::new(scene);
+    let c = r.flat.lights[0].points.iter().sum::<Vec3>() / r.flat.lights[0].points.len() as f32;
+    let direct: Vec<Vec<Vec3>> = (0..r.flat.instances.len())
+        .map(|i| {
+            let falloff = |(p, n): (Vec3, Vec3)| n.dot(c - p).max(0.0) / (c - p).length().powi(3);
+            (0..r.mesh(i).positions.len()).map(|v| Vec3::splat(falloff(r.vertex(i, v)))).collect()
+        })
+        .collect();
+    (r, direct)
+}
+
+/// Cache records are made outside the bake plan: a re-bake of the same geometry and `gc` keep
+/// them (for every lighting), a bake of edited geometry lets `gc` drop them.
+#[test]
+fn gc_keeps_cache_records_until_the_geometry_changes() {
+    use kage_bake_db::records::load_or_place;
+    use kage_engine::cache::record::{Glossy, Source};
+    let store = Store::open(&scratch("gc-records")).unwrap();
+    bake(&store, &scene(""));
+    let mut keys = Vec::new();
+    for edit in ["", "light"] {
+        let sc = scene(edit);
+        let (r, d) = lit(&sc);
+        let src = Source { renderer: &r, direct: &d, glossy: Glossy::PerVertex };
+        load_or_place(&store, &sc, &src, &cache_settings()).unwrap();
+        keys.push(kage_bake_db::records::key(&sc, &src, &cache_settings()));
+    }
+    let stored = |store: &Store| keys.iter().filter(|k| store.get::<u8>(k).unwrap().is_some()).count();
+    bake(&store, &scene("light"));
+    store.gc().unwrap();
+    assert_eq!(stored(&store), 2, "same geometry: both lightings' records stay");
+    bake(&store, &scene("move"));
+    store.gc().unwrap();
+    assert_eq!(stored(&store), 0, "after a geometry edit gc drops them");
+}
+
 #[test]
 fn a_refreshed_cache_is_stored_under_the_new_lightings_key_with_a_cold_placements_bytes() {
     use kage_bake_db::records::{load_or_place, store_refreshed};
     use kage_engine::cache::{self, record::Change, record::Glossy, record::Source};
-    use kage_engine::reference::Renderer;
-    let s = cache::Settings { rays: 64, accuracy: 0.5, ..cache::Settings::default() };
-    // Per-vertex "direct" light: an unshadowed falloff from the light's centre (cheap, exact input).
-    let lit = |scene: &Scene| {
-        let r = Renderer::new(scene);
-        let c = r.flat.lights[0].points.iter().sum::<Vec3>() / r.flat.lights[0].points.len() as f32;
-        let direct: Vec<Vec<Vec3>> = (0..r.flat.instances.len())
-            .map(|i| {
-                let falloff = |(p, n): (Vec3, Vec3)| n.dot(c - p).max(0.0) / (c - p).length().powi(3);
-                (0..r.mesh(i).positions.len()).map(|v| Vec3::splat(falloff(r.vertex(i, v)))).collect()
-            })
-            .collect();
-        (r, direct)
-    };
+    let s = cache_settings();
     let (before, moved) = (scene(""), scene("light"));
     let ((r0, d0), (r1, d1)) = (lit(&before), lit(&moved));
     let src0 = Source { renderer: &r0, direct: &d0, glossy: Glossy::PerVertex };

@@ -128,7 +128,7 @@ impl BakeJob {
             });
             // Each run recorded only its own keys as the scene's; gc must keep both.
             let keys: Vec<_> = bp.keys().into_iter().chain(pp.keys()).collect();
-            let _ = store.put_scene(&snapshot.source, &keys);
+            let _ = store.put_scene(&snapshot.source, &keys, &bp.snapshot.hash);
         });
         Ok(Self { bspvt: bt, prt: pt, started: Instant::now(), cancel, rx })
     }
