@@ -49,8 +49,12 @@ pub fn cast_face(occluders: &Occluders, p: Vec3, n: Vec3, f: usize, res: usize) 
 /// its centre, or for a texel the horizon crosses the centre's projection onto the horizon
 /// lifted slightly above it; `None` when the texel is entirely below the horizon.
 pub fn texel_ray(f: usize, i: usize, j: usize, nd: DVec3, res: usize) -> Option<DVec3> {
+    ray_through(cubemap::face_to_dir(f, cubemap::texel_center(i, j, res)), f, i, j, nd, res)
+}
+
+/// [`texel_ray`] given the texel's unit centre direction.
+fn ray_through(centre: DVec3, f: usize, i: usize, j: usize, nd: DVec3, res: usize) -> Option<DVec3> {
     let edge = |k: usize| 2.0 * k as f64 / res as f64 - 1.0;
-    let centre: DVec3 = cubemap::face_to_dir(f, cubemap::texel_center(i, j, res));
     let height = centre.dot(nd);
     // A texel spans less than 2/res radians: only those near the horizon need corners.
     let crossed = || {
@@ -78,24 +82,43 @@ pub fn cast_face_where(
     wanted: impl Fn(usize, usize) -> bool,
 ) -> Vec<u8> {
     let nd = n.as_dvec3();
-    let mut texels = Vec::with_capacity(res * res);
-    for j in 0..res {
-        for i in 0..res {
-            let Some(d) = texel_ray(f, i, j, nd, res) else {
-                texels.push(BELOW);
-                continue;
-            };
-            if !wanted(i, j) {
-                texels.push(SKIPPED);
-                continue;
-            }
-            let d = d.as_vec3();
-            texels.push(if occluders.occluded(offset_ray_origin(p, n, d), d, f32::INFINITY) {
-                OCCLUDED
-            } else {
-                VISIBLE
-            });
-        }
+    // The sign of the height is linear over a face: below at its four corners (with a margin
+    // for rounding) means every texel is below.
+    let corner = |s: f64, t: f64| cubemap::face_to_dir(f, glam::DVec2::new(s, t)).dot(nd);
+    if [(-1.0, -1.0), (1.0, -1.0), (-1.0, 1.0), (1.0, 1.0)].iter().all(|&(s, t)| corner(s, t) < -1e-9) {
+        return vec![BELOW; res * res];
     }
+    let mut texels = Vec::with_capacity(res * res);
+    CENTRES.with_borrow_mut(|(at, centres)| {
+        if *at != res {
+            *at = res;
+            *centres = (0..cubemap::FACES * res * res)
+                .map(|k| cubemap::face_to_dir(k / (res * res), cubemap::texel_center(k % res, k / res % res, res)))
+                .collect();
+        }
+        for j in 0..res {
+            for i in 0..res {
+                let centre = centres[(f * res + j) * res + i];
+                texels.push(cast_texel(occluders, p, n, ray_through(centre, f, i, j, nd, res), wanted(i, j)));
+            }
+        }
+    });
     texels
+}
+
+/// The state of one texel given its cast direction (`None`: below the horizon).
+fn cast_texel(occluders: &Occluders, p: Vec3, n: Vec3, ray: Option<DVec3>, wanted: bool) -> u8 {
+    let Some(d) = ray else { return BELOW };
+    if !wanted {
+        return SKIPPED;
+    }
+    let d = d.as_vec3();
+    if occluders.occluded(offset_ray_origin(p, n, d), d, f32::INFINITY) { OCCLUDED } else { VISIBLE }
+}
+
+thread_local! {
+    /// Unit centre directions of every texel (face-major) at the last resolution this thread
+    /// cast: normalising them per cast was a fifth of a bake. Per thread rather than one lazily
+    /// built shared table, because a rayon worker blocked in a shared initialiser can deadlock.
+    static CENTRES: std::cell::RefCell<(usize, Vec<DVec3>)> = const { std::cell::RefCell::new((0, Vec::new())) };
 }
