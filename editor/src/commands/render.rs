@@ -7,6 +7,7 @@ use crate::scene_args::SceneArgs;
 use anyhow::{Context, Result, bail};
 use glam::Vec3;
 use kage_bake_db::pack::Contents;
+use kage_engine::cache::Blend;
 use kage_engine::cache::record::{GlossyDirect, GradientForm, Source};
 use kage_engine::output::{VertexRow, write_image, write_vertex_csv};
 use kage_engine::reference::{Estimate, Renderer, Settings};
@@ -52,6 +53,16 @@ pub enum Gradient {
     Analytic,
     /// Hit points held fixed while the record moves a small step (H7–H8).
     Numerical,
+}
+
+/// How radiance-cache lookups blend records (`--cache-blend`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum BlendArg {
+    /// H19 as written: records with weight above 1/a, weighted by it.
+    Ward,
+    /// Twice Ward's reach, weights capped at 1/a: for dense records of few rays (e.g.
+    /// `--cache-accuracy 0.2 --cache-rays 64`).
+    Wide,
 }
 
 /// Arguments of `kage render`.
@@ -121,6 +132,9 @@ pub struct Args {
     /// Cache accuracy a (records serve where their weight exceeds 1/a; smaller = denser).
     #[arg(long, default_value_t = 0.3)]
     cache_accuracy: f32,
+    /// How lookups blend the records.
+    #[arg(long, value_enum, default_value_t = BlendArg::Ward)]
+    cache_blend: BlendArg,
     /// Interpolate without the records' translational gradients.
     #[arg(long)]
     no_gradients: bool,
@@ -469,6 +483,10 @@ fn indirect(
         gradient_form: match args.gradient {
             Gradient::Analytic => GradientForm::Analytic,
             Gradient::Numerical => GradientForm::Numerical,
+        },
+        blend: match args.cache_blend {
+            BlendArg::Ward => Blend::Ward,
+            BlendArg::Wide => Blend::Wide,
         },
         ..Default::default()
     };

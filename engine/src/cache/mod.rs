@@ -30,6 +30,28 @@ pub const GLOSSY_FALLBACK_ROUGHNESS: f32 = 0.6;
 /// Gauss–Legendre nodes in cos θ of the BRDF projection (twice as many in φ).
 const BRDF_NODES: usize = 32;
 
+/// How a lookup blends the records around a point.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Blend {
+    /// H19 as written: the records whose weight w exceeds 1/a, weighted by w. A point at a
+    /// record (records sit at vertices) takes that record alone, noise and all.
+    Ward,
+    /// The records whose weight exceeds 1/(2a) — twice Ward's reach —, each weight capped at
+    /// 1/a, so a point blends its neighbourhood's records instead of copying the nearest one:
+    /// records of few rays average out their noise (measured in the README).
+    Wide,
+}
+
+impl Blend {
+    /// The weight below which a record is not used, and the most any record weighs.
+    fn limits(self, accuracy: f32) -> (f32, f32) {
+        match self {
+            Self::Ward => (1.0 / accuracy, f32::INFINITY),
+            Self::Wide => (0.5 / accuracy, 1.0 / accuracy),
+        }
+    }
+}
+
 /// Cache parameters.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Settings {
@@ -48,6 +70,8 @@ pub struct Settings {
     /// Glossy receivers smoother than this gather directly (BSDF-sampled, `rays` rays)
     /// instead of reading the cache, whose low-order HSH cannot hold their lobe.
     pub glossy_fallback: f32,
+    /// How lookups blend records (placement always uses Ward's 1/a).
+    pub blend: Blend,
 }
 
 impl Default for Settings {
@@ -60,6 +84,7 @@ impl Default for Settings {
             gradient_form: record::GradientForm::Analytic,
             radius_bounds: (0.01, 0.2),
             glossy_fallback: GLOSSY_FALLBACK_ROUGHNESS,
+            blend: Blend::Ward,
         }
     }
 }
@@ -144,7 +169,8 @@ impl Cache {
     /// Enters record `id` in the grid cells its area of influence overlaps.
     fn index(&mut self, id: usize) {
         let r = &self.records[id];
-        let reach = Vec3::splat(self.settings.accuracy * r.radius);
+        // w > 1/(2a) reaches 2a·R_i: the widest blend.
+        let reach = Vec3::splat(2.0 * self.settings.accuracy * r.radius);
         let (lo, hi) = (self.cell_of(r.p - reach), self.cell_of(r.p + reach));
         for x in lo[0]..=hi[0] {
             for y in lo[1]..=hi[1] {
@@ -158,13 +184,18 @@ impl Cache {
     /// Records usable at `p` (normal `n`) with their weights: weight above 1/a, and not in
     /// front of the point (Ward's test: a record ahead of the tangent plane sees other light).
     pub fn usable(&self, p: Vec3, n: Vec3) -> Vec<(u32, f32)> {
+        self.usable_above(p, n, 1.0 / self.settings.accuracy)
+    }
+
+    /// [`Cache::usable`] with weights above `least`.
+    fn usable_above(&self, p: Vec3, n: Vec3, least: f32) -> Vec<(u32, f32)> {
         let Some(ids) = self.grid.get(&self.cell_of(p)) else { return Vec::new() };
         ids.iter()
             .filter_map(|&i| {
                 let r = &self.records[i as usize];
                 let w = weight(r, p, n);
                 let ahead = (p - r.p).dot(n + r.frame.n) * 0.5;
-                (w > 1.0 / self.settings.accuracy && ahead > -0.05 * r.radius).then_some((i, w))
+                (w > least && ahead > -0.05 * r.radius).then_some((i, w))
             })
             .collect()
     }
@@ -267,10 +298,11 @@ impl Cache {
     }
 
     /// Incoming radiance at `p` (normal `n`) as HSH coefficients in the frame of
-    /// `Frame::from_normal(n)`: the usable records extrapolated, rotated and blended. `None`
-    /// when no record is usable.
+    /// `Frame::from_normal(n)`: the records the [`Blend`] takes, extrapolated, rotated and
+    /// blended. `None` when there are none.
     pub fn incoming(&self, p: Vec3, n: Vec3) -> Option<Vec<DVec3>> {
-        let usable = self.usable(p, n);
+        let (least, most) = self.settings.blend.limits(self.settings.accuracy);
+        let usable = self.usable_above(p, n, least);
         if usable.is_empty() {
             return None;
         }
@@ -284,8 +316,9 @@ impl Cache {
                 extrapolate(&mut c, r, r.frame.to_local(p - r.p).as_dvec3());
             }
             let c = self.rotate(&c, r, &frame);
-            sum.iter_mut().zip(&c).for_each(|(s, c)| *s += *c * w as f64);
-            total += w as f64;
+            let w = w.min(most) as f64;
+            sum.iter_mut().zip(&c).for_each(|(s, c)| *s += *c * w);
+            total += w;
         }
         Some(sum.into_iter().map(|s| s / total).collect())
     }

@@ -1,6 +1,7 @@
 //! The radiance-cache section: one bounce of indirect light per vertex against the reference's
 //! one-bounce term, for brute-force gathering (64, 256, 1024 rays per vertex) and the HSH cache
-//! (orders 2–6 × accuracy 0.3 and 0.5 — record density —, and without gradients), over the
+//! (orders 2–6 × accuracy 0.3 and 0.5 — record density —; 64 and 128 rays per record; the
+//! wide blend; without gradients), over the
 //! Lambertian instances. The gather rays' hits are lit by the reference's per-vertex direct
 //! light (exact for Lambertian hit surfaces). "shade" is the whole indirect pass: placing and
 //! gathering the records and every lookup (or the whole brute-force gather). For Lambertian
@@ -11,7 +12,7 @@ use super::{Args, Row, Truth, announce};
 use anyhow::Result;
 use glam::Vec3;
 use kage_engine::cache::record::{GLOSSY_SPP, Glossy, Source};
-use kage_engine::cache::{Settings as CacheSettings, gather_vertices, indirect_vertices};
+use kage_engine::cache::{Blend, Settings as CacheSettings, gather_vertices, indirect_vertices};
 use kage_engine::reference::{Renderer, Settings};
 use std::time::Instant;
 
@@ -63,6 +64,15 @@ pub fn run(args: &Args, eye: Vec3, rows: &mut Vec<Row>) -> Result<String> {
         for accuracy in [0.3f32, 0.5] {
             cache_row("hsh-cache", CacheSettings { order, accuracy, ..CacheSettings::default() });
         }
+    }
+    // The error-against-rays curve: fewer rays per record, denser records; Ward's blend copies
+    // a record's noise to its vertex, the wide blend averages neighbours.
+    for (rays, accuracy) in [(64usize, 0.2f32), (128, 0.2)] {
+        cache_row("hsh-cache", CacheSettings { rays, accuracy, ..CacheSettings::default() });
+    }
+    for (rays, accuracy) in [(64usize, 0.2f32), (64, 0.3), (128, 0.2), (128, 0.3), (256, 0.3)] {
+        let blend = Blend::Wide;
+        cache_row("hsh-cache-wide-blend", CacheSettings { rays, accuracy, blend, ..CacheSettings::default() });
     }
     cache_row("hsh-cache-no-gradients", CacheSettings { gradients: false, ..CacheSettings::default() });
     let numerical = kage_engine::cache::record::GradientForm::Numerical;

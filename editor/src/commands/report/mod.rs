@@ -235,7 +235,7 @@ fn write_files(args: &Args, header: &str, rows: &[Row]) -> Result<()> {
     plot(rows).save(args.out.join("report.png")).context("writing report.png")
 }
 
-const METHODS: [(&str, [u8; 3]); 11] = [
+const METHODS: [(&str, [u8; 3]); 12] = [
     ("bspvt", [220, 50, 40]),
     ("ltc-exact-vis", [40, 120, 220]),
     ("ltc-unshadowed", [120, 120, 120]),
@@ -247,6 +247,7 @@ const METHODS: [(&str, [u8; 3]); 11] = [
     ("hsh-cache", [230, 100, 180]),
     ("hsh-cache-no-gradients", [160, 160, 40]),
     ("hsh-cache-numerical-gradients", [60, 200, 120]),
+    ("hsh-cache-wide-blend", [100, 100, 230]),
 ];
 
 /// A log–log scatter with lines joining each method's points (no text: the Markdown says
