@@ -199,28 +199,35 @@ fn report_writes_markdown_csv_and_plot() {
         "| hsh-cache | order 3, a 0.3:",
         "| hsh-cache-no-gradients |",
         "| hsh-cache-numerical-gradients |",
+        "| hsh-cache-wide-blend | order 3, a 0.2:",
     ] {
         assert!(md.contains(method), "{method} missing:\n{md}");
     }
     let csv = std::fs::read_to_string(out.join("report.csv")).unwrap();
-    // 13 polygonal-light rows, then 3 gathers and 12 cache configurations.
-    assert_eq!(csv.lines().count(), 1 + 13 + 3 + 12);
-    // The tree's own error (against exact visibility at 64²): only on 64² rows, and small.
-    let tree_error = |config: &str| {
-        let line = csv.lines().find(|l| l.starts_with(&format!("bspvt,{config},"))).unwrap();
-        line.rsplit(',').next().unwrap().to_string()
+    // 13 polygonal-light rows, then 3 gathers and 19 cache configurations.
+    assert_eq!(csv.lines().count(), 1 + 13 + 3 + 19);
+    let column = |prefix: &str, k: usize| {
+        let line = csv.lines().find(|l| l.starts_with(prefix)).unwrap();
+        line.rsplit(',').nth(k).unwrap().to_string()
     };
+    // The tree's own error (against exact visibility at 64²): only on 64² rows, and small.
+    let tree_error = |config: &str| column(&format!("bspvt,{config},"), 1);
+    // Indirect rows count their rays (the rays plot's axis); others have none.
+    assert_eq!(column("indirect-gather,256 rays per vertex", 0).parse::<usize>().unwrap() % 256, 0);
+    assert_eq!(column("bspvt,16² faces", 0), "");
     assert_eq!(tree_error("16² faces, ε 2"), "");
     let e: f64 = tree_error("64² faces, ε 2").parse().unwrap();
     assert!(e > 0.0 && e < 0.01, "tree error {e}");
-    let png = image::open(out.join("report.png")).unwrap();
-    assert_eq!((png.width(), png.height()), (640, 400));
+    for name in ["report.png", "report-rays.png"] {
+        let png = image::open(out.join(name)).unwrap();
+        assert_eq!((png.width(), png.height()), (640, 400));
+    }
     let only = d.join("only");
     let scene = shared("scenes/cube_on_plane.gltf");
     let o = kage(&["report", &scene, "--out", only.to_str().unwrap(), "--reference-spp", "64", "--only", "cache"]);
     assert!(o.status.success(), "{}", stderr(&o));
     let csv = std::fs::read_to_string(only.join("report.csv")).unwrap();
-    assert_eq!(csv.lines().count(), 1 + 3 + 12, "only the cache section:\n{csv}");
+    assert_eq!(csv.lines().count(), 1 + 3 + 19, "only the cache section:\n{csv}");
     std::fs::remove_dir_all(d).unwrap();
 }
 

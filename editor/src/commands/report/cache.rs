@@ -45,12 +45,8 @@ pub fn run(args: &Args, eye: Vec3, rows: &mut Vec<Row>) -> Result<String> {
     for rays in [64usize, 256, 1024] {
         let t = Instant::now();
         let v = gather_vertices(&src, rays, eye);
-        push(truth.row(
-            "indirect-gather",
-            format!("{rays} rays per vertex ({} rays)", n * rays),
-            t.elapsed().as_secs_f64(),
-            &v,
-        ));
+        let config = format!("{rays} rays per vertex ({} rays)", n * rays);
+        push(Row { rays: Some(n * rays), ..truth.row("indirect-gather", config, t.elapsed().as_secs_f64(), &v) });
     }
     let mut cache_row = |method: &'static str, s: CacheSettings| {
         let t = Instant::now();
@@ -58,7 +54,7 @@ pub fn run(args: &Args, eye: Vec3, rows: &mut Vec<Row>) -> Result<String> {
         let secs = t.elapsed().as_secs_f64();
         let config =
             format!("order {}, a {}: {} records, {} rays", s.order, s.accuracy, cache.records.len(), cache.rays());
-        push(truth.row(method, config, secs, &v));
+        push(Row { rays: Some(cache.rays()), ..truth.row(method, config, secs, &v) });
     };
     for order in 2..=6 {
         for accuracy in [0.3f32, 0.5] {

@@ -1,6 +1,7 @@
 //! `kage report`: speed against error. Runs each technique's methods and parameter sweeps
 //! against the Monte Carlo reference and writes `report.md`, `report.csv` and `report.png`
-//! (relative RMSE against time, log–log, one colour per method) into `--out`.
+//! (relative RMSE against time, log–log, one colour per method) into `--out`, plus
+//! `report-rays.png` (error against rays cast) when the cache section ran.
 //!
 //! Sections run when the scene has what they shade: [`polygon`] (polygonal lights, the
 //! environment dropped), [`prt`] (the environment, polygonal lights removed) and [`cache`] (one
@@ -77,6 +78,8 @@ pub(crate) struct Row {
     pixel_rel_rmse: Option<f64>,
     /// BSPVT: relative RMSE against `ltc-exact-vis` (the tree's own error).
     tree_rel_rmse: Option<f64>,
+    /// Indirect light: rays cast (gathering, or the cache's records).
+    rays: Option<usize>,
 }
 
 /// The reference a section measures against: per-vertex means of the instances it keeps, and
@@ -129,6 +132,7 @@ impl Truth {
             rel_rmse,
             pixel_rel_rmse: None,
             tree_rel_rmse: None,
+            rays: None,
         }
     }
 }
@@ -157,8 +161,8 @@ pub fn run(args: &Args) -> Result<()> {
     }
     anyhow::ensure!(!rows.is_empty(), "{}: none of the chosen sections applies to this scene", scene.source);
     std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
-    write_files(args, &header.join("\n\n"), &rows)?;
-    crate::emit(&format!("wrote {}/report.md, report.csv, report.png\n", args.out.display()));
+    let written = write_files(args, &header.join("\n\n"), &rows)?;
+    crate::emit(&format!("wrote {}/{}\n", args.out.display(), written.join(", ")));
     Ok(())
 }
 
@@ -182,12 +186,13 @@ fn rel(values: impl Iterator<Item = Vec3>, truth: &[Vec3]) -> (f64, f64) {
     ((num / count.max(1) as f64).sqrt(), if den > 0.0 { (num / den).sqrt() } else { 0.0 })
 }
 
-fn write_files(args: &Args, header: &str, rows: &[Row]) -> Result<()> {
+/// Writes the report's files; returns their names.
+fn write_files(args: &Args, header: &str, rows: &[Row]) -> Result<Vec<&'static str>> {
     let mut md = format!("# kage report\n\n{header}\n\n");
     md.push_str("| method | configuration | bake (s) | bake size (KB) | leaves / vertex | shade (s / frame) | RMSE | relative RMSE | per-pixel relative RMSE | tree error (vs exact-vis) |\n");
     md.push_str("|---|---|---|---|---|---|---|---|---|---|\n");
     let mut csv = String::from(
-        "method,config,bake_s,bake_bytes,leaves_per_vertex,shade_s,rmse,rel_rmse,pixel_rel_rmse,tree_rel_rmse\n",
+        "method,config,bake_s,bake_bytes,leaves_per_vertex,shade_s,rmse,rel_rmse,pixel_rel_rmse,tree_rel_rmse,rays\n",
     );
     let dash = |x: Option<f64>| x.map_or("—".to_string(), |p| format!("{p:.4}"));
     for r in rows {
@@ -206,7 +211,7 @@ fn write_files(args: &Args, header: &str, rows: &[Row]) -> Result<()> {
         )?;
         writeln!(
             csv,
-            "{},{},{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{},{}",
             r.method,
             r.config,
             r.bake_s,
@@ -216,7 +221,8 @@ fn write_files(args: &Args, header: &str, rows: &[Row]) -> Result<()> {
             r.rmse,
             r.rel_rmse,
             r.pixel_rel_rmse.map_or(String::new(), |p| p.to_string()),
-            r.tree_rel_rmse.map_or(String::new(), |p| p.to_string())
+            r.tree_rel_rmse.map_or(String::new(), |p| p.to_string()),
+            r.rays.map_or(String::new(), |n| n.to_string())
         )?;
     }
     md.push_str("\nPlot (`report.png`): relative RMSE (vertical) against shade time per frame (horizontal), both log scale; colours: ");
@@ -228,11 +234,22 @@ fn write_files(args: &Args, header: &str, rows: &[Row]) -> Result<()> {
             .join(", "),
     );
     md.push_str(".\n");
+    let rays = rows.iter().any(|r| r.rays.is_some());
+    if rays {
+        md.push_str("\nPlot (`report-rays.png`): the indirect rows' relative RMSE against rays cast, both log scale, same colours.\n");
+    }
     let write =
         |name: &str, text: &str| std::fs::write(args.out.join(name), text).with_context(|| format!("writing {name}"));
     write("report.md", &md)?;
     write("report.csv", &csv)?;
-    plot(rows).save(args.out.join("report.png")).context("writing report.png")
+    plot(rows, |r| Some(r.shade_s)).save(args.out.join("report.png")).context("writing report.png")?;
+    let mut written = vec!["report.md", "report.csv", "report.png"];
+    if rays {
+        let png = args.out.join("report-rays.png");
+        plot(rows, |r| r.rays.map(|n| n as f64)).save(png).context("writing report-rays.png")?;
+        written.push("report-rays.png");
+    }
+    Ok(written)
 }
 
 const METHODS: [(&str, [u8; 3]); 12] = [
@@ -250,13 +267,14 @@ const METHODS: [(&str, [u8; 3]); 12] = [
     ("hsh-cache-wide-blend", [100, 100, 230]),
 ];
 
-/// A log–log scatter with lines joining each method's points (no text: the Markdown says
-/// which colour is which).
-fn plot(rows: &[Row]) -> image::RgbImage {
+/// A log–log scatter of relative RMSE against `x` (rows without it are left out) with lines
+/// joining each method's points from left to right (no text: the Markdown says which colour is
+/// which).
+fn plot(rows: &[Row], x: impl Fn(&Row) -> Option<f64>) -> image::RgbImage {
     let (w, h, m) = (640u32, 400u32, 30.0f64);
     let mut img = image::RgbImage::from_pixel(w, h, image::Rgb([255, 255, 255]));
-    let pts: Vec<(f64, f64)> =
-        rows.iter().map(|r| (r.shade_s.max(1e-6).log10(), r.rel_rmse.max(1e-5).log10())).collect();
+    let rows: Vec<(&Row, f64)> = rows.iter().filter_map(|r| x(r).map(|x| (r, x))).collect();
+    let pts: Vec<(f64, f64)> = rows.iter().map(|(r, x)| (x.max(1e-6).log10(), r.rel_rmse.max(1e-5).log10())).collect();
     let (x0, x1) = pts.iter().fold((f64::MAX, f64::MIN), |(a, b), p| (a.min(p.0), b.max(p.0)));
     let (y0, y1) = pts.iter().fold((f64::MAX, f64::MIN), |(a, b), p| (a.min(p.1), b.max(p.1)));
     let to_px = |(x, y): (f64, f64)| {
@@ -281,8 +299,9 @@ fn plot(rows: &[Row]) -> image::RgbImage {
         dot(&mut img, (m, j as f64), 0, [0, 0, 0]);
     }
     for (name, colour) in METHODS {
-        let line: Vec<(f64, f64)> =
-            rows.iter().zip(&pts).filter(|(r, _)| r.method == name).map(|(_, p)| to_px(*p)).collect();
+        let mut line: Vec<(f64, f64)> =
+            rows.iter().zip(&pts).filter(|((r, _), _)| r.method == name).map(|(_, p)| to_px(*p)).collect();
+        line.sort_by(|a, b| a.0.total_cmp(&b.0));
         for pair in line.windows(2) {
             for k in 0..=100 {
                 let t = k as f64 / 100.0;
