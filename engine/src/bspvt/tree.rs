@@ -78,9 +78,9 @@ impl Ord for Queued {
 }
 
 /// Texels per side of a tile. A face's tree starts with a fixed grid of tiles (axis-aligned
-/// splits at tile boundaries, halving the longer side) and Algorithm 1 runs inside each tile,
-/// so an edit that changes the visibility seen through a few tiles rebuilds only their
-/// subtrees (incremental re-bake). Sibling regions that are both uniformly visible or both
+/// splits on tile boundaries, halving the tiles of the longer side) and Algorithm 1 runs inside
+/// each tile, so an edit that changes the visibility seen through a few tiles rebuilds only
+/// their subtrees (incremental re-bake). Sibling regions that are both uniformly visible or both
 /// uniformly occluded merge back into one leaf: the grid costs nodes only where the visibility
 /// changes.
 pub const TILE: usize = 8;
@@ -112,15 +112,22 @@ impl Rect {
         (self.j0..self.j1).flat_map(move |j| (self.i0..self.i1).map(move |i| (i, j)))
     }
 
-    /// The grid split: the quantised line at the middle of the longer side, and the halves on
-    /// its positive (larger s or t) and negative sides.
+    /// Tiles across (s) and down (t): regions start on tile boundaries, the last tile of a
+    /// face whose resolution is not a multiple of [`TILE`] is narrower.
+    fn tiles(self) -> (usize, usize) {
+        ((self.i1 - self.i0).div_ceil(TILE), (self.j1 - self.j0).div_ceil(TILE))
+    }
+
+    /// The grid split: the quantised line on the tile boundary that halves the tiles of the
+    /// longer side, and the halves on its positive (larger s or t) and negative sides.
     fn halves(self, res: usize) -> ((u16, u16), Rect, Rect) {
         let edge = |k: usize| 2.0 * k as f64 / res as f64 - 1.0;
-        if self.i1 - self.i0 >= self.j1 - self.j0 {
-            let m = (self.i0 + self.i1) / 2;
+        let (across, down) = self.tiles();
+        if across >= down {
+            let m = self.i0 + across / 2 * TILE;
             (quantise_line(0.0, edge(m)), Rect { i0: m, ..self }, Rect { i1: m, ..self })
         } else {
-            let m = (self.j0 + self.j1) / 2;
+            let m = self.j0 + down / 2 * TILE;
             (quantise_line(std::f64::consts::FRAC_PI_2, edge(m)), Rect { j0: m, ..self }, Rect { j1: m, ..self })
         }
     }
@@ -143,7 +150,7 @@ impl Grid<'_> {
         if !self.any(r, |s| s != BELOW) {
             return None;
         }
-        if r.i1 - r.i0 <= TILE && r.j1 - r.j0 <= TILE {
+        if r.tiles() == (1, 1) {
             return Some(if self.any(r, |s| s == SKIPPED) { old.to_vec() } else { self.tile(r) });
         }
         let ((angle, offset), pos, neg) = r.halves(self.res);
@@ -448,7 +455,13 @@ mod tests {
     /// `SKIPPED`) and rebuilding from the old tree gives the tree built from scratch.
     #[test]
     fn rebuilding_the_changed_tiles_equals_building_from_scratch() {
-        let res = 32;
+        // 20: a face whose last tile is narrower.
+        for res in [32, 20] {
+            rebuild_equals_build(res);
+        }
+    }
+
+    fn rebuild_equals_build(res: usize) {
         let horizon = |t: f64| t < -0.7;
         let scene = |cx: f64| {
             face_from(res, move |s, t| {
