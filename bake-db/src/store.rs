@@ -223,16 +223,16 @@ impl Store {
     /// forgets the scene's extra artefacts made for other geometry.
     pub fn put_scene(&self, scene: &str, keys: &[Key], geometry: &Key) -> Result<()> {
         let bytes: Vec<u8> = keys.iter().flat_map(|k| *k.as_bytes()).collect();
-        let extras: Vec<u8> = self
-            .extras(scene)?
-            .chunks_exact(64)
-            .filter(|e| &e[32..] == geometry.as_bytes())
-            .flatten()
-            .copied()
-            .collect();
         self.write(|t| {
             t.open_table(SCENES)?.insert(scene, bytes.as_slice())?;
-            t.open_table(EXTRAS)?.insert(scene, extras.as_slice())?;
+            let mut extras = t.open_table(EXTRAS)?;
+            let kept: Vec<u8> = extras
+                .get(scene)?
+                .map(|v| {
+                    v.value().chunks_exact(64).filter(|e| &e[32..] == geometry.as_bytes()).flatten().copied().collect()
+                })
+                .unwrap_or_default();
+            extras.insert(scene, kept.as_slice())?;
             Ok(())
         })
     }
@@ -240,23 +240,16 @@ impl Store {
     /// Adds an artefact made outside the bake plan for the scene's `geometry` (kept by `gc`
     /// until a bake records other geometry for the scene).
     pub fn add_extra(&self, scene: &str, key: &Key, geometry: &Key) -> Result<()> {
-        let mut bytes = self.extras(scene)?;
         let entry = [*key.as_bytes(), *geometry.as_bytes()].concat();
-        if !bytes.chunks_exact(64).any(|e| e == entry.as_slice()) {
-            bytes.extend_from_slice(&entry);
-        }
+        // Read and write in one transaction: a bake's `put_scene` cannot slip in between.
         self.write(|t| {
-            t.open_table(EXTRAS)?.insert(scene, bytes.as_slice())?;
+            let mut extras = t.open_table(EXTRAS)?;
+            let mut bytes = extras.get(scene)?.map(|v| v.value().to_vec()).unwrap_or_default();
+            if !bytes.chunks_exact(64).any(|e| e == entry.as_slice()) {
+                bytes.extend_from_slice(&entry);
+                extras.insert(scene, bytes.as_slice())?;
+            }
             Ok(())
-        })
-    }
-
-    /// The scene's extra entries (key, geometry), concatenated.
-    fn extras(&self, scene: &str) -> Result<Vec<u8>> {
-        self.read(|t| match t.open_table(EXTRAS) {
-            Ok(table) => Ok(table.get(scene)?.map(|v| v.value().to_vec()).unwrap_or_default()),
-            Err(redb::TableError::TableDoesNotExist(_)) => Ok(Vec::new()),
-            Err(e) => Err(e.into()),
         })
     }
 
@@ -313,9 +306,8 @@ impl Store {
         Ok(CheckReport { ok: bad.0, bad: bad.1, clean })
     }
 
-    /// Drops artefacts (and lineage pointing at them) that no recorded scene references (its plan's
-    /// keys or its extras); returns
-    /// how many artefacts went.
+    /// Drops artefacts (and lineage pointing at them) that no recorded scene references (its
+    /// plan's keys or its extras); returns how many artefacts went.
     pub fn gc(&self) -> Result<usize> {
         let keep: HashSet<[u8; 32]> = self.read(|t| {
             let s = t.open_table(SCENES)?;

@@ -169,8 +169,9 @@ impl Cache {
     /// Enters record `id` in the grid cells its area of influence overlaps.
     fn index(&mut self, id: usize) {
         let r = &self.records[id];
-        // w > 1/(2a) reaches 2a·R_i: the widest blend.
-        let reach = Vec3::splat(2.0 * self.settings.accuracy * r.radius);
+        // w > least reaches R_i / least: a·R_i for Ward's blend and placement, 2a·R_i wide.
+        let least = self.settings.blend.limits(self.settings.accuracy).0;
+        let reach = Vec3::splat(r.radius / least);
         let (lo, hi) = (self.cell_of(r.p - reach), self.cell_of(r.p + reach));
         for x in lo[0]..=hi[0] {
             for y in lo[1]..=hi[1] {

@@ -93,7 +93,7 @@ mod tests {
                 assert_eq!(split(poly.clone(), n), (clip(&poly, n), clip(&poly, -n)), "{poly:?} by {n}");
             }
         }
-        // A vertex on the plane takes the clipping path and keeps it on both sides.
+        // A vertex on the plane is not strictly on one side: the clipping path, same answer.
         let touching = vec![DVec3::new(0.0, 0.0, 1.0), DVec3::new(1.0, 0.0, 1.0), DVec3::new(1.0, 1.0, 1.0)];
         let (pos, neg) = split(touching.clone(), DVec3::X);
         assert_eq!((pos, neg.len()), (touching, 0));
