@@ -1,11 +1,14 @@
 //! Running a plan: rayon workers bake the missing chunks while one writer thread commits them
 //! in batches, then every chunk (baked now or cached) is assembled into the engine's bakes.
 //!
-//! A BSPVT chunk whose slot has lineage is re-baked *warm*: only the cube-face tiles of its
-//! vertices that can see the old or new bounds of an occluder that changed are cast and built
-//! again; the other tiles' subtrees are kept. The result is byte-identical to a cold bake,
-//! because a clean tile's rays cannot meet anything that changed and a face's tree is its
-//! tiles' subtrees joined by a fixed grid (`bspvt::tree::TILE`).
+//! A BSPVT chunk whose slot has lineage is re-baked *warm* (`bspvt::rebake_vertex`): only the
+//! rays of its vertices that meet the old or new bounds of an occluder that changed are cast
+//! again, and only the cube-face tiles whose visibility changed are built again; the other
+//! tiles' subtrees are kept. The lineage keeps, beside the previous artefact's key and the
+//! occluders it saw, the visible-texel masks of every vertex's mixed tiles (uniform tiles need
+//! none), so the texels not cast again keep their exact old state. The result is byte-identical
+//! to a cold bake, because a ray that meets none of the boxes cannot have changed and a face's
+//! tree is its tiles' subtrees joined by a fixed grid (`bspvt::tree::TILE`).
 
 use crate::key::Key;
 use crate::plan::{Job, Kind, Occluder, Plan, decode_occluders, encode_occluders};
@@ -28,8 +31,12 @@ const FLUSH_EVERY: Duration = Duration::from_millis(250);
 /// An axis-aligned box (min, max).
 pub type Bounds = (Vec3, Vec3);
 
-/// A slot's previous vertex records and the bounds of what changed since.
-type Lineage = (Vec<Vec<u8>>, Vec<Bounds>);
+/// A slot's previous vertex bakes and the bounds of what changed since.
+type Lineage = (Vec<bspvt::VertexBake>, Vec<Bounds>);
+
+/// First bytes of a lineage entry (its layout's version): entries written before masks were
+/// kept lack it, and their chunks bake cold once.
+const LINEAGE_MAGIC: &[u8; 4] = b"kgl2";
 
 /// What a run did.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -42,9 +49,12 @@ pub struct RunStats {
     pub warm: usize,
     /// Vertices whose data was computed (all of a cold chunk, the touched ones of a warm one).
     pub vertices_baked: usize,
-    /// BSPVT cube-face tiles built (6 · tiles per face for each vertex cold; only the dirty ones
-    /// warm).
-    pub tiles_baked: usize,
+    /// BSPVT visibility rays cast (all above the horizon cold; only those meeting a changed
+    /// occluder's bounds warm).
+    pub rays_cast: usize,
+    /// BSPVT mixed cube-face tiles whose subtrees Algorithm 1 built (all cold; only those whose
+    /// visibility changed warm).
+    pub tiles_built: usize,
     /// Wall-clock seconds.
     pub seconds: f64,
 }
@@ -68,6 +78,7 @@ struct Baked<'a> {
     lineage: Option<(Key, Vec<u8>)>,
     warm: bool,
     vertices: usize,
+    rays: usize,
     tiles: usize,
 }
 
@@ -163,7 +174,8 @@ pub fn run_cancellable(store: &Store, scene: &Scene, flat: &FlatScene, plan: &Pl
                 stats.cold += 1
             }
             stats.vertices_baked += b.vertices;
-            stats.tiles_baked += b.tiles;
+            stats.rays_cast += b.rays;
+            stats.tiles_built += b.tiles;
             fresh.insert(b.key, b.bytes);
         }
         Ok(())
@@ -223,7 +235,15 @@ struct Context<'a> {
 impl Context<'_> {
     fn bake<'j>(&self, job: &'j Job) -> Result<Baked<'j>> {
         let t = Instant::now();
-        let (bytes, params, warm, tiles, vertices) = match job.kind {
+        let mut lineage = job.slot.map(|slot| {
+            let mut v = LINEAGE_MAGIC.to_vec();
+            v.extend_from_slice(job.key.as_bytes());
+            let occluders = encode_occluders(&self.plan.snapshot.occluders);
+            v.extend_from_slice(&(occluders.len() as u32).to_le_bytes());
+            v.extend(occluders);
+            (slot, v)
+        });
+        let (bytes, warm, vertices, rays, tiles) = match job.kind {
             Kind::Prt => {
                 let s = self.plan.prt.expect("PRT job without PRT settings");
                 let n = s.order * s.order;
@@ -232,79 +252,71 @@ impl Context<'_> {
                 for (k, v) in job.vertices.clone().enumerate() {
                     baker.vertex(self.scene, self.flat, job.instance, v, &mut out[k * n..(k + 1) * n]);
                 }
-                (bytemuck::cast_slice(&out).to_vec(), self.plan.params(Kind::Prt), false, 0, job.vertices.len())
+                (bytemuck::cast_slice(&out).to_vec(), false, job.vertices.len(), 0, 0)
             }
             Kind::Bspvt => {
                 let s = self.plan.bspvt.expect("BSPVT job without BSPVT settings");
-                let (records, warm, tiles, touched) = self.bake_bspvt(job, &s)?;
-                (encode_records(&records), self.plan.params(Kind::Bspvt), warm, tiles, touched)
+                let (baked, warm) = self.bake_bspvt(job, &s)?;
+                if let Some((_, v)) = &mut lineage {
+                    baked.iter().for_each(|b| encode_masks(&b.masks, v));
+                }
+                let records: Vec<Vec<u8>> = baked.iter().map(|b| b.record.clone()).collect();
+                let touched = baked.iter().filter(|b| b.rays > 0).count();
+                let (rays, tiles) = baked.iter().fold((0, 0), |(r, t), b| (r + b.rays, t + b.built));
+                (encode_records(&records), warm, touched, rays, tiles)
             }
         };
         let info = Info {
             kind: job.kind.name().into(),
-            params,
+            params: self.plan.params(job.kind),
             seconds: t.elapsed().as_secs_f64(),
             // Warm chunks are not representative of a bake's cost per vertex.
             vertices: if warm { 0 } else { job.vertices.len() },
             checksum: *blake3::hash(&bytes).as_bytes(),
         };
-        let lineage = job.slot.map(|slot| {
-            let mut v = job.key.as_bytes().to_vec();
-            v.extend(encode_occluders(&self.plan.snapshot.occluders));
-            (slot, v)
-        });
-        Ok(Baked { job, key: job.key, bytes, info, lineage, warm, vertices, tiles })
+        Ok(Baked { job, key: job.key, bytes, info, lineage, warm, vertices, rays, tiles })
     }
 
-    /// The chunk's vertex records, whether warm, how many tiles were built and how many
-    /// vertices were touched.
-    fn bake_bspvt(&self, job: &Job, s: &bspvt::Settings) -> Result<(Vec<Vec<u8>>, bool, usize, usize)> {
+    /// The chunk's vertex bakes, and whether they were re-baked warm from the slot's lineage.
+    fn bake_bspvt(&self, job: &Job, s: &bspvt::Settings) -> Result<(Vec<bspvt::VertexBake>, bool)> {
         let occ = self.occluders.expect("built for BSPVT plans");
         let vertex = |v: usize| self.flat.vertex(&self.scene.meshes, job.instance, v);
-        if let Some((old, boxes)) = self.lineage_of(job)? {
-            let (mut tiles, mut touched) = (0, 0);
-            let records = job
-                .vertices
-                .clone()
-                .zip(old)
-                .map(|(v, rec)| {
-                    let (p, n) = vertex(v);
-                    let mut dirty = vec![false; 6 * bspvt::tiles_per_side(s.res).pow(2)];
-                    for (lo, hi) in &boxes {
-                        let d = bspvt::tiles_seeing_box(p, n, *lo, *hi, s.res);
-                        dirty.iter_mut().zip(d).for_each(|(a, b)| *a |= b);
-                    }
-                    let count = dirty.iter().filter(|d| **d).count();
-                    tiles += count;
-                    touched += usize::from(count > 0);
-                    if count == 0 { rec } else { bspvt::rebake_tiles(occ, p, n, s, &rec, &dirty) }
-                })
-                .collect();
-            return Ok((records, true, tiles, touched));
-        }
-        let records = job.vertices.clone().map(|v| {
-            let (p, n) = vertex(v);
-            bspvt::bake_vertex(occ, p, n, s).0
-        });
-        Ok((records.collect(), false, 6 * bspvt::tiles_per_side(s.res).pow(2) * job.vertices.len(), job.vertices.len()))
+        let (old, changed) = match self.lineage_of(job)? {
+            Some((old, changed)) => (Some(old), changed),
+            None => (None, Vec::new()),
+        };
+        let warm = old.is_some();
+        let old = old.unwrap_or_else(|| vec![bspvt::VertexBake::default(); job.vertices.len()]);
+        let baked = job
+            .vertices
+            .clone()
+            .zip(&old)
+            .map(|(v, old)| {
+                let (p, n) = vertex(v);
+                bspvt::rebake_vertex(occ, p, n, s, old, &changed)
+            })
+            .collect();
+        Ok((baked, warm))
     }
 
-    /// The slot's previous records and the bounds (old and new) of every occluder that changed
-    /// since, when the lineage is usable.
+    /// The slot's previous vertex bakes and the bounds (old and new) of every occluder that
+    /// changed since, when the lineage is usable.
     fn lineage_of(&self, job: &Job) -> Result<Option<Lineage>> {
         let Some(slot) = job.slot else { return Ok(None) };
         let Some(entry) = self.store.lineage(&slot)? else { return Ok(None) };
-        if entry.len() < 32 {
-            return Ok(None);
-        }
-        let Some(then) = decode_occluders(&entry[32..]) else { return Ok(None) };
-        let Some(bytes) = self.store.get::<u8>(&Key::from_slice(&entry[..32]))? else { return Ok(None) };
+        let Some((key, then, masks)) = decode_lineage(&entry, job.vertices.len()) else { return Ok(None) };
+        let Some(bytes) = self.store.get::<u8>(&key)? else { return Ok(None) };
         // The warm re-bake descends the old trees: a damaged chunk bakes cold instead.
         let usable = |r: &Vec<Vec<u8>>| {
             r.len() == job.vertices.len() && r.iter().all(|rec| bspvt::layout::check_record(rec).is_ok())
         };
         let Some(records) = decode_records(&bytes).filter(usable) else { return Ok(None) };
-        Ok(Some((records, changed_bounds(&then, &self.plan.snapshot.occluders))))
+        let old = records.into_iter().zip(masks).map(|(record, masks)| bspvt::VertexBake {
+            record,
+            masks,
+            ..Default::default()
+        });
+        Ok(Some((old.collect(), changed_bounds(&then, &self.plan.snapshot.occluders))))
     }
 }
 
@@ -330,6 +342,47 @@ pub fn changed_bounds(then: &[Occluder], now: &[Occluder]) -> Vec<Bounds> {
         }
     }
     out
+}
+
+/// Appends a vertex's masks to a lineage entry: u32 count, then (u32 tile, u64 mask) pairs.
+fn encode_masks(masks: &[(u32, u64)], out: &mut Vec<u8>) {
+    out.extend_from_slice(&(masks.len() as u32).to_le_bytes());
+    for (tile, mask) in masks {
+        out.extend_from_slice(&tile.to_le_bytes());
+        out.extend_from_slice(&mask.to_le_bytes());
+    }
+}
+
+/// A lineage entry's artefact key, occluder snapshot and per-vertex masks for a chunk of
+/// `vertices` vertices (`None` when malformed or of an older layout).
+fn decode_lineage(entry: &[u8], vertices: usize) -> Option<(Key, Vec<Occluder>, Vec<bspvt::tree::Masks>)> {
+    let rest = entry.strip_prefix(LINEAGE_MAGIC)?;
+    let key = Key::from_slice(rest.get(..32)?);
+    let len = u32::from_le_bytes(rest.get(32..36)?.try_into().ok()?) as usize;
+    let occluders = decode_occluders(rest.get(36..36 + len)?)?;
+    let mut at = &rest[36 + len..];
+    let mut masks = Vec::with_capacity(vertices);
+    let mut take = |n: usize| -> Option<&[u8]> {
+        let (head, tail) = at.split_at_checked(n)?;
+        at = tail;
+        Some(head)
+    };
+    for _ in 0..vertices {
+        let count = u32::from_le_bytes(take(4)?.try_into().ok()?) as usize;
+        let pairs = take(count.checked_mul(12)?)?;
+        masks.push(
+            pairs
+                .chunks_exact(12)
+                .map(|c| {
+                    (
+                        u32::from_le_bytes(c[..4].try_into().expect("4")),
+                        u64::from_le_bytes(c[4..].try_into().expect("8")),
+                    )
+                })
+                .collect(),
+        );
+    }
+    at.is_empty().then_some((key, occluders, masks))
 }
 
 /// A BSPVT chunk: u32 count, count + 1 u32 offsets, then the records.

@@ -8,7 +8,7 @@
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use kage_engine::bspvt::shade::{PointShader, Visibility};
-use kage_engine::bspvt::{Settings, bake_vertex, occluder_bvh};
+use kage_engine::bspvt::{Settings, bake_vertex, layout, occluder_bvh};
 use kage_engine::math::ltc;
 use kage_engine::scene::{Scene, default_scene, flatten, import};
 use rayon::prelude::*;
@@ -42,20 +42,19 @@ fn measure(c: &mut Criterion, name: &str, scene: &Scene, step: usize) {
                 .par_iter()
                 .map(|&(i, v)| {
                     let (p, n) = flat.vertex(&scene.meshes, i, v);
-                    bake_vertex(&occ, p, n, &s).0.len()
+                    bake_vertex(&occ, p, n, &s).record.len()
                 })
                 .sum::<usize>()
         })
     });
-    let baked: Vec<(Vec<u8>, usize, usize)> = verts
+    let records: Vec<Vec<u8>> = verts
         .par_iter()
         .map(|&(i, v)| {
             let (p, n) = flat.vertex(&scene.meshes, i, v);
-            bake_vertex(&occ, p, n, &s)
+            bake_vertex(&occ, p, n, &s).record
         })
         .collect();
-    let leaves: usize = baked.iter().map(|b| b.1).sum();
-    let records: Vec<Vec<u8>> = baked.into_iter().map(|b| b.0).collect();
+    let leaves: usize = records.iter().map(|r| layout::tree_counts(r).0).sum();
     let table = ltc::table();
     let shade = |v: usize, rec: &[u8]| {
         let (i, v) = verts[v];

@@ -26,7 +26,7 @@ fn three_ways(scene: &Scene, r: &Renderer, s: &Settings, i: usize, v: usize, eye
     let occ = occluder_bvh(&r.flat);
     let (p, n) = r.vertex(i, v);
     let shader = PointShader::new(&table, p, n, eye, &r.flat.instances[i].material);
-    let (rec, _, _) = bake_vertex(&occ, p, n, s);
+    let rec = bake_vertex(&occ, p, n, s).record;
     let cube = visibility::cast(&occ, p, n, s.res);
     let _ = scene;
     [

@@ -120,6 +120,13 @@ pub fn vertex_faces(record: &[u8]) -> [&[u8]; 6] {
     faces
 }
 
+/// (Leaves, nodes) of a well-formed vertex record: a tree of L leaves is 4L − 3 bytes.
+pub fn tree_counts(record: &[u8]) -> (usize, usize) {
+    let leaves: usize = vertex_faces(record).iter().filter(|t| !t.is_empty()).map(|t| t.len().div_ceil(4)).sum();
+    let trees = vertex_faces(record).iter().filter(|t| !t.is_empty()).count();
+    (leaves, 2 * leaves - trees)
+}
+
 /// Deepest tree [`check_record`] accepts: a chain over every texel of a 64² face. Deeper
 /// input (never baked by kage) would only exhaust the stack of the recursive descent.
 pub const MAX_DEPTH: usize = 4096;
@@ -190,6 +197,7 @@ mod tests {
         let tree = vec![split, Node::Leaf(1.0), split, Node::Leaf(0.0), Node::Leaf(0.5)];
         let record = encode_vertex(&[Some(tree.clone()), None, Some(vec![Node::Leaf(1.0)]), None, None, Some(tree)]);
         assert_eq!(check_record(&record), Ok(()));
+        assert_eq!(tree_counts(&record), (3 + 1 + 3, 5 + 1 + 5));
         assert!(check_record(&record[..8]).unwrap_err().contains("header"));
         assert!(check_record(&record[..record.len() - 1]).unwrap_err().contains("add up"));
         // The first face's tree loses its last leaf but keeps its length: a subtree is missing.

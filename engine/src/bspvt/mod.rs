@@ -4,7 +4,7 @@
 //! - [`visibility`]: per-vertex visibility cube maps (faces aligned to world axes), cast only
 //!   above the horizon;
 //! - [`tree`]: per face, a fixed grid of tiles and inside each the BSP tree of Algorithm 1 with
-//!   the seed's two corrections (tiles make re-bakes local: [`rebake_tiles`]);
+//!   the seed's two corrections (tiles make re-bakes local: [`rebake_vertex`]);
 //! - [`layout`]: the compact versioned byte layout (≈2 bytes per node);
 //! - [`shade`]: per vertex and light, the light polygon clipped by face frusta and tree planes
 //!   (planes through the vertex) and integrated with LTC, weighted by the leaves' visibility;
@@ -19,7 +19,7 @@ pub mod shade;
 pub mod tree;
 pub mod visibility;
 
-use crate::accel::Occluders;
+use crate::accel::{self, Occluders};
 use crate::math::cubemap;
 use crate::scene::{FlatScene, NO_LIGHT, Scene};
 use rayon::prelude::*;
@@ -126,25 +126,24 @@ pub fn occluder_bvh(flat: &FlatScene) -> Occluders {
     Occluders::new(&parts)
 }
 
-/// Bakes one vertex: its record and (leaves, nodes). Faces entirely below the horizon or
-/// entirely occluded store no tree: both contribute nothing.
-pub fn bake_vertex(occluders: &Occluders, p: glam::Vec3, n: glam::Vec3, s: &Settings) -> (Vec<u8>, usize, usize) {
-    let faces: [Option<Vec<tree::Node>>; 6] = std::array::from_fn(|f| bake_face(occluders, p, n, f, s));
-    let nodes: usize = faces.iter().flatten().map(Vec::len).sum();
-    let leaves = faces.iter().flatten().flatten().filter(|n| matches!(n, tree::Node::Leaf(_))).count();
-    (layout::encode_vertex(&faces), leaves, nodes)
+/// One vertex's bake: its record and what a warm re-bake of it needs.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct VertexBake {
+    /// The record (see [`layout`]).
+    pub record: Vec<u8>,
+    /// The visible-texel masks of its mixed tiles, by tile index `f · tiles_per_side² + tile`
+    /// (see [`tree::FaceTree::masks`]).
+    pub masks: tree::Masks,
+    /// Rays cast.
+    pub rays: usize,
+    /// Mixed tiles whose subtrees Algorithm 1 built.
+    pub built: usize,
 }
 
-/// The tree of face `f` of a vertex (`None`: below the horizon or entirely occluded).
-pub fn bake_face(
-    occluders: &Occluders,
-    p: glam::Vec3,
-    n: glam::Vec3,
-    f: usize,
-    s: &Settings,
-) -> Option<Vec<tree::Node>> {
-    let vis = visibility::cast_face(occluders, p, n, f, s.res);
-    tree::build(&vis, s.res, s.epsilon).filter(|t| t.as_slice() != [tree::Node::Leaf(0.0)])
+/// Bakes one vertex. Faces entirely below the horizon or entirely occluded store no tree: both
+/// contribute nothing.
+pub fn bake_vertex(occluders: &Occluders, p: glam::Vec3, n: glam::Vec3, s: &Settings) -> VertexBake {
+    rebake_vertex(occluders, p, n, s, &VertexBake::default(), &[])
 }
 
 /// Tiles per face side at face resolution `res` (see [`tree::TILE`]).
@@ -152,35 +151,54 @@ pub fn tiles_per_side(res: usize) -> usize {
     res.div_ceil(tree::TILE)
 }
 
-/// Re-bakes the tiles of `old` (a vertex record) flagged in `dirty` (per face, row-major
-/// tiles: `6 · tiles_per_side²` flags), casting only their texels and keeping the other tiles'
-/// subtrees: identical to [`bake_vertex`] when the clean tiles' visibility did not change.
-pub fn rebake_tiles(
+/// Re-bakes a vertex whose previous bake is `old` after the occluders inside `changed` (their
+/// old and new bounds) moved, appeared or disappeared: only rays that meet one of those boxes
+/// are cast again, and only tiles whose visibility changed are built again; faces no such ray
+/// crosses keep their bytes. Identical to [`bake_vertex`] of the edited scene, because a ray
+/// that meets none of the boxes cannot have changed. An empty `old` record bakes from scratch.
+pub fn rebake_vertex(
     occluders: &Occluders,
     p: glam::Vec3,
     n: glam::Vec3,
     s: &Settings,
-    old: &[u8],
-    dirty: &[bool],
-) -> Vec<u8> {
-    let k = tiles_per_side(s.res);
-    let kept = layout::vertex_faces(old);
-    let fresh: [Vec<u8>; 6] = std::array::from_fn(|f| {
-        let dirty = &dirty[f * k * k..(f + 1) * k * k];
+    old: &VertexBake,
+    changed: &[(glam::Vec3, glam::Vec3)],
+) -> VertexBake {
+    let per_face = tiles_per_side(s.res).pow(2);
+    let cold = old.record.is_empty();
+    let mut dirty = vec![cold; 6 * per_face];
+    for (lo, hi) in changed {
+        let d = tiles_seeing_box(p, n, *lo, *hi, s.res);
+        dirty.iter_mut().zip(d).for_each(|(a, b)| *a |= b);
+    }
+    let kept = if cold { [&[][..]; 6] } else { layout::vertex_faces(&old.record) };
+    let mut out = VertexBake::default();
+    let faces: [Vec<u8>; 6] = std::array::from_fn(|f| {
+        let range = (f * per_face) as u32..((f + 1) * per_face) as u32;
+        let old_masks: tree::Masks =
+            old.masks.iter().filter(|m| range.contains(&m.0)).map(|&(t, m)| (t - range.start, m)).collect();
+        let dirty = &dirty[f * per_face..(f + 1) * per_face];
         if !dirty.contains(&true) {
+            out.masks.extend(old_masks.iter().map(|&(t, m)| (t + range.start, m)));
             return kept[f].to_vec();
         }
-        let wanted = |i: usize, j: usize| dirty[(j / tree::TILE) * k + i / tree::TILE];
-        let vis = visibility::cast_face_where(occluders, p, n, f, s.res, wanted);
-        let old = if kept[f].is_empty() { vec![tree::Node::Leaf(0.0)] } else { layout::decode_tree(kept[f]) };
-        let nodes = tree::rebuild(&vis, s.res, s.epsilon, &old);
-        layout::encode_face(nodes.filter(|t| t.as_slice() != [tree::Node::Leaf(0.0)]).as_deref())
+        let wanted = |d: glam::Vec3| {
+            cold || changed.iter().any(|(lo, hi)| accel::ray_meets_box(accel::offset_ray_origin(p, n, d), d, *lo, *hi))
+        };
+        let vis = visibility::cast_face_where(occluders, p, n, f, s.res, dirty, wanted);
+        out.rays += vis.iter().filter(|&&v| v == visibility::VISIBLE || v == visibility::OCCLUDED).count();
+        let old_tree = if kept[f].is_empty() { vec![tree::Node::Leaf(0.0)] } else { layout::decode_tree(kept[f]) };
+        let face = tree::rebuild(&vis, s.res, s.epsilon, if cold { &[] } else { &old_tree }, &old_masks);
+        out.built += face.built;
+        out.masks.extend(face.masks.iter().map(|&(t, m)| (t + range.start, m)));
+        layout::encode_face(face.nodes.as_deref().filter(|t| *t != [tree::Node::Leaf(0.0)]))
     });
-    layout::join_faces(fresh.each_ref().map(Vec::as_slice))
+    out.record = layout::join_faces(faces.each_ref().map(Vec::as_slice));
+    out
 }
 
-/// Which tiles of a vertex at `p` (unit normal `n`) can see into an axis-aligned box (flags
-/// as in [`rebake_tiles`]): the box meets the tile's frustum above the horizon, with a margin
+/// Which tiles of a vertex at `p` (unit normal `n`) can see into an axis-aligned box (per
+/// face, row-major tiles: `6 · tiles_per_side²` flags): the box meets the tile's frustum above the horizon, with a margin
 /// of two texels for the rays cast just above the horizon (a conservative test: a clean tile's
 /// visibility cannot change when only geometry inside the box does).
 pub fn tiles_seeing_box(p: glam::Vec3, n: glam::Vec3, lo: glam::Vec3, hi: glam::Vec3, res: usize) -> Vec<bool> {
@@ -229,14 +247,14 @@ pub fn bake(scene: &Scene, flat: &FlatScene, s: &Settings, progress: &(dyn Fn(us
     let instances = (0..flat.instances.len())
         .map(|i| {
             let n = scene.meshes[flat.instances[i].mesh as usize].positions.len();
-            let records: Vec<(Vec<u8>, usize, usize)> = (0..n)
+            let records: Vec<Vec<u8>> = (0..n)
                 .into_par_iter()
                 .map(|v| {
                     let (p, normal) = flat.vertex(&scene.meshes, i, v);
                     let r = if flat.lights.is_empty() {
-                        (layout::encode_vertex(&Default::default()), 0, 0)
+                        layout::encode_vertex(&Default::default())
                     } else {
-                        bake_vertex(&occluders, p, normal, s)
+                        bake_vertex(&occluders, p, normal, s).record
                     };
                     progress(done.fetch_add(1, Ordering::Relaxed) + 1);
                     r
@@ -244,9 +262,10 @@ pub fn bake(scene: &Scene, flat: &FlatScene, s: &Settings, progress: &(dyn Fn(us
                 .collect();
             let mut offsets = vec![0u32];
             let mut data = Vec::new();
-            for (rec, leaves, nodes) in records {
+            for rec in records {
                 data.extend_from_slice(&rec);
                 offsets.push(data.len() as u32);
+                let (leaves, nodes) = layout::tree_counts(&rec);
                 stats.leaves += leaves;
                 stats.nodes += nodes;
             }

@@ -39,8 +39,7 @@ pub fn choose(scene: &Scene, flat: &FlatScene, budget: f64, eye: Vec3) -> (Setti
                 if exact {
                     shader.shade(&flat.lights, Visibility::Exact(&visibility::cast(&occ, p, n, s.res)))
                 } else {
-                    let (rec, _, _) = bake_vertex(&occ, p, n, &s);
-                    shader.shade(&flat.lights, Visibility::Tree(&rec))
+                    shader.shade(&flat.lights, Visibility::Tree(&bake_vertex(&occ, p, n, &s).record))
                 }
             })
             .collect()

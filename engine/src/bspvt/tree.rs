@@ -9,7 +9,7 @@
 //! pixels are partitioned, so leaf means match the geometry the shader sees.
 
 use super::layout::{dequantise_line, quantise_line};
-use super::visibility::{BELOW, OCCLUDED, SKIPPED, VISIBLE};
+use super::visibility::{BELOW, SKIPPED, VISIBLE};
 use crate::math::{cubemap, nelder_mead};
 use std::cmp::Ordering;
 use std::collections::BinaryHeap;
@@ -28,6 +28,7 @@ pub enum Node {
     Leaf(f32),
 }
 
+#[derive(Clone, Copy)]
 struct Pixel {
     s: f64,
     t: f64,
@@ -85,17 +86,38 @@ impl Ord for Queued {
 /// changes.
 pub const TILE: usize = 8;
 
-/// Builds the tree of one face from its texel states; `None` when no texel is above the horizon.
-pub fn build(face: &[u8], res: usize, epsilon: f64) -> Option<Vec<Node>> {
-    rebuild(face, res, epsilon, &[])
+/// Visible-texel masks of mixed tiles: (tile index, mask) pairs by tile index (see
+/// [`FaceTree::masks`]).
+pub type Masks = Vec<(u32, u64)>;
+
+/// A face's tree and what a later re-bake needs to know about its texels.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FaceTree {
+    /// The tree; `None` when no texel is above the horizon.
+    pub nodes: Option<Vec<Node>>,
+    /// The visible-texel masks of its mixed tiles (both visible and occluded texels above the
+    /// horizon), by tile index (row-major within the face); bit `(j mod TILE)·TILE + i mod
+    /// TILE` is texel (i, j). Uniform tiles need none: their subtree is a 0 or 1 leaf.
+    pub masks: Masks,
+    /// Mixed tiles whose subtrees Algorithm 1 built (the rest were kept or uniform).
+    pub built: usize,
 }
 
-/// [`build`] for a face whose texels were cast only in some tiles (the others [`SKIPPED`]):
-/// those tiles keep their subtrees from `old`, the face's previous tree (a complete tree; a
-/// face that stored none was entirely occluded: `[Leaf(0.0)]`). Equal to [`build`] of the
-/// fully cast face when the skipped tiles' visibility did not change.
-pub fn rebuild(face: &[u8], res: usize, epsilon: f64, old: &[Node]) -> Option<Vec<Node>> {
-    Grid { face, res, epsilon }.region(Rect { i0: 0, j0: 0, i1: res, j1: res }, old)
+/// Builds the tree of one face from its texel states.
+pub fn build(face: &[u8], res: usize, epsilon: f64) -> FaceTree {
+    rebuild(face, res, epsilon, &[], &[])
+}
+
+/// [`build`] for a face some of whose texels were not cast ([`SKIPPED`]): their states are
+/// those of `old`, the face's previous tree (a complete tree; a face that stored none was
+/// entirely occluded: `[Leaf(0.0)]`), and `old_masks`, its masks. A tile whose states did not
+/// change keeps its old subtree. Equal to [`build`] of the fully cast face when the skipped
+/// texels' visibility did not change.
+pub fn rebuild(face: &[u8], res: usize, epsilon: f64, old: &[Node], old_masks: &[(u32, u64)]) -> FaceTree {
+    let mut grid = Grid::new(face, res, epsilon, old_masks);
+    let nodes = grid.region(Rect { i0: 0, j0: 0, i1: res, j1: res }, old);
+    grid.masks.sort_unstable_by_key(|m| m.0);
+    FaceTree { nodes, masks: grid.masks, built: grid.built }
 }
 
 /// A rectangle of texels `[i0, i1) × [j0, j1)`.
@@ -133,32 +155,62 @@ impl Rect {
     }
 }
 
-/// One face's texel states and build parameters.
-struct Grid<'a> {
-    face: &'a [u8],
-    res: usize,
-    epsilon: f64,
+/// The texels of one tile as bit masks (bit as in [`FaceTree::masks`]).
+#[derive(Clone, Copy, Default)]
+struct TileBits {
+    /// Above the horizon.
+    live: u64,
+    /// Cast and visible.
+    visible: u64,
+    /// Above the horizon and not cast.
+    skipped: u64,
 }
 
-impl Grid<'_> {
-    fn any(&self, r: Rect, pred: impl Fn(u8) -> bool) -> bool {
-        r.texels().any(|(i, j)| pred(self.face[j * self.res + i]))
+/// One face's texel states, build parameters and the masks being gathered.
+struct Grid<'a> {
+    res: usize,
+    epsilon: f64,
+    /// Tiles per side.
+    k: usize,
+    tiles: Vec<TileBits>,
+    old_masks: &'a [(u32, u64)],
+    masks: Masks,
+    built: usize,
+}
+
+impl<'a> Grid<'a> {
+    fn new(face: &[u8], res: usize, epsilon: f64, old_masks: &'a [(u32, u64)]) -> Self {
+        let k = res.div_ceil(TILE);
+        let mut tiles = vec![TileBits::default(); k * k];
+        for (x, &state) in face.iter().enumerate() {
+            let (i, j) = (x % res, x / res);
+            let (t, bit) = (&mut tiles[(j / TILE) * k + i / TILE], 1u64 << ((j % TILE) * TILE + i % TILE));
+            t.live |= if state == BELOW { 0 } else { bit };
+            t.visible |= if state == VISIBLE { bit } else { 0 };
+            t.skipped |= if state == SKIPPED { bit } else { 0 };
+        }
+        Self { res, epsilon, k, tiles, old_masks, masks: Vec::new(), built: 0 }
     }
 
-    /// The subtree of region `r`; `old` is its previous subtree (used only by skipped tiles).
-    fn region(&self, r: Rect, old: &[Node]) -> Option<Vec<Node>> {
-        if !self.any(r, |s| s != BELOW) {
+    /// Whether any texel of `r` is above the horizon.
+    fn live(&self, r: Rect) -> bool {
+        let (ti, tj) = (r.i0 / TILE..r.i1.div_ceil(TILE), r.j0 / TILE..r.j1.div_ceil(TILE));
+        tj.flat_map(|j| ti.clone().map(move |i| (i, j))).any(|(i, j)| self.tiles[j * self.k + i].live != 0)
+    }
+
+    /// The subtree of region `r`; `old` is its previous subtree.
+    fn region(&mut self, r: Rect, old: &[Node]) -> Option<Vec<Node>> {
+        if !self.live(r) {
             return None;
         }
         if r.tiles() == (1, 1) {
-            return Some(if self.any(r, |s| s == SKIPPED) { old.to_vec() } else { self.tile(r) });
+            return Some(self.tile(r, old));
         }
         let ((angle, offset), pos, neg) = r.halves(self.res);
-        let (live_pos, live_neg) = (self.any(pos, |s| s != BELOW), self.any(neg, |s| s != BELOW));
         // How `old` was made: a merged uniform leaf covers both halves, an empty half left
         // its sibling's subtree in place of the split.
         let (old_pos, old_neg) = match old {
-            [Node::Split { .. }, ..] if live_pos && live_neg => old[1..].split_at(skip(old, 1) - 1),
+            [Node::Split { .. }, ..] if self.live(pos) && self.live(neg) => old[1..].split_at(skip(old, 1) - 1),
             _ => (old, old),
         };
         match (self.region(pos, old_pos), self.region(neg, old_neg)) {
@@ -168,23 +220,35 @@ impl Grid<'_> {
         }
     }
 
-    /// Algorithm 1 on the texels of one tile above the horizon (at least one).
-    fn tile(&self, r: Rect) -> Vec<Node> {
-        let res = self.res;
-        // Most tiles are uniform: their mean is exact without the texels' solid angles.
-        for (state, v) in [(VISIBLE, 1.0), (OCCLUDED, 0.0)] {
-            if !self.any(r, |s| s != state && s != BELOW) {
-                return vec![Node::Leaf(v)];
-            }
+    /// The subtree of one tile with a texel above the horizon: its old subtree when its
+    /// visibility did not change, else built by Algorithm 1. Skipped texels take their old
+    /// state: from the tile's old mask, or (a uniform tile has none) from its old leaf.
+    fn tile(&mut self, r: Rect, old: &[Node]) -> Vec<Node> {
+        let index = ((r.j0 / TILE) * self.k + r.i0 / TILE) as u32;
+        let TileBits { live, visible, skipped } = self.tiles[index as usize];
+        let old_mask = self.old_masks.binary_search_by_key(&index, |m| m.0).ok().map(|x| self.old_masks[x].1);
+        let old_visible = old_mask.unwrap_or(if matches!(old, [Node::Leaf(v)] if *v >= 0.5) { live } else { 0 }) & live;
+        let visible = visible | (old_visible & skipped);
+        if visible != 0 && visible != live {
+            self.masks.push((index, visible));
         }
+        if !old.is_empty() && visible == old_visible {
+            return old.to_vec();
+        }
+        if visible == 0 || visible == live {
+            return vec![Node::Leaf(if visible == 0 { 0.0 } else { 1.0 })];
+        }
+        self.built += 1;
+        let res = self.res;
         let mean_w = 4.0 * std::f64::consts::PI / (6 * res * res) as f64;
+        let bit = |(i, j): (usize, usize)| 1u64 << ((j - r.j0) * TILE + i - r.i0);
         let all: Vec<Pixel> = r
             .texels()
-            .filter(|&(i, j)| self.face[j * res + i] != BELOW)
+            .filter(|&x| live & bit(x) != 0)
             .map(|(i, j)| {
                 let st = cubemap::texel_center(i, j, res);
                 let w = cubemap::texel_solid_angle(i, j, res) / mean_w;
-                Pixel { s: st.x, t: st.y, w, v: if self.face[j * res + i] == VISIBLE { 1.0 } else { 0.0 } }
+                Pixel { s: st.x, t: st.y, w, v: if visible & bit((i, j)) != 0 { 1.0 } else { 0.0 } }
             })
             .collect();
         clusters(&all, res, self.epsilon)
@@ -277,12 +341,13 @@ fn seed_error(c: &Cluster, all: &[Pixel], theta: f64, off: f64) -> f64 {
 /// children's error cannot.
 fn split(c: &Cluster, all: &[Pixel], res: usize) -> Option<Split> {
     let tau = 0.5 * 2.0 / res as f64;
+    // The simplex evaluates E a few hundred times: over a contiguous copy, not via indices.
+    let pixels: Vec<Pixel> = c.pixels.iter().map(|&i| all[i as usize]).collect();
     let soft = |x: &[f64]| -> f64 {
         let line = Line::new(x[0], x[1]);
-        c.pixels
+        pixels
             .iter()
-            .map(|&i| {
-                let p = &all[i as usize];
+            .map(|p| {
                 // A linear ramp one texel wide: cheap, and smooth enough for the simplex.
                 let h = (0.5 + line.side(p) / (2.0 * tau)).clamp(0.0, 1.0);
                 p.w * (h - p.v).powi(2)
@@ -388,6 +453,7 @@ pub fn skip(nodes: &[Node], mut i: usize) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::bspvt::visibility::OCCLUDED;
 
     fn face_from(res: usize, f: impl Fn(f64, f64) -> u8) -> Vec<u8> {
         (0..res * res)
@@ -425,16 +491,18 @@ mod tests {
     #[test]
     fn uniform_faces_are_single_leaves() {
         let res = 16;
-        assert_eq!(build(&vec![VISIBLE; res * res], res, 0.0), Some(vec![Node::Leaf(1.0)]));
-        assert_eq!(build(&vec![OCCLUDED; res * res], res, 0.0), Some(vec![Node::Leaf(0.0)]));
-        assert_eq!(build(&vec![BELOW; res * res], res, 0.0), None);
+        assert_eq!(build(&vec![VISIBLE; res * res], res, 0.0).nodes, Some(vec![Node::Leaf(1.0)]));
+        assert_eq!(build(&vec![OCCLUDED; res * res], res, 0.0).nodes, Some(vec![Node::Leaf(0.0)]));
+        assert_eq!(build(&vec![BELOW; res * res], res, 0.0).nodes, None);
+        assert!(build(&vec![VISIBLE; res * res], res, 0.0).masks.is_empty(), "uniform tiles need no mask");
     }
 
     #[test]
     fn a_straight_boundary_costs_a_split_per_tile_it_crosses() {
         let res = 32;
         let face = face_from(res, |s, t| if 0.6 * s + 0.8 * t > 0.1 { VISIBLE } else { OCCLUDED });
-        let nodes = build(&face, res, 0.5).unwrap();
+        let built = build(&face, res, 0.5);
+        let nodes = built.nodes.unwrap();
         check_invariants(&face, res, &nodes);
         let k = res / TILE;
         let mixed = (0..k * k)
@@ -449,12 +517,21 @@ mod tests {
         let leaves = nodes.iter().filter(|n| matches!(n, Node::Leaf(_))).count();
         // Each crossed tile is one split; uniform tiles on either side merge into few leaves.
         assert!(leaves <= 2 * mixed + 2 * k, "{leaves} leaves for {mixed} crossed tiles");
+        assert_eq!((built.masks.len(), built.built), (mixed, mixed), "a mask and a build per crossed tile");
+        for (tile, mask) in built.masks {
+            let (ti, tj) = (tile as usize % k, tile as usize / k);
+            for b in 0..64 {
+                let state = face[(tj * TILE + b / TILE) * res + ti * TILE + b % TILE];
+                assert_eq!(mask >> b & 1 == 1, state == VISIBLE, "tile {tile} bit {b}");
+            }
+        }
     }
 
-    /// A face whose visibility changed in some tiles: casting only those (the others
-    /// `SKIPPED`) and rebuilding from the old tree gives the tree built from scratch.
+    /// A face whose visibility changed in some texels: casting only some texels around them
+    /// (the others `SKIPPED`) and rebuilding from the old tree and masks gives the tree and
+    /// masks built from scratch, and runs Algorithm 1 only in the tiles that changed.
     #[test]
-    fn rebuilding_the_changed_tiles_equals_building_from_scratch() {
+    fn rebuilding_from_the_changed_texels_equals_building_from_scratch() {
         // 20: a face whose last tile is narrower.
         for res in [32, 20] {
             rebuild_equals_build(res);
@@ -486,19 +563,34 @@ mod tests {
             }
         });
         for (before, after) in [(scene(-0.3), scene(0.1)), (shut, window)] {
-            let old = build(&before, res, 1.0).unwrap();
+            let old = build(&before, res, 1.0);
+            let fresh = build(&after, res, 1.0);
             let changed: Vec<(usize, usize)> = (0..res * res).filter(|&x| before[x] != after[x]).map(tile_of).collect();
-            let partial: Vec<u8> = (0..res * res)
-                .map(|x| if after[x] == BELOW || changed.contains(&tile_of(x)) { after[x] } else { SKIPPED })
-                .collect();
-            assert!(partial.contains(&SKIPPED), "some tiles are kept");
-            assert_eq!(rebuild(&partial, res, 1.0, &old), build(&after, res, 1.0));
+            // Every changed texel and, in the tiles around them, every third other one is cast.
+            let cast = |x: usize| before[x] != after[x] || (x.is_multiple_of(3) && changed.contains(&tile_of(x)));
+            let partial: Vec<u8> =
+                (0..res * res).map(|x| if after[x] == BELOW || cast(x) { after[x] } else { SKIPPED }).collect();
+            assert!(partial.contains(&SKIPPED), "some texels are kept");
+            let warm = rebuild(&partial, res, 1.0, &old.nodes.clone().unwrap(), &old.masks);
+            assert_eq!((&warm.nodes, &warm.masks), (&fresh.nodes, &fresh.masks));
+            let mut crossed = changed.clone();
+            crossed.sort_unstable();
+            crossed.dedup();
+            assert!(warm.built <= crossed.len(), "{} built for {} changed tiles", warm.built, crossed.len());
         }
-        // Nothing cast: the old tree, whatever its grid merged.
+        // Nothing changed: the old tree, whatever its grid merged, and nothing built.
         let face = scene(0.2);
-        let old = build(&face, res, 1.0).unwrap();
+        let old = build(&face, res, 1.0);
+        let some: Vec<u8> = face
+            .iter()
+            .enumerate()
+            .map(|(x, &s)| if s == BELOW || x.is_multiple_of(2) { s } else { SKIPPED })
+            .collect();
         let none: Vec<u8> = face.iter().map(|&s| if s == BELOW { BELOW } else { SKIPPED }).collect();
-        assert_eq!(rebuild(&none, res, 1.0, &old), Some(old));
+        for partial in [some, none] {
+            let warm = rebuild(&partial, res, 1.0, &old.nodes.clone().unwrap(), &old.masks);
+            assert_eq!((&warm.nodes, &warm.masks, warm.built), (&old.nodes, &old.masks, 0));
+        }
     }
 
     #[test]
@@ -519,9 +611,9 @@ mod tests {
                 |s, t| if ((s * 3.0).floor() + (t * 3.0).floor()) as i64 % 2 == 0 { VISIBLE } else { OCCLUDED },
             );
         for face in [&disk, &checker] {
-            let exact = build(face, res, 0.0).unwrap();
+            let exact = build(face, res, 0.0).nodes.unwrap();
             check_invariants(face, res, &exact);
-            let coarse = build(face, res, 4.0).unwrap();
+            let coarse = build(face, res, 4.0).nodes.unwrap();
             check_invariants(face, res, &coarse);
             assert!(coarse.len() < exact.len());
         }
