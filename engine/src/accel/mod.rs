@@ -134,22 +134,22 @@ pub fn intersect_triangle_f64(origin: Vec3, dir: Vec3, tri: &[Vec3; 3]) -> Optio
     (u >= 0.0 && v >= 0.0 && u + v <= 1.0 && t > 0.0).then_some(t)
 }
 
-/// Whether the ray `origin + t·dir` (t ≥ 0) meets the closed box `[lo, hi]` (slab test in f64).
+/// Whether the ray `origin + t·dir` (t ≥ 0) meets the closed box `[lo, hi]` (f64).
+///
+/// The slab test without divisions (it runs for every texel a warm re-bake looks at): along
+/// axis a the ray is inside the slab for t ∈ [E_a / D_a, X_a / D_a] with D_a = |dir_a|, so it
+/// meets the box when every exit is ahead (X_b ≥ 0) and every entry precedes every exit
+/// (E_a · D_b ≤ X_b · D_a); an axis with D_a = 0 then demands E_a ≤ 0 ≤ X_a, as it should.
 pub fn ray_meets_box(origin: Vec3, dir: Vec3, lo: Vec3, hi: Vec3) -> bool {
-    let (mut near, mut far) = (0.0f64, f64::INFINITY);
-    for a in 0..3 {
-        let (o, d, l, h) = (origin[a] as f64, dir[a] as f64, lo[a] as f64, hi[a] as f64);
-        if d == 0.0 {
-            if o < l || o > h {
-                return false;
-            }
-            continue;
-        }
-        let (t0, t1) = ((l - o) / d, (h - o) / d);
-        near = near.max(t0.min(t1));
-        far = far.min(t0.max(t1));
+    let (o, d, lo, hi) = (origin.as_dvec3(), dir.as_dvec3(), lo.as_dvec3(), hi.as_dvec3());
+    let forward = d.cmpge(glam::DVec3::ZERO);
+    let entry = glam::DVec3::select(forward, lo - o, o - hi);
+    let exit = glam::DVec3::select(forward, hi - o, o - lo);
+    let span = d.abs();
+    if exit.min_element() < 0.0 {
+        return false;
     }
-    near <= far
+    (0..3).all(|a| (0..3).all(|b| a == b || entry[a] * span[b] <= exit[b] * span[a]))
 }
 
 #[cfg(test)]

@@ -183,7 +183,8 @@ pub fn rebake_vertex(
             return kept[f].to_vec();
         }
         let wanted = |d: glam::Vec3| {
-            cold || changed.iter().any(|(lo, hi)| accel::ray_meets_box(accel::offset_ray_origin(p, n, d), d, *lo, *hi))
+            let o = accel::offset_ray_origin(p, n, d);
+            cold || changed.iter().any(|(lo, hi)| accel::ray_meets_box(o, d, *lo, *hi))
         };
         let vis = visibility::cast_face_where(occluders, p, n, f, s.res, dirty, wanted);
         out.rays += vis.iter().filter(|&&v| v == visibility::VISIBLE || v == visibility::OCCLUDED).count();
