@@ -354,8 +354,10 @@ fn split(c: &Cluster, all: &[Pixel], res: usize) -> Option<Split> {
             })
             .sum()
     };
-    let mut starts = initial_lines(c, all);
-    starts.sort_by(|a, b| seed_error(c, all, a.0, a.1).total_cmp(&seed_error(c, all, b.0, b.1)));
+    let mut ranked: Vec<(f64, (f64, f64))> =
+        initial_lines(c, all).into_iter().map(|(t, o)| (seed_error(c, all, t, o), (t, o))).collect();
+    ranked.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let starts: Vec<(f64, f64)> = ranked.into_iter().map(|(_, line)| line).collect();
     let opts = nelder_mead::Options { max_evals: 80, tolerance: 1e-6, restarts: 1 };
     let mut candidates = starts.clone();
     for &(theta, off) in starts.iter().take(2) {

@@ -60,40 +60,50 @@ fn one_start(f: &mut impl FnMut(&[f64]) -> f64, x0: &[f64], step: &[f64], opts: 
         simplex.push((x, v));
     }
     let mut evals = n + 1;
-    let lerp = |a: &[f64], b: &[f64], t: f64| -> Vec<f64> { a.iter().zip(b).map(|(a, b)| a + t * (b - a)).collect() };
+    // Trial points live in reused buffers: a BSPVT bake runs millions of short minimisations.
+    let lerp = |out: &mut Vec<f64>, a: &[f64], b: &[f64], t: f64| {
+        out.clear();
+        out.extend(a.iter().zip(b).map(|(a, b)| a + t * (b - a)));
+    };
+    let (mut centroid, mut reflected, mut trial) = (vec![0.0; n], Vec::with_capacity(n), Vec::with_capacity(n));
     while evals < opts.max_evals {
         simplex.sort_by(|a, b| a.1.total_cmp(&b.1));
         if (simplex[n].1 - simplex[0].1).abs() <= opts.tolerance * (1.0 + simplex[0].1.abs()) {
             break;
         }
-        let centroid: Vec<f64> = (0..n).map(|k| simplex[..n].iter().map(|s| s.0[k]).sum::<f64>() / n as f64).collect();
-        let worst = simplex[n].clone();
-        let reflected = lerp(&centroid, &worst.0, -1.0);
+        for (k, c) in centroid.iter_mut().enumerate() {
+            *c = simplex[..n].iter().map(|s| s.0[k]).sum::<f64>() / n as f64;
+        }
+        let worst = simplex[n].1;
+        lerp(&mut reflected, &centroid, &simplex[n].0, -1.0);
         let fr = f(&reflected);
         evals += 1;
-        if fr < simplex[0].1 {
-            let expanded = lerp(&centroid, &worst.0, -2.0);
-            let fe = f(&expanded);
+        let (point, value) = if fr < simplex[0].1 {
+            lerp(&mut trial, &centroid, &simplex[n].0, -2.0);
+            let fe = f(&trial);
             evals += 1;
-            simplex[n] = if fe < fr { (expanded, fe) } else { (reflected, fr) };
+            if fe < fr { (&mut trial, fe) } else { (&mut reflected, fr) }
         } else if fr < simplex[n - 1].1 {
-            simplex[n] = (reflected, fr);
+            (&mut reflected, fr)
         } else {
-            let (towards, fw) = if fr < worst.1 { (&reflected, fr) } else { (&worst.0, worst.1) };
-            let contracted = lerp(&centroid, towards, 0.5);
-            let fc = f(&contracted);
+            let (towards, fw) = if fr < worst { (&reflected, fr) } else { (&simplex[n].0, worst) };
+            lerp(&mut trial, &centroid, towards, 0.5);
+            let fc = f(&trial);
             evals += 1;
-            if fc < fw {
-                simplex[n] = (contracted, fc);
-            } else {
-                let best = simplex[0].0.clone();
-                for s in simplex.iter_mut().skip(1) {
-                    s.0 = lerp(&best, &s.0, 0.5);
+            if fc >= fw {
+                let (best, rest) = simplex.split_at_mut(1);
+                for s in rest {
+                    s.0.iter_mut().zip(&best[0].0).for_each(|(x, b)| *x = b + 0.5 * (*x - b));
                     s.1 = f(&s.0);
                 }
                 evals += n;
+                continue;
             }
-        }
+            (&mut trial, fc)
+        };
+        // The replaced worst point's buffer becomes scratch.
+        std::mem::swap(&mut simplex[n].0, point);
+        simplex[n].1 = value;
     }
     simplex.sort_by(|a, b| a.1.total_cmp(&b.1));
     let (x, v) = simplex.swap_remove(0);
