@@ -260,9 +260,9 @@ impl Context<'_> {
                 if let Some((_, v)) = &mut lineage {
                     baked.iter().for_each(|b| encode_masks(&b.masks, v));
                 }
-                let records: Vec<Vec<u8>> = baked.iter().map(|b| b.record.clone()).collect();
                 let touched = baked.iter().filter(|b| b.rays > 0).count();
                 let (rays, tiles) = baked.iter().fold((0, 0), |(r, t), b| (r + b.rays, t + b.built));
+                let records: Vec<Vec<u8>> = baked.into_iter().map(|b| b.record).collect();
                 (encode_records(&records), warm, touched, rays, tiles)
             }
         };

@@ -183,13 +183,20 @@ pub fn rebake_vertex(
             return kept[f].to_vec();
         }
         let wanted = |d: glam::Vec3| {
-            let o = accel::offset_ray_origin(p, n, d);
-            cold || changed.iter().any(|(lo, hi)| accel::ray_meets_box(o, d, *lo, *hi))
+            cold || {
+                let o = accel::offset_ray_origin(p, n, d);
+                changed.iter().any(|(lo, hi)| accel::ray_meets_box(o, d, *lo, *hi))
+            }
         };
         let vis = visibility::cast_face_where(occluders, p, n, f, s.res, dirty, wanted);
         out.rays += vis.iter().filter(|&&v| v == visibility::VISIBLE || v == visibility::OCCLUDED).count();
-        let old_tree = if kept[f].is_empty() { vec![tree::Node::Leaf(0.0)] } else { layout::decode_tree(kept[f]) };
-        let face = tree::rebuild(&vis, s.res, s.epsilon, if cold { &[] } else { &old_tree }, &old_masks);
+        // A face that stored no tree was entirely occluded (or below the horizon: never read).
+        let old_tree = match (cold, kept[f].is_empty()) {
+            (true, _) => Vec::new(),
+            (false, true) => vec![tree::Node::Leaf(0.0)],
+            (false, false) => layout::decode_tree(kept[f]),
+        };
+        let face = tree::rebuild(&vis, s.res, s.epsilon, &old_tree, &old_masks);
         out.built += face.built;
         out.masks.extend(face.masks.iter().map(|&(t, m)| (t + range.start, m)));
         layout::encode_face(face.nodes.as_deref().filter(|t| *t != [tree::Node::Leaf(0.0)]))
@@ -199,9 +206,10 @@ pub fn rebake_vertex(
 }
 
 /// Which tiles of a vertex at `p` (unit normal `n`) can see into an axis-aligned box (per
-/// face, row-major tiles: `6 · tiles_per_side²` flags): the box meets the tile's frustum above the horizon, with a margin
-/// of two texels for the rays cast just above the horizon (a conservative test: a clean tile's
-/// visibility cannot change when only geometry inside the box does).
+/// face, row-major tiles: `6 · tiles_per_side²` flags): the box meets the tile's frustum above
+/// the horizon, with a margin of two texels for the rays cast just above the horizon (a
+/// conservative test: a clean tile's visibility cannot change when only geometry inside the box
+/// does).
 pub fn tiles_seeing_box(p: glam::Vec3, n: glam::Vec3, lo: glam::Vec3, hi: glam::Vec3, res: usize) -> Vec<bool> {
     let k = tiles_per_side(res);
     let (p, n) = (p.as_dvec3(), n.as_dvec3());
@@ -388,13 +396,6 @@ mod tests {
         BakedInstance { offsets, data: records.concat() }
     }
 
-    /// Whether the ray `p + t d` (t > 0) meets the box.
-    fn ray_meets_box(p: glam::DVec3, d: glam::DVec3, lo: glam::DVec3, hi: glam::DVec3) -> bool {
-        let (a, b) = ((lo - p) / d, (hi - p) / d);
-        let (near, far) = (a.min(b).max_element(), a.max(b).min_element());
-        far >= near.max(0.0)
-    }
-
     /// The tile test is conservative: no ray cast through a tile it leaves clean meets the box.
     #[test]
     fn clean_tiles_cast_no_ray_into_the_box() {
@@ -412,7 +413,7 @@ mod tests {
                     }
                     clean += 1;
                     if let Some(d) = visibility::texel_ray(f, i, j, n.as_dvec3(), res) {
-                        let hit = ray_meets_box(p.as_dvec3(), d, lo.as_dvec3(), hi.as_dvec3());
+                        let hit = accel::ray_meets_box(p, d.as_vec3(), lo, hi);
                         assert!(!hit, "p {p}, n {n}: texel ({f}, {i}, {j}) in a clean tile meets the box");
                     }
                 }
