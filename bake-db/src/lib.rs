@@ -2,13 +2,14 @@
 //!
 //! The bake database: every baker's results, content-addressed in one redb file per project.
 //!
-//! - [`store`]: the file (schema version; tables for meshes, artefacts, metadata, scenes and
-//!   lineage), batched writes, integrity check and garbage collection;
+//! - [`store`]: the file (schema version; tables for meshes, artefacts, metadata, scenes,
+//!   lineage and bakers' caches), batched writes, integrity check and garbage collection;
 //! - [`key`]: bake keys, blake3 of everything a result depends on;
 //! - [`plan`]: which artefacts a scene needs (chunks of [`plan::CHUNK`] vertices per instance
 //!   and technique), which are cached;
 //! - [`run`]: bakes the misses on rayon while one writer commits batches, re-bakes BSPVT warm
-//!   from lineage after edits, and assembles the engine's bakes;
+//!   from lineage after edits (with the BSPVT tile cache kept between runs), and assembles the
+//!   engine's bakes;
 //! - [`records`]: radiance-cache records, keyed by geometry, materials, direct light and
 //!   settings;
 //! - [`pack`]: asset packs (glTF binary + the `KAGE_baked_shadows` extension) written and read.
@@ -19,6 +20,8 @@
 //!   bit-identical on any thread count, and a warm re-bake gives the cold bake's bytes.
 //! - **Crash safety**: each batch is one transaction; a process killed at any moment loses at
 //!   most the batch in flight, and the next run bakes only what is missing.
+//! - **Caches cost only time**: a baker's cache (BSPVT tile subtrees) returns exactly what a
+//!   build would; a damaged one is ignored and rebuilt, `gc` drops them all.
 //! - **Clear errors**: a locked, corrupted or incompatible file is an error naming the file.
 
 pub mod key;

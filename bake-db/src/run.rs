@@ -52,9 +52,13 @@ pub struct RunStats {
     /// BSPVT visibility rays cast (all above the horizon cold; only those meeting a changed
     /// occluder's bounds warm).
     pub rays_cast: usize,
-    /// BSPVT mixed cube-face tiles whose subtrees Algorithm 1 built (all cold; only those whose
-    /// visibility changed warm).
+    /// BSPVT mixed cube-face tiles whose subtrees were made anew (all cold; only those whose
+    /// visibility changed warm), by Algorithm 1 or from the tile cache.
     pub tiles_built: usize,
+    /// Of those, the ones the tile cache had (shared by the run's workers and kept in the
+    /// database between runs; see `bspvt::cache`). Depends on timing: two workers can build
+    /// the same new tile at once.
+    pub tiles_from_cache: usize,
     /// Wall-clock seconds.
     pub seconds: f64,
 }
@@ -138,10 +142,20 @@ pub fn run_cancellable(store: &Store, scene: &Scene, flat: &FlatScene, plan: &Pl
             f(Chunk { job, bytes: &store.get::<u8>(&job.key)?.unwrap_or_default() });
         }
     }
-    let occluders = plan.bspvt.map(|_| bspvt::occluder_bvh(flat));
-    let transfer = plan.prt.map(|s| prt::Baker::new(scene, flat, &s));
-    let ctx = Context { scene, flat, plan, store, occluders: occluders.as_ref(), transfer: transfer.as_ref() };
     let misses: Vec<&Job> = plan.misses().collect();
+    let occluders = plan.bspvt.map(|_| bspvt::occluder_bvh(flat));
+    let baking_bspvt = misses.iter().any(|j| j.kind == Kind::Bspvt);
+    let tiles = plan.bspvt.filter(|_| baking_bspvt).map(|s| load_tiles(store, &s)).transpose()?;
+    let transfer = plan.prt.map(|s| prt::Baker::new(scene, flat, &s));
+    let ctx = Context {
+        scene,
+        flat,
+        plan,
+        store,
+        occluders: occluders.as_ref(),
+        tiles: tiles.as_ref(),
+        transfer: transfer.as_ref(),
+    };
     let done = AtomicUsize::new(0);
     let (tx, rx) = mpsc::channel::<Baked<'_>>();
     let mut fresh: HashMap<Key, Vec<u8>> = HashMap::new();
@@ -180,7 +194,14 @@ pub fn run_cancellable(store: &Store, scene: &Scene, flat: &FlatScene, plan: &Pl
         }
         Ok(())
     });
+    // Kept even when the run failed or was cancelled: what was built stays useful.
+    let saved = tiles
+        .as_ref()
+        .filter(|t| t.added() > 0)
+        .map_or(Ok(()), |t| store.put_cache(&tiles_name(t.settings()), &t.to_bytes()));
     written?;
+    saved?;
+    stats.tiles_from_cache = tiles.as_ref().map_or(0, |t| t.hits());
     store.put_scene(&scene.source, &plan.keys(), &plan.snapshot.hash)?;
     let meshes: Vec<([u8; 32], u32, u32)> =
         scene.meshes.iter().map(|m| (m.hash.0, m.positions.len() as u32, m.triangles.len() as u32)).collect();
@@ -229,6 +250,7 @@ struct Context<'a> {
     plan: &'a Plan,
     store: &'a Store,
     occluders: Option<&'a Occluders>,
+    tiles: Option<&'a bspvt::cache::TileCache>,
     transfer: Option<&'a prt::Baker>,
 }
 
@@ -255,8 +277,7 @@ impl Context<'_> {
                 (bytemuck::cast_slice(&out).to_vec(), false, job.vertices.len(), 0, 0)
             }
             Kind::Bspvt => {
-                let s = self.plan.bspvt.expect("BSPVT job without BSPVT settings");
-                let (baked, warm) = self.bake_bspvt(job, &s)?;
+                let (baked, warm) = self.bake_bspvt(job)?;
                 if let Some((_, v)) = &mut lineage {
                     baked.iter().for_each(|b| encode_masks(&b.masks, v));
                 }
@@ -278,8 +299,9 @@ impl Context<'_> {
     }
 
     /// The chunk's vertex bakes, and whether they were re-baked warm from the slot's lineage.
-    fn bake_bspvt(&self, job: &Job, s: &bspvt::Settings) -> Result<(Vec<bspvt::VertexBake>, bool)> {
-        let occ = self.occluders.expect("built for BSPVT plans");
+    fn bake_bspvt(&self, job: &Job) -> Result<(Vec<bspvt::VertexBake>, bool)> {
+        let (occ, tiles) =
+            (self.occluders.expect("built for BSPVT plans"), self.tiles.expect("loaded for BSPVT misses"));
         let vertex = |v: usize| self.flat.vertex(&self.scene.meshes, job.instance, v);
         let (old, changed) = match self.lineage_of(job)? {
             Some((old, changed)) => (Some(old), changed),
@@ -293,7 +315,7 @@ impl Context<'_> {
             .zip(&old)
             .map(|(v, old)| {
                 let (p, n) = vertex(v);
-                bspvt::rebake_vertex(occ, p, n, s, old, &changed)
+                bspvt::rebake_vertex(occ, p, n, tiles, old, &changed)
             })
             .collect();
         Ok((baked, warm))
@@ -318,6 +340,19 @@ impl Context<'_> {
         });
         Ok(Some((old.collect(), changed_bounds(&then, &self.plan.snapshot.occluders))))
     }
+}
+
+/// The store's name for the tile cache of `s`.
+pub fn tiles_name(s: &bspvt::Settings) -> String {
+    format!("bspvt tiles v{} res {} eps {}", bspvt::ALGORITHM_VERSION, s.res, s.epsilon)
+}
+
+/// The stored tile cache for `s`, or an empty one (none stored, or damaged: it only costs time).
+fn load_tiles(store: &Store, s: &bspvt::Settings) -> Result<bspvt::cache::TileCache> {
+    let stored = store.cache(&tiles_name(s))?;
+    Ok(stored
+        .and_then(|b| bspvt::cache::TileCache::from_bytes(s, &b))
+        .unwrap_or_else(|| bspvt::cache::TileCache::new(s)))
 }
 
 /// Bounds of every occluder added, removed or changed between two snapshots (old and new).

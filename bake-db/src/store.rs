@@ -27,6 +27,10 @@ const SCENES: TableDefinition<&str, &[u8]> = TableDefinition::new("scenes");
 const EXTRAS: TableDefinition<&str, &[u8]> = TableDefinition::new("extras");
 /// Lineage slot → the last artefact baked there and what it was baked against.
 const LINEAGE: TableDefinition<&[u8], &[u8]> = TableDefinition::new("lineage");
+/// Name → a baker's cache of partial results (e.g. BSPVT tile subtrees), kept between runs to
+/// speed re-bakes up; never part of an artefact, so losing it costs only time. Each value
+/// checks itself when loaded. Older files lack the table: readers treat it as empty.
+const CACHES: TableDefinition<&str, &[u8]> = TableDefinition::new("caches");
 
 /// What can go wrong with the database file.
 #[derive(Debug, thiserror::Error)]
@@ -193,6 +197,23 @@ impl Store {
         self.read(|t| Ok(t.open_table(LINEAGE)?.get(slot.as_bytes().as_slice())?.map(|v| v.value().to_vec())))
     }
 
+    /// The cache stored under `name`.
+    pub fn cache(&self, name: &str) -> Result<Option<Vec<u8>>> {
+        self.read(|t| match t.open_table(CACHES) {
+            Ok(c) => Ok(c.get(name)?.map(|v| v.value().to_vec())),
+            Err(redb::TableError::TableDoesNotExist(_)) => Ok(None),
+            Err(e) => Err(e.into()),
+        })
+    }
+
+    /// Stores (replaces) the cache under `name`.
+    pub fn put_cache(&self, name: &str, bytes: &[u8]) -> Result<()> {
+        self.write(|t| {
+            t.open_table(CACHES)?.insert(name, bytes)?;
+            Ok(())
+        })
+    }
+
     /// Records a mesh (content hash → vertex and triangle counts).
     pub fn put_meshes(&self, meshes: &[([u8; 32], u32, u32)]) -> Result<()> {
         self.write(|t| {
@@ -306,8 +327,9 @@ impl Store {
         Ok(CheckReport { ok: bad.0, bad: bad.1, clean })
     }
 
-    /// Drops artefacts (and lineage pointing at them) that no recorded scene references (its
-    /// plan's keys or its extras); returns how many artefacts went.
+    /// Drops artefacts that no recorded scene references (its plan's keys or its extras), and
+    /// every cache (the next bake rebuilds what it needs); returns how many artefacts went.
+    /// Lineage pointing at a dropped artefact stays: its slot's next bake is cold.
     pub fn gc(&self) -> Result<usize> {
         let keep: HashSet<[u8; 32]> = self.read(|t| {
             let s = t.open_table(SCENES)?;
@@ -347,6 +369,7 @@ impl Store {
                 a.remove(k.as_slice())?;
                 i.remove(k.as_slice())?;
             }
+            t.delete_table(CACHES)?;
             Ok(())
         })?;
         Ok(doomed.len())

@@ -162,6 +162,32 @@ fn bad_database_files_give_clear_errors() {
     assert!(matches!(e, DbError::Schema { found: 99, .. }) && e.to_string().contains("schema version 99"), "{e}");
 }
 
+/// The BSPVT tile cache is stored by a run and used by the next; a damaged one only costs
+/// time (the re-bake still gives a cold bake's bytes, and stores a good cache again); `gc`
+/// drops it.
+#[test]
+fn the_tile_cache_outlives_runs_and_damage_costs_only_time() {
+    let store = Store::open(&scratch("tiles")).unwrap();
+    let name = run::tiles_name(&BSPVT);
+    let (first, ..) = bake(&store, &scene(""));
+    let stored = store.cache(&name).unwrap().expect("a cold bake stores its tiles");
+    let cache = bspvt::cache::TileCache::from_bytes(&BSPVT, &stored).expect("a well-formed cache");
+    assert!(cache.len() > 10 && cache.len() + first.tiles_from_cache == first.tiles_built, "{first:?}");
+    let mut damaged = stored.clone();
+    damaged[stored.len() / 2] ^= 0x10;
+    store.put_cache(&name, &damaged).unwrap();
+    let (_, bytes, _) = bake(&store, &scene("move"));
+    let (_, cold, _) = bake(&Store::open(&scratch("tiles-fresh")).unwrap(), &scene("move"));
+    assert!(bytes == cold, "a re-bake past a damaged cache gives a cold bake's bytes");
+    let again = store.cache(&name).unwrap().expect("stored again");
+    // Started afresh: only the tiles the re-bake built.
+    assert!(
+        bspvt::cache::TileCache::from_bytes(&BSPVT, &again).is_some_and(|c| !c.is_empty() && c.len() < cache.len())
+    );
+    store.gc().unwrap();
+    assert_eq!(store.cache(&name).unwrap(), None, "gc drops caches");
+}
+
 #[test]
 fn check_finds_damaged_artefacts_and_gc_drops_unreferenced_ones() {
     let path = scratch("gc");

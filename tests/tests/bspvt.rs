@@ -1,6 +1,7 @@
 //! BSPVT against its own comparison modes and the reference, and its hard cases.
 
 use glam::{Affine3A, Vec3};
+use kage_engine::bspvt::cache::TileCache;
 use kage_engine::bspvt::shade::{PointShader, Visibility};
 use kage_engine::bspvt::{self, Settings, bake_vertex, occluder_bvh, visibility};
 use kage_engine::math::ltc;
@@ -26,7 +27,7 @@ fn three_ways(scene: &Scene, r: &Renderer, s: &Settings, i: usize, v: usize, eye
     let occ = occluder_bvh(&r.flat);
     let (p, n) = r.vertex(i, v);
     let shader = PointShader::new(&table, p, n, eye, &r.flat.instances[i].material);
-    let rec = bake_vertex(&occ, p, n, s).record;
+    let rec = bake_vertex(&occ, p, n, &TileCache::new(s)).record;
     let cube = visibility::cast(&occ, p, n, s.res);
     let _ = scene;
     [

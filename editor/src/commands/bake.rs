@@ -87,12 +87,13 @@ fn bake_once(args: &Args, store: &Store) -> Result<()> {
     let outcome = with_bar(total, "baking", |p| kage_bake_db::run(store, &scene, &flat, &plan, p))?;
     let s = outcome.stats;
     crate::emit(&format!(
-        "baked {} chunks cold and {} warm ({} vertices, {} rays, {} tiles built) in {:.2} s; {} cached; {}\n",
+        "baked {} chunks cold and {} warm ({} vertices, {} rays, {} tiles built, {} from the tile cache) in {:.2} s; {} cached; {}\n",
         s.cold,
         s.warm,
         s.vertices_baked,
         s.rays_cast,
         s.tiles_built,
+        s.tiles_from_cache,
         s.seconds,
         s.cached,
         store.path().display()

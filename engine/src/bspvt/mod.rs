@@ -13,15 +13,17 @@
 //! Baking depends only on the occluders' geometry (lights are not occluders: they move freely
 //! at run time), the face resolution and ε; it is parallel over vertices and deterministic.
 
+pub mod cache;
+pub mod dirty;
 pub mod layout;
 pub mod plan;
 pub mod shade;
 pub mod tree;
 pub mod visibility;
 
-use crate::accel::{self, Occluders};
-use crate::math::cubemap;
+use crate::accel::Occluders;
 use crate::scene::{FlatScene, NO_LIGHT, Scene};
+use cache::TileCache;
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
@@ -136,14 +138,14 @@ pub struct VertexBake {
     pub masks: tree::Masks,
     /// Rays cast.
     pub rays: usize,
-    /// Mixed tiles whose subtrees Algorithm 1 built.
+    /// Mixed tiles whose subtrees were made anew (by Algorithm 1, or from the tile cache).
     pub built: usize,
 }
 
-/// Bakes one vertex. Faces entirely below the horizon or entirely occluded store no tree: both
+/// Bakes one vertex with `tiles`' settings, its subtrees from (and added to) `tiles`. Faces entirely below the horizon or entirely occluded store no tree: both
 /// contribute nothing.
-pub fn bake_vertex(occluders: &Occluders, p: glam::Vec3, n: glam::Vec3, s: &Settings) -> VertexBake {
-    rebake_vertex(occluders, p, n, s, &VertexBake::default(), &[])
+pub fn bake_vertex(occluders: &Occluders, p: glam::Vec3, n: glam::Vec3, tiles: &TileCache) -> VertexBake {
+    rebake_vertex(occluders, p, n, tiles, &VertexBake::default(), &[])
 }
 
 /// Tiles per face side at face resolution `res` (see [`tree::TILE`]).
@@ -156,20 +158,22 @@ pub fn tiles_per_side(res: usize) -> usize {
 /// are cast again, and only tiles whose visibility changed are built again; faces no such ray
 /// crosses keep their bytes. Identical to [`bake_vertex`] of the edited scene, because a ray
 /// that meets none of the boxes cannot have changed. An empty `old` record bakes from scratch.
+/// Settings and subtrees as in [`bake_vertex`].
 pub fn rebake_vertex(
     occluders: &Occluders,
     p: glam::Vec3,
     n: glam::Vec3,
-    s: &Settings,
+    tiles: &TileCache,
     old: &VertexBake,
     changed: &[(glam::Vec3, glam::Vec3)],
 ) -> VertexBake {
+    let s = tiles.settings();
     let per_face = tiles_per_side(s.res).pow(2);
     let cold = old.record.is_empty();
+    let boxes: Vec<dirty::SeenBox> = changed.iter().map(|&(lo, hi)| dirty::SeenBox::new(p, n, lo, hi)).collect();
     let mut dirty = vec![cold; 6 * per_face];
-    for (lo, hi) in changed {
-        let d = tiles_seeing_box(p, n, *lo, *hi, s.res);
-        dirty.iter_mut().zip(d).for_each(|(a, b)| *a |= b);
+    for b in &boxes {
+        dirty.iter_mut().zip(b.tiles(s.res)).for_each(|(a, b)| *a |= b);
     }
     let kept = if cold { [&[][..]; 6] } else { layout::vertex_faces(&old.record) };
     let mut out = VertexBake::default();
@@ -182,12 +186,7 @@ pub fn rebake_vertex(
             out.masks.extend(old_masks.iter().map(|&(t, m)| (t + range.start, m)));
             return kept[f].to_vec();
         }
-        let wanted = |d: glam::Vec3| {
-            cold || {
-                let o = accel::offset_ray_origin(p, n, d);
-                changed.iter().any(|(lo, hi)| accel::ray_meets_box(o, d, *lo, *hi))
-            }
-        };
+        let wanted = |d: glam::Vec3| cold || boxes.iter().any(|b| b.meets(d));
         let vis = visibility::cast_face_where(occluders, p, n, f, s.res, dirty, wanted);
         out.rays += vis.iter().filter(|&&v| v == visibility::VISIBLE || v == visibility::OCCLUDED).count();
         // A face that stored no tree was entirely occluded (or below the horizon: never read).
@@ -196,7 +195,7 @@ pub fn rebake_vertex(
             (false, true) => vec![tree::Node::Leaf(0.0)],
             (false, false) => layout::decode_tree(kept[f]),
         };
-        let face = tree::rebuild(&vis, s.res, s.epsilon, &old_tree, &old_masks);
+        let face = tree::rebuild(&vis, tiles, &old_tree, &old_masks);
         out.built += face.built;
         out.masks.extend(face.masks.iter().map(|&(t, m)| (t + range.start, m)));
         layout::encode_face(face.nodes.as_deref().filter(|t| *t != [tree::Node::Leaf(0.0)]))
@@ -205,52 +204,12 @@ pub fn rebake_vertex(
     out
 }
 
-/// Which tiles of a vertex at `p` (unit normal `n`) can see into an axis-aligned box (per
-/// face, row-major tiles: `6 · tiles_per_side²` flags): the box meets the tile's frustum above
-/// the horizon, with a margin of two texels for the rays cast just above the horizon (a
-/// conservative test: a clean tile's visibility cannot change when only geometry inside the box
-/// does).
-pub fn tiles_seeing_box(p: glam::Vec3, n: glam::Vec3, lo: glam::Vec3, hi: glam::Vec3, res: usize) -> Vec<bool> {
-    let k = tiles_per_side(res);
-    let (p, n) = (p.as_dvec3(), n.as_dvec3());
-    let (lo, hi) = (lo.as_dvec3(), hi.as_dvec3());
-    if (p.cmpge(lo) & p.cmple(hi)).all() {
-        return vec![true; 6 * k * k];
-    }
-    let corners: [glam::DVec3; 8] = std::array::from_fn(|c| {
-        glam::DVec3::new(
-            if c & 1 == 0 { lo.x } else { hi.x },
-            if c & 2 == 0 { lo.y } else { hi.y },
-            if c & 4 == 0 { lo.z } else { hi.z },
-        ) - p
-    });
-    let margin = 4.0 / res as f64;
-    let outside = |plane: glam::DVec3| corners.iter().all(|c| plane.dot(*c) < -margin * c.length());
-    if outside(n) {
-        return vec![false; 6 * k * k];
-    }
-    let edge = |t: usize| 2.0 * (t * tree::TILE).min(res) as f64 / res as f64 - 1.0;
-    let mut out = Vec::with_capacity(6 * k * k);
-    for f in 0..6 {
-        let face_seen = !cubemap::face_frustum(f).iter().any(|pl| outside(pl.normalize()));
-        for (tj, ti) in (0..k).flat_map(|tj| (0..k).map(move |ti| (tj, ti))) {
-            let planes = [
-                cubemap::line_plane(f, 1.0, 0.0, -edge(ti)),
-                cubemap::line_plane(f, -1.0, 0.0, edge(ti + 1)),
-                cubemap::line_plane(f, 0.0, 1.0, -edge(tj)),
-                cubemap::line_plane(f, 0.0, -1.0, edge(tj + 1)),
-            ];
-            out.push(face_seen && !planes.iter().any(|pl| outside(pl.normalize())));
-        }
-    }
-    out
-}
-
 /// Bakes every receiver vertex, in parallel; `progress` gets the number of vertices done.
 /// With no polygonal light in the scene nothing can be reached: every record is empty.
 pub fn bake(scene: &Scene, flat: &FlatScene, s: &Settings, progress: &(dyn Fn(usize) + Sync)) -> Bake {
     let start = Instant::now();
     let occluders = occluder_bvh(flat);
+    let tiles = TileCache::new(s);
     let done = AtomicUsize::new(0);
     let mut stats = Stats::default();
     let instances = (0..flat.instances.len())
@@ -263,7 +222,7 @@ pub fn bake(scene: &Scene, flat: &FlatScene, s: &Settings, progress: &(dyn Fn(us
                     let r = if flat.lights.is_empty() {
                         layout::encode_vertex(&Default::default())
                     } else {
-                        bake_vertex(&occluders, p, normal, s).record
+                        bake_vertex(&occluders, p, normal, &tiles).record
                     };
                     progress(done.fetch_add(1, Ordering::Relaxed) + 1);
                     r
@@ -394,32 +353,6 @@ mod tests {
         let mut offsets = vec![0u32];
         records.iter().for_each(|r| offsets.push(offsets[offsets.len() - 1] + r.len() as u32));
         BakedInstance { offsets, data: records.concat() }
-    }
-
-    /// The tile test is conservative: no ray cast through a tile it leaves clean meets the box.
-    #[test]
-    fn clean_tiles_cast_no_ray_into_the_box() {
-        let (res, k) = (32, tiles_per_side(32));
-        let (lo, hi) = (glam::Vec3::new(-0.5, 1.0, -0.2), glam::Vec3::new(0.7, 1.1, 0.4));
-        let (mut clean, mut dirty) = (0, 0);
-        for (x, z) in (-3..=3).flat_map(|x| (-3..=3).map(move |z| (x as f32 * 0.7, z as f32 * 0.7))) {
-            for n in [glam::Vec3::Y, glam::Vec3::new(0.6, 0.8, 0.0), glam::Vec3::new(0.0, 0.6, -0.8)] {
-                let p = glam::Vec3::new(x, 0.0, z);
-                let flags = tiles_seeing_box(p, n, lo, hi, res);
-                for (f, i, j) in (0..6).flat_map(|f| (0..res * res).map(move |t| (f, t % res, t / res))) {
-                    if flags[f * k * k + (j / tree::TILE) * k + i / tree::TILE] {
-                        dirty += 1;
-                        continue;
-                    }
-                    clean += 1;
-                    if let Some(d) = visibility::texel_ray(f, i, j, n.as_dvec3(), res) {
-                        let hit = accel::ray_meets_box(p, d.as_vec3(), lo, hi);
-                        assert!(!hit, "p {p}, n {n}: texel ({f}, {i}, {j}) in a clean tile meets the box");
-                    }
-                }
-            }
-        }
-        assert!(clean > 4 * dirty && dirty > 0, "{clean} clean and {dirty} dirty texels");
     }
 
     #[test]

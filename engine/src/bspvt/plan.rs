@@ -3,6 +3,7 @@
 //! first, and measures each against exact visibility at twice the finest resolution; the
 //! cheapest configuration within the budget wins, and the plan says why.
 
+use super::cache::TileCache;
 use super::shade::{PointShader, Visibility};
 use super::{Settings, bake_vertex, occluder_bvh, visibility};
 use crate::math::{ltc, relative_rmse};
@@ -31,6 +32,7 @@ pub fn choose(scene: &Scene, flat: &FlatScene, budget: f64, eye: Vec3) -> (Setti
     let table = ltc::table();
     let truth_res = 2 * CANDIDATES[CANDIDATES.len() - 1].0;
     let shade = |s: Settings, exact: bool| -> Vec<Vec3> {
+        let tiles = TileCache::new(&s);
         sample
             .par_iter()
             .map(|&(i, v)| {
@@ -39,7 +41,7 @@ pub fn choose(scene: &Scene, flat: &FlatScene, budget: f64, eye: Vec3) -> (Setti
                 if exact {
                     shader.shade(&flat.lights, Visibility::Exact(&visibility::cast(&occ, p, n, s.res)))
                 } else {
-                    shader.shade(&flat.lights, Visibility::Tree(&bake_vertex(&occ, p, n, &s).record))
+                    shader.shade(&flat.lights, Visibility::Tree(&bake_vertex(&occ, p, n, &tiles).record))
                 }
             })
             .collect()

@@ -8,6 +8,8 @@
 //! (`cos θ s + sin θ t − c > 0`) is the first child. Line parameters are quantised *before*
 //! pixels are partitioned, so leaf means match the geometry the shader sees.
 
+use super::Settings;
+use super::cache::TileCache;
 use super::layout::{dequantise_line, quantise_line};
 use super::visibility::{BELOW, SKIPPED, VISIBLE};
 use crate::math::{cubemap, nelder_mead};
@@ -99,22 +101,25 @@ pub struct FaceTree {
     /// horizon), by tile index (row-major within the face); bit `(j mod TILE)·TILE + i mod
     /// TILE` is texel (i, j). Uniform tiles need none: their subtree is a 0 or 1 leaf.
     pub masks: Masks,
-    /// Mixed tiles whose subtrees Algorithm 1 built (the rest were kept or uniform).
+    /// Mixed tiles whose subtrees were made anew, by Algorithm 1 or from the [`TileCache`]
+    /// (the rest were kept or uniform).
     pub built: usize,
 }
 
 /// Builds the tree of one face from its texel states.
 pub fn build(face: &[u8], res: usize, epsilon: f64) -> FaceTree {
-    rebuild(face, res, epsilon, &[], &[])
+    rebuild(face, &TileCache::new(&Settings { res, epsilon }), &[], &[])
 }
 
 /// [`build`] for a face some of whose texels were not cast ([`SKIPPED`]): their states are
 /// those of `old`, the face's previous tree (a complete tree; a face that stored none was
 /// entirely occluded: `[Leaf(0.0)]`), and `old_masks`, its masks. A tile whose states did not
-/// change keeps its old subtree. Equal to [`build`] of the fully cast face when the skipped
-/// texels' visibility did not change.
-pub fn rebuild(face: &[u8], res: usize, epsilon: f64, old: &[Node], old_masks: &[(u32, u64)]) -> FaceTree {
-    let mut grid = Grid::new(face, res, epsilon, old_masks);
+/// change keeps its old subtree; the others come from `tiles` (whose settings apply) or are
+/// built and added to it. Equal to [`build`] of the fully cast face when the skipped texels'
+/// visibility did not change.
+pub fn rebuild(face: &[u8], tiles: &TileCache, old: &[Node], old_masks: &[(u32, u64)]) -> FaceTree {
+    let res = tiles.settings().res;
+    let mut grid = Grid::new(face, tiles, old_masks);
     let nodes = grid.region(Rect { i0: 0, j0: 0, i1: res, j1: res }, old);
     grid.masks.sort_unstable_by_key(|m| m.0);
     FaceTree { nodes, masks: grid.masks, built: grid.built }
@@ -169,7 +174,7 @@ struct TileBits {
 /// One face's texel states, build parameters and the masks being gathered.
 struct Grid<'a> {
     res: usize,
-    epsilon: f64,
+    cache: &'a TileCache,
     /// Tiles per side.
     k: usize,
     tiles: Vec<TileBits>,
@@ -179,7 +184,8 @@ struct Grid<'a> {
 }
 
 impl<'a> Grid<'a> {
-    fn new(face: &[u8], res: usize, epsilon: f64, old_masks: &'a [(u32, u64)]) -> Self {
+    fn new(face: &[u8], cache: &'a TileCache, old_masks: &'a [(u32, u64)]) -> Self {
+        let res = cache.settings().res;
         let k = res.div_ceil(TILE);
         let mut tiles = vec![TileBits::default(); k * k];
         for (x, &state) in face.iter().enumerate() {
@@ -189,7 +195,7 @@ impl<'a> Grid<'a> {
             t.visible |= if state == VISIBLE { bit } else { 0 };
             t.skipped |= if state == SKIPPED { bit } else { 0 };
         }
-        Self { res, epsilon, k, tiles, old_masks, masks: Vec::new(), built: 0 }
+        Self { res, cache, k, tiles, old_masks, masks: Vec::new(), built: 0 }
     }
 
     /// Whether any texel of `r` is above the horizon.
@@ -239,20 +245,23 @@ impl<'a> Grid<'a> {
             return vec![Node::Leaf(if visible == 0 { 0.0 } else { 1.0 })];
         }
         self.built += 1;
-        let res = self.res;
-        let mean_w = 4.0 * std::f64::consts::PI / (6 * res * res) as f64;
-        let bit = |(i, j): (usize, usize)| 1u64 << ((j - r.j0) * TILE + i - r.i0);
-        let all: Vec<Pixel> = r
-            .texels()
-            .filter(|&x| live & bit(x) != 0)
-            .map(|(i, j)| {
-                let st = cubemap::texel_center(i, j, res);
-                let w = cubemap::texel_solid_angle(i, j, res) / mean_w;
-                Pixel { s: st.x, t: st.y, w, v: if visible & bit((i, j)) != 0 { 1.0 } else { 0.0 } }
-            })
-            .collect();
-        clusters(&all, res, self.epsilon)
+        let Settings { res, epsilon } = *self.cache.settings();
+        self.cache.get_or_build((index, live, visible), || clusters(&tile_pixels(r, res, live, visible), res, epsilon))
     }
+}
+
+/// The pixels of tile `r` above the horizon (`live`), visible where `visible` says.
+fn tile_pixels(r: Rect, res: usize, live: u64, visible: u64) -> Vec<Pixel> {
+    let mean_w = 4.0 * std::f64::consts::PI / (6 * res * res) as f64;
+    let bit = |(i, j): (usize, usize)| 1u64 << ((j - r.j0) * TILE + i - r.i0);
+    r.texels()
+        .filter(|&x| live & bit(x) != 0)
+        .map(|(i, j)| {
+            let st = cubemap::texel_center(i, j, res);
+            let w = cubemap::texel_solid_angle(i, j, res) / mean_w;
+            Pixel { s: st.x, t: st.y, w, v: if visible & bit((i, j)) != 0 { 1.0 } else { 0.0 } }
+        })
+        .collect()
 }
 
 /// Splits the cluster of all `all` pixels while some cluster's error exceeds ε.
@@ -541,6 +550,8 @@ mod tests {
     }
 
     fn rebuild_equals_build(res: usize) {
+        // One cache for every rebuild below, as a bake shares one among its vertices.
+        let cache = TileCache::new(&Settings { res, epsilon: 1.0 });
         let horizon = |t: f64| t < -0.7;
         let scene = |cx: f64| {
             face_from(res, move |s, t| {
@@ -573,7 +584,7 @@ mod tests {
             let partial: Vec<u8> =
                 (0..res * res).map(|x| if after[x] == BELOW || cast(x) { after[x] } else { SKIPPED }).collect();
             assert!(partial.contains(&SKIPPED), "some texels are kept");
-            let warm = rebuild(&partial, res, 1.0, &old.nodes.clone().unwrap(), &old.masks);
+            let warm = rebuild(&partial, &cache, &old.nodes.clone().unwrap(), &old.masks);
             assert_eq!((&warm.nodes, &warm.masks), (&fresh.nodes, &fresh.masks));
             let mut crossed = changed.clone();
             crossed.sort_unstable();
@@ -590,9 +601,27 @@ mod tests {
             .collect();
         let none: Vec<u8> = face.iter().map(|&s| if s == BELOW { BELOW } else { SKIPPED }).collect();
         for partial in [some, none] {
-            let warm = rebuild(&partial, res, 1.0, &old.nodes.clone().unwrap(), &old.masks);
+            let warm = rebuild(&partial, &cache, &old.nodes.clone().unwrap(), &old.masks);
             assert_eq!((&warm.nodes, &warm.masks, warm.built), (&old.nodes, &old.masks, 0));
         }
+    }
+
+    /// A face built again through the cache that built it takes every subtree from the cache,
+    /// and equals the first build.
+    #[test]
+    fn cached_subtrees_equal_built_ones() {
+        let res = 32;
+        let face = face_from(res, |s, t| if s * s + 2.0 * t * t < 0.4 || s > 0.7 { OCCLUDED } else { VISIBLE });
+        let cache = TileCache::new(&Settings { res, epsilon: 0.5 });
+        let first = rebuild(&face, &cache, &[], &[]);
+        assert!(first.built > 4 && cache.hits() == 0 && cache.added() == first.built);
+        let again = rebuild(&face, &cache, &[], &[]);
+        assert_eq!(again, first);
+        assert_eq!((cache.hits(), cache.added()), (first.built, first.built));
+        // And through the cache's byte form, as a later bake loads it.
+        let loaded = TileCache::from_bytes(cache.settings(), &cache.to_bytes()).expect("round trip");
+        assert_eq!(rebuild(&face, &loaded, &[], &[]), first);
+        assert_eq!((loaded.hits(), loaded.added()), (first.built, 0));
     }
 
     #[test]
