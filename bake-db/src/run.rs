@@ -2,13 +2,16 @@
 //! in batches, then every chunk (baked now or cached) is assembled into the engine's bakes.
 //!
 //! A BSPVT chunk whose slot has lineage is re-baked *warm* (`bspvt::rebake_vertex`): only the
-//! rays of its vertices that meet the old or new bounds of an occluder that changed are cast
-//! again, and only the cube-face tiles whose visibility changed are built again; the other
-//! tiles' subtrees are kept. The lineage keeps, beside the previous artefact's key and the
-//! occluders it saw, the visible-texel masks of every vertex's mixed tiles (uniform tiles need
-//! none), so the texels not cast again keep their exact old state. The result is byte-identical
-//! to a cold bake, because a ray that meets none of the boxes cannot have changed and a face's
-//! tree is its tiles' subtrees joined by a fixed grid (`bspvt::tree::TILE`).
+//! texels of its vertices whose rays meet the old or new bounds of an occluder that changed
+//! are looked at, and of those only the rays whose result can have changed are cast (a ray
+//! that was visible only against the changed occluders); only the cube-face tiles whose
+//! visibility changed are built again, most of them found in the tile cache the store keeps
+//! between runs; the other tiles' subtrees are kept. The lineage keeps, beside the previous
+//! artefact's key and the occluders it saw, the visible-texel masks of every vertex's mixed
+//! tiles (uniform tiles need none), so the texels not cast again keep their exact old state.
+//! The result is byte-identical to a cold bake, because a ray's result against an occluder
+//! depends on that occluder alone and a face's tree is its tiles' subtrees joined by a fixed
+//! grid (`bspvt::tree::TILE`).
 
 use crate::key::Key;
 use crate::plan::{Job, Kind, Occluder, Plan, decode_occluders, encode_occluders};
@@ -28,11 +31,8 @@ const BATCH: usize = 32;
 /// Longest a finished artefact waits before it is committed.
 const FLUSH_EVERY: Duration = Duration::from_millis(250);
 
-/// An axis-aligned box (min, max).
-pub type Bounds = (Vec3, Vec3);
-
-/// A slot's previous vertex bakes and the bounds of what changed since.
-type Lineage = (Vec<bspvt::VertexBake>, Vec<Bounds>);
+/// A slot's previous vertex bakes and the occluders that changed since.
+type Lineage = (Vec<bspvt::VertexBake>, Vec<bspvt::Change>);
 
 /// First bytes of a lineage entry (its layout's version): entries written before masks were
 /// kept lack it, and their chunks bake cold once.
@@ -321,8 +321,8 @@ impl Context<'_> {
         Ok((baked, warm))
     }
 
-    /// The slot's previous vertex bakes and the bounds (old and new) of every occluder that
-    /// changed since, when the lineage is usable.
+    /// The slot's previous vertex bakes and every occluder that changed since, when the
+    /// lineage is usable.
     fn lineage_of(&self, job: &Job) -> Result<Option<Lineage>> {
         let Some(slot) = job.slot else { return Ok(None) };
         let Some(entry) = self.store.lineage(&slot)? else { return Ok(None) };
@@ -338,7 +338,7 @@ impl Context<'_> {
             masks,
             ..Default::default()
         });
-        Ok(Some((old.collect(), changed_bounds(&then, &self.plan.snapshot.occluders))))
+        Ok(Some((old.collect(), changes(&then, &self.plan.snapshot.occluders))))
     }
 }
 
@@ -355,28 +355,27 @@ fn load_tiles(store: &Store, s: &bspvt::Settings) -> Result<bspvt::cache::TileCa
         .unwrap_or_else(|| bspvt::cache::TileCache::new(s)))
 }
 
-/// Bounds of every occluder added, removed or changed between two snapshots (old and new).
-pub fn changed_bounds(then: &[Occluder], now: &[Occluder]) -> Vec<Bounds> {
-    let by_id = |list: &[Occluder]| -> HashMap<[u32; 3], Occluder> { list.iter().map(|o| (o.id, *o)).collect() };
-    let (old, new) = (by_id(then), by_id(now));
+/// Every occluder added, removed or changed between two snapshots, with its old and new
+/// bounds (padded: rays' offset origins differ from the vertex) and its index in `now` (the
+/// flattened scene's instance order, as [`Occluders`] has it).
+pub fn changes(then: &[Occluder], now: &[Occluder]) -> Vec<bspvt::Change> {
+    let old: HashMap<[u32; 3], &Occluder> = then.iter().map(|o| (o.id, o)).collect();
+    let new: HashMap<[u32; 3], (usize, &Occluder)> = now.iter().enumerate().map(|(i, o)| (o.id, (i, o))).collect();
     let bounds = |o: &Occluder| {
-        // A margin for rays that graze the box (their offset origins differ from p).
         let (lo, hi) = (Vec3::from_slice(&o.bounds[..3]), Vec3::from_slice(&o.bounds[3..]));
         let pad = Vec3::splat(1e-4 * (hi - lo).length() + 1e-5);
         (lo - pad, hi + pad)
     };
-    let mut out = Vec::new();
-    for (id, o) in &old {
-        if new.get(id).is_none_or(|n| n != o) {
-            out.push(bounds(o));
-        }
-    }
-    for (id, n) in &new {
-        if old.get(id).is_none_or(|o| o != n) {
-            out.push(bounds(n));
-        }
-    }
-    out
+    let mut ids: Vec<[u32; 3]> = old.keys().chain(new.keys()).copied().collect();
+    ids.sort_unstable();
+    ids.dedup();
+    ids.into_iter()
+        .filter(|id| old.get(id).copied() != new.get(id).map(|n| n.1))
+        .map(|id| bspvt::Change {
+            before: old.get(&id).map(|o| bounds(o)),
+            after: new.get(&id).map(|&(i, o)| (bounds(o), i)),
+        })
+        .collect()
 }
 
 /// Appends a vertex's masks to a lineage entry: u32 count, then (u32 tile, u64 mask) pairs.

@@ -18,29 +18,43 @@ struct Part {
 
 /// Per-instance BVHs answering any-hit queries together.
 pub struct Occluders {
-    parts: Vec<Part>,
+    /// By instance; `None` for an instance with no triangles.
+    parts: Vec<Option<Part>>,
 }
 
 impl Occluders {
-    /// One BVH per triangle list (empty lists are skipped).
+    /// One BVH per triangle list, by instance index.
     pub fn new(instances: &[Vec<[Vec3; 3]>]) -> Self {
         let parts = instances
             .iter()
-            .filter(|t| !t.is_empty())
             .map(|t| {
-                let (lo, hi) = t.iter().flatten().fold((Vec3::MAX, Vec3::MIN), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
-                // Padding keeps the box test conservative for rays that graze it.
-                let pad = Vec3::splat(1e-4 * (hi - lo).length() + 1e-6);
-                Part { lo: lo - pad, hi: hi + pad, bvh: SceneBvh::new(t) }
+                (!t.is_empty()).then(|| {
+                    let (lo, hi) =
+                        t.iter().flatten().fold((Vec3::MAX, Vec3::MIN), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
+                    // Padding keeps the box test conservative for rays that graze it.
+                    let pad = Vec3::splat(1e-4 * (hi - lo).length() + 1e-6);
+                    Part { lo: lo - pad, hi: hi + pad, bvh: SceneBvh::new(t) }
+                })
             })
             .collect();
         Self { parts }
     }
 
+    /// Whether instance `i`'s triangles alone block the segment (any hit; an instance index
+    /// out of range or with no triangles blocks nothing). With the other instances unchanged,
+    /// it is how an edit to instance `i` changes [`Self::occluded`].
+    pub fn occluded_by(&self, i: usize, origin: Vec3, dir: Vec3, tmax: f32) -> bool {
+        let p = self.parts.get(i).and_then(Option::as_ref);
+        p.is_some_and(|p| slab_hits(origin, dir.recip(), tmax, p.lo, p.hi) && p.bvh.occluded(origin, dir, tmax))
+    }
+
     /// True when any instance blocks the segment from `origin` along unit `dir` within `(0, tmax)`.
     pub fn occluded(&self, origin: Vec3, dir: Vec3, tmax: f32) -> bool {
         let inv = dir.recip();
-        self.parts.iter().any(|p| slab_hits(origin, inv, tmax, p.lo, p.hi) && p.bvh.occluded(origin, dir, tmax))
+        self.parts
+            .iter()
+            .flatten()
+            .any(|p| slab_hits(origin, inv, tmax, p.lo, p.hi) && p.bvh.occluded(origin, dir, tmax))
     }
 }
 
@@ -77,7 +91,9 @@ mod tests {
             let o = Vec3::new(r.random_range(-1.0..3.0), 0.0, r.random_range(-1.0..1.0));
             let d =
                 Vec3::new(r.random_range(-1.0..1.0), r.random_range(0.1..1.0), r.random_range(-1.0..1.0)).normalize();
-            assert_eq!(occ.occluded(o, d, f32::INFINITY), all.occluded(o, d, f32::INFINITY), "{o} {d}");
+            let any = all.occluded(o, d, f32::INFINITY);
+            assert_eq!(occ.occluded(o, d, f32::INFINITY), any, "{o} {d}");
+            assert_eq!((0..4).any(|i| occ.occluded_by(i, o, d, f32::INFINITY)), any, "{o} {d}: by instance");
         }
     }
 }

@@ -15,6 +15,17 @@ use glam::{DVec2, DVec3, Vec3};
 /// [`accel::offset_ray_origin`]) and the cone test is only used beyond 1e-2 · (|p|∞ + 1).
 const ORIGIN_SLACK: f64 = 1e-2;
 
+/// How much of a tile's cone of directions can meet a box.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Cover {
+    /// No ray through the tile meets it.
+    None,
+    /// Some may: ask [`SeenBox::meets`] texel by texel.
+    Some,
+    /// Every direction through the tile lies inside the box's cone: take each texel as meeting it.
+    All,
+}
+
 /// A box as seen from a vertex at `p` with unit normal `n`.
 pub struct SeenBox {
     p: Vec3,
@@ -26,6 +37,8 @@ pub struct SeenBox {
     /// Unit normals of the planes through `p` touching the box along one of its edges, the box
     /// on their non-positive side (its silhouette); empty when `p` is inside or too close.
     silhouette: Vec<DVec3>,
+    /// The same in single precision, for the per-texel test (whose slack dwarfs the rounding).
+    silhouette32: Vec<Vec3>,
 }
 
 impl SeenBox {
@@ -37,7 +50,8 @@ impl SeenBox {
         let distance = (lod - pd).max(pd - hid).max(DVec3::ZERO).length();
         let far = distance >= ORIGIN_SLACK * (pd.abs().max_element() + 1.0);
         let silhouette = if far { silhouette_planes(&corners) } else { Vec::new() };
-        Self { p, n, lo, hi, corners, silhouette }
+        let silhouette32 = silhouette.iter().map(|m| m.as_vec3()).collect();
+        Self { p, n, lo, hi, corners, silhouette, silhouette32 }
     }
 
     /// Whether the ray cast from the vertex in direction `d` (unit, above its horizon) can meet
@@ -46,45 +60,64 @@ impl SeenBox {
         if self.silhouette.is_empty() {
             return accel::ray_meets_box(accel::offset_ray_origin(self.p, self.n, d), d, self.lo, self.hi);
         }
-        let d = d.as_dvec3();
-        self.silhouette.iter().all(|m| m.dot(d) <= ORIGIN_SLACK)
+        self.silhouette32.iter().all(|m| m.dot(d) <= ORIGIN_SLACK as f32)
     }
 
-    /// Which tiles can see into the box (per face, row-major tiles: `6 · tiles_per_side²`
-    /// flags): no plane of the tile's frustum nor of the box's silhouette separates the two,
-    /// with a margin of two texels for the rays cast just above the horizon.
-    pub fn tiles(&self, res: usize) -> Vec<bool> {
+    /// How much each tile sees of the box (per face, row-major tiles: `6 · tiles_per_side²`):
+    /// [`Cover::None`] when a plane of the tile's frustum or of the box's silhouette separates
+    /// the two, with a margin of two texels for the rays cast just above the horizon;
+    /// [`Cover::All`] when the tile's corners lie inside every silhouette plane.
+    pub fn tiles(&self, res: usize) -> Vec<Cover> {
         let k = tiles_per_side(res);
         let pd = self.p.as_dvec3();
         if (pd.cmpge(self.lo.as_dvec3()) & pd.cmple(self.hi.as_dvec3())).all() {
-            return vec![true; 6 * k * k];
+            return vec![Cover::Some; 6 * k * k];
         }
         let margin = 4.0 / res as f64;
-        let outside = |plane: DVec3| self.corners.iter().all(|c| plane.dot(*c) < -margin * c.length());
+        let lengths = self.corners.map(|c| c.length());
+        let outside = |plane: DVec3| self.corners.iter().zip(&lengths).all(|(c, l)| plane.dot(*c) < -margin * l);
         if outside(self.n.as_dvec3()) {
-            return vec![false; 6 * k * k];
+            return vec![Cover::None; 6 * k * k];
         }
         let edge = |t: usize| 2.0 * (t * tree::TILE).min(res) as f64 / res as f64 - 1.0;
         let mut out = Vec::with_capacity(6 * k * k);
         for f in 0..6 {
-            let face_seen = !cubemap::face_frustum(f).iter().any(|pl| outside(pl.normalize()));
-            let corner = |ti: usize, tj: usize| cubemap::face_to_dir(f, DVec2::new(edge(ti), edge(tj)));
+            if cubemap::face_frustum(f).iter().any(|pl| outside(pl.normalize())) {
+                out.extend(std::iter::repeat_n(Cover::None, k * k));
+                continue;
+            }
+            // Tiles share their edges' planes and their corners: each is evaluated once. Per
+            // grid line t: the box lies entirely before it, or entirely past it.
+            let side = |a: f64, b: f64| -> Vec<(bool, bool)> {
+                (0..=k)
+                    .map(|t| cubemap::line_plane(f, a, b, -edge(t)).normalize())
+                    .map(|pl| (outside(pl), outside(-pl)))
+                    .collect()
+            };
+            let (cols, rows) = (side(1.0, 0.0), side(0.0, 1.0));
+            let corner = |x: usize| cubemap::face_to_dir(f, DVec2::new(edge(x % (k + 1)), edge(x / (k + 1))));
+            let corners: Vec<DVec3> = (0..(k + 1) * (k + 1)).map(corner).collect();
+            // Per silhouette plane, the grid corners beyond it by the margin, and those inside.
+            let side = |inside: bool| -> Vec<Vec<bool>> {
+                let test = |m: &DVec3, d: &DVec3| if inside { m.dot(*d) <= 0.0 } else { m.dot(*d) > margin };
+                self.silhouette.iter().map(|m| corners.iter().map(|d| test(m, d)).collect()).collect()
+            };
+            let (beyond, inside) = (side(false), side(true));
             for (tj, ti) in (0..k).flat_map(|tj| (0..k).map(move |ti| (tj, ti))) {
-                out.push(
-                    face_seen && {
-                        let planes = [
-                            cubemap::line_plane(f, 1.0, 0.0, -edge(ti)),
-                            cubemap::line_plane(f, -1.0, 0.0, edge(ti + 1)),
-                            cubemap::line_plane(f, 0.0, 1.0, -edge(tj)),
-                            cubemap::line_plane(f, 0.0, -1.0, edge(tj + 1)),
-                        ];
-                        // A direction in the tile is a positive combination of its corners: beyond
-                        // a plane by the margin when all four corners are.
-                        let dirs = [corner(ti, tj), corner(ti + 1, tj), corner(ti, tj + 1), corner(ti + 1, tj + 1)];
-                        let beyond = |m: &DVec3| dirs.iter().all(|d| m.dot(*d) > margin);
-                        !planes.iter().any(|pl| outside(pl.normalize())) && !self.silhouette.iter().any(beyond)
-                    },
-                );
+                let framed = !(cols[ti].0 || cols[ti + 1].1 || rows[tj].0 || rows[tj + 1].1);
+                // A direction in the tile is a positive combination of its corners: beyond a
+                // plane by the margin when all four corners are.
+                let at =
+                    [tj * (k + 1) + ti, tj * (k + 1) + ti + 1, (tj + 1) * (k + 1) + ti, (tj + 1) * (k + 1) + ti + 1];
+                let all_in = |b: &Vec<bool>| at.iter().all(|&c| b[c]);
+                out.push(if !framed || beyond.iter().any(all_in) {
+                    Cover::None
+                } else if !inside.is_empty() && inside.iter().all(all_in) {
+                    // Positive combinations of directions inside every plane stay inside.
+                    Cover::All
+                } else {
+                    Cover::Some
+                });
             }
         }
         out
@@ -122,7 +155,7 @@ mod tests {
     fn rays_left_out_do_not_meet_the_box() {
         let (res, k) = (32, tiles_per_side(32));
         let (lo, hi) = (Vec3::new(-0.5, 1.0, -0.2), Vec3::new(0.7, 1.1, 0.4));
-        let (mut clean, mut dirty, mut wanted, mut hits) = (0, 0, 0, 0);
+        let (mut clean, mut dirty, mut wanted, mut hits, mut covered) = (0, 0, 0, 0, 0);
         let points = (-3..=3).flat_map(|x| (-3..=3).map(move |z| Vec3::new(x as f32 * 0.7, 0.0, z as f32 * 0.7)));
         // The last point is so close to the box that the cone test gives way to the exact one.
         for p in points.chain([Vec3::new(0.1, 0.999, 0.1)]) {
@@ -136,16 +169,22 @@ mod tests {
                     let hit = accel::ray_meets_box(accel::offset_ray_origin(p, n, d), d, lo, hi);
                     let at = format!("p {p}, n {n}: texel ({f}, {i}, {j})");
                     assert!(!hit || seen.meets(d), "{at} meets the box, the texel test says no");
-                    if flags[f * k * k + (j / tree::TILE) * k + i / tree::TILE] {
-                        (dirty, wanted, hits) = (dirty + 1, wanted + seen.meets(d) as usize, hits + hit as usize);
-                    } else {
-                        clean += 1;
-                        assert!(!hit, "{at} in a clean tile meets the box");
+                    match flags[f * k * k + (j / tree::TILE) * k + i / tree::TILE] {
+                        Cover::None => {
+                            clean += 1;
+                            assert!(!hit, "{at} in a clean tile meets the box");
+                        }
+                        cover => {
+                            assert!(cover == Cover::Some || seen.meets(d), "{at}: a covered tile's texel misses");
+                            (dirty, wanted, hits) = (dirty + 1, wanted + seen.meets(d) as usize, hits + hit as usize);
+                            covered += (cover == Cover::All) as usize;
+                        }
                     }
                 }
             }
         }
         assert!(clean > 4 * dirty && hits > 0, "{clean} clean and {dirty} dirty texels");
+        assert!(covered > 0 && covered < hits, "{covered} texels in covered tiles, {hits} hits");
         assert!(wanted < dirty / 3 && wanted < hits + hits / 4, "{wanted} wanted of {dirty} dirty texels, {hits} hits");
     }
 

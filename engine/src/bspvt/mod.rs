@@ -21,7 +21,7 @@ pub mod shade;
 pub mod tree;
 pub mod visibility;
 
-use crate::accel::Occluders;
+use crate::accel::{self, Occluders};
 use crate::scene::{FlatScene, NO_LIGHT, Scene};
 use cache::TileCache;
 use rayon::prelude::*;
@@ -153,27 +153,39 @@ pub fn tiles_per_side(res: usize) -> usize {
     res.div_ceil(tree::TILE)
 }
 
-/// Re-bakes a vertex whose previous bake is `old` after the occluders inside `changed` (their
-/// old and new bounds) moved, appeared or disappeared: only rays that meet one of those boxes
-/// are cast again, and only tiles whose visibility changed are built again; faces no such ray
-/// crosses keep their bytes. Identical to [`bake_vertex`] of the edited scene, because a ray
-/// that meets none of the boxes cannot have changed. An empty `old` record bakes from scratch.
-/// Settings and subtrees as in [`bake_vertex`].
+/// An occluder that changed since a vertex's previous bake (moved, added, removed or given
+/// another mesh), as a warm re-bake needs it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Change {
+    /// Its bounds before (padded for rays that graze them), when it existed.
+    pub before: Option<(glam::Vec3, glam::Vec3)>,
+    /// Its bounds now (padded) and its instance index in the occluders, when it exists.
+    pub after: Option<((glam::Vec3, glam::Vec3), usize)>,
+}
+
+/// Re-bakes a vertex whose previous bake is `old` after the occluders in `changes` changed:
+/// only texels whose rays can meet a changed occluder's old or new bounds are looked at, and
+/// of those only the ones whose state can have changed are cast — a ray that was visible can
+/// only be blocked now by a changed occluder (cast against those alone), a blocked one that
+/// meets no old bounds stays blocked; only tiles whose visibility changed are built again.
+/// Identical to [`bake_vertex`] of the edited scene: a ray's result against an occluder
+/// depends on that occluder alone (see [`Occluders`]). An empty `old` record bakes from
+/// scratch. Settings and subtrees as in [`bake_vertex`].
 pub fn rebake_vertex(
     occluders: &Occluders,
     p: glam::Vec3,
     n: glam::Vec3,
     tiles: &TileCache,
     old: &VertexBake,
-    changed: &[(glam::Vec3, glam::Vec3)],
+    changes: &[Change],
 ) -> VertexBake {
     let s = tiles.settings();
     let per_face = tiles_per_side(s.res).pow(2);
     let cold = old.record.is_empty();
-    let boxes: Vec<dirty::SeenBox> = changed.iter().map(|&(lo, hi)| dirty::SeenBox::new(p, n, lo, hi)).collect();
+    let edit = Edit::new(occluders, p, n, changes, s.res);
     let mut dirty = vec![cold; 6 * per_face];
-    for b in &boxes {
-        dirty.iter_mut().zip(b.tiles(s.res)).for_each(|(a, b)| *a |= b);
+    for cover in edit.before.iter().chain(&edit.after).map(|b| &b.cover) {
+        dirty.iter_mut().zip(cover).for_each(|(a, c)| *a |= *c != dirty::Cover::None);
     }
     let kept = if cold { [&[][..]; 6] } else { layout::vertex_faces(&old.record) };
     let mut out = VertexBake::default();
@@ -186,22 +198,93 @@ pub fn rebake_vertex(
             out.masks.extend(old_masks.iter().map(|&(t, m)| (t + range.start, m)));
             return kept[f].to_vec();
         }
-        let wanted = |d: glam::Vec3| cold || boxes.iter().any(|b| b.meets(d));
-        let vis = visibility::cast_face_where(occluders, p, n, f, s.res, dirty, wanted);
-        out.rays += vis.iter().filter(|&&v| v == visibility::VISIBLE || v == visibility::OCCLUDED).count();
         // A face that stored no tree was entirely occluded (or below the horizon: never read).
         let old_tree = match (cold, kept[f].is_empty()) {
             (true, _) => Vec::new(),
             (false, true) => vec![tree::Node::Leaf(0.0)],
             (false, false) => layout::decode_tree(kept[f]),
         };
-        let face = tree::rebuild(&vis, tiles, &old_tree, &old_masks);
+        let bits = if cold {
+            visibility::cast_tiles(n, f, s.res, dirty, |_, _, d| {
+                out.rays += 1;
+                visibility::cast_ray(occluders, p, n, d)
+            })
+        } else {
+            let live = visibility::live_tiles(n, f, s.res);
+            let was = tree::old_visibility(&old_tree, &old_masks, s.res, &live);
+            let texel = |t: usize, bit, d| edit.texel(f * per_face + t, d, was[t] & bit != 0, &mut out.rays);
+            visibility::cast_tiles(n, f, s.res, dirty, texel)
+        };
+        let face = tree::rebuild(&bits, tiles, &old_tree, &old_masks);
         out.built += face.built;
         out.masks.extend(face.masks.iter().map(|&(t, m)| (t + range.start, m)));
         layout::encode_face(face.nodes.as_deref().filter(|t| *t != [tree::Node::Leaf(0.0)]))
     });
     out.record = layout::join_faces(faces.each_ref().map(Vec::as_slice));
     out
+}
+
+/// A warm re-bake's view of the changes from one vertex.
+struct Edit<'a> {
+    occluders: &'a Occluders,
+    p: glam::Vec3,
+    n: glam::Vec3,
+    /// Old bounds.
+    before: Vec<Seen>,
+    /// New bounds.
+    after: Vec<Seen>,
+}
+
+/// A changed occluder's old or new bounds from the vertex, and how each tile sees them.
+struct Seen {
+    bounds: dirty::SeenBox,
+    /// Per tile (`6 · tiles_per_side²`).
+    cover: Vec<dirty::Cover>,
+    /// The occluder's instance index (new bounds only).
+    instance: usize,
+}
+
+impl Seen {
+    /// Whether the ray through tile `t` in direction `d` can meet the bounds.
+    fn meets(&self, t: usize, d: glam::Vec3) -> bool {
+        match self.cover[t] {
+            dirty::Cover::None => false,
+            dirty::Cover::Some => self.bounds.meets(d),
+            dirty::Cover::All => true,
+        }
+    }
+}
+
+impl<'a> Edit<'a> {
+    fn new(occluders: &'a Occluders, p: glam::Vec3, n: glam::Vec3, changes: &[Change], res: usize) -> Self {
+        let seen = |(lo, hi), instance| {
+            let bounds = dirty::SeenBox::new(p, n, lo, hi);
+            Seen { cover: bounds.tiles(res), bounds, instance }
+        };
+        let before = changes.iter().filter_map(|c| c.before).map(|b| seen(b, usize::MAX)).collect();
+        let after = changes.iter().filter_map(|c| c.after).map(|(b, i)| seen(b, i)).collect();
+        Self { occluders, p, n, before, after }
+    }
+
+    /// The state of the texel cast through tile `t` (of all six faces) in direction `d` (unit,
+    /// above the horizon), which was visible or not: [`visibility::SKIPPED`] when it cannot
+    /// have changed; `rays` counts the rays cast.
+    fn texel(&self, t: usize, d: glam::Vec3, was_visible: bool, rays: &mut usize) -> u8 {
+        let mut after = self.after.iter().filter(|b| b.meets(t, d)).peekable();
+        // Visible: only what is now inside a changed occluder's bounds could block it.
+        // Blocked, by no changed occluder: what blocked it stayed put.
+        let unchanged = if was_visible { after.peek().is_none() } else { !self.before.iter().any(|b| b.meets(t, d)) };
+        if unchanged {
+            return visibility::SKIPPED;
+        }
+        *rays += 1;
+        let o = accel::offset_ray_origin(self.p, self.n, d);
+        match (after.any(|b| self.occluders.occluded_by(b.instance, o, d, f32::INFINITY)), was_visible) {
+            (true, _) => visibility::OCCLUDED,
+            (false, true) => visibility::VISIBLE,
+            (false, false) => visibility::cast_ray(self.occluders, self.p, self.n, d),
+        }
+    }
 }
 
 /// Bakes every receiver vertex, in parallel; `progress` gets the number of vertices done.

@@ -11,7 +11,7 @@
 use super::Settings;
 use super::cache::TileCache;
 use super::layout::{dequantise_line, quantise_line};
-use super::visibility::{BELOW, SKIPPED, VISIBLE};
+use super::visibility::TileBits;
 use crate::math::{cubemap, nelder_mead};
 use std::cmp::Ordering;
 use std::collections::BinaryHeap;
@@ -108,16 +108,17 @@ pub struct FaceTree {
 
 /// Builds the tree of one face from its texel states.
 pub fn build(face: &[u8], res: usize, epsilon: f64) -> FaceTree {
-    rebuild(face, &TileCache::new(&Settings { res, epsilon }), &[], &[])
+    rebuild(&TileBits::from_face(face, res), &TileCache::new(&Settings { res, epsilon }), &[], &[])
 }
 
-/// [`build`] for a face some of whose texels were not cast ([`SKIPPED`]): their states are
+/// [`build`] for a face given as tiles (see [`TileBits`]), some of whose texels were not cast
+/// ([`SKIPPED`](super::visibility::SKIPPED)): their states are
 /// those of `old`, the face's previous tree (a complete tree; a face that stored none was
 /// entirely occluded: `[Leaf(0.0)]`), and `old_masks`, its masks. A tile whose states did not
 /// change keeps its old subtree; the others come from `tiles` (whose settings apply) or are
 /// built and added to it. Equal to [`build`] of the fully cast face when the skipped texels'
 /// visibility did not change.
-pub fn rebuild(face: &[u8], tiles: &TileCache, old: &[Node], old_masks: &[(u32, u64)]) -> FaceTree {
+pub fn rebuild(face: &[TileBits], tiles: &TileCache, old: &[Node], old_masks: &[(u32, u64)]) -> FaceTree {
     let res = tiles.settings().res;
     let mut grid = Grid::new(face, tiles, old_masks);
     let nodes = grid.region(Rect { i0: 0, j0: 0, i1: res, j1: res }, old);
@@ -160,15 +161,55 @@ impl Rect {
     }
 }
 
-/// The texels of one tile as bit masks (bit as in [`FaceTree::masks`]).
-#[derive(Clone, Copy, Default)]
-struct TileBits {
-    /// Above the horizon.
-    live: u64,
-    /// Cast and visible.
-    visible: u64,
-    /// Above the horizon and not cast.
-    skipped: u64,
+/// Whether a tile of region `r` is live (`live(tile index)`, `k` tiles per side).
+fn region_live(r: Rect, k: usize, live: impl Fn(usize) -> bool) -> bool {
+    let (ti, tj) = (r.i0 / TILE..r.i1.div_ceil(TILE), r.j0 / TILE..r.j1.div_ceil(TILE));
+    tj.flat_map(|j| ti.clone().map(move |i| (i, j))).any(|(i, j)| live(j * k + i))
+}
+
+/// The previous subtrees of the two halves of a region whose previous subtree is `old`: a
+/// merged uniform leaf covers both halves, and a half with no texel above the horizon left its
+/// sibling's subtree in place of the split.
+fn old_halves(old: &[Node], both_live: bool) -> (&[Node], &[Node]) {
+    match old {
+        [Node::Split { .. }, ..] if both_live => old[1..].split_at(skip(old, 1) - 1),
+        _ => (old, old),
+    }
+}
+
+/// A live tile's previous visible mask (to be masked by its live texels): its stored mask,
+/// or, for a uniform tile (which stores none), all or nothing from its previous leaf `old`.
+fn old_tile_visible(old_masks: &[(u32, u64)], tile: u32, old: &[Node]) -> u64 {
+    match old_masks.binary_search_by_key(&tile, |m| m.0) {
+        Ok(x) => old_masks[x].1,
+        Err(_) if matches!(old, [Node::Leaf(v)] if *v >= 0.5) => u64::MAX,
+        Err(_) => 0,
+    }
+}
+
+/// Each tile's previous visible mask (row-major tiles; see [`old_tile_visible`]; 0 for a tile
+/// with no texel above the horizon), from a face's previous tree `old` and masks; `live` flags
+/// the tiles with a texel above the horizon, which shaped that tree.
+pub fn old_visibility(old: &[Node], old_masks: &[(u32, u64)], res: usize, live: &[bool]) -> Vec<u64> {
+    fn walk(r: Rect, old: &[Node], res: usize, live: &[bool], old_masks: &[(u32, u64)], out: &mut [u64]) {
+        let k = res.div_ceil(TILE);
+        if !region_live(r, k, |t| live[t]) {
+            return;
+        }
+        if r.tiles() == (1, 1) {
+            let t = (r.j0 / TILE) * k + r.i0 / TILE;
+            out[t] = old_tile_visible(old_masks, t as u32, old);
+            return;
+        }
+        let (_, pos, neg) = r.halves(res);
+        let both = region_live(pos, k, |t| live[t]) && region_live(neg, k, |t| live[t]);
+        let (old_pos, old_neg) = old_halves(old, both);
+        walk(pos, old_pos, res, live, old_masks, out);
+        walk(neg, old_neg, res, live, old_masks, out);
+    }
+    let mut out = vec![0; live.len()];
+    walk(Rect { i0: 0, j0: 0, i1: res, j1: res }, old, res, live, old_masks, &mut out);
+    out
 }
 
 /// One face's texel states, build parameters and the masks being gathered.
@@ -177,31 +218,21 @@ struct Grid<'a> {
     cache: &'a TileCache,
     /// Tiles per side.
     k: usize,
-    tiles: Vec<TileBits>,
+    tiles: &'a [TileBits],
     old_masks: &'a [(u32, u64)],
     masks: Masks,
     built: usize,
 }
 
 impl<'a> Grid<'a> {
-    fn new(face: &[u8], cache: &'a TileCache, old_masks: &'a [(u32, u64)]) -> Self {
+    fn new(tiles: &'a [TileBits], cache: &'a TileCache, old_masks: &'a [(u32, u64)]) -> Self {
         let res = cache.settings().res;
-        let k = res.div_ceil(TILE);
-        let mut tiles = vec![TileBits::default(); k * k];
-        for (x, &state) in face.iter().enumerate() {
-            let (i, j) = (x % res, x / res);
-            let (t, bit) = (&mut tiles[(j / TILE) * k + i / TILE], 1u64 << ((j % TILE) * TILE + i % TILE));
-            t.live |= if state == BELOW { 0 } else { bit };
-            t.visible |= if state == VISIBLE { bit } else { 0 };
-            t.skipped |= if state == SKIPPED { bit } else { 0 };
-        }
-        Self { res, cache, k, tiles, old_masks, masks: Vec::new(), built: 0 }
+        Self { res, cache, k: res.div_ceil(TILE), tiles, old_masks, masks: Vec::new(), built: 0 }
     }
 
     /// Whether any texel of `r` is above the horizon.
     fn live(&self, r: Rect) -> bool {
-        let (ti, tj) = (r.i0 / TILE..r.i1.div_ceil(TILE), r.j0 / TILE..r.j1.div_ceil(TILE));
-        tj.flat_map(|j| ti.clone().map(move |i| (i, j))).any(|(i, j)| self.tiles[j * self.k + i].live != 0)
+        region_live(r, self.k, |t| self.tiles[t].live != 0)
     }
 
     /// The subtree of region `r`; `old` is its previous subtree.
@@ -213,12 +244,7 @@ impl<'a> Grid<'a> {
             return Some(self.tile(r, old));
         }
         let ((angle, offset), pos, neg) = r.halves(self.res);
-        // How `old` was made: a merged uniform leaf covers both halves, an empty half left
-        // its sibling's subtree in place of the split.
-        let (old_pos, old_neg) = match old {
-            [Node::Split { .. }, ..] if self.live(pos) && self.live(neg) => old[1..].split_at(skip(old, 1) - 1),
-            _ => (old, old),
-        };
+        let (old_pos, old_neg) = old_halves(old, self.live(pos) && self.live(neg));
         match (self.region(pos, old_pos), self.region(neg, old_neg)) {
             (None, x) | (x, None) => x,
             (Some(p), Some(n)) if p == n && matches!(p[..], [Node::Leaf(v)] if v == 0.0 || v == 1.0) => Some(p),
@@ -232,8 +258,7 @@ impl<'a> Grid<'a> {
     fn tile(&mut self, r: Rect, old: &[Node]) -> Vec<Node> {
         let index = ((r.j0 / TILE) * self.k + r.i0 / TILE) as u32;
         let TileBits { live, visible, skipped } = self.tiles[index as usize];
-        let old_mask = self.old_masks.binary_search_by_key(&index, |m| m.0).ok().map(|x| self.old_masks[x].1);
-        let old_visible = old_mask.unwrap_or(if matches!(old, [Node::Leaf(v)] if *v >= 0.5) { live } else { 0 }) & live;
+        let old_visible = old_tile_visible(self.old_masks, index, old) & live;
         let visible = visible | (old_visible & skipped);
         if visible != 0 && visible != live {
             self.masks.push((index, visible));
@@ -464,7 +489,7 @@ pub fn skip(nodes: &[Node], mut i: usize) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bspvt::visibility::OCCLUDED;
+    use crate::bspvt::visibility::{BELOW, OCCLUDED, SKIPPED, VISIBLE};
 
     fn face_from(res: usize, f: impl Fn(f64, f64) -> u8) -> Vec<u8> {
         (0..res * res)
@@ -577,6 +602,13 @@ mod tests {
         });
         for (before, after) in [(scene(-0.3), scene(0.1)), (shut, window)] {
             let old = build(&before, res, 1.0);
+            // The old tree and masks tell every tile's old visibility.
+            let before_bits = TileBits::from_face(&before, res);
+            let live: Vec<bool> = before_bits.iter().map(|b| b.live != 0).collect();
+            let old_visible = old_visibility(old.nodes.as_deref().unwrap(), &old.masks, res, &live);
+            for (b, v) in before_bits.iter().zip(old_visible) {
+                assert_eq!(v & b.live, b.visible);
+            }
             let fresh = build(&after, res, 1.0);
             let changed: Vec<(usize, usize)> = (0..res * res).filter(|&x| before[x] != after[x]).map(tile_of).collect();
             // Every changed texel and, in the tiles around them, every third other one is cast.
@@ -584,7 +616,7 @@ mod tests {
             let partial: Vec<u8> =
                 (0..res * res).map(|x| if after[x] == BELOW || cast(x) { after[x] } else { SKIPPED }).collect();
             assert!(partial.contains(&SKIPPED), "some texels are kept");
-            let warm = rebuild(&partial, &cache, &old.nodes.clone().unwrap(), &old.masks);
+            let warm = rebuild(&TileBits::from_face(&partial, res), &cache, &old.nodes.clone().unwrap(), &old.masks);
             assert_eq!((&warm.nodes, &warm.masks), (&fresh.nodes, &fresh.masks));
             let mut crossed = changed.clone();
             crossed.sort_unstable();
@@ -601,7 +633,7 @@ mod tests {
             .collect();
         let none: Vec<u8> = face.iter().map(|&s| if s == BELOW { BELOW } else { SKIPPED }).collect();
         for partial in [some, none] {
-            let warm = rebuild(&partial, &cache, &old.nodes.clone().unwrap(), &old.masks);
+            let warm = rebuild(&TileBits::from_face(&partial, res), &cache, &old.nodes.clone().unwrap(), &old.masks);
             assert_eq!((&warm.nodes, &warm.masks, warm.built), (&old.nodes, &old.masks, 0));
         }
     }
@@ -613,6 +645,7 @@ mod tests {
         let res = 32;
         let face = face_from(res, |s, t| if s * s + 2.0 * t * t < 0.4 || s > 0.7 { OCCLUDED } else { VISIBLE });
         let cache = TileCache::new(&Settings { res, epsilon: 0.5 });
+        let face = TileBits::from_face(&face, res);
         let first = rebuild(&face, &cache, &[], &[]);
         assert!(first.built > 4 && cache.hits() == 0 && cache.added() == first.built);
         let again = rebuild(&face, &cache, &[], &[]);

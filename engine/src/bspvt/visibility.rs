@@ -43,7 +43,8 @@ pub fn cast(occluders: &Occluders, p: Vec3, n: Vec3, res: usize) -> CubeVisibili
 
 /// The `res²` texel states of face `f` alone (see [`cast`]).
 pub fn cast_face(occluders: &Occluders, p: Vec3, n: Vec3, f: usize, res: usize) -> Vec<u8> {
-    cast_face_where(occluders, p, n, f, res, &vec![true; res.div_ceil(TILE).pow(2)], |_| true)
+    let all = vec![true; res.div_ceil(TILE).pow(2)];
+    TileBits::to_face(&cast_tiles(n, f, res, &all, |_, _, d| cast_ray(occluders, p, n, d)), res)
 }
 
 /// The direction cast for texel (i, j) of face `f` above the horizon of unit normal `nd`:
@@ -72,29 +73,97 @@ fn ray_through(centre: DVec3, f: usize, i: usize, j: usize, nd: DVec3, res: usiz
     }
 }
 
-/// [`cast_face`] casting, in the tiles flagged in `tiles` (row-major, [`TILE`]-texel tiles,
-/// the last ones narrower when `res` is not a multiple), only the texels whose ray direction
-/// `wanted` accepts; the other texels above the horizon are [`SKIPPED`]. An unflagged tile is
-/// not looked at texel by texel: when any of it is above the horizon, all of it is `SKIPPED`.
-pub fn cast_face_where(
-    occluders: &Occluders,
-    p: Vec3,
+/// The texel states of one [`TILE`]×[`TILE`] tile as bit masks: bit `(j mod TILE)·TILE +
+/// i mod TILE` is texel (i, j).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TileBits {
+    /// Above the horizon (cast or not).
+    pub live: u64,
+    /// Cast and visible.
+    pub visible: u64,
+    /// Above the horizon and not cast ([`SKIPPED`]).
+    pub skipped: u64,
+}
+
+impl TileBits {
+    /// The tiles (row-major) of a face's `res²` texel states.
+    pub fn from_face(face: &[u8], res: usize) -> Vec<TileBits> {
+        let k = res.div_ceil(TILE);
+        let mut tiles = vec![TileBits::default(); k * k];
+        for (x, &state) in face.iter().enumerate() {
+            let (t, bit) = tile_bit(x % res, x / res, k);
+            let t = &mut tiles[t];
+            t.live |= if state == BELOW { 0 } else { bit };
+            t.visible |= if state == VISIBLE { bit } else { 0 };
+            t.skipped |= if state == SKIPPED { bit } else { 0 };
+        }
+        tiles
+    }
+
+    /// The face's `res²` texel states (the inverse of [`Self::from_face`]).
+    pub fn to_face(tiles: &[TileBits], res: usize) -> Vec<u8> {
+        let k = res.div_ceil(TILE);
+        (0..res * res)
+            .map(|x| {
+                let (t, bit) = tile_bit(x % res, x / res, k);
+                match tiles[t] {
+                    t if t.live & bit == 0 => BELOW,
+                    t if t.skipped & bit != 0 => SKIPPED,
+                    t if t.visible & bit != 0 => VISIBLE,
+                    _ => OCCLUDED,
+                }
+            })
+            .collect()
+    }
+}
+
+/// Texel (i, j)'s tile index (`k` tiles per side) and bit in its tile's masks.
+fn tile_bit(i: usize, j: usize, k: usize) -> (usize, u64) {
+    ((j / TILE) * k + i / TILE, 1u64 << ((j % TILE) * TILE + i % TILE))
+}
+
+/// Which tiles of face `f` (row-major) have a texel above the horizon of unit normal `n`: those
+/// with a corner above it (the height's sign is affine over a face, so a tile's highest point
+/// is a corner, and a texel with a corner above the horizon is cast; see [`texel_ray`]).
+pub fn live_tiles(n: Vec3, f: usize, res: usize) -> Vec<bool> {
+    let k = res.div_ceil(TILE);
+    let height = corner_height(n.as_dvec3(), f, res);
+    (0..k * k)
+        .map(|t| {
+            let (i0, j0) = ((t % k) * TILE, (t / k) * TILE);
+            let (i1, j1) = ((i0 + TILE).min(res), (j0 + TILE).min(res));
+            [(i0, j0), (i1, j0), (i0, j1), (i1, j1)].iter().any(|&(i, j)| height(i, j) > 0.0)
+        })
+        .collect()
+}
+
+/// The height above the horizon of unit normal `nd` of texel corner (i, j) of face `f`.
+fn corner_height(nd: DVec3, f: usize, res: usize) -> impl Fn(usize, usize) -> f64 {
+    let edge = move |k: usize| 2.0 * k as f64 / res as f64 - 1.0;
+    move |i, j| cubemap::face_to_dir(f, glam::DVec2::new(edge(i), edge(j))).dot(nd)
+}
+
+/// The tiles of face `f` for a vertex with unit normal `n`, asking `texel` for the state of
+/// each texel above the horizon in the tiles flagged in `tiles` (row-major, [`TILE`]-texel
+/// tiles, the last ones narrower when `res` is not a multiple): `texel(tile, bit, direction)`
+/// returns [`VISIBLE`], [`OCCLUDED`] or [`SKIPPED`]. An unflagged tile is not looked at texel by
+/// texel: when it is live (see [`live_tiles`]) all of it is `SKIPPED`.
+pub fn cast_tiles(
     n: Vec3,
     f: usize,
     res: usize,
     tiles: &[bool],
-    wanted: impl Fn(Vec3) -> bool,
-) -> Vec<u8> {
+    mut texel: impl FnMut(usize, u64, Vec3) -> u8,
+) -> Vec<TileBits> {
     let nd = n.as_dvec3();
-    let edge = |k: usize| 2.0 * k as f64 / res as f64 - 1.0;
-    // The sign of the height is affine over a face: a region is below the horizon when its
-    // corners are (with a margin for rounding at the face's corners).
-    let height = |i: usize, j: usize| cubemap::face_to_dir(f, glam::DVec2::new(edge(i), edge(j))).dot(nd);
-    if [(0, 0), (res, 0), (0, res), (res, res)].iter().all(|&(i, j)| height(i, j) < -1e-9) {
-        return vec![BELOW; res * res];
-    }
+    let height = corner_height(nd, f, res);
     let k = res.div_ceil(TILE);
-    let mut texels = vec![BELOW; res * res];
+    let mut out = vec![TileBits::default(); k * k];
+    // A face is below the horizon when its corners are (with a margin for rounding at the
+    // face's corners).
+    if [(0, 0), (res, 0), (0, res), (res, res)].iter().all(|&(i, j)| height(i, j) < -1e-9) {
+        return out;
+    }
     CENTRES.with_borrow_mut(|(at, centres)| {
         if *at != res {
             *at = res;
@@ -102,30 +171,34 @@ pub fn cast_face_where(
                 .map(|k| cubemap::face_to_dir(k / (res * res), cubemap::texel_center(k % res, k / res % res, res)))
                 .collect();
         }
-        for (tj, ti) in (0..k).flat_map(|tj| (0..k).map(move |ti| (tj, ti))) {
-            let (i0, j0, i1, j1) = (ti * TILE, tj * TILE, (ti * TILE + TILE).min(res), (tj * TILE + TILE).min(res));
+        for (t, bits) in out.iter_mut().enumerate() {
+            let (i0, j0) = ((t % k) * TILE, (t / k) * TILE);
+            let (i1, j1) = ((i0 + TILE).min(res), (j0 + TILE).min(res));
             let rows = (j0..j1).flat_map(|j| (i0..i1).map(move |i| (i, j)));
-            if !tiles[tj * k + ti] {
+            if !tiles[t] {
                 if [(i0, j0), (i1, j0), (i0, j1), (i1, j1)].iter().any(|&(i, j)| height(i, j) > 0.0) {
-                    rows.for_each(|(i, j)| texels[j * res + i] = SKIPPED);
+                    let all = rows.fold(0, |m, (i, j)| m | tile_bit(i, j, k).1);
+                    *bits = TileBits { live: all, visible: 0, skipped: all };
                 }
                 continue;
             }
             for (i, j) in rows {
-                let centre = centres[(f * res + j) * res + i];
-                texels[j * res + i] = match ray_through(centre, f, i, j, nd, res).map(|d| d.as_vec3()) {
-                    None => BELOW,
-                    Some(d) if !wanted(d) => SKIPPED,
-                    Some(d) => cast_ray(occluders, p, n, d),
-                };
+                let Some(d) = ray_through(centres[(f * res + j) * res + i], f, i, j, nd, res) else { continue };
+                let bit = tile_bit(i, j, k).1;
+                bits.live |= bit;
+                match texel(t, bit, d.as_vec3()) {
+                    VISIBLE => bits.visible |= bit,
+                    SKIPPED => bits.skipped |= bit,
+                    _ => {}
+                }
             }
         }
     });
-    texels
+    out
 }
 
 /// Whether the ray from `p` (unit normal `n`) in direction `d` reaches the sky.
-fn cast_ray(occluders: &Occluders, p: Vec3, n: Vec3, d: Vec3) -> u8 {
+pub fn cast_ray(occluders: &Occluders, p: Vec3, n: Vec3, d: Vec3) -> u8 {
     if occluders.occluded(offset_ray_origin(p, n, d), d, f32::INFINITY) { OCCLUDED } else { VISIBLE }
 }
 
@@ -141,8 +214,8 @@ mod tests {
     use super::*;
 
     /// An unflagged tile is all `SKIPPED` exactly when the full cast has a texel of it above
-    /// the horizon (else all `BELOW`); a flagged one casts what `wanted` accepts, as the full
-    /// cast does, and skips the rest.
+    /// the horizon (else all `BELOW`, and [`live_tiles`] agrees); a flagged one has the states
+    /// `texel` gives, which it is asked for exactly above the horizon.
     #[test]
     fn selected_casts_agree_with_the_full_cast() {
         let roof = [Vec3::new(-2.0, 1.0, -2.0), Vec3::new(2.0, 1.0, -2.0), Vec3::new(0.0, 1.0, 2.0)];
@@ -151,25 +224,37 @@ mod tests {
         let res: usize = 20;
         let k = res.div_ceil(TILE);
         let flags: Vec<bool> = (0..k * k).map(|t| t % 3 == 1).collect();
-        let wanted = |d: Vec3| d.x > 0.0;
         for n in [Vec3::Y, Vec3::new(0.6, 0.0, 0.8), Vec3::new(-0.3, -0.9, 0.3).normalize()] {
             for f in 0..cubemap::FACES {
                 let full = cast_face(&occ, Vec3::ZERO, n, f, res);
-                let some = cast_face_where(&occ, Vec3::ZERO, n, f, res, &flags, wanted);
+                let live = live_tiles(n, f, res);
+                let texel = |_, _, d: Vec3| if d.x > 0.0 { cast_ray(&occ, Vec3::ZERO, n, d) } else { SKIPPED };
+                let some = TileBits::to_face(&cast_tiles(n, f, res, &flags, texel), res);
                 for (x, (&a, &b)) in full.iter().zip(&some).enumerate() {
                     let (i, j) = (x % res, x / res);
                     let tile = (j / TILE) * k + i / TILE;
+                    let in_live_tile =
+                        (0..res * res).any(|y| tile_bit(y % res, y / res, k).0 == tile && full[y] != BELOW);
+                    assert_eq!(live[tile], in_live_tile, "n {n}, face {f}, tile {tile}");
                     let expected = if flags[tile] {
                         let d = texel_ray(f, i, j, n.as_dvec3(), res).map(|d| d.as_vec3());
-                        if d.is_none_or(&wanted) { a } else { SKIPPED }
+                        if d.is_none_or(|d| d.x > 0.0) { a } else { SKIPPED }
+                    } else if in_live_tile {
+                        SKIPPED
                     } else {
-                        let live =
-                            (0..res * res).any(|y| (y / res / TILE) * k + (y % res) / TILE == tile && full[y] != BELOW);
-                        if live { SKIPPED } else { BELOW }
+                        BELOW
                     };
                     assert_eq!(b, expected, "n {n}, face {f}, texel ({i}, {j})");
                 }
             }
         }
+    }
+
+    /// Tile bits and texel states convert both ways without loss.
+    #[test]
+    fn tile_bits_round_trip_texel_states() {
+        let res = 20;
+        let face: Vec<u8> = (0..res * res).map(|x| [OCCLUDED, VISIBLE, BELOW, SKIPPED][(x * 7 + x / 3) % 4]).collect();
+        assert_eq!(TileBits::to_face(&TileBits::from_face(&face, res), res), face);
     }
 }
