@@ -143,10 +143,12 @@ pub fn run_cancellable(store: &Store, scene: &Scene, flat: &FlatScene, plan: &Pl
         }
     }
     let misses: Vec<&Job> = plan.misses().collect();
-    let occluders = plan.bspvt.map(|_| bspvt::occluder_bvh(flat));
-    let baking_bspvt = misses.iter().any(|j| j.kind == Kind::Bspvt);
-    let tiles = plan.bspvt.filter(|_| baking_bspvt).map(|s| load_tiles(store, &s)).transpose()?;
-    let transfer = plan.prt.map(|s| prt::Baker::new(scene, flat, &s));
+    // What only baking needs is set up only when something of its kind is missing.
+    let baking = |kind: Kind| misses.iter().any(|j| j.kind == kind);
+    let bspvt = plan.bspvt.filter(|_| baking(Kind::Bspvt));
+    let occluders = bspvt.map(|_| bspvt::occluder_bvh(flat));
+    let tiles = bspvt.map(|s| load_tiles(store, &s)).transpose()?;
+    let transfer = plan.prt.filter(|_| baking(Kind::Prt)).map(|s| prt::Baker::new(scene, flat, &s));
     let ctx = Context {
         scene,
         flat,
@@ -270,7 +272,7 @@ impl Context<'_> {
                 let s = self.plan.prt.expect("PRT job without PRT settings");
                 let n = s.order * s.order;
                 let mut out = vec![0.0f32; job.vertices.len() * n];
-                let baker = self.transfer.expect("built for PRT plans");
+                let baker = self.transfer.expect("built for PRT misses");
                 for (k, v) in job.vertices.clone().enumerate() {
                     baker.vertex(self.scene, self.flat, job.instance, v, &mut out[k * n..(k + 1) * n]);
                 }
@@ -301,7 +303,7 @@ impl Context<'_> {
     /// The chunk's vertex bakes, and whether they were re-baked warm from the slot's lineage.
     fn bake_bspvt(&self, job: &Job) -> Result<(Vec<bspvt::VertexBake>, bool)> {
         let (occ, tiles) =
-            (self.occluders.expect("built for BSPVT plans"), self.tiles.expect("loaded for BSPVT misses"));
+            (self.occluders.expect("built for BSPVT misses"), self.tiles.expect("loaded for BSPVT misses"));
         let vertex = |v: usize| self.flat.vertex(&self.scene.meshes, job.instance, v);
         let (old, changed) = match self.lineage_of(job)? {
             Some((old, changed)) => (Some(old), changed),

@@ -63,6 +63,37 @@ impl SeenBox {
         self.silhouette32.iter().all(|m| m.dot(d) <= ORIGIN_SLACK as f32)
     }
 
+    /// Per texel row `j` of face `f`, the columns whose centre directions can pass
+    /// [`Self::meets`] (a superset): the silhouette planes bound an interval of the row's face
+    /// coordinate s, since a direction's unnormalised form `c + s·S + t·T` (face basis) has
+    /// length in [1, √3]. All columns when there are no planes (the exact test applies).
+    pub fn columns(&self, f: usize, res: usize) -> Vec<std::ops::Range<usize>> {
+        let (c, s_axis, t_axis) = cubemap::face_basis(f);
+        // m · û ≤ slack (with single-precision rounding) implies m · u ≤ 2·slack.
+        let bound = 2.0 * ORIGIN_SLACK;
+        (0..res)
+            .map(|j| {
+                let t = cubemap::texel_center(0, j, res).y;
+                let (mut lo, mut hi) = (f64::NEG_INFINITY, f64::INFINITY);
+                for m in &self.silhouette {
+                    // m · u = a + s·b ≤ bound.
+                    let (a, b) = (m.dot(c) + t * m.dot(t_axis), m.dot(s_axis));
+                    match b.partial_cmp(&0.0) {
+                        Some(std::cmp::Ordering::Greater) => hi = hi.min((bound - a) / b),
+                        Some(std::cmp::Ordering::Less) => lo = lo.max((bound - a) / b),
+                        _ if a > bound => hi = f64::NEG_INFINITY,
+                        _ => {}
+                    }
+                }
+                // Texel i's centre is s = (2i + 1)/res − 1; one texel of slack for rounding.
+                let column = |s: f64| (s + 1.0) * res as f64 / 2.0 - 0.5;
+                let first = column(lo).floor().max(0.0) as usize;
+                let end = (column(hi).ceil() + 1.0).clamp(0.0, res as f64) as usize;
+                first.min(end)..end
+            })
+            .collect()
+    }
+
     /// How much each tile sees of the box (per face, row-major tiles: `6 · tiles_per_side²`):
     /// [`Cover::None`] when a plane of the tile's frustum or of the box's silhouette separates
     /// the two, with a margin of two texels for the rays cast just above the horizon;
@@ -79,49 +110,79 @@ impl SeenBox {
         if outside(self.n.as_dvec3()) {
             return vec![Cover::None; 6 * k * k];
         }
-        let edge = |t: usize| 2.0 * (t * tree::TILE).min(res) as f64 / res as f64 - 1.0;
         let mut out = Vec::with_capacity(6 * k * k);
-        for f in 0..6 {
-            if cubemap::face_frustum(f).iter().any(|pl| outside(pl.normalize())) {
-                out.extend(std::iter::repeat_n(Cover::None, k * k));
-                continue;
+        GRIDS.with_borrow_mut(|(at, grids)| {
+            if *at != res {
+                (*at, *grids) = (res, (0..6).map(|f| FaceGrid::new(f, res)).collect());
             }
-            // Tiles share their edges' planes and their corners: each is evaluated once. Per
-            // grid line t: the box lies entirely before it, or entirely past it.
-            let side = |a: f64, b: f64| -> Vec<(bool, bool)> {
-                (0..=k)
-                    .map(|t| cubemap::line_plane(f, a, b, -edge(t)).normalize())
-                    .map(|pl| (outside(pl), outside(-pl)))
-                    .collect()
-            };
-            let (cols, rows) = (side(1.0, 0.0), side(0.0, 1.0));
-            let corner = |x: usize| cubemap::face_to_dir(f, DVec2::new(edge(x % (k + 1)), edge(x / (k + 1))));
-            let corners: Vec<DVec3> = (0..(k + 1) * (k + 1)).map(corner).collect();
-            // Per silhouette plane, the grid corners beyond it by the margin, and those inside.
-            let side = |inside: bool| -> Vec<Vec<bool>> {
-                let test = |m: &DVec3, d: &DVec3| if inside { m.dot(*d) <= 0.0 } else { m.dot(*d) > margin };
-                self.silhouette.iter().map(|m| corners.iter().map(|d| test(m, d)).collect()).collect()
-            };
-            let (beyond, inside) = (side(false), side(true));
-            for (tj, ti) in (0..k).flat_map(|tj| (0..k).map(move |ti| (tj, ti))) {
-                let framed = !(cols[ti].0 || cols[ti + 1].1 || rows[tj].0 || rows[tj + 1].1);
-                // A direction in the tile is a positive combination of its corners: beyond a
-                // plane by the margin when all four corners are.
-                let at =
-                    [tj * (k + 1) + ti, tj * (k + 1) + ti + 1, (tj + 1) * (k + 1) + ti, (tj + 1) * (k + 1) + ti + 1];
-                let all_in = |b: &Vec<bool>| at.iter().all(|&c| b[c]);
-                out.push(if !framed || beyond.iter().any(all_in) {
-                    Cover::None
-                } else if !inside.is_empty() && inside.iter().all(all_in) {
-                    // Positive combinations of directions inside every plane stay inside.
-                    Cover::All
-                } else {
-                    Cover::Some
-                });
+            for (f, grid) in grids.iter().enumerate() {
+                if cubemap::face_frustum(f).iter().any(|pl| outside(pl.normalize())) {
+                    out.extend(std::iter::repeat_n(Cover::None, k * k));
+                    continue;
+                }
+                // Per grid line: the box lies entirely before it, or entirely past it.
+                let sides: Vec<(bool, bool)> = grid.lines.iter().map(|pl| (outside(*pl), outside(-*pl))).collect();
+                let (cols, rows) = sides.split_at(k + 1);
+                // Per grid corner, bit b set when it lies beyond silhouette plane b by the margin,
+                // or inside it (a box has at most 12 such planes, one per edge).
+                let masks: Vec<(u16, u16)> = grid
+                    .corners
+                    .iter()
+                    .map(|d| {
+                        self.silhouette.iter().enumerate().fold((0, 0), |(beyond, inside), (b, m)| {
+                            let x = m.dot(*d);
+                            (beyond | ((x > margin) as u16) << b, inside | ((x <= 0.0) as u16) << b)
+                        })
+                    })
+                    .collect();
+                let every = (1u16 << self.silhouette.len()) - 1;
+                for (tj, ti) in (0..k).flat_map(|tj| (0..k).map(move |ti| (tj, ti))) {
+                    let framed = !(cols[ti].0 || cols[ti + 1].1 || rows[tj].0 || rows[tj + 1].1);
+                    // A direction in the tile is a positive combination of its corners: beyond a
+                    // plane by the margin when all four corners are, inside every plane when all
+                    // four are.
+                    let at = tj * (k + 1) + ti;
+                    let (beyond, inside) = [at, at + 1, at + k + 1, at + k + 2]
+                        .iter()
+                        .fold((every, every), |(b, i), &c| (b & masks[c].0, i & masks[c].1));
+                    out.push(if !framed || beyond != 0 {
+                        Cover::None
+                    } else if every != 0 && inside == every {
+                        Cover::All
+                    } else {
+                        Cover::Some
+                    });
+                }
             }
-        }
+        });
         out
     }
+}
+
+/// A face's tile grid, which depends on the resolution alone.
+struct FaceGrid {
+    /// Unit normals of the planes of the grid lines s = edge(t), then t = edge(t), for
+    /// t = 0..=k (positive side: larger s or t).
+    lines: Vec<DVec3>,
+    /// Unit directions of the grid's (k + 1)² corners, row-major.
+    corners: Vec<DVec3>,
+}
+
+impl FaceGrid {
+    fn new(f: usize, res: usize) -> Self {
+        let k = tiles_per_side(res);
+        let edge = |t: usize| 2.0 * (t * tree::TILE).min(res) as f64 / res as f64 - 1.0;
+        let line = |a: f64, b: f64| (0..=k).map(move |t| cubemap::line_plane(f, a, b, -edge(t)).normalize());
+        let lines = line(1.0, 0.0).chain(line(0.0, 1.0)).collect();
+        let corner = |x: usize| cubemap::face_to_dir(f, DVec2::new(edge(x % (k + 1)), edge(x / (k + 1))));
+        Self { lines, corners: (0..(k + 1) * (k + 1)).map(corner).collect() }
+    }
+}
+
+thread_local! {
+    /// The six faces' grids at the last resolution this thread used (see `visibility`'s table
+    /// of texel directions for why per thread).
+    static GRIDS: std::cell::RefCell<(usize, Vec<FaceGrid>)> = const { std::cell::RefCell::new((0, Vec::new())) };
 }
 
 /// The corners of the box `[lo, hi]` relative to `p` (bit 0 of the index picks x, 1 y, 2 z).
@@ -148,34 +209,56 @@ mod tests {
     use super::*;
     use crate::bspvt::visibility;
 
-    /// Both tests are conservative: no texel ray the texel test rejects, nor any in a tile the
-    /// tile test leaves clean, meets the box (from the ray's offset origin, as cast); and both
-    /// are tight enough to matter.
+    /// The tests are conservative: no texel ray the texel test rejects, nor any in a tile the
+    /// tile test leaves clean, meets the box (from the ray's offset origin, as cast), and no
+    /// texel centre outside its row's columns passes the texel test; and all are tight enough
+    /// to matter.
     #[test]
     fn rays_left_out_do_not_meet_the_box() {
-        let (res, k) = (32, tiles_per_side(32));
-        let (lo, hi) = (Vec3::new(-0.5, 1.0, -0.2), Vec3::new(0.7, 1.1, 0.4));
-        let (mut clean, mut dirty, mut wanted, mut hits, mut covered) = (0, 0, 0, 0, 0);
-        let points = (-3..=3).flat_map(|x| (-3..=3).map(move |z| Vec3::new(x as f32 * 0.7, 0.0, z as f32 * 0.7)));
+        let points: Vec<Vec3> =
+            (-3..=3).flat_map(|x| (-3..=3).map(move |z| Vec3::new(x as f32 * 0.7, 0.0, z as f32 * 0.7))).collect();
         // The last point is so close to the box that the cone test gives way to the exact one.
-        for p in points.chain([Vec3::new(0.1, 0.999, 0.1)]) {
+        let close = Vec3::new(0.1, 0.999, 0.1);
+        let [clean, dirty, wanted, hits, covered, in_columns] = check_box_tests(32, points.iter().chain([&close]));
+        assert!(clean > 4 * dirty && hits > 0, "{clean} clean and {dirty} dirty texels");
+        assert!(covered > 0 && covered < hits, "{covered} texels in covered tiles, {hits} hits");
+        assert!(in_columns < 2 * hits, "{in_columns} texels in the columns, {hits} hits");
+        assert!(wanted < dirty / 3 && wanted < hits + hits / 4, "{wanted} wanted of {dirty} dirty texels, {hits} hits");
+        // A resolution whose tile grid has more than 128 corners per face.
+        let [_, _, _, hits, ..] = check_box_tests(136, points.iter().step_by(12));
+        assert!(hits > 0);
+    }
+
+    /// Checks every texel ray of vertices at `points` (three normals each) against the box
+    /// tests; returns the counts of texels in clean tiles, in dirty ones, wanted by the texel
+    /// test among those, meeting the box, in covered tiles, and in their row's columns.
+    fn check_box_tests<'a>(res: usize, points: impl Iterator<Item = &'a Vec3>) -> [usize; 6] {
+        let k = tiles_per_side(res);
+        let (lo, hi) = (Vec3::new(-0.5, 1.0, -0.2), Vec3::new(0.7, 1.1, 0.4));
+        let (mut clean, mut dirty, mut wanted, mut hits, mut covered, mut in_columns) = (0, 0, 0, 0, 0, 0);
+        for &p in points {
             for n in [Vec3::Y, Vec3::new(0.6, 0.8, 0.0), Vec3::new(0.0, 0.6, -0.8)] {
                 let seen = SeenBox::new(p, n, lo, hi);
                 let flags = seen.tiles(res);
+                let columns: Vec<_> = (0..6).map(|f| seen.columns(f, res)).collect();
                 for (f, i, j) in (0..6).flat_map(|f| (0..res * res).map(move |t| (f, t % res, t / res))) {
                     let Some(d) = visibility::texel_ray(f, i, j, n.as_dvec3(), res).map(|d| d.as_vec3()) else {
                         continue;
                     };
                     let hit = accel::ray_meets_box(accel::offset_ray_origin(p, n, d), d, lo, hi);
-                    let at = format!("p {p}, n {n}: texel ({f}, {i}, {j})");
-                    assert!(!hit || seen.meets(d), "{at} meets the box, the texel test says no");
+                    let at = || format!("res {res}, p {p}, n {n}: texel ({f}, {i}, {j})");
+                    assert!(!hit || seen.meets(d), "{} meets the box, the texel test says no", at());
+                    let centre = cubemap::face_to_dir(f, cubemap::texel_center(i, j, res)).as_vec3();
+                    let column = columns[f][j].contains(&i);
+                    assert!(column || !seen.meets(centre), "{}: meets the box outside its row's columns", at());
+                    in_columns += column as usize;
                     match flags[f * k * k + (j / tree::TILE) * k + i / tree::TILE] {
                         Cover::None => {
                             clean += 1;
-                            assert!(!hit, "{at} in a clean tile meets the box");
+                            assert!(!hit, "{} in a clean tile meets the box", at());
                         }
                         cover => {
-                            assert!(cover == Cover::Some || seen.meets(d), "{at}: a covered tile's texel misses");
+                            assert!(cover == Cover::Some || seen.meets(d), "{}: a covered tile's texel misses", at());
                             (dirty, wanted, hits) = (dirty + 1, wanted + seen.meets(d) as usize, hits + hit as usize);
                             covered += (cover == Cover::All) as usize;
                         }
@@ -183,9 +266,7 @@ mod tests {
                 }
             }
         }
-        assert!(clean > 4 * dirty && hits > 0, "{clean} clean and {dirty} dirty texels");
-        assert!(covered > 0 && covered < hits, "{covered} texels in covered tiles, {hits} hits");
-        assert!(wanted < dirty / 3 && wanted < hits + hits / 4, "{wanted} wanted of {dirty} dirty texels, {hits} hits");
+        [clean, dirty, wanted, hits, covered, in_columns]
     }
 
     /// The silhouette planes touch the box and bound its cone: every corner is on or behind

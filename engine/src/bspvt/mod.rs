@@ -25,6 +25,7 @@ use crate::accel::{self, Occluders};
 use crate::scene::{FlatScene, NO_LIGHT, Scene};
 use cache::TileCache;
 use rayon::prelude::*;
+use std::ops::Range;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 
@@ -205,15 +206,24 @@ pub fn rebake_vertex(
             (false, false) => layout::decode_tree(kept[f]),
         };
         let bits = if cold {
-            visibility::cast_tiles(n, f, s.res, dirty, |_, _, d| {
-                out.rays += 1;
-                visibility::cast_ray(occluders, p, n, d)
-            })
+            visibility::cast_tiles(
+                n,
+                f,
+                s.res,
+                dirty,
+                |_, _| 0..s.res,
+                |_, _, d| {
+                    out.rays += 1;
+                    visibility::cast_ray(occluders, p, n, d)
+                },
+            )
         } else {
             let live = visibility::live_tiles(n, f, s.res);
             let was = tree::old_visibility(&old_tree, &old_masks, s.res, &live);
+            let rows: Vec<Vec<Range<usize>>> = edit.boxes().map(|b| b.bounds.columns(f, s.res)).collect();
+            let columns = |t: usize, j: usize| edit.columns(f * per_face + t, j, &rows);
             let texel = |t: usize, bit, d| edit.texel(f * per_face + t, d, was[t] & bit != 0, &mut out.rays);
-            visibility::cast_tiles(n, f, s.res, dirty, texel)
+            visibility::cast_tiles(n, f, s.res, dirty, columns, texel)
         };
         let face = tree::rebuild(&bits, tiles, &old_tree, &old_masks);
         out.built += face.built;
@@ -264,6 +274,24 @@ impl<'a> Edit<'a> {
         let before = changes.iter().filter_map(|c| c.before).map(|b| seen(b, usize::MAX)).collect();
         let after = changes.iter().filter_map(|c| c.after).map(|(b, i)| seen(b, i)).collect();
         Self { occluders, p, n, before, after }
+    }
+
+    /// Old bounds, then new.
+    fn boxes(&self) -> impl Iterator<Item = &Seen> {
+        self.before.iter().chain(&self.after)
+    }
+
+    /// The columns of texel row `j` through tile `t` (of all six faces) whose rays can meet a
+    /// box: the hull over [`Self::boxes`] of their `rows[b][j]` ([`dirty::SeenBox::columns`]),
+    /// all columns for a box covering the tile, none for one it cannot see.
+    fn columns(&self, t: usize, j: usize, rows: &[Vec<Range<usize>>]) -> Range<usize> {
+        let all = 0..usize::MAX;
+        let spans = self.boxes().zip(rows).filter_map(|(b, r)| match b.cover[t] {
+            dirty::Cover::None => None,
+            dirty::Cover::Some => Some(r[j].clone()),
+            dirty::Cover::All => Some(all.clone()),
+        });
+        spans.filter(|r| !r.is_empty()).reduce(|a, b| a.start.min(b.start)..a.end.max(b.end)).unwrap_or(0..0)
     }
 
     /// The state of the texel cast through tile `t` (of all six faces) in direction `d` (unit,

@@ -44,7 +44,7 @@ pub fn cast(occluders: &Occluders, p: Vec3, n: Vec3, res: usize) -> CubeVisibili
 /// The `res²` texel states of face `f` alone (see [`cast`]).
 pub fn cast_face(occluders: &Occluders, p: Vec3, n: Vec3, f: usize, res: usize) -> Vec<u8> {
     let all = vec![true; res.div_ceil(TILE).pow(2)];
-    TileBits::to_face(&cast_tiles(n, f, res, &all, |_, _, d| cast_ray(occluders, p, n, d)), res)
+    TileBits::to_face(&cast_tiles(n, f, res, &all, |_, _| 0..res, |_, _, d| cast_ray(occluders, p, n, d)), res)
 }
 
 /// The direction cast for texel (i, j) of face `f` above the horizon of unit normal `nd`:
@@ -147,12 +147,15 @@ fn corner_height(nd: DVec3, f: usize, res: usize) -> impl Fn(usize, usize) -> f6
 /// each texel above the horizon in the tiles flagged in `tiles` (row-major, [`TILE`]-texel
 /// tiles, the last ones narrower when `res` is not a multiple): `texel(tile, bit, direction)`
 /// returns [`VISIBLE`], [`OCCLUDED`] or [`SKIPPED`]. An unflagged tile is not looked at texel by
-/// texel: when it is live (see [`live_tiles`]) all of it is `SKIPPED`.
+/// texel: when it is live (see [`live_tiles`]) all of it is `SKIPPED`. In a flagged tile
+/// entirely above the horizon only the texels of row `j` in `columns(tile, j)` are asked; the
+/// others are `SKIPPED` too.
 pub fn cast_tiles(
     n: Vec3,
     f: usize,
     res: usize,
     tiles: &[bool],
+    columns: impl Fn(usize, usize) -> std::ops::Range<usize>,
     mut texel: impl FnMut(usize, u64, Vec3) -> u8,
 ) -> Vec<TileBits> {
     let nd = n.as_dvec3();
@@ -174,23 +177,38 @@ pub fn cast_tiles(
         for (t, bits) in out.iter_mut().enumerate() {
             let (i0, j0) = ((t % k) * TILE, (t / k) * TILE);
             let (i1, j1) = ((i0 + TILE).min(res), (j0 + TILE).min(res));
-            let rows = (j0..j1).flat_map(|j| (i0..i1).map(move |i| (i, j)));
+            let heights = [(i0, j0), (i1, j0), (i0, j1), (i1, j1)].map(|(i, j)| height(i, j));
+            let all = (j0..j1).flat_map(|j| (i0..i1).map(move |i| (i, j))).fold(0, |m, (i, j)| m | tile_bit(i, j, k).1);
             if !tiles[t] {
-                if [(i0, j0), (i1, j0), (i0, j1), (i1, j1)].iter().any(|&(i, j)| height(i, j) > 0.0) {
-                    let all = rows.fold(0, |m, (i, j)| m | tile_bit(i, j, k).1);
+                if heights.iter().any(|&h| h > 0.0) {
                     *bits = TileBits { live: all, visible: 0, skipped: all };
                 }
                 continue;
             }
-            for (i, j) in rows {
-                let Some(d) = ray_through(centres[(f * res + j) * res + i], f, i, j, nd, res) else { continue };
-                let bit = tile_bit(i, j, k).1;
-                bits.live |= bit;
-                match texel(t, bit, d.as_vec3()) {
-                    VISIBLE => bits.visible |= bit,
-                    SKIPPED => bits.skipped |= bit,
-                    _ => {}
+            // Entirely above the horizon (its lowest point is a corner): every texel is cast
+            // through its centre, and only the asked columns need looking at.
+            let above = heights.iter().all(|&h| h > 1e-9);
+            let mut asked = 0;
+            for j in j0..j1 {
+                let cols = if above { columns(t, j) } else { i0..i1 };
+                for i in cols.start.max(i0)..cols.end.min(i1) {
+                    let centre = centres[(f * res + j) * res + i];
+                    let d = if above { Some(centre) } else { ray_through(centre, f, i, j, nd, res) };
+                    let Some(d) = d else { continue };
+                    let bit = tile_bit(i, j, k).1;
+                    asked |= bit;
+                    match texel(t, bit, d.as_vec3()) {
+                        VISIBLE => bits.visible |= bit,
+                        SKIPPED => bits.skipped |= bit,
+                        _ => {}
+                    }
                 }
+            }
+            if above {
+                bits.live = all;
+                bits.skipped |= all & !asked;
+            } else {
+                bits.live = asked;
             }
         }
     });
@@ -229,7 +247,9 @@ mod tests {
                 let full = cast_face(&occ, Vec3::ZERO, n, f, res);
                 let live = live_tiles(n, f, res);
                 let texel = |_, _, d: Vec3| if d.x > 0.0 { cast_ray(&occ, Vec3::ZERO, n, d) } else { SKIPPED };
-                let some = TileBits::to_face(&cast_tiles(n, f, res, &flags, texel), res);
+                // Rows ask for columns [j mod 5, j mod 5 + 9): most tiles are cut by it.
+                let columns = |_, j: usize| j % 5..j % 5 + 9;
+                let some = TileBits::to_face(&cast_tiles(n, f, res, &flags, columns, texel), res);
                 for (x, (&a, &b)) in full.iter().zip(&some).enumerate() {
                     let (i, j) = (x % res, x / res);
                     let tile = (j / TILE) * k + i / TILE;
@@ -238,7 +258,12 @@ mod tests {
                     assert_eq!(live[tile], in_live_tile, "n {n}, face {f}, tile {tile}");
                     let expected = if flags[tile] {
                         let d = texel_ray(f, i, j, n.as_dvec3(), res).map(|d| d.as_vec3());
-                        if d.is_none_or(|d| d.x > 0.0) { a } else { SKIPPED }
+                        let (i0, j0) = (i / TILE * TILE, j / TILE * TILE);
+                        let above = [(i0, j0), (i0 + TILE, j0), (i0, j0 + TILE), (i0 + TILE, j0 + TILE)]
+                            .iter()
+                            .all(|&(a, b)| corner_height(n.as_dvec3(), f, res)(a.min(res), b.min(res)) > 1e-9);
+                        let asked = !above || (j % 5..j % 5 + 9).contains(&i);
+                        if d.is_none_or(|d| d.x > 0.0 && asked) { a } else { SKIPPED }
                     } else if in_live_tile {
                         SKIPPED
                     } else {
