@@ -5,6 +5,8 @@
 //!   above the horizon;
 //! - [`tree`]: per face, a fixed grid of tiles and inside each the BSP tree of Algorithm 1 with
 //!   the seed's two corrections (tiles make re-bakes local: [`rebake_vertex`]);
+//! - [`cache`]: tile subtrees already built, shared by a bake's workers and kept between bakes;
+//! - [`dirty`]: which tiles and texels an edit inside a box can change (warm re-bakes);
 //! - [`layout`]: the compact versioned byte layout (≈2 bytes per node);
 //! - [`shade`]: per vertex and light, the light polygon clipped by face frusta and tree planes
 //!   (planes through the vertex) and integrated with LTC, weighted by the leaves' visibility;
