@@ -145,8 +145,8 @@ pub struct VertexBake {
     pub built: usize,
 }
 
-/// Bakes one vertex with `tiles`' settings, its subtrees from (and added to) `tiles`. Faces entirely below the horizon or entirely occluded store no tree: both
-/// contribute nothing.
+/// Bakes one vertex with `tiles`' settings, its subtrees from (and added to) `tiles`. Faces
+/// entirely below the horizon or entirely occluded store no tree: both contribute nothing.
 pub fn bake_vertex(occluders: &Occluders, p: glam::Vec3, n: glam::Vec3, tiles: &TileCache) -> VertexBake {
     rebake_vertex(occluders, p, n, tiles, &VertexBake::default(), &[])
 }
@@ -208,24 +208,11 @@ pub fn rebake_vertex(
             (false, false) => layout::decode_tree(kept[f]),
         };
         let bits = if cold {
-            visibility::cast_tiles(
-                n,
-                f,
-                s.res,
-                dirty,
-                |_, _| 0..s.res,
-                |_, _, d| {
-                    out.rays += 1;
-                    visibility::cast_ray(occluders, p, n, d)
-                },
-            )
+            let bits = visibility::cast_face_tiles(occluders, p, n, f, s.res);
+            out.rays += bits.iter().map(|b| b.live.count_ones() as usize).sum::<usize>();
+            bits
         } else {
-            let live = visibility::live_tiles(n, f, s.res);
-            let was = tree::old_visibility(&old_tree, &old_masks, s.res, &live);
-            let rows: Vec<Vec<Range<usize>>> = edit.boxes().map(|b| b.bounds.columns(f, s.res)).collect();
-            let columns = |t: usize, j: usize| edit.columns(f * per_face + t, j, &rows);
-            let texel = |t: usize, bit, d| edit.texel(f * per_face + t, d, was[t] & bit != 0, &mut out.rays);
-            visibility::cast_tiles(n, f, s.res, dirty, columns, texel)
+            edit.cast_face(f, s.res, dirty, (&old_tree, &old_masks), &mut out.rays)
         };
         let face = tree::rebuild(&bits, tiles, &old_tree, &old_masks);
         out.built += face.built;
@@ -252,8 +239,8 @@ struct Seen {
     bounds: dirty::SeenBox,
     /// Per tile (`6 · tiles_per_side²`).
     cover: Vec<dirty::Cover>,
-    /// The occluder's instance index (new bounds only).
-    instance: usize,
+    /// The occluder's instance index, for its new bounds.
+    instance: Option<usize>,
 }
 
 impl Seen {
@@ -273,9 +260,29 @@ impl<'a> Edit<'a> {
             let bounds = dirty::SeenBox::new(p, n, lo, hi);
             Seen { cover: bounds.tiles(res), bounds, instance }
         };
-        let before = changes.iter().filter_map(|c| c.before).map(|b| seen(b, usize::MAX)).collect();
-        let after = changes.iter().filter_map(|c| c.after).map(|(b, i)| seen(b, i)).collect();
+        let before = changes.iter().filter_map(|c| c.before).map(|b| seen(b, None)).collect();
+        let after = changes.iter().filter_map(|c| c.after).map(|(b, i)| seen(b, Some(i))).collect();
         Self { occluders, p, n, before, after }
+    }
+
+    /// Face `f`'s tiles after the edit (see [`visibility::cast_tiles`]; `dirty` flags its tiles
+    /// that can see a changed box) from its previous tree and masks `old`; `rays` counts the
+    /// rays cast.
+    fn cast_face(
+        &self,
+        f: usize,
+        res: usize,
+        dirty: &[bool],
+        old: (&[tree::Node], &[(u32, u64)]),
+        rays: &mut usize,
+    ) -> Vec<visibility::TileBits> {
+        let live = visibility::live_tiles(self.n, f, res);
+        let was = tree::old_visibility(old.0, old.1, res, &live);
+        let rows: Vec<Vec<Range<usize>>> = self.boxes().map(|b| b.bounds.columns(f, res)).collect();
+        let first = f * dirty.len();
+        let columns = |t: usize, j: usize| self.columns(first + t, j, &rows);
+        let texel = |t: usize, bit, d| self.texel(first + t, d, was[t] & bit != 0, rays);
+        visibility::cast_tiles(self.n, f, res, dirty, columns, texel)
     }
 
     /// Old bounds, then new.
@@ -309,7 +316,8 @@ impl<'a> Edit<'a> {
         }
         *rays += 1;
         let o = accel::offset_ray_origin(self.p, self.n, d);
-        match (after.any(|b| self.occluders.occluded_by(b.instance, o, d, f32::INFINITY)), was_visible) {
+        let blocks = |b: &Seen| b.instance.is_some_and(|i| self.occluders.occluded_by(i, o, d, f32::INFINITY));
+        match (after.any(blocks), was_visible) {
             (true, _) => visibility::OCCLUDED,
             (false, true) => visibility::VISIBLE,
             (false, false) => visibility::cast_ray(self.occluders, self.p, self.n, d),

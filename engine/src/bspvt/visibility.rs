@@ -43,8 +43,13 @@ pub fn cast(occluders: &Occluders, p: Vec3, n: Vec3, res: usize) -> CubeVisibili
 
 /// The `res²` texel states of face `f` alone (see [`cast`]).
 pub fn cast_face(occluders: &Occluders, p: Vec3, n: Vec3, f: usize, res: usize) -> Vec<u8> {
+    TileBits::to_face(&cast_face_tiles(occluders, p, n, f, res), res)
+}
+
+/// [`cast_face`] as tiles: every texel above the horizon cast.
+pub fn cast_face_tiles(occluders: &Occluders, p: Vec3, n: Vec3, f: usize, res: usize) -> Vec<TileBits> {
     let all = vec![true; res.div_ceil(TILE).pow(2)];
-    TileBits::to_face(&cast_tiles(n, f, res, &all, |_, _| 0..res, |_, _, d| cast_ray(occluders, p, n, d)), res)
+    cast_tiles(n, f, res, &all, |_, _| 0..res, |_, _, d| cast_ray(occluders, p, n, d))
 }
 
 /// The direction cast for texel (i, j) of face `f` above the horizon of unit normal `nd`:
