@@ -172,7 +172,10 @@ fn the_tile_cache_outlives_runs_and_damage_costs_only_time() {
     let (first, ..) = bake(&store, &scene(""));
     let stored = store.cache(&name).unwrap().expect("a cold bake stores its tiles");
     let cache = bspvt::cache::TileCache::from_bytes(&BSPVT, &stored).expect("a well-formed cache");
-    assert!(cache.len() > 10 && cache.len() + first.tiles_from_cache == first.tiles_built, "{first:?}");
+    // Every tile built is a stored entry or a hit — or, rarely, a second worker's build of a
+    // tile another was building at the same moment (neither a hit nor a new entry).
+    assert!(cache.len() > 10 && first.tiles_from_cache > 0, "{first:?}");
+    assert!(cache.len() + first.tiles_from_cache <= first.tiles_built, "{first:?}");
     let mut damaged = stored.clone();
     damaged[stored.len() / 2] ^= 0x10;
     store.put_cache(&name, &damaged).unwrap();

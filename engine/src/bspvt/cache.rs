@@ -18,8 +18,8 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 /// A tile's key: its index in the face (row-major tiles), its live and its visible texel masks.
 pub type TileKey = (u32, u64, u64);
 
-/// Entries at most (about 100 MB at the typical 10 nodes per subtree): a bigger bake just
-/// stops adding entries.
+/// Entries at most (a subtree has at most 127 nodes of 8 bytes, so memory stays bounded): a
+/// bigger bake just stops adding entries.
 const CAPACITY: usize = 1 << 20;
 
 /// First bytes of [`TileCache::to_bytes`] (its layout's version).
