@@ -7,6 +7,7 @@
 //! to reproduce a cold bake's bytes.
 
 use super::SceneBvh;
+use super::beam::{self, Beam};
 use glam::Vec3;
 
 /// One instance: its padded bounds and BVH.
@@ -14,6 +15,8 @@ struct Part {
     lo: Vec3,
     hi: Vec3,
     bvh: SceneBvh,
+    /// Its triangles when there are few enough for a [`Beam`], else empty.
+    few: Vec<[Vec3; 3]>,
 }
 
 /// Per-instance BVHs answering any-hit queries together.
@@ -33,7 +36,8 @@ impl Occluders {
                         t.iter().flatten().fold((Vec3::MAX, Vec3::MIN), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
                     // Padding keeps the box test conservative for rays that graze it.
                     let pad = Vec3::splat(1e-4 * (hi - lo).length() + 1e-6);
-                    Part { lo: lo - pad, hi: hi + pad, bvh: SceneBvh::new(t) }
+                    let few = if t.len() <= beam::MAX_TRIANGLES { t.clone() } else { Vec::new() };
+                    Part { lo: lo - pad, hi: hi + pad, bvh: SceneBvh::new(t), few }
                 })
             })
             .collect();
@@ -46,6 +50,13 @@ impl Occluders {
     pub fn occluded_by(&self, i: usize, origin: Vec3, dir: Vec3, tmax: f32) -> bool {
         let p = self.parts.get(i).and_then(Option::as_ref);
         p.is_some_and(|p| slab_hits(origin, dir.recip(), tmax, p.lo, p.hi) && p.bvh.occluded(origin, dir, tmax))
+    }
+
+    /// A [`Beam`] over instance `i`'s triangles from `origin`, when it has a few (at most
+    /// [`beam::MAX_TRIANGLES`]); where the beam answers, it answers as [`Self::occluded_by`].
+    pub fn beam(&self, i: usize, origin: Vec3) -> Option<Beam> {
+        let p = self.parts.get(i).and_then(Option::as_ref)?;
+        (!p.few.is_empty()).then(|| Beam::new(origin, &p.few))
     }
 
     /// True when any instance blocks the segment from `origin` along unit `dir` within `(0, tmax)`.

@@ -4,6 +4,7 @@
 //! origin off the surface it leaves by a few ULPs (Wächter & Binder, *Ray Tracing Gems* ch. 6),
 //! which is robust at any distance from the origin without a scene-dependent epsilon.
 
+pub mod beam;
 mod instances;
 
 pub use instances::Occluders;

@@ -6,7 +6,7 @@
 //! against the planes bounding the box's cone rather than a ray–box intersection.
 
 use super::{tiles_per_side, tree};
-use crate::accel;
+use crate::accel::{self, beam::Beam};
 use crate::math::cubemap;
 use glam::{DVec2, DVec3, Vec3};
 
@@ -56,6 +56,7 @@ impl SeenBox {
 
     /// Whether the ray cast from the vertex in direction `d` (unit, above its horizon) can meet
     /// the box.
+    #[inline]
     pub fn meets(&self, d: Vec3) -> bool {
         if self.silhouette.is_empty() {
             return accel::ray_meets_box(accel::offset_ray_origin(self.p, self.n, d), d, self.lo, self.hi);
@@ -71,13 +72,14 @@ impl SeenBox {
         let (c, s_axis, t_axis) = cubemap::face_basis(f);
         // m · û ≤ slack (with single-precision rounding) implies m · u ≤ 2·slack.
         let bound = 2.0 * ORIGIN_SLACK;
+        let planes: Vec<[f64; 3]> = self.silhouette.iter().map(|m| [m.dot(c), m.dot(t_axis), m.dot(s_axis)]).collect();
         (0..res)
             .map(|j| {
                 let t = cubemap::texel_center(0, j, res).y;
                 let (mut lo, mut hi) = (f64::NEG_INFINITY, f64::INFINITY);
-                for m in &self.silhouette {
+                for [mc, mt, b] in &planes {
                     // m · u = a + s·b ≤ bound.
-                    let (a, b) = (m.dot(c) + t * m.dot(t_axis), m.dot(s_axis));
+                    let (a, b) = (mc + t * mt, *b);
                     match b.partial_cmp(&0.0) {
                         Some(std::cmp::Ordering::Greater) => hi = hi.min((bound - a) / b),
                         Some(std::cmp::Ordering::Less) => lo = lo.max((bound - a) / b),
@@ -111,10 +113,7 @@ impl SeenBox {
             return vec![Cover::None; 6 * k * k];
         }
         let mut out = Vec::with_capacity(6 * k * k);
-        GRIDS.with_borrow_mut(|(at, grids)| {
-            if *at != res {
-                (*at, *grids) = (res, (0..6).map(|f| FaceGrid::new(f, res)).collect());
-            }
+        with_grids(res, |grids| {
             for (f, grid) in grids.iter().enumerate() {
                 if cubemap::face_frustum(f).iter().any(|pl| outside(pl.normalize())) {
                     out.extend(std::iter::repeat_n(Cover::None, k * k));
@@ -159,6 +158,31 @@ impl SeenBox {
     }
 }
 
+/// Per tile (as [`SeenBox::tiles`]), whether every direction through it certainly meets one of
+/// `beam`'s triangles (see [`Beam::inside`]). Only the tiles `cover` (the triangles' bounds
+/// seen from the beam's origin) marks [`Cover::All`] can be: the rest are `false`.
+pub fn blocked_tiles(beam: &Beam, cover: &[Cover], res: usize) -> Vec<bool> {
+    let k = tiles_per_side(res);
+    let mut out = vec![false; 6 * k * k];
+    if !cover.contains(&Cover::All) {
+        return out;
+    }
+    with_grids(res, |grids| {
+        for (f, grid) in grids.iter().enumerate() {
+            // Per grid corner, computed when a tile first needs it.
+            let mut inside = vec![None; (k + 1) * (k + 1)];
+            for t in (0..k * k).filter(|t| cover[f * k * k + t] == Cover::All) {
+                let at = t / k * (k + 1) + t % k;
+                let mask = [at, at + 1, at + k + 1, at + k + 2].iter().fold(u32::MAX, |m, &c| {
+                    m & *inside[c].get_or_insert_with(|| beam.inside(grid.corners[c].as_vec3()))
+                });
+                out[f * k * k + t] = mask != 0;
+            }
+        }
+    });
+    out
+}
+
 /// A face's tile grid, which depends on the resolution alone.
 struct FaceGrid {
     /// Unit normals of the planes of the grid lines s = edge(t), then t = edge(t), for
@@ -177,6 +201,16 @@ impl FaceGrid {
         let corner = |x: usize| cubemap::face_to_dir(f, DVec2::new(edge(x % (k + 1)), edge(x / (k + 1))));
         Self { lines, corners: (0..(k + 1) * (k + 1)).map(corner).collect() }
     }
+}
+
+/// Runs `f` on the six faces' grids at resolution `res`.
+fn with_grids<R>(res: usize, f: impl FnOnce(&[FaceGrid]) -> R) -> R {
+    GRIDS.with_borrow_mut(|(at, grids)| {
+        if *at != res {
+            (*at, *grids) = (res, (0..6).map(|f| FaceGrid::new(f, res)).collect());
+        }
+        f(grids)
+    })
 }
 
 thread_local! {

@@ -30,6 +30,7 @@ use rayon::prelude::*;
 use std::ops::Range;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
+use visibility::Look;
 
 /// Version of the bake algorithm, part of every bake key: bumped whenever the same inputs
 /// would give different trees (2: trees start with the tile grid of [`tree::TILE`]).
@@ -171,6 +172,8 @@ pub struct Change {
 /// of those only the ones whose state can have changed are cast — a ray that was visible can
 /// only be blocked now by a changed occluder (cast against those alone), a blocked one that
 /// meets no old bounds stays blocked; only tiles whose visibility changed are built again.
+/// A changed occluder with few triangles is tested without its BVH ([`accel::beam`]) where
+/// the answer is certain, and tiles whose every ray certainly meets it are not visited.
 /// Identical to [`bake_vertex`] of the edited scene: a ray's result against an occluder
 /// depends on that occluder alone (see [`Occluders`]). An empty `old` record bakes from
 /// scratch. Settings and subtrees as in [`bake_vertex`].
@@ -228,10 +231,15 @@ struct Edit<'a> {
     occluders: &'a Occluders,
     p: glam::Vec3,
     n: glam::Vec3,
+    /// See [`visibility::horizon_origin`].
+    origin: glam::Vec3,
     /// Old bounds.
     before: Vec<Seen>,
     /// New bounds.
     after: Vec<Seen>,
+    /// Per tile (`6 · tiles_per_side²`): every ray through it certainly meets a changed
+    /// occluder's triangles (see [`dirty::blocked_tiles`]).
+    blocked: Vec<bool>,
 }
 
 /// A changed occluder's old or new bounds from the vertex, and how each tile sees them.
@@ -241,6 +249,8 @@ struct Seen {
     cover: Vec<dirty::Cover>,
     /// The occluder's instance index, for its new bounds.
     instance: Option<usize>,
+    /// The occluder's triangles from the rays' origin, when it has few (for its new bounds).
+    beam: Option<accel::beam::Beam>,
 }
 
 impl Seen {
@@ -256,18 +266,26 @@ impl Seen {
 
 impl<'a> Edit<'a> {
     fn new(occluders: &'a Occluders, p: glam::Vec3, n: glam::Vec3, changes: &[Change], res: usize) -> Self {
-        let seen = |(lo, hi), instance| {
+        let origin = visibility::horizon_origin(p, n);
+        let seen = |(lo, hi), instance: Option<usize>| {
             let bounds = dirty::SeenBox::new(p, n, lo, hi);
-            Seen { cover: bounds.tiles(res), bounds, instance }
+            let beam = instance.and_then(|i| occluders.beam(i, origin));
+            Seen { cover: bounds.tiles(res), bounds, instance, beam }
         };
         let before = changes.iter().filter_map(|c| c.before).map(|b| seen(b, None)).collect();
-        let after = changes.iter().filter_map(|c| c.after).map(|(b, i)| seen(b, Some(i))).collect();
-        Self { occluders, p, n, before, after }
+        let after: Vec<Seen> = changes.iter().filter_map(|c| c.after).map(|(b, i)| seen(b, Some(i))).collect();
+        let mut blocked = vec![false; 6 * tiles_per_side(res).pow(2)];
+        for b in &after {
+            let Some(beam) = &b.beam else { continue };
+            let more = dirty::blocked_tiles(beam, &b.cover, res);
+            blocked.iter_mut().zip(more).for_each(|(a, b)| *a |= b);
+        }
+        Self { occluders, p, n, origin, before, after, blocked }
     }
 
     /// Face `f`'s tiles after the edit (see [`visibility::cast_tiles`]; `dirty` flags its tiles
-    /// that can see a changed box) from its previous tree and masks `old`; `rays` counts the
-    /// rays cast.
+    /// that can see a changed box, cast unless known blocked) from its previous tree and masks
+    /// `old`; `rays` counts the rays cast.
     fn cast_face(
         &self,
         f: usize,
@@ -280,9 +298,16 @@ impl<'a> Edit<'a> {
         let was = tree::old_visibility(old.0, old.1, res, &live);
         let rows: Vec<Vec<Range<usize>>> = self.boxes().map(|b| b.bounds.columns(f, res)).collect();
         let first = f * dirty.len();
+        let looks: Vec<Look> = (0..dirty.len())
+            .map(|t| match (dirty[t], self.blocked[first + t]) {
+                (false, _) => Look::Keep,
+                (true, false) => Look::Cast,
+                (true, true) => Look::Blocked,
+            })
+            .collect();
         let columns = |t: usize, j: usize| self.columns(first + t, j, &rows);
         let texel = |t: usize, bit, d| self.texel(first + t, d, was[t] & bit != 0, rays);
-        visibility::cast_tiles(self.n, f, res, dirty, columns, texel)
+        visibility::cast_tiles(self.n, f, res, &looks, columns, texel)
     }
 
     /// Old bounds, then new.
@@ -314,13 +339,21 @@ impl<'a> Edit<'a> {
         if unchanged {
             return visibility::SKIPPED;
         }
-        *rays += 1;
-        let o = accel::offset_ray_origin(self.p, self.n, d);
-        let blocks = |b: &Seen| b.instance.is_some_and(|i| self.occluders.occluded_by(i, o, d, f32::INFINITY));
+        let o = visibility::ray_origin(self.origin, self.p, self.n, d);
+        let mut cast = |i| {
+            *rays += 1;
+            self.occluders.occluded_by(i, o, d, f32::INFINITY)
+        };
+        // The beam's origin is `o` unless rounding put `d` below the horizon.
+        let beam = |b: &Seen| b.beam.as_ref().filter(|_| o == self.origin).and_then(|beam| beam.hits(d));
+        let blocks = |b: &Seen| b.instance.is_some_and(|i| beam(b).unwrap_or_else(|| cast(i)));
         match (after.any(blocks), was_visible) {
             (true, _) => visibility::OCCLUDED,
             (false, true) => visibility::VISIBLE,
-            (false, false) => visibility::cast_ray(self.occluders, self.p, self.n, d),
+            (false, false) => {
+                *rays += 1;
+                visibility::cast_ray(self.occluders, o, d)
+            }
         }
     }
 }

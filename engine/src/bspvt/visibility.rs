@@ -48,8 +48,9 @@ pub fn cast_face(occluders: &Occluders, p: Vec3, n: Vec3, f: usize, res: usize) 
 
 /// [`cast_face`] as tiles: every texel above the horizon cast.
 pub fn cast_face_tiles(occluders: &Occluders, p: Vec3, n: Vec3, f: usize, res: usize) -> Vec<TileBits> {
-    let all = vec![true; res.div_ceil(TILE).pow(2)];
-    cast_tiles(n, f, res, &all, |_, _| 0..res, |_, _, d| cast_ray(occluders, p, n, d))
+    let all = vec![Look::Cast; res.div_ceil(TILE).pow(2)];
+    let above = horizon_origin(p, n);
+    cast_tiles(n, f, res, &all, |_, _| 0..res, |_, _, d| cast_ray(occluders, ray_origin(above, p, n, d), d))
 }
 
 /// The direction cast for texel (i, j) of face `f` above the horizon of unit normal `nd`:
@@ -131,15 +132,8 @@ fn tile_bit(i: usize, j: usize, k: usize) -> (usize, u64) {
 /// with a corner above it (the height's sign is affine over a face, so a tile's highest point
 /// is a corner, and a texel with a corner above the horizon is cast; see [`texel_ray`]).
 pub fn live_tiles(n: Vec3, f: usize, res: usize) -> Vec<bool> {
-    let k = res.div_ceil(TILE);
-    let height = corner_height(n.as_dvec3(), f, res);
-    (0..k * k)
-        .map(|t| {
-            let (i0, j0) = ((t % k) * TILE, (t / k) * TILE);
-            let (i1, j1) = ((i0 + TILE).min(res), (j0 + TILE).min(res));
-            [(i0, j0), (i1, j0), (i0, j1), (i1, j1)].iter().any(|&(i, j)| height(i, j) > 0.0)
-        })
-        .collect()
+    let heights = TileHeights::new(n.as_dvec3(), f, res);
+    (0..heights.k * heights.k).map(|t| heights.corners(t).iter().any(|&h| h > 0.0)).collect()
 }
 
 /// The height above the horizon of unit normal `nd` of texel corner (i, j) of face `f`.
@@ -148,18 +142,50 @@ fn corner_height(nd: DVec3, f: usize, res: usize) -> impl Fn(usize, usize) -> f6
     move |i, j| cubemap::face_to_dir(f, glam::DVec2::new(edge(i), edge(j))).dot(nd)
 }
 
+/// [`corner_height`] at the corners of a face's tiles, each computed once.
+struct TileHeights {
+    /// Tiles per side.
+    k: usize,
+    /// (k + 1)² heights, row-major.
+    heights: Vec<f64>,
+}
+
+impl TileHeights {
+    fn new(nd: DVec3, f: usize, res: usize) -> Self {
+        let k = res.div_ceil(TILE);
+        let height = corner_height(nd, f, res);
+        let heights =
+            (0..(k + 1) * (k + 1)).map(|c| height((c % (k + 1) * TILE).min(res), (c / (k + 1) * TILE).min(res)));
+        Self { k, heights: heights.collect() }
+    }
+
+    /// Tile `t`'s corner heights.
+    fn corners(&self, t: usize) -> [f64; 4] {
+        let at = t / self.k * (self.k + 1) + t % self.k;
+        [at, at + 1, at + self.k + 1, at + self.k + 2].map(|c| self.heights[c])
+    }
+}
+
+/// The bits of every texel of tile `t` (`k` tiles per side) at face resolution `res`.
+fn tile_mask(t: usize, k: usize, res: usize) -> u64 {
+    let (i0, j0) = ((t % k) * TILE, (t / k) * TILE);
+    let (w, h) = ((i0 + TILE).min(res) - i0, (j0 + TILE).min(res) - j0);
+    let row = u64::MAX >> (64 - w);
+    (0..h).fold(0, |m, j| m | row << (j * TILE))
+}
+
 /// The tiles of face `f` for a vertex with unit normal `n`, asking `texel` for the state of
-/// each texel above the horizon in the tiles flagged in `tiles` (row-major, [`TILE`]-texel
-/// tiles, the last ones narrower when `res` is not a multiple): `texel(tile, bit, direction)`
-/// returns [`VISIBLE`], [`OCCLUDED`] or [`SKIPPED`]. An unflagged tile is not looked at texel by
-/// texel: when it is live (see [`live_tiles`]) all of it is `SKIPPED`. In a flagged tile
-/// entirely above the horizon only the texels of row `j` in `columns(tile, j)` are asked; the
-/// others are `SKIPPED` too.
+/// each texel above the horizon in the tiles of `tiles` (row-major, [`TILE`]-texel
+/// tiles, the last ones narrower when `res` is not a multiple) as `tiles` says (see [`Look`]):
+/// `texel(tile, bit, direction)` returns [`VISIBLE`], [`OCCLUDED`] or [`SKIPPED`]. A tile kept
+/// is not looked at texel by texel: when it is live (see [`live_tiles`]) all of it is
+/// `SKIPPED`. In a tile cast entirely above the horizon only the texels of row `j` in
+/// `columns(tile, j)` are asked; the others are `SKIPPED` too.
 pub fn cast_tiles(
     n: Vec3,
     f: usize,
     res: usize,
-    tiles: &[bool],
+    tiles: &[Look],
     columns: impl Fn(usize, usize) -> std::ops::Range<usize>,
     mut texel: impl FnMut(usize, u64, Vec3) -> u8,
 ) -> Vec<TileBits> {
@@ -172,6 +198,7 @@ pub fn cast_tiles(
     if [(0, 0), (res, 0), (0, res), (res, res)].iter().all(|&(i, j)| height(i, j) < -1e-9) {
         return out;
     }
+    let tile_heights = TileHeights::new(nd, f, res);
     CENTRES.with_borrow_mut(|(at, centres)| {
         if *at != res {
             *at = res;
@@ -182,17 +209,23 @@ pub fn cast_tiles(
         for (t, bits) in out.iter_mut().enumerate() {
             let (i0, j0) = ((t % k) * TILE, (t / k) * TILE);
             let (i1, j1) = ((i0 + TILE).min(res), (j0 + TILE).min(res));
-            let heights = [(i0, j0), (i1, j0), (i0, j1), (i1, j1)].map(|(i, j)| height(i, j));
-            let all = (j0..j1).flat_map(|j| (i0..i1).map(move |i| (i, j))).fold(0, |m, (i, j)| m | tile_bit(i, j, k).1);
-            if !tiles[t] {
-                if heights.iter().any(|&h| h > 0.0) {
-                    *bits = TileBits { live: all, visible: 0, skipped: all };
-                }
-                continue;
-            }
+            let heights = tile_heights.corners(t);
+            let all = tile_mask(t, k, res);
             // Entirely above the horizon (its lowest point is a corner): every texel is cast
             // through its centre, and only the asked columns need looking at.
             let above = heights.iter().all(|&h| h > 1e-9);
+            match tiles[t] {
+                Look::Keep if heights.iter().any(|&h| h > 0.0) => {
+                    *bits = TileBits { live: all, visible: 0, skipped: all };
+                    continue;
+                }
+                Look::Keep => continue,
+                Look::Blocked if above => {
+                    *bits = TileBits { live: all, visible: 0, skipped: 0 };
+                    continue;
+                }
+                _ => {}
+            }
             let mut asked = 0;
             for j in j0..j1 {
                 let cols = if above { columns(t, j) } else { i0..i1 };
@@ -220,9 +253,34 @@ pub fn cast_tiles(
     out
 }
 
-/// Whether the ray from `p` (unit normal `n`) in direction `d` reaches the sky.
-pub fn cast_ray(occluders: &Occluders, p: Vec3, n: Vec3, d: Vec3) -> u8 {
-    if occluders.occluded(offset_ray_origin(p, n, d), d, f32::INFINITY) { OCCLUDED } else { VISIBLE }
+/// How [`cast_tiles`] treats a tile.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Look {
+    /// Not looked at: its texels above the horizon are `SKIPPED`.
+    Keep,
+    /// Its texels above the horizon are asked for.
+    Cast,
+    /// Every ray through it is known to be blocked: all `OCCLUDED` when the tile is entirely
+    /// above the horizon (the texel rays through its centres stay inside it), else as `Cast`
+    /// (rays lifted above the horizon may leave it).
+    Blocked,
+}
+
+/// Whether the ray from `origin` (see [`ray_origin`]) in direction `d` reaches the sky.
+pub fn cast_ray(occluders: &Occluders, origin: Vec3, d: Vec3) -> u8 {
+    if occluders.occluded(origin, d, f32::INFINITY) { OCCLUDED } else { VISIBLE }
+}
+
+/// Where every ray from a vertex at `p` (unit normal `n`) into the hemisphere above its
+/// horizon starts: [`offset_ray_origin`] depends on the direction only through that side.
+pub fn horizon_origin(p: Vec3, n: Vec3) -> Vec3 {
+    offset_ray_origin(p, n, n)
+}
+
+/// The origin of the ray from `p` (unit normal `n`) in direction `d`, given `above` =
+/// [`horizon_origin`]: the same as [`offset_ray_origin`], without its cost above the horizon.
+pub fn ray_origin(above: Vec3, p: Vec3, n: Vec3, d: Vec3) -> Vec3 {
+    if n.dot(d) < 0.0 { offset_ray_origin(p, n, d) } else { above }
 }
 
 thread_local! {
@@ -236,9 +294,10 @@ thread_local! {
 mod tests {
     use super::*;
 
-    /// An unflagged tile is all `SKIPPED` exactly when the full cast has a texel of it above
-    /// the horizon (else all `BELOW`, and [`live_tiles`] agrees); a flagged one has the states
-    /// `texel` gives, which it is asked for exactly above the horizon.
+    /// A kept tile is all `SKIPPED` exactly when the full cast has a texel of it above the
+    /// horizon (else all `BELOW`, and [`live_tiles`] agrees); a cast one has the states `texel`
+    /// gives, which it is asked for exactly above the horizon; a blocked one entirely above the
+    /// horizon is all `OCCLUDED`, else as if cast.
     #[test]
     fn selected_casts_agree_with_the_full_cast() {
         let roof = [Vec3::new(-2.0, 1.0, -2.0), Vec3::new(2.0, 1.0, -2.0), Vec3::new(0.0, 1.0, 2.0)];
@@ -246,12 +305,14 @@ mod tests {
         // 20: the last tile of a face is narrower.
         let res: usize = 20;
         let k = res.div_ceil(TILE);
-        let flags: Vec<bool> = (0..k * k).map(|t| t % 3 == 1).collect();
+        let flags: Vec<Look> = (0..k * k).map(|t| [Look::Keep, Look::Cast, Look::Blocked][t % 3]).collect();
         for n in [Vec3::Y, Vec3::new(0.6, 0.0, 0.8), Vec3::new(-0.3, -0.9, 0.3).normalize()] {
             for f in 0..cubemap::FACES {
                 let full = cast_face(&occ, Vec3::ZERO, n, f, res);
                 let live = live_tiles(n, f, res);
-                let texel = |_, _, d: Vec3| if d.x > 0.0 { cast_ray(&occ, Vec3::ZERO, n, d) } else { SKIPPED };
+                let texel = |_, _, d: Vec3| {
+                    if d.x > 0.0 { cast_ray(&occ, offset_ray_origin(Vec3::ZERO, n, d), d) } else { SKIPPED }
+                };
                 // Rows ask for columns [j mod 5, j mod 5 + 9): most tiles are cut by it.
                 let columns = |_, j: usize| j % 5..j % 5 + 9;
                 let some = TileBits::to_face(&cast_tiles(n, f, res, &flags, columns, texel), res);
@@ -261,12 +322,14 @@ mod tests {
                     let in_live_tile =
                         (0..res * res).any(|y| tile_bit(y % res, y / res, k).0 == tile && full[y] != BELOW);
                     assert_eq!(live[tile], in_live_tile, "n {n}, face {f}, tile {tile}");
-                    let expected = if flags[tile] {
+                    let (i0, j0) = (i / TILE * TILE, j / TILE * TILE);
+                    let above = [(i0, j0), (i0 + TILE, j0), (i0, j0 + TILE), (i0 + TILE, j0 + TILE)]
+                        .iter()
+                        .all(|&(a, b)| corner_height(n.as_dvec3(), f, res)(a.min(res), b.min(res)) > 1e-9);
+                    let expected = if flags[tile] == Look::Blocked && above {
+                        OCCLUDED
+                    } else if flags[tile] != Look::Keep {
                         let d = texel_ray(f, i, j, n.as_dvec3(), res).map(|d| d.as_vec3());
-                        let (i0, j0) = (i / TILE * TILE, j / TILE * TILE);
-                        let above = [(i0, j0), (i0 + TILE, j0), (i0, j0 + TILE), (i0 + TILE, j0 + TILE)]
-                            .iter()
-                            .all(|&(a, b)| corner_height(n.as_dvec3(), f, res)(a.min(res), b.min(res)) > 1e-9);
                         let asked = !above || (j % 5..j % 5 + 9).contains(&i);
                         if d.is_none_or(|d| d.x > 0.0 && asked) { a } else { SKIPPED }
                     } else if in_live_tile {
@@ -277,6 +340,18 @@ mod tests {
                     assert_eq!(b, expected, "n {n}, face {f}, texel ({i}, {j})");
                 }
             }
+        }
+    }
+
+    /// The shared origin above the horizon is the per-ray offset origin, on both sides.
+    #[test]
+    fn ray_origin_is_the_offset_origin() {
+        let mut r = crate::math::rng::seeded(5);
+        for _ in 0..2000 {
+            use rand::Rng;
+            let mut v = || Vec3::new(r.random_range(-1.0..1.0), r.random_range(-1.0..1.0), r.random_range(-1.0..1.0));
+            let (p, n, d) = (v() * 100.0, v().normalize(), v().normalize());
+            assert_eq!(ray_origin(horizon_origin(p, n), p, n, d), offset_ray_origin(p, n, d), "p {p}, n {n}, d {d}");
         }
     }
 
