@@ -15,6 +15,10 @@ use glam::{DVec2, DVec3, Vec3};
 /// [`accel::offset_ray_origin`]) and the cone test is only used beyond 1e-2 · (|p|∞ + 1).
 const ORIGIN_SLACK: f64 = 1e-2;
 
+/// How far above the horizon (in cosines) every direction of a tile must be for its rays'
+/// origin to be the shared one whatever the single-precision rounding.
+const HIGH_ENOUGH: f32 = 1e-4;
+
 /// How much of a tile's cone of directions can meet a box.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Cover {
@@ -159,9 +163,11 @@ impl SeenBox {
 }
 
 /// Per tile (as [`SeenBox::tiles`]), whether every direction through it certainly meets one of
-/// `beam`'s triangles (see [`Beam::inside`]). Only the tiles `cover` (the triangles' bounds
-/// seen from the beam's origin) marks [`Cover::All`] can be: the rest are `false`.
-pub fn blocked_tiles(beam: &Beam, cover: &[Cover], res: usize) -> Vec<bool> {
+/// `beam`'s triangles (see [`Beam::inside`]) and lies clearly above the horizon of unit normal
+/// `n` — so that no rounding can move its rays' origin off the beam's (see
+/// [`super::visibility::ray_origin`]). Only the tiles `cover` (the triangles' bounds seen from
+/// the beam's origin) marks [`Cover::All`] can be: the rest are `false`.
+pub fn blocked_tiles(beam: &Beam, cover: &[Cover], n: Vec3, res: usize) -> Vec<bool> {
     let k = tiles_per_side(res);
     let mut out = vec![false; 6 * k * k];
     if !cover.contains(&Cover::All) {
@@ -174,7 +180,11 @@ pub fn blocked_tiles(beam: &Beam, cover: &[Cover], res: usize) -> Vec<bool> {
             for t in (0..k * k).filter(|t| cover[f * k * k + t] == Cover::All) {
                 let at = t / k * (k + 1) + t % k;
                 let mask = [at, at + 1, at + k + 1, at + k + 2].iter().fold(u32::MAX, |m, &c| {
-                    m & *inside[c].get_or_insert_with(|| beam.inside(grid.corners[c].as_vec3()))
+                    m & *inside[c].get_or_insert_with(|| {
+                        let d = grid.corners[c].as_vec3();
+                        // Any positive combination of the corners is as high (see `Beam::inside`).
+                        if n.dot(d) > HIGH_ENOUGH { beam.inside(d) } else { 0 }
+                    })
                 });
                 out[f * k * k + t] = mask != 0;
             }
@@ -301,6 +311,43 @@ mod tests {
             }
         }
         [clean, dirty, wanted, hits, covered, in_columns]
+    }
+
+    /// Every texel ray of a tile found blocked meets the triangles, as the BVH casts it; and
+    /// tiles are found blocked.
+    #[test]
+    fn rays_of_blocked_tiles_are_blocked() {
+        let (a, b, c, d) = (
+            Vec3::new(-2.0, 1.0, -2.0),
+            Vec3::new(3.0, 1.2, -2.0),
+            Vec3::new(3.0, 1.0, 3.0),
+            Vec3::new(-2.0, 1.3, 3.0),
+        );
+        let roof = vec![[a, b, c], [a, c, d]];
+        let occ = accel::Occluders::new(std::slice::from_ref(&roof));
+        let res = 32;
+        let k = tiles_per_side(res);
+        let mut found = 0;
+        for (p, n) in [(Vec3::ZERO, Vec3::Y), (Vec3::new(0.5, 0.2, -0.3), Vec3::new(0.6, 0.8, 0.0))] {
+            let origin = visibility::horizon_origin(p, n);
+            let beam = occ.beam(0, origin).expect("two triangles make a beam");
+            let cover = SeenBox::new(p, n, Vec3::new(-2.0, 1.0, -2.0), Vec3::new(3.0, 1.3, 3.0)).tiles(res);
+            let blocked = blocked_tiles(&beam, &cover, n, res);
+            for t in (0..6 * k * k).filter(|&t| blocked[t]) {
+                found += 1;
+                let (f, ti, tj) = (t / (k * k), t % k, t / k % k);
+                for (i, j) in (0..tree::TILE)
+                    .flat_map(|j| (0..tree::TILE).map(move |i| (ti * tree::TILE + i, tj * tree::TILE + j)))
+                {
+                    let d = visibility::texel_ray(f, i, j, n.as_dvec3(), res).expect("above the horizon").as_vec3();
+                    assert!(
+                        occ.occluded(accel::offset_ray_origin(p, n, d), d, f32::INFINITY),
+                        "p {p}: texel ({f}, {i}, {j})"
+                    );
+                }
+            }
+        }
+        assert!(found > 20, "{found} blocked tiles");
     }
 
     /// The silhouette planes touch the box and bound its cone: every corner is on or behind

@@ -277,7 +277,7 @@ impl<'a> Edit<'a> {
         let mut blocked = vec![false; 6 * tiles_per_side(res).pow(2)];
         for b in &after {
             let Some(beam) = &b.beam else { continue };
-            let more = dirty::blocked_tiles(beam, &b.cover, res);
+            let more = dirty::blocked_tiles(beam, &b.cover, n, res);
             blocked.iter_mut().zip(more).for_each(|(a, b)| *a |= b);
         }
         Self { occluders, p, n, origin, before, after, blocked }
