@@ -206,6 +206,18 @@ impl Store {
         })
     }
 
+    /// The stored caches' names and sizes in bytes, by name.
+    pub fn caches(&self) -> Result<Vec<(String, usize)>> {
+        self.read(|t| match t.open_table(CACHES) {
+            Ok(c) => c
+                .iter()?
+                .map(|item| item.map(|(k, v)| (k.value().to_string(), v.value().len())).map_err(Into::into))
+                .collect(),
+            Err(redb::TableError::TableDoesNotExist(_)) => Ok(Vec::new()),
+            Err(e) => Err(e.into()),
+        })
+    }
+
     /// Stores (replaces) the cache under `name`.
     pub fn put_cache(&self, name: &str, bytes: &[u8]) -> Result<()> {
         self.write(|t| {

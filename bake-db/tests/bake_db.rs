@@ -171,6 +171,7 @@ fn the_tile_cache_outlives_runs_and_damage_costs_only_time() {
     let name = run::tiles_name(&BSPVT);
     let (first, ..) = bake(&store, &scene(""));
     let stored = store.cache(&name).unwrap().expect("a cold bake stores its tiles");
+    assert_eq!(store.caches().unwrap(), vec![(name.clone(), stored.len())]);
     let cache = bspvt::cache::TileCache::from_bytes(&BSPVT, &stored).expect("a well-formed cache");
     // Every tile built is a stored entry or a hit — or, rarely, a second worker's build of a
     // tile another was building at the same moment (neither a hit nor a new entry).
@@ -189,6 +190,7 @@ fn the_tile_cache_outlives_runs_and_damage_costs_only_time() {
     );
     store.gc().unwrap();
     assert_eq!(store.cache(&name).unwrap(), None, "gc drops caches");
+    assert_eq!(store.caches().unwrap(), vec![]);
 }
 
 #[test]

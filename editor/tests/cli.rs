@@ -356,6 +356,9 @@ fn a_bake_killed_at_random_points_resumes_to_a_clean_bakes_result() {
         out.lines().find_map(|l| l.trim().split_once(" of 11 chunks cached")).map(|(n, _)| n.parse::<usize>().unwrap());
     assert!(resumed.is_some_and(|n| n > 0), "the killed runs left finished chunks behind:\n{out}");
     assert_eq!(vertices_from_db(&scene, &db, &d.join("a.csv")), vertices_from_db(&scene, &clean, &d.join("b.csv")));
+    let o = kage(&["db", "info", "--db", clean.to_str().unwrap()]);
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(out.contains("cache \"bspvt tiles v2 res 32 eps 2\": "), "{out}");
     // `--watch` holds the database: another process gets a clear error.
     let mut holder = Command::new(env!("CARGO_BIN_EXE_kage"))
         .args(["bake", &scene, "--face-res", "32", "--watch"])
