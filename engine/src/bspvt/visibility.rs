@@ -175,8 +175,8 @@ fn tile_mask(t: usize, k: usize, res: usize) -> u64 {
 }
 
 /// The tiles of face `f` for a vertex with unit normal `n`, asking `texel` for the state of
-/// each texel above the horizon in the tiles of `tiles` (row-major, [`TILE`]-texel
-/// tiles, the last ones narrower when `res` is not a multiple) as `tiles` says (see [`Look`]):
+/// each texel above the horizon, tile by tile as `tiles` says (see [`Look`]; row-major,
+/// [`TILE`]-texel tiles, the last ones narrower when `res` is not a multiple):
 /// `texel(tile, bit, direction)` returns [`VISIBLE`], [`OCCLUDED`] or [`SKIPPED`]. A tile kept
 /// is not looked at texel by texel: when it is live (see [`live_tiles`]) all of it is
 /// `SKIPPED`. In a tile cast entirely above the horizon only the texels of row `j` in
