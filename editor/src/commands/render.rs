@@ -308,7 +308,8 @@ fn per_vertex(
     ));
     let image =
         want_image.then(|| raster::vertex_image(renderer, camera, args.size.0, args.size.1, args.spp.min(16), &values));
-    let glossy = if kind == bspvt::Method::ExactVis { GlossyDirect::Reference } else { GlossyDirect::Ltc(bake) };
+    let glossy =
+        if kind == bspvt::Method::ExactVis { GlossyDirect::Reference } else { GlossyDirect::Ltc(bake.map(Into::into)) };
     Ok(Outputs { image, vertices: Some(values), glossy })
 }
 

@@ -37,7 +37,7 @@ fn write(ed: &mut Editor, path: PathBuf, with_bakes: bool) -> String {
     let export = Export {
         scene: &ed.scene,
         flat: &ed.flat,
-        bspvt: ed.bakes.bspvt.as_ref().filter(|_| with_bakes && !ed.bakes.bspvt_stale),
+        bspvt: ed.bakes.bspvt.as_deref().filter(|_| with_bakes && !ed.bakes.bspvt_stale),
         prt,
         radiance,
         exposure: ed.exposure,

@@ -130,7 +130,7 @@ pub struct Dirty {
 #[derive(Default)]
 pub struct Bakes {
     /// BSPVT trees (possibly of an earlier geometry while a re-bake runs).
-    pub bspvt: Option<bspvt::Bake>,
+    pub bspvt: Option<std::sync::Arc<bspvt::Bake>>,
     /// True while the trees predate the latest geometry edit.
     pub bspvt_stale: bool,
     /// PRT transfer.

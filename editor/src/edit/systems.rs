@@ -184,7 +184,10 @@ fn patch(ed: &mut Editor, instance: usize, first: usize, data: ChunkData, patche
     let fits = |have: &[usize]| have == counts;
     match data {
         ChunkData::Trees(records) => {
-            let bake = ed.bakes.bspvt.get_or_insert_with(|| placeholder_trees(&counts, ed.options.bspvt));
+            // Copy on write: an indirect job may still hold the previous trees.
+            let bake = std::sync::Arc::make_mut(
+                ed.bakes.bspvt.get_or_insert_with(|| placeholder_trees(&counts, ed.options.bspvt).into()),
+            );
             if !fits(&bake.instances.iter().map(bspvt::BakedInstance::vertices).collect::<Vec<_>>()) {
                 *bake = placeholder_trees(&counts, ed.options.bspvt);
             }
@@ -269,7 +272,7 @@ fn take(ed: &mut Editor, landed: Landed, patched: &mut [bool; 2]) {
                 "BSPVT: {} cached, {} cold, {} warm chunks ({} vertices) in {:.2} s",
                 stats.cached, stats.cold, stats.warm, stats.vertices_baked, stats.seconds
             ));
-            ed.bakes.bspvt = Some(bake);
+            ed.bakes.bspvt = Some(bake.into());
             ed.bakes.bspvt_stale = false;
             upload_bspvt(ed);
         }
@@ -571,7 +574,7 @@ fn shade(ed: &mut Editor) -> Option<Vec<Vec<glam::Vec3>>> {
     match ed.method {
         Method::Bspvt | Method::LtcUnshadowed => {
             let trees = ed.method == Method::Bspvt
-                && ed.bakes.bspvt.as_ref().is_some_and(|b| fits(ed, &b.instances, |i| i.offsets.len() - 1));
+                && ed.bakes.bspvt.as_deref().is_some_and(|b| fits(ed, &b.instances, |i| i.offsets.len() - 1));
             Some(polygonal(ed, if trees { Mode::Trees } else { Mode::Unshadowed }, eye))
         }
         Method::LtcExactVis => exact_vis(ed, eye),
@@ -621,7 +624,7 @@ fn polygonal(ed: &mut Editor, mode: Mode, eye: Vec3) -> Vec<Vec<Vec3>> {
                 ed.error(format!("GPU shading: {e}; shading on the CPU"));
             }
             let m = if mode == Mode::Trees { bspvt::Method::Bspvt } else { bspvt::Method::Unshadowed };
-            bspvt::shade_vertices(&ed.scene, &ed.flat, m, ed.bakes.bspvt.as_ref(), &ed.options.bspvt, eye)
+            bspvt::shade_vertices(&ed.scene, &ed.flat, m, ed.bakes.bspvt.as_deref(), &ed.options.bspvt, eye)
         }
     }
 }

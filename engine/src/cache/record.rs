@@ -64,7 +64,7 @@ pub enum GlossyDirect {
     /// Its per-vertex values are view-independent (PRT shades GGX surfaces' diffuse part).
     PerVertex,
     /// LTC at the hit toward the record, shadowed by these trees (`None`: unshadowed).
-    Ltc(Option<crate::bspvt::Bake>),
+    Ltc(Option<std::sync::Arc<crate::bspvt::Bake>>),
 }
 
 impl GlossyDirect {
@@ -75,7 +75,7 @@ impl GlossyDirect {
         flat: &crate::scene::FlatScene,
         f: impl FnOnce(Glossy) -> R,
     ) -> R {
-        let bake = if let Self::Ltc(b) = self { b.as_ref() } else { None };
+        let bake = if let Self::Ltc(b) = self { b.as_deref() } else { None };
         let toward = |i: usize, corners: [usize; 3], bary: [f32; 3], point: Vec3| {
             crate::bspvt::shade_point(scene, flat, bake, i, corners, bary, point)
         };
