@@ -235,11 +235,11 @@ pub fn cast_tiles(
                     let Some(d) = d else { continue };
                     let bit = tile_bit(i, j, k).1;
                     asked |= bit;
-                    match texel(t, bit, d.as_vec3()) {
-                        VISIBLE => bits.visible |= bit,
-                        SKIPPED => bits.skipped |= bit,
-                        _ => {}
-                    }
+                    // Without branches: the outcome is data, and mispredicting it cost more
+                    // than the masks.
+                    let state = texel(t, bit, d.as_vec3());
+                    bits.visible |= bit & 0u64.wrapping_sub((state == VISIBLE) as u64);
+                    bits.skipped |= bit & 0u64.wrapping_sub((state == SKIPPED) as u64);
                 }
             }
             if above {
