@@ -166,6 +166,9 @@ pub fn write(path: &Path, e: &Export) -> std::io::Result<()> {
         // (the importer may start the re-imported loop at another corner).
         let points: Vec<f32> = light.points.iter().flat_map(|p| p.to_array()).collect();
         let mut ext = json!({"lightRadiance": light.radiance.to_array(), "lightPolygon": points});
+        if let Some([lo, hi]) = light.reach {
+            ext["lightReach"] = json!([lo.to_array(), hi.to_array()].concat());
+        }
         let mut attributes = json!({"POSITION": pos});
         let textured = light.texture.filter(|_| light.uvs.len() == light.points.len());
         if let Some(t) = textured {
@@ -437,6 +440,15 @@ fn restore_light_radiance(scene: &mut Scene, lights: &[&Value]) -> Result<(), St
             if l.texture.is_some() && uvs.len() != points.len() {
                 return Err("a textured light's UVs do not match its polygon".into());
             }
+            l.reach = match floats("lightReach")[..] {
+                [] if rec.get("lightReach").is_none() => None,
+                [a, b, c, d, e, f]
+                    if a <= d && b <= e && c <= f && [a, b, c, d, e, f].iter().all(|x| x.is_finite()) =>
+                {
+                    Some([Vec3::new(a, b, c), Vec3::new(d, e, f)])
+                }
+                _ => return Err("a light reach is not 6 finite numbers, min ≤ max".into()),
+            };
             l.radiance = Vec3::new(r, g, b);
             l.points = points;
             l.uvs = uvs;

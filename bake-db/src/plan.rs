@@ -147,6 +147,8 @@ pub struct Plan {
     pub jobs: Vec<Job>,
     /// The occluder snapshot BSPVT keys were made against.
     pub snapshot: Snapshot,
+    /// Where the polygonal lights can be (part of BSPVT keys and slots).
+    pub reach: bspvt::reach::Reach,
 }
 
 impl Plan {
@@ -161,9 +163,10 @@ impl Plan {
         match kind {
             Kind::Bspvt => self.bspvt.map_or_else(String::new, |s| {
                 format!(
-                    "{}² faces, ε {}, algorithm {}, format {}",
+                    "{}² faces, ε {}, {}, algorithm {}, format {}",
                     s.res,
                     s.epsilon,
+                    self.reach,
                     bspvt::ALGORITHM_VERSION,
                     bspvt::layout::FORMAT_VERSION
                 )
@@ -197,16 +200,21 @@ pub fn plan(
     let bspvt = bspvt.filter(|_| !flat.lights.is_empty());
     let prt = prt.filter(|_| flat.environment.is_some());
     let snapshot = Snapshot::of(scene, flat);
+    let reach = bspvt::reach::Reach::of(&flat.lights);
     let mut jobs = Vec::new();
     if let Some(s) = bspvt {
         for (i, inst) in flat.instances.iter().enumerate() {
-            let base = KeyHasher::new("bspvt")
+            let mut base = KeyHasher::new("bspvt")
                 .u64("version", bspvt::layout::FORMAT_VERSION as u64)
                 .u64("algorithm", bspvt::ALGORITHM_VERSION as u64)
                 .u64("res", s.res as u64)
                 .f64("epsilon", s.epsilon)
                 .bytes("mesh", &scene.meshes[inst.mesh as usize].hash.0)
                 .affine("world", &inst.world);
+            // Lights that may go anywhere add nothing: keys baked before reaches existed stay valid.
+            if reach != bspvt::reach::Reach::Anywhere {
+                base = base.bytes("reach", &reach.key_bytes());
+            }
             let id = [inst.id.node, inst.id.mesh, inst.id.primitive];
             for (c, vertices) in chunks(scene, flat, i) {
                 let key = base.clone().bytes("occluders", snapshot.hash.as_bytes()).u64("chunk", c as u64).finish();
@@ -234,7 +242,7 @@ pub fn plan(
     }
     let present = store.contains_all(&jobs.iter().map(|j| j.key).collect::<Vec<_>>())?;
     jobs.iter_mut().zip(present).for_each(|(j, p)| j.cached = p);
-    Ok(Plan { bspvt, prt, jobs, snapshot })
+    Ok(Plan { bspvt, prt, jobs, snapshot, reach })
 }
 
 /// (chunk index, vertex range) of instance `i`.

@@ -317,7 +317,7 @@ impl Context<'_> {
             .zip(&old)
             .map(|(v, old)| {
                 let (p, n) = vertex(v);
-                bspvt::rebake_vertex(occ, p, n, tiles, old, &changed)
+                bspvt::rebake_vertex(occ, p, n, (tiles, &self.plan.reach), old, &changed)
             })
             .collect();
         Ok((baked, warm))

@@ -120,6 +120,35 @@ fn edits_rebake_exactly_what_they_affect_and_match_cold_bakes() {
     }
 }
 
+/// `scene(edit)` with its light declaring that it stays inside `reach`.
+fn within(edit: &str, reach: [Vec3; 2]) -> Scene {
+    let mut s = scene(edit);
+    s.world.query_mut::<&mut kage_engine::scene::PolygonLight>().into_iter().for_each(|l| l.reach = Some(reach));
+    s
+}
+
+#[test]
+fn a_declared_light_reach_is_keyed_rebakes_warm_and_moves_inside_it_cost_nothing() {
+    let room = [Vec3::new(-1.5, 3.0, -1.5), Vec3::new(1.5, 4.0, 1.5)];
+    let store = Store::open(&scratch("reach")).unwrap();
+    let (roaming, roaming_bytes, _) = bake(&store, &scene(""));
+    let (first, bytes, _) = bake(&store, &within("", room));
+    assert_eq!((first.cold, first.cached), (4, 4), "new BSPVT keys, the same PRT ones: {first:?}");
+    assert!(first.rays_cast < roaming.rays_cast / 2, "{first:?} vs {roaming:?}");
+    let size = |b: &[Vec<u8>]| b.iter().map(Vec::len).sum::<usize>();
+    assert!(size(&bytes) < size(&roaming_bytes), "{} vs {} bytes", size(&bytes), size(&roaming_bytes));
+    // An occluder moved: warm, with a cold bake's bytes.
+    let (warm, warm_bytes, _) = bake(&store, &within("move", room));
+    let (_, cold_bytes, _) = bake(&Store::open(&scratch("reach-fresh")).unwrap(), &within("move", room));
+    assert!(warm_bytes == cold_bytes, "a warm re-bake must give a cold bake's bytes");
+    assert_eq!((warm.cold, warm.warm), (1, 3), "{warm:?}");
+    // The light moved inside its reach: nothing to do; out of it: the reach grows, all re-baked.
+    let (inside, ..) = bake(&store, &within("light", room));
+    assert_eq!((inside.cold, inside.warm), (0, 0), "{inside:?}");
+    let (outside, ..) = bake(&store, &within("light", [Vec3::new(-1.0, 3.0, -1.0), Vec3::new(1.0, 4.0, 1.0)]));
+    assert_eq!((outside.cold, outside.warm), (4, 0), "{outside:?}");
+}
+
 #[test]
 fn bad_database_files_give_clear_errors() {
     // Garbage.

@@ -447,6 +447,18 @@ fn export_writes_valid_packs_that_render_like_the_database() {
         }
         std::fs::copy(shared("scenes/stained_glass.png"), d.join("stained_glass.png")).unwrap();
         let scene = d.join(format!("{name}.gltf")).to_str().unwrap().to_string();
+        if method == "bspvt" {
+            // A light that stays put: the pack carries its reach.
+            let mut doc: serde_json::Value = serde_json::from_slice(&std::fs::read(&scene).unwrap()).unwrap();
+            let lamp = doc["nodes"]
+                .as_array_mut()
+                .unwrap()
+                .iter_mut()
+                .find(|n| n.get("mesh").is_some() && n["name"] == "light");
+            lamp.expect("textured_light.gltf has a node 'light'")["extras"] =
+                serde_json::json!({"kage": {"light_reach": "fixed"}});
+            std::fs::write(&scene, serde_json::to_vec(&doc).unwrap()).unwrap();
+        }
         let db = d.join(format!("{method}.redb"));
         let pack = d.join(format!("{method}.glb"));
         let env = shared("envmaps/sky.hdr");
@@ -457,6 +469,8 @@ fn export_writes_valid_packs_that_render_like_the_database() {
         assert!(o.status.success(), "{}", stderr(&o));
         let (ok, report) = validate_gltf(&pack);
         assert!(ok && report.contains(": 0 errors"), "{report}");
+        let carries_reach = std::fs::read(&pack).unwrap().windows(10).any(|w| w == b"lightReach");
+        assert_eq!(carries_reach, method == "bspvt");
         let (a, b) = (d.join("a.csv"), d.join("b.csv"));
         let o = kage(&[
             "render",

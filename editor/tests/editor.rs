@@ -153,6 +153,28 @@ fn light_moves_reshade_at_once_and_group_moves_rebake_bspvt_incrementally() {
     assert!(ed.stats.edit_to_shade > 0.0);
     snapshot(&mut h, "moves-light");
 
+    // A light that declares a reach (extras.kage.light_reach) is kept inside it.
+    let light = light.unwrap();
+    let ed = &mut h.state_mut().editor;
+    let points = kage_engine::scene::flatten(&ed.scene).lights[0].points.clone();
+    let (lo, hi) = points.iter().fold((Vec3::MAX, Vec3::MIN), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
+    ed.scene.world.get::<&mut kage_engine::scene::PolygonLight>(light).unwrap().reach = Some([lo - 0.3, hi + 0.3]);
+    let at = values(&h);
+    let ed = &mut h.state_mut().editor;
+    ed.move_light(light, Vec3::new(0.5, 0.0, 0.0), Quat::IDENTITY);
+    ed.set_light(light, Vec3::splat(10.0), 2.0);
+    assert_eq!(errors(ed).len(), 2, "{:?}", errors(ed));
+    assert!(errors(ed).iter().all(|e| e.contains("would leave its reach box")), "{:?}", errors(ed));
+    ed.move_light(light, Vec3::new(0.2, 0.0, 0.0), Quat::IDENTITY);
+    h.step();
+    let ed = &h.state().editor;
+    assert_eq!(errors(ed).len(), 2, "a move inside the reach is taken");
+    assert!(ed.job.is_none() && changed(&at, &values(&h)) > 1000);
+    let ed = &mut h.state_mut().editor;
+    ed.log.clear();
+    // Back to roaming lights, so the group move below re-bakes against the same keys.
+    ed.scene.world.get::<&mut kage_engine::scene::PolygonLight>(light).unwrap().reach = None;
+
     // A group move: PRT (with shadows between groups) follows in the same frame, BSPVT re-bakes.
     h.get_by_label("prt").click();
     step_until(&mut h, "prt", |ed| ed.method == Method::Prt && !ed.dirty.shade);

@@ -9,7 +9,7 @@
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use kage_engine::bspvt::cache::TileCache;
 use kage_engine::bspvt::shade::{PointShader, Visibility};
-use kage_engine::bspvt::{Settings, bake_vertex, layout, occluder_bvh};
+use kage_engine::bspvt::{Settings, bake_vertex, layout, occluder_bvh, reach::Reach};
 use kage_engine::math::ltc;
 use kage_engine::scene::{Scene, default_scene, flatten, import};
 use rayon::prelude::*;
@@ -37,6 +37,7 @@ fn measure(c: &mut Criterion, name: &str, scene: &Scene, step: usize) {
     // 64 vertices spread over the receivers.
     let bake_sample: Vec<(usize, usize)> = verts.iter().step_by(verts.len() / 64).take(64).copied().collect();
     g.throughput(Throughput::Elements(bake_sample.len() as u64));
+    let reach = Reach::of(&flat.lights);
     g.bench_function("bake_vertices", |b| {
         // A fresh tile cache per pass: 64 scattered vertices share few tiles, so this is about
         // the uncached rate (whole bakes, which share many, are measured with `kage bake`).
@@ -46,7 +47,7 @@ fn measure(c: &mut Criterion, name: &str, scene: &Scene, step: usize) {
                 .par_iter()
                 .map(|&(i, v)| {
                     let (p, n) = flat.vertex(&scene.meshes, i, v);
-                    bake_vertex(&occ, p, n, &tiles).record.len()
+                    bake_vertex(&occ, p, n, &tiles, &reach).record.len()
                 })
                 .sum::<usize>()
         })
@@ -56,7 +57,7 @@ fn measure(c: &mut Criterion, name: &str, scene: &Scene, step: usize) {
         .par_iter()
         .map(|&(i, v)| {
             let (p, n) = flat.vertex(&scene.meshes, i, v);
-            bake_vertex(&occ, p, n, &tiles).record
+            bake_vertex(&occ, p, n, &tiles, &reach).record
         })
         .collect();
     let leaves: usize = records.iter().map(|r| layout::tree_counts(r).0).sum();

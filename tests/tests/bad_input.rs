@@ -122,6 +122,34 @@ fn synthetic_files_are_rejected_clearly() {
     expect_error(&p, "requires extension KHR_draco_mesh_compression");
     let p = write_gltf(&dir, "infinite_matrix", &TRI, &[0, 1, 2], |d| d["nodes"][0]["scale"] = json!([1e39, 1.0, 1.0]));
     expect_error(&p, "transform is not finite");
+    // Light reaches (extras.kage.light_reach): malformed, or not holding the light.
+    let light = |name: &str, reach: Value| {
+        write_gltf(&dir, name, &TRI, &[0, 1, 2], |d| {
+            d["materials"][0]["emissiveFactor"] = json!([1.0, 1.0, 1.0]);
+            d["nodes"][0] = json!({"name": "lamp", "mesh": 0, "translation": [0.0, 2.0, 0.0], "extras": {"kage": {"light_reach": reach}}});
+        })
+    };
+    expect_error(
+        &light("reach_word", json!("moving")),
+        "nodes[0] ('lamp'): extras.kage.light_reach: expected \"fixed\"",
+    );
+    expect_error(
+        &light("reach_flipped", json!({"min": [1, 0, 0], "max": [0, 1, 1]})),
+        "nodes[0] ('lamp'): extras.kage.light_reach: min",
+    );
+    let p = light("reach_misses", json!({"min": [0, 0, -1], "max": [1, 1, 0]}));
+    expect_error(
+        &p,
+        "nodes[0] ('lamp'): the light (bounds [0, 2, -1] … [1, 2, 0]) lies outside its extras.kage.light_reach box",
+    );
+    let fixed = import(&light("reach_fixed", json!("fixed")), ImportOptions::default()).unwrap();
+    let reach = fixed.world.query::<&kage_engine::scene::PolygonLight>().iter().map(|l| l.reach).collect::<Vec<_>>();
+    assert_eq!(reach, [Some([glam::Vec3::new(0.0, 2.0, -1.0), glam::Vec3::new(1.0, 2.0, 0.0)])]);
+    let p = write_gltf(&dir, "reach_unlit", &TRI, &[0, 1, 2], |d| {
+        d["nodes"][0]["extras"] = json!({"kage": {"light_reach": "fixed"}});
+    });
+    let warnings = import(&p, ImportOptions::default()).unwrap().warnings;
+    assert!(warnings.len() == 1 && warnings[0].contains("light_reach ignored (no emissive primitive)"), "{warnings:?}");
     // A sheared group imports (rendering does not need rigidity) but is refused where a rigid
     // frame is required.
     let p = write_gltf(&dir, "shear", &TRI, &[0, 1, 2], |d| {

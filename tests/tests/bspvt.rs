@@ -3,7 +3,7 @@
 use glam::{Affine3A, Vec3};
 use kage_engine::bspvt::cache::TileCache;
 use kage_engine::bspvt::shade::{PointShader, Visibility};
-use kage_engine::bspvt::{self, Settings, bake_vertex, occluder_bvh, visibility};
+use kage_engine::bspvt::{self, Settings, bake_vertex, occluder_bvh, reach::Reach, visibility};
 use kage_engine::math::ltc;
 use kage_engine::reference::{Renderer, Settings as RefSettings, SurfacePoint};
 use kage_engine::scene::import::{ImportOptions, import};
@@ -27,7 +27,7 @@ fn three_ways(scene: &Scene, r: &Renderer, s: &Settings, i: usize, v: usize, eye
     let occ = occluder_bvh(&r.flat);
     let (p, n) = r.vertex(i, v);
     let shader = PointShader::new(&table, p, n, eye, &r.flat.instances[i].material);
-    let rec = bake_vertex(&occ, p, n, &TileCache::new(s)).record;
+    let rec = bake_vertex(&occ, p, n, &TileCache::new(s), &Reach::of(&r.flat.lights)).record;
     let cube = visibility::cast(&occ, p, n, s.res);
     let _ = scene;
     [
@@ -264,4 +264,46 @@ fn textured_lights_use_their_prefiltered_texture() {
         ratios.iter().all(|r| *r > 0.0)
             && ratios.iter().copied().fold(f32::MIN, f32::max) > 1.2 * ratios.iter().copied().fold(f32::MAX, f32::min)
     );
+}
+
+/// A light that declares its reach (`extras.kage.light_reach`): tiles it cannot be seen through
+/// bake as occluded without rays, vertices it cannot reach store no tree, and shading the light
+/// anywhere inside its reach gives what a bake for a roaming light gives.
+#[test]
+fn a_declared_light_reach_bakes_less_and_shades_the_same() {
+    let dir = kage_tests::scratch("light-reach");
+    let reach = serde_json::json!({"kage": {"light_reach": {"min": [-1.5, 3.0, -1.5], "max": [1.5, 5.0, 1.5]}}});
+    let bounded = import(
+        &kage_tests::with_node_extras("scenes/cube_on_plane.gltf", &dir, "light", reach),
+        ImportOptions::default(),
+    )
+    .unwrap();
+    let roaming = import(&asset("scenes/cube_on_plane.gltf"), ImportOptions::default()).unwrap();
+    let s = Settings { res: 32, epsilon: 2.0 };
+    let (rb, rf) = (Renderer::new(&bounded), Renderer::new(&roaming));
+    let (with, without) = (bspvt::bake(&bounded, &rb.flat, &s, &|_| {}), bspvt::bake(&roaming, &rf.flat, &s, &|_| {}));
+    eprintln!(
+        "light reach: {} bytes, {} leaves; roaming: {} bytes, {} leaves",
+        with.stats.bytes, with.stats.leaves, without.stats.bytes, without.stats.leaves
+    );
+    assert!(with.stats.bytes < without.stats.bytes && with.stats.leaves < without.stats.leaves);
+    // The cube's bottom and the ground's far side see none of the box.
+    let empty = bspvt::layout::encode_vertex(&Default::default());
+    let dark = with.instances.iter().flat_map(|b| (0..b.vertices()).filter(|&v| b.record(v) == empty)).count();
+    let dark_before =
+        without.instances.iter().flat_map(|b| (0..b.vertices()).filter(|&v| b.record(v) == empty)).count();
+    assert!(dark > dark_before, "{dark} vertices without trees, {dark_before} before");
+    let eye = bounded.first_camera().unwrap().eye();
+    for offset in [Vec3::ZERO, Vec3::new(1.0, -0.9, 0.7), Vec3::new(-0.9, 0.9, -1.0)] {
+        let mut moved = rb.flat.clone();
+        moved.lights.iter_mut().flat_map(|l| l.points.iter_mut()).for_each(|p| *p += offset);
+        let a = bspvt::shade_vertices(&bounded, &moved, bspvt::Method::Bspvt, Some(&with), &s, eye).concat();
+        let b = bspvt::shade_vertices(&roaming, &moved, bspvt::Method::Bspvt, Some(&without), &s, eye).concat();
+        let worst = a
+            .iter()
+            .zip(&b)
+            .map(|(x, y)| (*x - *y).abs().max_element() / y.max_element().max(1e-3))
+            .fold(0.0, f32::max);
+        assert!(worst < 1e-5, "light moved by {offset}: relative difference {worst}");
+    }
 }

@@ -126,7 +126,7 @@ pub fn print_plan(store: &Store, scene: &Scene, plan: &Plan, planning_s: f64) ->
     let cost = |kind: &str, vertices: usize| rate[kind].0 * vertices as f64;
     let mut out = format!("plan for {} ({:.0} ms):\n", scene.source, planning_s * 1e3);
     if let Some(s) = plan.bspvt {
-        out += &format!("  bspvt: {}² faces, ε {} (polygonal lights present)\n", s.res, s.epsilon);
+        out += &format!("  bspvt: {}² faces, ε {}, {} (polygonal lights present)\n", s.res, s.epsilon, plan.reach);
     }
     if let Some(s) = plan.prt {
         out += &format!(

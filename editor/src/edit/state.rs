@@ -8,6 +8,7 @@ use super::reload::Watcher;
 use super::worker::Worker;
 use glam::{Affine3A, Quat, Vec3};
 use kage_bake_db::Store;
+use kage_engine::scene::import::reach::contains;
 use kage_engine::scene::{
     Camera, EnvironmentLight, FlatScene, InGroup, Material, Name, PolygonLight, PrimitiveId, RigidGroup, Scene,
     Transform, flatten,
@@ -405,34 +406,67 @@ impl Editor {
     }
 
     /// Moves a polygonal light by `offset` (world units) and turns it by `rotation` about its
-    /// centre: re-shaded at once, nothing re-baked (lights do not occlude).
+    /// centre: re-shaded at once, nothing re-baked (lights do not occlude). Refused, with a
+    /// logged error, when it would leave its declared reach (the bake covers only that).
     pub fn move_light(&mut self, light: hecs::Entity, offset: Vec3, rotation: Quat) {
         let pose = self.group_pose_of(light);
-        let Ok(mut member) = self.scene.world.get::<&mut InGroup>(light) else { return };
-        let centre = self.scene.world.get::<&PolygonLight>(light).map_or(Vec3::ZERO, |l| {
-            member.local.transform_point3(l.points.iter().copied().sum::<Vec3>() / l.points.len().max(1) as f32)
-        });
+        let Ok(local) = self.scene.world.get::<&InGroup>(light).map(|m| m.local) else { return };
+        let Some(points) = self.scene.world.get::<&PolygonLight>(light).ok().map(|l| l.points.clone()) else { return };
+        let centre = local.transform_point3(points.iter().copied().sum::<Vec3>() / points.len().max(1) as f32);
         // In the group's frame: about the light's centre, then along the world offset.
         let turn =
             Affine3A::from_translation(centre) * Affine3A::from_quat(rotation) * Affine3A::from_translation(-centre);
         let shift = Affine3A::from_translation(pose.inverse().transform_vector3(offset));
-        member.local = shift * turn * member.local;
-        drop(member);
+        let local = shift * turn * local;
+        if !self.stays_in_reach(light, pose * local, &points) {
+            return;
+        }
+        if let Ok(mut member) = self.scene.world.get::<&mut InGroup>(light) {
+            member.local = local;
+        }
         self.dirty.pose = true;
         self.restart_reference();
         self.edited();
     }
 
-    /// Scales a light's polygon about its centre by `factor` and sets its radiance.
+    /// Scales a light's polygon about its centre by `factor` and sets its radiance (the size
+    /// change refused, as in [`Self::move_light`], when it would leave the light's reach).
     pub fn set_light(&mut self, light: hecs::Entity, radiance: Vec3, factor: f32) {
+        let world =
+            self.group_pose_of(light) * self.scene.world.get::<&InGroup>(light).map_or(Affine3A::IDENTITY, |m| m.local);
+        let Some(mut points) = self.scene.world.get::<&PolygonLight>(light).ok().map(|l| l.points.clone()) else {
+            return;
+        };
+        let c = points.iter().copied().sum::<Vec3>() / points.len().max(1) as f32;
+        points.iter_mut().for_each(|p| *p = c + (*p - c) * factor);
+        let resize = factor == 1.0 || self.stays_in_reach(light, world, &points);
         if let Ok(mut l) = self.scene.world.get::<&mut PolygonLight>(light) {
-            let c = l.points.iter().copied().sum::<Vec3>() / l.points.len().max(1) as f32;
-            l.points.iter_mut().for_each(|p| *p = c + (*p - c) * factor);
+            if resize {
+                l.points = points;
+            }
             l.radiance = radiance;
         }
         self.dirty.pose = true;
         self.restart_reference();
         self.edited();
+    }
+
+    /// Whether light `light`'s polygon `points` placed by `world` lies inside its declared
+    /// reach (`extras.kage.light_reach`); logs why not.
+    fn stays_in_reach(&mut self, light: hecs::Entity, world: Affine3A, points: &[Vec3]) -> bool {
+        let Some(reach) = self.scene.world.get::<&PolygonLight>(light).ok().and_then(|l| l.reach) else { return true };
+        let at = points
+            .iter()
+            .map(|p| world.transform_point3(*p))
+            .fold([Vec3::MAX, Vec3::MIN], |[lo, hi], p| [lo.min(p), hi.max(p)]);
+        let inside = contains(reach, at);
+        if !inside {
+            self.error(format!(
+                "the light would leave its reach box {} … {} (extras.kage.light_reach), which its shadows were baked for: refused",
+                reach[0], reach[1]
+            ));
+        }
+        inside
     }
 
     /// Moves and turns a rigid group about its origin: PRT shading and the shadows between

@@ -292,7 +292,10 @@ fn light_inspector(ui: &mut egui::Ui, ed: &mut Editor, e: hecs::Entity) {
     if changed {
         ed.set_light(e, radiance.max(Vec3::ZERO), size);
     }
-    ui.label("Lights move, turn and resize with no re-bake.");
+    match light.reach {
+        Some([lo, hi]) => ui.label(format!("Moves, turns and resizes with no re-bake inside its reach {lo} … {hi}.")),
+        None => ui.label("Lights move, turn and resize with no re-bake."),
+    };
 }
 
 fn environment_inspector(ui: &mut egui::Ui, ed: &mut Editor) {

@@ -7,18 +7,21 @@
 //!   the seed's two corrections (tiles make re-bakes local: [`rebake_vertex`]);
 //! - [`cache`]: tile subtrees already built, shared by a bake's workers and kept between bakes;
 //! - [`dirty`]: which tiles and texels an edit inside a box can change (warm re-bakes);
+//! - [`reach`]: which tiles the lights can be seen through (the rest bake as occluded, uncast);
 //! - [`layout`]: the compact versioned byte layout (≈2 bytes per node);
 //! - [`shade`]: per vertex and light, the light polygon clipped by face frusta and tree planes
 //!   (planes through the vertex) and integrated with LTC, weighted by the leaves' visibility;
 //!   the same code runs `ltc-exact-vis` (per visible texel) and `ltc-unshadowed`.
 //!
 //! Baking depends only on the occluders' geometry (lights are not occluders: they move freely
-//! at run time), the face resolution and ε; it is parallel over vertices and deterministic.
+//! at run time, within their declared [`reach::Reach`]), the face resolution and ε; it is
+//! parallel over vertices and deterministic.
 
 pub mod cache;
 pub mod dirty;
 pub mod layout;
 pub mod plan;
+pub mod reach;
 pub mod shade;
 pub mod tree;
 pub mod visibility;
@@ -27,6 +30,7 @@ use crate::accel::{self, Occluders};
 use crate::scene::{FlatScene, NO_LIGHT, Scene};
 use cache::TileCache;
 use rayon::prelude::*;
+use reach::Reach;
 use std::ops::Range;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
@@ -146,10 +150,17 @@ pub struct VertexBake {
     pub built: usize,
 }
 
-/// Bakes one vertex with `tiles`' settings, its subtrees from (and added to) `tiles`. Faces
-/// entirely below the horizon or entirely occluded store no tree: both contribute nothing.
-pub fn bake_vertex(occluders: &Occluders, p: glam::Vec3, n: glam::Vec3, tiles: &TileCache) -> VertexBake {
-    rebake_vertex(occluders, p, n, tiles, &VertexBake::default(), &[])
+/// Bakes one vertex with `tiles`' settings, its subtrees from (and added to) `tiles`, for
+/// lights within `reach`. Faces entirely below the horizon, entirely occluded or out of reach
+/// store no tree: they contribute nothing.
+pub fn bake_vertex(
+    occluders: &Occluders,
+    p: glam::Vec3,
+    n: glam::Vec3,
+    tiles: &TileCache,
+    reach: &Reach,
+) -> VertexBake {
+    rebake_vertex(occluders, p, n, (tiles, reach), &VertexBake::default(), &[])
 }
 
 /// Tiles per face side at face resolution `res` (see [`tree::TILE`]).
@@ -176,22 +187,26 @@ pub struct Change {
 /// the answer is certain, and tiles whose every ray certainly meets it are not visited.
 /// Identical to [`bake_vertex`] of the edited scene: a ray's result against an occluder
 /// depends on that occluder alone (see [`Occluders`]). An empty `old` record bakes from
-/// scratch. Settings and subtrees as in [`bake_vertex`].
+/// scratch. Settings, subtrees and reach as in [`bake_vertex`]; `old` must have been baked
+/// for the same reach (tiles out of reach are never looked at again).
 pub fn rebake_vertex(
     occluders: &Occluders,
     p: glam::Vec3,
     n: glam::Vec3,
-    tiles: &TileCache,
+    (tiles, reach): (&TileCache, &Reach),
     old: &VertexBake,
     changes: &[Change],
 ) -> VertexBake {
     let s = tiles.settings();
     let per_face = tiles_per_side(s.res).pow(2);
     let cold = old.record.is_empty();
-    let edit = Edit::new(occluders, p, n, changes, s.res);
+    let edit = Edit::new(occluders, (p, n), changes, reach, s.res);
     let mut dirty = vec![cold; 6 * per_face];
     for cover in edit.before.iter().chain(&edit.after).map(|b| &b.cover) {
         dirty.iter_mut().zip(cover).for_each(|(a, c)| *a |= *c != dirty::Cover::None);
+    }
+    if let Some(reached) = &edit.reached {
+        dirty.iter_mut().zip(reached).for_each(|(d, r)| *d &= r);
     }
     let kept = if cold { [&[][..]; 6] } else { layout::vertex_faces(&old.record) };
     let mut out = VertexBake::default();
@@ -211,7 +226,8 @@ pub fn rebake_vertex(
             (false, false) => layout::decode_tree(kept[f]),
         };
         let bits = if cold {
-            let bits = visibility::cast_face_tiles(occluders, p, n, f, s.res);
+            let reached = edit.reached.as_deref().map(|r| &r[f * per_face..(f + 1) * per_face]);
+            let bits = visibility::cast_face_tiles(occluders, p, n, f, s.res, reached);
             out.rays += bits.iter().map(|b| b.live.count_ones() as usize).sum::<usize>();
             bits
         } else {
@@ -240,6 +256,8 @@ struct Edit<'a> {
     /// Per tile (`6 · tiles_per_side²`): every ray through it certainly meets a changed
     /// occluder's triangles (see [`dirty::blocked_tiles`]).
     blocked: Vec<bool>,
+    /// Per tile, whether a light can be seen through it (`None`: all can; see [`Reach::tiles`]).
+    reached: Option<Vec<bool>>,
 }
 
 /// A changed occluder's old or new bounds from the vertex, and how each tile sees them.
@@ -265,7 +283,13 @@ impl Seen {
 }
 
 impl<'a> Edit<'a> {
-    fn new(occluders: &'a Occluders, p: glam::Vec3, n: glam::Vec3, changes: &[Change], res: usize) -> Self {
+    fn new(
+        occluders: &'a Occluders,
+        (p, n): (glam::Vec3, glam::Vec3),
+        changes: &[Change],
+        reach: &Reach,
+        res: usize,
+    ) -> Self {
         let origin = visibility::horizon_origin(p, n);
         let seen = |(lo, hi), instance: Option<usize>| {
             let bounds = dirty::SeenBox::new(p, n, lo, hi);
@@ -280,7 +304,7 @@ impl<'a> Edit<'a> {
             let more = dirty::blocked_tiles(beam, &b.cover, n, res);
             blocked.iter_mut().zip(more).for_each(|(a, b)| *a |= b);
         }
-        Self { occluders, p, n, origin, before, after, blocked }
+        Self { occluders, p, n, origin, before, after, blocked, reached: reach.tiles(p, n, res) }
     }
 
     /// Face `f`'s tiles after the edit (see [`visibility::cast_tiles`]; `dirty` flags its tiles
@@ -294,15 +318,19 @@ impl<'a> Edit<'a> {
         old: (&[tree::Node], &[(u32, u64)]),
         rays: &mut usize,
     ) -> Vec<visibility::TileBits> {
-        let live = visibility::live_tiles(self.n, f, res);
+        let first = f * dirty.len();
+        let reached = |t: usize| self.reached.as_ref().is_none_or(|r| r[first + t]);
+        // The tiles that shaped the old tree: above the horizon and in reach.
+        let live: Vec<bool> =
+            visibility::live_tiles(self.n, f, res).into_iter().enumerate().map(|(t, l)| l && reached(t)).collect();
         let was = tree::old_visibility(old.0, old.1, res, &live);
         let rows: Vec<Vec<Range<usize>>> = self.boxes().map(|b| b.bounds.columns(f, res)).collect();
-        let first = f * dirty.len();
         let looks: Vec<Look> = (0..dirty.len())
-            .map(|t| match (dirty[t], self.blocked[first + t]) {
-                (false, _) => Look::Keep,
-                (true, false) => Look::Cast,
-                (true, true) => Look::Blocked,
+            .map(|t| match (reached(t), dirty[t], self.blocked[first + t]) {
+                (false, ..) => Look::Unreached,
+                (true, false, _) => Look::Keep,
+                (true, true, false) => Look::Cast,
+                (true, true, true) => Look::Blocked,
             })
             .collect();
         let columns = |t: usize, j: usize| self.columns(first + t, j, &rows);
@@ -364,6 +392,7 @@ pub fn bake(scene: &Scene, flat: &FlatScene, s: &Settings, progress: &(dyn Fn(us
     let start = Instant::now();
     let occluders = occluder_bvh(flat);
     let tiles = TileCache::new(s);
+    let reach = Reach::of(&flat.lights);
     let done = AtomicUsize::new(0);
     let mut stats = Stats::default();
     let instances = (0..flat.instances.len())
@@ -376,7 +405,7 @@ pub fn bake(scene: &Scene, flat: &FlatScene, s: &Settings, progress: &(dyn Fn(us
                     let r = if flat.lights.is_empty() {
                         layout::encode_vertex(&Default::default())
                     } else {
-                        bake_vertex(&occluders, p, normal, &tiles).record
+                        bake_vertex(&occluders, p, normal, &tiles, &reach).record
                     };
                     progress(done.fetch_add(1, Ordering::Relaxed) + 1);
                     r

@@ -30,6 +30,7 @@ pub fn choose(scene: &Scene, flat: &FlatScene, budget: f64, eye: Vec3) -> (Setti
     let sample: Vec<(usize, usize)> = all.into_iter().step_by(step).collect();
     let occ = occluder_bvh(flat);
     let table = ltc::table();
+    let reach = super::Reach::of(&flat.lights);
     let truth_res = 2 * CANDIDATES[CANDIDATES.len() - 1].0;
     let shade = |s: Settings, exact: bool| -> Vec<Vec3> {
         let tiles = TileCache::new(&s);
@@ -41,7 +42,7 @@ pub fn choose(scene: &Scene, flat: &FlatScene, budget: f64, eye: Vec3) -> (Setti
                 if exact {
                     shader.shade(&flat.lights, Visibility::Exact(&visibility::cast(&occ, p, n, s.res)))
                 } else {
-                    shader.shade(&flat.lights, Visibility::Tree(&bake_vertex(&occ, p, n, &tiles).record))
+                    shader.shade(&flat.lights, Visibility::Tree(&bake_vertex(&occ, p, n, &tiles, &reach).record))
                 }
             })
             .collect()

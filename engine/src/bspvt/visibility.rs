@@ -43,14 +43,24 @@ pub fn cast(occluders: &Occluders, p: Vec3, n: Vec3, res: usize) -> CubeVisibili
 
 /// The `res²` texel states of face `f` alone (see [`cast`]).
 pub fn cast_face(occluders: &Occluders, p: Vec3, n: Vec3, f: usize, res: usize) -> Vec<u8> {
-    TileBits::to_face(&cast_face_tiles(occluders, p, n, f, res), res)
+    TileBits::to_face(&cast_face_tiles(occluders, p, n, f, res, None), res)
 }
 
-/// [`cast_face`] as tiles: every texel above the horizon cast.
-pub fn cast_face_tiles(occluders: &Occluders, p: Vec3, n: Vec3, f: usize, res: usize) -> Vec<TileBits> {
-    let all = vec![Look::Cast; res.div_ceil(TILE).pow(2)];
+/// [`cast_face`] as tiles: every texel above the horizon cast, except in the tiles `reached`
+/// marks `false` (see [`super::reach`]), which are left as if below the horizon.
+pub fn cast_face_tiles(
+    occluders: &Occluders,
+    p: Vec3,
+    n: Vec3,
+    f: usize,
+    res: usize,
+    reached: Option<&[bool]>,
+) -> Vec<TileBits> {
+    let looks: Vec<Look> = (0..res.div_ceil(TILE).pow(2))
+        .map(|t| if reached.is_none_or(|r| r[t]) { Look::Cast } else { Look::Unreached })
+        .collect();
     let above = horizon_origin(p, n);
-    cast_tiles(n, f, res, &all, |_, _| 0..res, |_, _, d| cast_ray(occluders, ray_origin(above, p, n, d), d))
+    cast_tiles(n, f, res, &looks, |_, _| 0..res, |_, _, d| cast_ray(occluders, ray_origin(above, p, n, d), d))
 }
 
 /// The direction cast for texel (i, j) of face `f` above the horizon of unit normal `nd`:
@@ -219,7 +229,7 @@ pub fn cast_tiles(
                     *bits = TileBits { live: all, visible: 0, skipped: all };
                     continue;
                 }
-                Look::Keep => continue,
+                Look::Keep | Look::Unreached => continue,
                 Look::Blocked if above => {
                     *bits = TileBits { live: all, visible: 0, skipped: 0 };
                     continue;
@@ -264,6 +274,9 @@ pub enum Look {
     /// above the horizon (the texel rays through its centres stay inside it), else as `Cast`
     /// (rays lifted above the horizon may leave it).
     Blocked,
+    /// No light can be seen through it (see [`super::reach`]): left as if below the horizon, so
+    /// that the tree spends no node on it (its neighbours' leaves cover it).
+    Unreached,
 }
 
 /// Whether the ray from `origin` (see [`ray_origin`]) in direction `d` reaches the sky.

@@ -63,7 +63,7 @@ impl Scene {
     /// Adds a one-sided polygonal light (CCW about its emitting side) as a new rigid group.
     pub fn add_light(&mut self, name: &str, points: Vec<Vec3>, radiance: Vec3, pose: Affine3A) -> hecs::Entity {
         let (group, node) = self.add_group(name, pose);
-        let light = PolygonLight { points, uvs: vec![], radiance, texture: None };
+        let light = PolygonLight { points, uvs: vec![], radiance, texture: None, reach: None };
         self.world.spawn((
             light,
             InGroup { group, local: Affine3A::IDENTITY },

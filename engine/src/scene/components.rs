@@ -180,6 +180,9 @@ pub struct PolygonLight {
     pub radiance: Vec3,
     /// Emissive texture index into [`crate::scene::Scene::textures`].
     pub texture: Option<u32>,
+    /// The world-space box (min, max) the light promises to stay inside however it is moved
+    /// (`extras.kage.light_reach`), or `None`: it may go anywhere.
+    pub reach: Option<[Vec3; 2]>,
 }
 
 /// A camera; in its local frame it looks down −Z with +Y up (glTF).

@@ -47,6 +47,8 @@ pub struct FlatLight {
     pub radiance: Vec3,
     /// Emissive texture.
     pub texture: Option<Arc<Texture>>,
+    /// See [`PolygonLight::reach`].
+    pub reach: Option<[Vec3; 2]>,
 }
 
 impl FlatLight {
@@ -162,7 +164,7 @@ fn add_light(flat: &mut FlatScene, scene: &Scene, light: &PolygonLight, t: &Tran
         flat.refs.push(TriangleRef { owner: index, local: k as u32, light: index });
     }
     let texture = light.texture.map(|i| scene.textures[i as usize].clone());
-    flat.lights.push(FlatLight { points, uvs, normal, area, radiance: light.radiance, texture });
+    flat.lights.push(FlatLight { points, uvs, normal, area, radiance: light.radiance, texture, reach: light.reach });
 }
 
 /// The triangles of one rigid group in the group's own frame (instances and lights, winding

@@ -7,6 +7,7 @@
 
 mod checks;
 mod light;
+pub mod reach;
 
 pub use light::polygon_normal_area;
 
@@ -173,9 +174,14 @@ impl<'a> Importer<'a> {
             let world = orthonormalize(pose * local);
             self.scene.world.spawn((Camera { world, projection }, NodeId(node_id)));
         }
+        let node_name = format!("nodes[{node_id}] ('{}')", node.name().unwrap_or(""));
+        let declared = reach::declared(node.extras().as_deref().map(|r| r.get()))
+            .map_err(|m| self.error(format!("{node_name}: {m}")))?;
         let Some(mesh) = node.mesh() else {
+            self.unused_reach(declared, 0, &node_name);
             return Ok(());
         };
+        let mut lights = 0;
         for prim in mesh.primitives() {
             let where_ =
                 format!("meshes[{}] ('{}') primitives[{}]", mesh.index(), mesh.name().unwrap_or(""), prim.index());
@@ -200,8 +206,14 @@ impl<'a> Importer<'a> {
                     } else {
                         vec![]
                     };
-                    let points = poly.iter().map(|&i| m.positions[i as usize]).collect();
-                    let light = PolygonLight { points, uvs, radiance: emissive, texture };
+                    let points: Vec<Vec3> = poly.iter().map(|&i| m.positions[i as usize]).collect();
+                    let world: Vec<Vec3> = points.iter().map(|p| transform.world.transform_point3(*p)).collect();
+                    let reach = declared
+                        .map(|d| reach::resolve(d, &world))
+                        .transpose()
+                        .map_err(|m| self.error(format!("{node_name}: {m}")))?;
+                    let light = PolygonLight { points, uvs, radiance: emissive, texture, reach };
+                    lights += 1;
                     self.scene.world.spawn((light, member, transform, NodeId(node_id)));
                     self.members += 1;
                 }
@@ -221,7 +233,16 @@ impl<'a> Importer<'a> {
                 self.members += 1;
             }
         }
+        self.unused_reach(declared, lights, &node_name);
         Ok(())
+    }
+
+    /// Warns of a light reach declared on a node that has no light.
+    fn unused_reach(&mut self, declared: Option<reach::Declared>, lights: usize, node: &str) {
+        if declared.is_some() && lights == 0 {
+            let w = format!("{}: {node}: extras.kage.light_reach ignored (no emissive primitive)", self.path.display());
+            self.scene.warnings.push(w);
+        }
     }
 
     /// Reads (or reuses) the mesh of one primitive.
