@@ -257,13 +257,16 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         let light = lights[l];
         var rel: Poly;
         rel.n = light.count;
-        var above = false;
         for (var k = 0u; k < light.count; k = k + 1u) {
             rel.v[k] = light.points[k].xyz - vx.p.xyz;
-            above = above || dot(rel.v[k], vx.frame2.xyz) > 0.0;
         }
-        // One-sided lights, and lights entirely below the horizon, contribute nothing.
-        if (dot(light.normal, -rel.v[0]) <= 0.0 || !above) {
+        // One-sided lights contribute nothing, nor does light from below the horizon (the
+        // specular LTC, clipped at its own transformed horizon, would gather some: shade.rs).
+        if (dot(light.normal, -rel.v[0]) <= 0.0) {
+            continue;
+        }
+        rel = clip(&rel, vx.frame2.xyz);
+        if (rel.n == 0u) {
             continue;
         }
         var w: vec3<f32>;

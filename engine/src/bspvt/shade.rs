@@ -1,6 +1,7 @@
 //! Per-vertex shading from polygonal lights: LTC (GGX specular with Fresnel, plus diffuse)
 //! over the light polygon clipped by cube-face frusta and BSP planes — all planes through the
-//! vertex, so every split is exact 3D polygon clipping — weighted by visibility.
+//! vertex, so every split is exact 3D polygon clipping — weighted by visibility. The light is
+//! first clipped at the receiver's horizon: below it the trees hold guesses, not visibility.
 
 use super::layout::{dequantise_line, skip_encoded, split_codes, vertex_faces};
 use super::visibility::{CubeVisibility, VISIBLE};
@@ -94,10 +95,17 @@ impl PointShader {
             let mut sum = Sum::default();
             let tiles = tex.map(|t| t.tiles(&rel));
             for part in tiles.as_deref().unwrap_or(std::slice::from_ref(&rel)) {
+                // No light arrives from below the receiver's horizon, but the specular LTC
+                // clips at its own transformed horizon and would gather some: clip here, so
+                // that the texels there (never cast, "don't care" to the trees) cannot matter.
+                let part = polygon::clip(part, self.n);
+                if part.len() < 3 {
+                    continue;
+                }
                 match vis {
-                    Visibility::Unshadowed => self.piece(part, tex, 1.0, &mut sum),
-                    Visibility::Tree(record) => self.through_trees(record, part, tex, &mut sum),
-                    Visibility::Exact(cube) => self.through_texels(cube, part, tex, &mut sum),
+                    Visibility::Unshadowed => self.piece(&part, tex, 1.0, &mut sum),
+                    Visibility::Tree(record) => self.through_trees(record, &part, tex, &mut sum),
+                    Visibility::Exact(cube) => self.through_texels(cube, &part, tex, &mut sum),
                 }
             }
             total += light.radiance.as_dvec3() * sum.radiance;
