@@ -449,15 +449,7 @@ fn export_writes_valid_packs_that_render_like_the_database() {
         let scene = d.join(format!("{name}.gltf")).to_str().unwrap().to_string();
         if method == "bspvt" {
             // A light that stays put: the pack carries its reach.
-            let mut doc: serde_json::Value = serde_json::from_slice(&std::fs::read(&scene).unwrap()).unwrap();
-            let lamp = doc["nodes"]
-                .as_array_mut()
-                .unwrap()
-                .iter_mut()
-                .find(|n| n.get("mesh").is_some() && n["name"] == "light");
-            lamp.expect("textured_light.gltf has a node 'light'")["extras"] =
-                serde_json::json!({"kage": {"light_reach": "fixed"}});
-            std::fs::write(&scene, serde_json::to_vec(&doc).unwrap()).unwrap();
+            declare_fixed_light(&scene);
         }
         let db = d.join(format!("{method}.redb"));
         let pack = d.join(format!("{method}.glb"));
@@ -515,6 +507,39 @@ fn export_writes_valid_packs_that_render_like_the_database() {
 }
 
 /// Overwrites the face lengths of the first BSPVT record in `pack` (a GLB), keeping its offsets.
+/// Declares the node 'light' of glTF file `scene` fixed (`extras.kage.light_reach`).
+fn declare_fixed_light(scene: &str) {
+    let mut doc: serde_json::Value = serde_json::from_slice(&std::fs::read(scene).unwrap()).unwrap();
+    let lamp =
+        doc["nodes"].as_array_mut().unwrap().iter_mut().find(|n| n.get("mesh").is_some() && n["name"] == "light");
+    lamp.expect("the scene has a node 'light'")["extras"] = serde_json::json!({"kage": {"light_reach": "fixed"}});
+    std::fs::write(scene, serde_json::to_vec(&doc).unwrap()).unwrap();
+}
+
+/// The plan's cost estimate counts only the tiles a declared light reach leaves to cast.
+#[test]
+fn the_plan_estimate_shrinks_with_a_declared_light_reach() {
+    let d = scratch("reach-estimate");
+    for ext in ["gltf", "bin"] {
+        let file = format!("teapot_quad_light.{ext}");
+        std::fs::copy(shared(&format!("scenes/{file}")), d.join(file)).unwrap();
+    }
+    let scene = d.join("teapot_quad_light.gltf").to_str().unwrap().to_string();
+    let db = d.join("bake.redb").to_str().unwrap().to_string();
+    let estimate = || {
+        let o = kage(&["bake", &scene, "--db", &db, "--dry-run"]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let out = String::from_utf8_lossy(&o.stdout).into_owned();
+        let at = out.find("estimated ").unwrap_or_else(|| panic!("no estimate in {out}")) + "estimated ".len();
+        (out[at..].split(' ').next().unwrap().parse::<f64>().unwrap(), out)
+    };
+    let (roaming, _) = estimate();
+    declare_fixed_light(&scene);
+    let (fixed, out) = estimate();
+    assert!(out.contains("lights within 1 reach box"), "{out}");
+    assert!(fixed > 0.0 && fixed * 5.0 < roaming, "fixed {fixed} s, roaming {roaming} s");
+}
+
 fn damage_first_tree_record(pack: &Path) {
     use serde_json::Value;
     let mut bytes = std::fs::read(pack).unwrap();

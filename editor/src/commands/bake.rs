@@ -6,10 +6,11 @@ use crate::progress::with_bar;
 use crate::prt_args::PrtArgs;
 use crate::scene_args::SceneArgs;
 use anyhow::Result;
-use kage_bake_db::plan::{Kind, Plan};
+use kage_bake_db::plan::{Job, Kind, Plan};
 use kage_bake_db::{Store, plan};
 use kage_engine::bspvt;
 use kage_engine::scene::{FlatScene, Scene, flatten};
+use rayon::prelude::*;
 use std::collections::BTreeMap;
 use std::time::Instant;
 
@@ -79,7 +80,7 @@ fn bake_once(args: &Args, store: &Store) -> Result<()> {
     let flat = flatten(&scene);
     let start = Instant::now();
     let plan = args.options.plan(store, &scene, &flat)?;
-    print_plan(store, &scene, &plan, start.elapsed().as_secs_f64())?;
+    print_plan(store, &scene, &flat, &plan, start.elapsed().as_secs_f64())?;
     if args.dry_run || plan.misses().next().is_none() {
         return Ok(());
     }
@@ -102,14 +103,18 @@ fn bake_once(args: &Args, store: &Store) -> Result<()> {
 }
 
 /// Per instance and technique: chunks, cached, vertices to bake, estimated seconds.
-pub fn print_plan(store: &Store, scene: &Scene, plan: &Plan, planning_s: f64) -> Result<()> {
+pub fn print_plan(store: &Store, scene: &Scene, flat: &FlatScene, plan: &Plan, planning_s: f64) -> Result<()> {
     let threads = rayon::current_num_threads() as f64;
-    let mut rows: BTreeMap<(usize, &str), (usize, usize, usize)> = BTreeMap::new();
+    // (chunks, cached, vertices to bake, their work in full-vertex units).
+    let mut rows: BTreeMap<(usize, &str), (usize, usize, usize, f64)> = BTreeMap::new();
     for j in &plan.jobs {
         let r = rows.entry((j.instance, j.kind.name())).or_default();
         r.0 += 1;
         r.1 += usize::from(j.cached);
-        r.2 += if j.cached { 0 } else { j.vertices.len() };
+        if !j.cached {
+            r.2 += j.vertices.len();
+            r.3 += work(scene, flat, plan, j);
+        }
     }
     // Seconds per vertex on one worker: measured by earlier bakes with the same parameters in
     // this database, else the README's rates (BSPVT ≈ 10 ms per vertex at 64², ∝ res²; PRT
@@ -123,7 +128,11 @@ pub fn print_plan(store: &Store, scene: &Scene, plan: &Plan, planning_s: f64) ->
         };
         rate.insert(kind.name(), (measured.unwrap_or(default), measured.is_some()));
     }
-    let cost = |kind: &str, vertices: usize| rate[kind].0 * vertices as f64;
+    // Measured rates already hold the reach's savings (the same parameters, reach included).
+    let cost = |kind: &str, vertices: usize, work: f64| {
+        let (rate, measured) = rate[kind];
+        rate * if measured { vertices as f64 } else { work }
+    };
     let mut out = format!("plan for {} ({:.0} ms):\n", scene.source, planning_s * 1e3);
     if let Some(s) = plan.bspvt {
         out += &format!("  bspvt: {}² faces, ε {}, {} (polygonal lights present)\n", s.res, s.epsilon, plan.reach);
@@ -141,8 +150,8 @@ pub fn print_plan(store: &Store, scene: &Scene, plan: &Plan, planning_s: f64) ->
         out += "  nothing to bake: no polygonal light and no environment\n";
     }
     let mut total = 0.0;
-    for ((i, kind), (chunks, cached, vertices)) in &rows {
-        let est = cost(kind, *vertices) / threads;
+    for ((i, kind), (chunks, cached, vertices, work)) in &rows {
+        let est = cost(kind, *vertices, *work) / threads;
         total += est;
         out += &format!(
             "  instance {i:3} {kind:5}: {chunks:3} chunks, {cached:3} cached, {vertices:6} vertices to bake, ~{est:.1} s\n"
@@ -157,4 +166,21 @@ pub fn print_plan(store: &Store, scene: &Scene, plan: &Plan, planning_s: f64) ->
     );
     crate::emit(&out);
     Ok(())
+}
+
+/// The work of a job in full-vertex units: a BSPVT vertex casts only the share of its tiles
+/// the lights can reach.
+fn work(scene: &Scene, flat: &FlatScene, plan: &Plan, job: &Job) -> f64 {
+    match (job.kind, plan.bspvt, &plan.reach) {
+        (Kind::Bspvt, Some(s), reach @ bspvt::reach::Reach::Within(_)) => job
+            .vertices
+            .clone()
+            .into_par_iter()
+            .map(|v| {
+                let (p, n) = flat.vertex(&scene.meshes, job.instance, v);
+                reach.share(p, n, s.res)
+            })
+            .sum(),
+        _ => job.vertices.len() as f64,
+    }
 }

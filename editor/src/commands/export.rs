@@ -36,7 +36,7 @@ pub fn run(args: &Args) -> Result<()> {
     let flat = flatten(&scene);
     let start = std::time::Instant::now();
     let plan = args.options.plan(&store, &scene, &flat)?;
-    print_plan(&store, &scene, &plan, start.elapsed().as_secs_f64())?;
+    print_plan(&store, &scene, &flat, &plan, start.elapsed().as_secs_f64())?;
     anyhow::ensure!(!plan.jobs.is_empty(), "{}: no polygonal light and no environment: nothing to bake", scene.source);
     let total = plan.misses().map(|j| j.vertices.len()).sum();
     let out = with_bar(total, "baking", |p| kage_bake_db::run(&store, &scene, &flat, &plan, p))?;

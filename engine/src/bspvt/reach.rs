@@ -67,6 +67,16 @@ impl Reach {
         }
         Some(out)
     }
+
+    /// The share of a full bake's casting that the vertex at `p` (unit normal `n`) still
+    /// needs: its reached tiles over its tiles above the horizon (1 for [`Reach::Anywhere`]),
+    /// by which plans scale their cost estimates.
+    pub fn share(&self, p: Vec3, n: Vec3, res: usize) -> f64 {
+        let Some(reached) = self.tiles(p, n, res) else { return 1.0 };
+        let live = (0..6).flat_map(|f| super::visibility::live_tiles(n, f, res));
+        let (hit, all) = live.zip(reached).fold((0, 0), |(h, a), (l, r)| (h + usize::from(l && r), a + usize::from(l)));
+        if all == 0 { 0.0 } else { hit as f64 / all as f64 }
+    }
 }
 
 #[cfg(test)]
@@ -123,5 +133,19 @@ mod tests {
             }
         }
         assert!(unreached > 200 * 6 * k * k / 2, "{unreached} unreached tiles");
+    }
+
+    /// A vertex's share is its reached share of the tiles above its horizon.
+    #[test]
+    fn the_share_counts_reached_tiles_above_the_horizon() {
+        let (p, up) = (Vec3::ZERO, Vec3::Y);
+        assert_eq!(Reach::Anywhere.share(p, up, 64), 1.0);
+        // A box around the vertex reaches every tile; one below its horizon none.
+        assert_eq!(Reach::Within(vec![[Vec3::splat(-1.0), Vec3::splat(1.0)]]).share(p, up, 64), 1.0);
+        assert_eq!(Reach::Within(vec![[Vec3::new(-1.0, -3.0, -1.0), Vec3::new(1.0, -2.0, 1.0)]]).share(p, up, 64), 0.0);
+        // A small box overhead: a small share, more for a bigger box.
+        let small = Reach::Within(vec![[Vec3::new(-0.1, 2.0, -0.1), Vec3::new(0.1, 2.1, 0.1)]]).share(p, up, 64);
+        let big = Reach::Within(vec![[Vec3::new(-1.0, 2.0, -1.0), Vec3::new(1.0, 2.1, 1.0)]]).share(p, up, 64);
+        assert!(0.0 < small && small < big && big < 0.5, "{small} {big}");
     }
 }
