@@ -447,7 +447,8 @@ fn decode_records(bytes: &[u8]) -> Option<Vec<Vec<u8>>> {
     Some(offsets.windows(2).map(|w| data[w[0] as usize..w[1] as usize].to_vec()).collect())
 }
 
-/// Builds the engine's bakes from the chunks, fresh or from the store.
+/// Builds the engine's bakes from the chunks, fresh or from the store (all read in one
+/// transaction and borrowed, so each stored byte is copied once, into the bake).
 fn assemble(
     store: &Store,
     scene: &Scene,
@@ -456,43 +457,85 @@ fn assemble(
     fresh: &HashMap<Key, Vec<u8>>,
     stats: RunStats,
 ) -> Result<Outcome> {
-    let load = |key: &Key| -> Result<Vec<u8>> {
-        match fresh.get(key) {
-            Some(b) => Ok(b.clone()),
-            None => Ok(store.get::<u8>(key)?.unwrap_or_default()),
-        }
+    let stored: Vec<Key> = plan.jobs.iter().map(|j| j.key).filter(|k| !fresh.contains_key(k)).collect();
+    store.with_artefacts(&stored, |found| {
+        let mut found = found.iter();
+        let chunks: Vec<&[u8]> = plan
+            .jobs
+            .iter()
+            .map(|j| {
+                fresh.get(&j.key).map_or_else(|| found.next().copied().flatten().unwrap_or_default(), Vec::as_slice)
+            })
+            .collect();
+        bakes(store, scene, flat, plan, &chunks, stats)
+    })
+}
+
+/// A BSPVT chunk's offsets and records, every record checked; an error names the artefact
+/// and the vertex.
+fn bspvt_chunk<'a>(store: &Store, job: &Job, bytes: &'a [u8]) -> Result<(Vec<u32>, &'a [u8])> {
+    let malformed = |why: String| crate::store::DbError::Corrupted {
+        path: store.path().to_path_buf(),
+        detail: format!("BSPVT artefact {} is malformed{why} (run `kage db check`)", job.key.short()),
     };
-    let mut bspvt_instances: Vec<bspvt::BakedInstance> =
-        vec![
-            bspvt::BakedInstance { offsets: vec![0], data: Vec::new() };
-            if plan.bspvt.is_some() { flat.instances.len() } else { 0 }
-        ];
-    let mut prt_instances: Vec<Vec<f32>> = vec![Vec::new(); if plan.prt.is_some() { flat.instances.len() } else { 0 }];
+    let (offsets, data) = chunk_parts(bytes)
+        .filter(|(o, _)| o.len() == job.vertices.len() + 1)
+        .ok_or_else(|| malformed(String::new()))?;
+    for (v, w) in offsets.windows(2).enumerate() {
+        bspvt::layout::check_record(&data[w[0] as usize..w[1] as usize])
+            .map_err(|e| malformed(format!(": vertex {}: {e}", job.vertices.start + v)))?;
+    }
+    Ok((offsets, data))
+}
+
+/// The engine's bakes from every job's chunk (in plan order); each instance's buffers are sized
+/// once from its chunks' lengths.
+fn bakes(
+    store: &Store,
+    scene: &Scene,
+    flat: &FlatScene,
+    plan: &Plan,
+    chunks: &[&[u8]],
+    stats: RunStats,
+) -> Result<Outcome> {
+    let per_instance = |kind: Kind| {
+        let mut bytes = vec![0usize; flat.instances.len()];
+        plan.jobs.iter().zip(chunks).filter(|(j, _)| j.kind == kind).for_each(|(j, c)| bytes[j.instance] += c.len());
+        bytes
+    };
+    let mut bspvt_instances: Vec<bspvt::BakedInstance> = match plan.bspvt {
+        Some(_) => per_instance(Kind::Bspvt)
+            .into_iter()
+            .map(|n| bspvt::BakedInstance { offsets: vec![0], data: Vec::with_capacity(n) })
+            .collect(),
+        None => Vec::new(),
+    };
+    let mut prt_instances: Vec<Vec<f32>> = match plan.prt {
+        Some(_) => per_instance(Kind::Prt).into_iter().map(|n| Vec::with_capacity(n / 4)).collect(),
+        None => Vec::new(),
+    };
+    // Every BSPVT tree is checked before shading descends it (a damaged one would panic
+    // there): chunk by chunk in parallel, as checking is most of loading's time.
+    let parts: Vec<Option<(Vec<u32>, &[u8])>> = plan
+        .jobs
+        .par_iter()
+        .zip(chunks)
+        .map(|(job, &bytes)| (job.kind == Kind::Bspvt).then(|| bspvt_chunk(store, job, bytes)).transpose())
+        .collect::<Result<_>>()?;
     let mut leaves_bytes = 0usize;
-    for job in &plan.jobs {
-        let bytes = load(&job.key)?;
-        match job.kind {
-            Kind::Bspvt => {
-                let inst = &mut bspvt_instances[job.instance];
-                let malformed = |why: String| crate::store::DbError::Corrupted {
-                    path: store.path().to_path_buf(),
-                    detail: format!("BSPVT artefact {} is malformed{why} (run `kage db check`)", job.key.short()),
-                };
-                let Some((offsets, data)) = chunk_parts(&bytes).filter(|(o, _)| o.len() == job.vertices.len() + 1)
-                else {
-                    return Err(malformed(String::new()));
-                };
-                // Every tree is checked before shading descends it (a damaged one would panic there).
-                for (v, w) in offsets.windows(2).enumerate() {
-                    bspvt::layout::check_record(&data[w[0] as usize..w[1] as usize])
-                        .map_err(|e| malformed(format!(": vertex {}: {e}", job.vertices.start + v)))?;
-                }
-                let base = inst.data.len() as u32;
-                inst.offsets.extend(offsets[1..].iter().map(|o| base + o));
-                inst.data.extend_from_slice(data);
-                leaves_bytes += data.len();
-            }
-            Kind::Prt => prt_instances[job.instance].extend(bytemuck::pod_collect_to_vec::<u8, f32>(&bytes)),
+    for ((job, &bytes), part) in plan.jobs.iter().zip(chunks).zip(parts) {
+        if let Some((offsets, data)) = part {
+            let inst = &mut bspvt_instances[job.instance];
+            let base = inst.data.len() as u32;
+            inst.offsets.extend(offsets[1..].iter().map(|o| base + o));
+            inst.data.extend_from_slice(data);
+            leaves_bytes += data.len();
+        } else {
+            // One copy into aligned memory (redb's bytes are not aligned for f32).
+            let t = &mut prt_instances[job.instance];
+            let start = t.len();
+            t.resize(start + bytes.len() / 4, 0.0);
+            bytemuck::cast_slice_mut::<f32, u8>(&mut t[start..]).copy_from_slice(&bytes[..bytes.len() / 4 * 4]);
         }
     }
     let vertices: usize = flat.instances.iter().map(|i| scene.meshes[i.mesh as usize].positions.len()).sum();

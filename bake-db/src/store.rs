@@ -169,10 +169,22 @@ impl Store {
 
     /// The artefact of `key`, copied once into aligned memory as `T`s.
     pub fn get<T: bytemuck::Pod>(&self, key: &Key) -> Result<Option<Vec<T>>> {
-        self.read(|t| {
-            let a = t.open_table(ARTEFACTS)?;
-            Ok(a.get(key.as_bytes().as_slice())?.map(|v| bytemuck::pod_collect_to_vec(v.value())))
-        })
+        self.with_artefacts(std::slice::from_ref(key), |found| Ok(found[0].map(bytemuck::pod_collect_to_vec)))
+    }
+
+    /// Calls `f` with the artefacts of `keys` in order (`None` where missing), all read in one
+    /// transaction and borrowed from the database's pages: loading copies each byte once, into
+    /// whatever `f` builds.
+    pub fn with_artefacts<R>(&self, keys: &[Key], f: impl FnOnce(&[Option<&[u8]>]) -> Result<R>) -> Result<R> {
+        let t = self.db.begin_read().map_err(|e| storage(&self.path, e))?;
+        let table = t.open_table(ARTEFACTS).map_err(|e| storage(&self.path, e))?;
+        let guards = keys
+            .iter()
+            .map(|k| table.get(k.as_bytes().as_slice()))
+            .collect::<std::result::Result<Vec<_>, _>>()
+            .map_err(|e| storage(&self.path, e))?;
+        let found: Vec<Option<&[u8]>> = guards.iter().map(|g| g.as_ref().map(|g| g.value())).collect();
+        f(&found)
     }
 
     /// Writes a batch of artefacts (with metadata) and lineage entries in one transaction.
@@ -226,8 +238,19 @@ impl Store {
         })
     }
 
-    /// Records a mesh (content hash → vertex and triangle counts).
+    /// Records meshes (content hash → vertex and triangle counts); writes only when some are new
+    /// (a commit is durable, and a fully cached run should cost no disk flush).
     pub fn put_meshes(&self, meshes: &[([u8; 32], u32, u32)]) -> Result<()> {
+        let known = self.read(|t| {
+            let m = t.open_table(MESHES)?;
+            meshes
+                .iter()
+                .map(|(hash, ..)| Ok(m.get(hash.as_slice())?.is_some()))
+                .collect::<std::result::Result<Vec<_>, redb::Error>>()
+        })?;
+        if known.iter().all(|&k| k) {
+            return Ok(());
+        }
         self.write(|t| {
             let mut m = t.open_table(MESHES)?;
             for (hash, v, tris) in meshes {
@@ -253,18 +276,25 @@ impl Store {
     }
 
     /// Records the keys a scene's plan uses for its current `geometry` (what `gc` keeps), and
-    /// forgets the scene's extra artefacts made for other geometry.
+    /// forgets the scene's extra artefacts made for other geometry. Writes only on a change.
     pub fn put_scene(&self, scene: &str, keys: &[Key], geometry: &Key) -> Result<()> {
         let bytes: Vec<u8> = keys.iter().flat_map(|k| *k.as_bytes()).collect();
+        let unchanged = self.read(|t| {
+            let same_keys = t.open_table(SCENES)?.get(scene)?.is_some_and(|v| v.value() == bytes.as_slice());
+            let same_extras = match t.open_table(EXTRAS) {
+                Ok(extras) => extras.get(scene)?.is_none_or(|v| kept_extras(v.value(), geometry) == v.value()),
+                Err(redb::TableError::TableDoesNotExist(_)) => true,
+                Err(e) => return Err(e.into()),
+            };
+            Ok(same_keys && same_extras)
+        })?;
+        if unchanged {
+            return Ok(());
+        }
         self.write(|t| {
             t.open_table(SCENES)?.insert(scene, bytes.as_slice())?;
             let mut extras = t.open_table(EXTRAS)?;
-            let kept: Vec<u8> = extras
-                .get(scene)?
-                .map(|v| {
-                    v.value().chunks_exact(64).filter(|e| &e[32..] == geometry.as_bytes()).flatten().copied().collect()
-                })
-                .unwrap_or_default();
+            let kept = extras.get(scene)?.map(|v| kept_extras(v.value(), geometry)).unwrap_or_default();
             extras.insert(scene, kept.as_slice())?;
             Ok(())
         })
@@ -390,6 +420,11 @@ impl Store {
 
 fn storage(path: &Path, e: impl Into<redb::Error>) -> DbError {
     DbError::Storage { path: path.to_path_buf(), detail: e.into().to_string() }
+}
+
+/// The (key, geometry) entries of a scene's extras that were made for `geometry`.
+fn kept_extras(entries: &[u8], geometry: &Key) -> Vec<u8> {
+    entries.chunks_exact(64).filter(|e| &e[32..] == geometry.as_bytes()).flatten().copied().collect()
 }
 
 fn hex(bytes: &[u8]) -> String {

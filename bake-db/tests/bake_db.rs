@@ -91,6 +91,25 @@ fn a_second_bake_does_no_work_and_matches_a_fresh_one_and_the_engine() {
 }
 
 #[test]
+fn fresh_and_stored_chunks_assemble_alike_and_a_cached_run_writes_nothing() {
+    let path = scratch("mixed");
+    let store = Store::open(&path).unwrap();
+    bake(&store, &scene(""));
+    let edited = scene("move");
+    let flat = flatten(&edited);
+    let planned = || plan(&store, &edited, &flat, Some(BSPVT), Some(prt_settings())).unwrap();
+    let mixed = run(&store, &edited, &flat, &planned(), &|_| {}).unwrap();
+    assert!(mixed.stats.cached > 0 && mixed.stats.cold + mixed.stats.warm > 0, "{:?}", mixed.stats);
+    let file = std::fs::read(&path).unwrap();
+    let p = planned();
+    let cached = run(&store, &edited, &flat, &p, &|_| {}).unwrap();
+    assert_eq!(cached.stats.cached, p.jobs.len());
+    assert!(std::fs::read(&path).unwrap() == file, "planning and running a fully cached scene commit nothing");
+    assert_eq!(mixed.bspvt.unwrap().instances, cached.bspvt.unwrap().instances, "chunks in plan order");
+    assert!(mixed.prt.unwrap().instances == cached.prt.unwrap().instances);
+}
+
+#[test]
 fn edits_rebake_exactly_what_they_affect_and_match_cold_bakes() {
     // Chunks: ground 2 (441 vertices), each box or sphere 1, per technique.
     // (edit, BSPVT chunks baked cold, BSPVT chunks re-baked warm, PRT chunks baked).

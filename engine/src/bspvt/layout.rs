@@ -151,18 +151,96 @@ pub fn check_record(record: &[u8]) -> Result<(), String> {
     Ok(())
 }
 
-/// One face's bytes: empty, or exactly one pre-order tree.
+/// One face's bytes: empty, or exactly one pre-order tree no deeper than [`MAX_DEPTH`].
 fn check_tree(bytes: &[u8]) -> Result<(), String> {
-    // Pending subtrees on the path from the root: each split opens two.
-    let mut pending: Vec<u8> = Vec::new();
+    // Subtrees still to read: the root; each node fills one and a split opens two more.
+    let mut open = isize::from(!bytes.is_empty());
     let mut i = 0;
+    // Eight bytes at a time while no node in them can fail; the exact walk takes the rest.
+    while let Some(eight) = bytes.get(i..i + 8) {
+        let x = u64::from_le_bytes(eight.try_into().expect("eight bytes"));
+        // Bit k = the top bit of byte k (the 0x80 byte mask gathered by one multiply).
+        let tops = ((x & 0x8080_8080_8080_8080).wrapping_mul(0x0002_0408_1020_4081) >> 56) as usize;
+        let w = WINDOWS[tops];
+        if open + isize::from(w.lowest) < 1 {
+            break;
+        }
+        open += isize::from(w.open);
+        i += usize::from(w.bytes);
+    }
+    walk(bytes, i, open)?;
+    // A tree is no deeper than it has splits: only a face long enough for MAX_DEPTH of them
+    // needs its depth walked (loading checks every tree of every vertex).
+    if bytes.len() >= 3 * MAX_DEPTH && depth(bytes) > MAX_DEPTH {
+        return Err(format!("deeper than {MAX_DEPTH}"));
+    }
+    Ok(())
+}
+
+/// Checks `bytes[i..]` node by node with `open` subtrees still to read: they must fill
+/// exactly.
+fn walk(bytes: &[u8], mut i: usize, mut open: isize) -> Result<(), String> {
     while i < bytes.len() {
-        if i > 0 && pending.is_empty() {
+        if open == 0 {
             return Err(format!("bytes after the tree's last leaf (at {i})"));
         }
         if bytes[i] & 0x80 == 0 {
+            open -= 1;
             i += 1;
-            // A finished subtree completes its parent's pending children, upward.
+        } else if i + 3 > bytes.len() {
+            return Err(format!("a split cut short (at {i})"));
+        } else {
+            open += 1;
+            i += 3;
+        }
+    }
+    if open > 0 {
+        return Err(format!("{open} subtrees missing"));
+    }
+    Ok(())
+}
+
+/// What the whole nodes at the start of an eight-byte window do, by the window's top bits.
+#[derive(Clone, Copy)]
+struct Window {
+    /// Bytes they take (6 to 8: a split needs its 3 bytes inside the window).
+    bytes: u8,
+    /// Change in open subtrees.
+    open: i8,
+    /// Lowest change before any of them (each node needs an open subtree).
+    lowest: i8,
+}
+
+const WINDOWS: [Window; 256] = {
+    let mut table = [Window { bytes: 0, open: 0, lowest: 0 }; 256];
+    let mut tops = 0;
+    while tops < 256 {
+        let (mut at, mut open, mut lowest) = (0u8, 0i8, 0i8);
+        while at < 8 {
+            let split = (tops >> at) & 1 == 1;
+            if split && at + 3 > 8 {
+                break;
+            }
+            if open < lowest {
+                lowest = open;
+            }
+            open += if split { 1 } else { -1 };
+            at += if split { 3 } else { 1 };
+        }
+        table[tops] = Window { bytes: at, open, lowest };
+        tops += 1;
+    }
+    table
+};
+
+/// The most splits on one root-to-leaf path of a complete pre-order tree.
+fn depth(bytes: &[u8]) -> usize {
+    // Children still to read at each split on the current path.
+    let mut pending: Vec<u8> = Vec::new();
+    let (mut i, mut deepest) = (0, 0);
+    while i < bytes.len() {
+        if bytes[i] & 0x80 == 0 {
+            i += 1;
             while let Some(left) = pending.last_mut() {
                 *left -= 1;
                 if *left > 0 {
@@ -171,20 +249,12 @@ fn check_tree(bytes: &[u8]) -> Result<(), String> {
                 pending.pop();
             }
         } else {
-            if i + 3 > bytes.len() {
-                return Err(format!("a split cut short (at {i})"));
-            }
-            if pending.len() == MAX_DEPTH {
-                return Err(format!("deeper than {MAX_DEPTH}"));
-            }
             pending.push(2);
+            deepest = deepest.max(pending.len());
             i += 3;
         }
     }
-    if !pending.is_empty() {
-        return Err(format!("{} subtrees missing", pending.len()));
-    }
-    Ok(())
+    deepest
 }
 
 #[cfg(test)]
@@ -207,9 +277,44 @@ mod tests {
         // A lone leaf followed by more bytes in one face.
         let extra = join_faces([&[0x7F, 0x7F], &[], &[], &[], &[], &[]]);
         assert!(check_record(&extra).unwrap_err().contains("after the tree"));
-        // A chain of splits deeper than the limit.
+        // Chains of splits deeper than the limit, leaning left and right (a right chain keeps
+        // only two subtrees open at a time), and a right chain exactly at the limit.
+        let face = |t: &[u8]| check_record(&join_faces([t, &[], &[], &[], &[], &[]]));
         let deep = [[0x80u8, 0, 0].repeat(MAX_DEPTH + 1), vec![0; MAX_DEPTH + 2]].concat();
-        assert!(check_record(&join_faces([&deep, &[], &[], &[], &[], &[]])).unwrap_err().contains("deeper"));
+        assert!(face(&deep).unwrap_err().contains("deeper"));
+        let right = |splits: usize| [[0x80u8, 0, 0, 0x7F].repeat(splits), vec![0]].concat();
+        assert!(face(&right(MAX_DEPTH + 1)).unwrap_err().contains("deeper"));
+        assert_eq!(face(&right(MAX_DEPTH)), Ok(()));
+    }
+
+    #[test]
+    fn the_eight_byte_check_agrees_with_the_exact_walk() {
+        // Random trees (leaf bytes and split bytes with any low bytes), each also cut, extended
+        // and with one byte changed: the window check accepts and rejects exactly as the
+        // node-by-node walk does, with the same message.
+        use rand::Rng;
+        let mut rng = crate::math::rng::seeded(7);
+        for _ in 0..20_000 {
+            let mut tree = Vec::new();
+            let mut open = 1;
+            while open > 0 && tree.len() < 300 {
+                if rng.random::<f64>() < 0.45 {
+                    tree.extend([0x80 | (rng.random::<u8>()), rng.random::<u8>(), rng.random::<u8>()]);
+                    open += 1;
+                } else {
+                    tree.push(rng.random::<u8>() & 0x7F);
+                    open -= 1;
+                }
+            }
+            let mut cases = vec![tree.clone(), tree[..tree.len() / 2].to_vec(), [&tree[..], &[0x11, 0x80]].concat()];
+            let mut changed = tree.clone();
+            let k = rng.random_range(0..changed.len());
+            changed[k] ^= 0x80;
+            cases.push(changed);
+            for c in cases {
+                assert_eq!(check_tree(&c), walk(&c, 0, isize::from(!c.is_empty())), "{c:02x?}");
+            }
+        }
     }
 
     #[test]
