@@ -176,6 +176,28 @@ fn polygon_light_methods_render_images_and_vertices() {
 }
 
 #[test]
+fn polygon_methods_shade_a_scene_without_polygonal_lights_with_or_without_a_database() {
+    // A database plans no BSPVT for such a scene: `--method bspvt` used to panic on the
+    // missing trees there, while the in-memory path rendered.
+    let d = scratch("no-polygon-lights");
+    let scene = shared("scenes/bunny_two_groups.gltf");
+    let (db, csv, png) = (d.join("bake.redb"), d.join("v.csv"), d.join("x.png"));
+    for with_db in [false, true] {
+        let mut args = vec!["render", &scene, "--method", "bspvt", "--face-res", "8", "--size", "16x9", "--spp", "1"];
+        args.extend(["-o", png.to_str().unwrap(), "--vertices-out", csv.to_str().unwrap()]);
+        if with_db {
+            args.extend(["--db", db.to_str().unwrap()]);
+        }
+        let o = kage(&args);
+        assert!(o.status.success(), "database {with_db}: {}", stderr(&o));
+        let rows = read_vertex_csv(&csv).unwrap();
+        assert!(!rows.is_empty() && rows.iter().all(|r| r.radiance == glam::Vec3::ZERO), "no light, no radiance");
+    }
+    assert!(db.exists());
+    std::fs::remove_dir_all(d).unwrap();
+}
+
+#[test]
 fn report_writes_markdown_csv_and_plot() {
     let d = scratch("report");
     let out = d.join("rep");

@@ -29,10 +29,11 @@ fn bspvt_agrees(scene: &Scene, eye: Vec3) {
     let s = bspvt::Settings { res: 32, epsilon: 2.0 };
     let bake = bspvt::bake(scene, &flat, &s, &|_| {});
     let shader = gpu_bspvt::BspvtShader::new(&gpu, &Shaders::embedded(), Some(&bake)).unwrap();
-    for (mode, method) in
-        [(gpu_bspvt::Mode::Trees, bspvt::Method::Bspvt), (gpu_bspvt::Mode::Unshadowed, bspvt::Method::Unshadowed)]
-    {
-        let cpu = bspvt::shade_vertices(scene, &flat, method, Some(&bake), &s, eye);
+    for (mode, method) in [
+        (gpu_bspvt::Mode::Trees, bspvt::Method::Bspvt(&bake)),
+        (gpu_bspvt::Mode::Unshadowed, bspvt::Method::Unshadowed),
+    ] {
+        let cpu = bspvt::shade_vertices(scene, &flat, method, eye);
         let on_gpu = gpu_bspvt::shade_vertices(&gpu, &shader, scene, &flat, mode, eye).unwrap();
         let w = worst(&on_gpu, &cpu);
         let lit = cpu.iter().flatten().filter(|c| c.max_element() > 0.0).count();

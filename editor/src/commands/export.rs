@@ -47,7 +47,7 @@ pub fn run(args: &Args) -> Result<()> {
         radiance.iter_mut().flatten().zip(values.into_iter().flatten()).for_each(|(r, v)| *r += v);
     };
     if let Some(b) = &out.bspvt {
-        add(bspvt::shade_vertices(&scene, &flat, bspvt::Method::Bspvt, Some(b), &b.settings, eye));
+        add(bspvt::shade_vertices(&scene, &flat, bspvt::Method::Bspvt(b), eye));
     }
     let lighting = plan.prt.and_then(|s| prt::Lighting::new(&scene, &s).map(|l| (l, s)));
     if let (Some(b), Some((light, s))) = (&out.prt, &lighting) {

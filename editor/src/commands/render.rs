@@ -283,9 +283,10 @@ fn per_vertex(
     } else {
         (method == Method::Bspvt).then(|| in_memory_bspvt(scene, renderer, &settings))
     };
-    let kind = match method {
-        Method::Bspvt => bspvt::Method::Bspvt,
-        Method::LtcExactVis => bspvt::Method::ExactVis,
+    // No bake means no polygonal light (a database plans no BSPVT then): nothing to shadow.
+    let kind = match (method, &bake) {
+        (Method::Bspvt, Some(b)) => bspvt::Method::Bspvt(b),
+        (Method::LtcExactVis, _) => bspvt::Method::ExactVis { res: settings.res },
         _ => bspvt::Method::Unshadowed,
     };
     // The GGX albedo table is built on first use: not part of shading a frame.
@@ -294,11 +295,14 @@ fn per_vertex(
     let values = if args.gpu {
         let gpu = gpu_device()?;
         let shader = kage_gpu::bspvt::BspvtShader::new(&gpu, &kage_gpu::Shaders::embedded(), bake.as_ref())?;
-        let mode =
-            if kind == bspvt::Method::Bspvt { kage_gpu::bspvt::Mode::Trees } else { kage_gpu::bspvt::Mode::Unshadowed };
+        let mode = if matches!(kind, bspvt::Method::Bspvt(_)) {
+            kage_gpu::bspvt::Mode::Trees
+        } else {
+            kage_gpu::bspvt::Mode::Unshadowed
+        };
         kage_gpu::bspvt::shade_vertices(&gpu, &shader, scene, &renderer.flat, mode, camera.eye())?
     } else {
-        bspvt::shade_vertices(scene, &renderer.flat, kind, bake.as_ref(), &settings, camera.eye())
+        bspvt::shade_vertices(scene, &renderer.flat, kind, camera.eye())
     };
     let evals = renderer.vertex_count() * renderer.flat.lights.len();
     let secs = start.elapsed().as_secs_f64();
@@ -309,7 +313,7 @@ fn per_vertex(
     let image =
         want_image.then(|| raster::vertex_image(renderer, camera, args.size.0, args.size.1, args.spp.min(16), &values));
     let glossy =
-        if kind == bspvt::Method::ExactVis { GlossyDirect::Reference } else { GlossyDirect::Ltc(bake.map(Into::into)) };
+        if method == Method::LtcExactVis { GlossyDirect::Reference } else { GlossyDirect::Ltc(bake.map(Into::into)) };
     Ok(Outputs { image, vertices: Some(values), glossy })
 }
 

@@ -623,8 +623,11 @@ fn polygonal(ed: &mut Editor, mode: Mode, eye: Vec3) -> Vec<Vec<Vec3>> {
             if let Some(Err(e)) = other {
                 ed.error(format!("GPU shading: {e}; shading on the CPU"));
             }
-            let m = if mode == Mode::Trees { bspvt::Method::Bspvt } else { bspvt::Method::Unshadowed };
-            bspvt::shade_vertices(&ed.scene, &ed.flat, m, ed.bakes.bspvt.as_deref(), &ed.options.bspvt, eye)
+            let m = match ed.bakes.bspvt.as_deref().filter(|_| mode == Mode::Trees) {
+                Some(bake) => bspvt::Method::Bspvt(bake),
+                None => bspvt::Method::Unshadowed,
+            };
+            bspvt::shade_vertices(&ed.scene, &ed.flat, m, eye)
         }
     }
 }
@@ -641,7 +644,7 @@ fn exact_vis(ed: &mut Editor, eye: Vec3) -> Option<Vec<Vec<Vec3>>> {
         ed.exact_worker = Some(Worker::spawn(
             move |_, send| {
                 let flat = flatten(&scene);
-                send(bspvt::shade_vertices(&scene, &flat, bspvt::Method::ExactVis, None, &s, eye));
+                send(bspvt::shade_vertices(&scene, &flat, bspvt::Method::ExactVis { res: s.res }, eye));
             },
             move || wake(),
         ));

@@ -430,44 +430,44 @@ pub fn bake(scene: &Scene, flat: &FlatScene, s: &Settings, progress: &(dyn Fn(us
 }
 
 /// Which visibility the per-vertex shading uses.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Method {
+#[derive(Clone, Copy, Debug)]
+pub enum Method<'a> {
     /// Baked BSP visibility trees.
-    Bspvt,
+    Bspvt(&'a Bake),
     /// The raw visibility cube map, cast at shading time (the tree's ground truth).
-    ExactVis,
+    ExactVis {
+        /// Texels per cube-face side.
+        res: usize,
+    },
     /// No visibility.
     Unshadowed,
 }
 
 /// Outgoing radiance toward `eye` from the polygonal lights at every receiver vertex, per
-/// instance in [`FlatScene::instances`] order. `bake` is required for [`Method::Bspvt`].
-pub fn shade_vertices(
-    scene: &Scene,
-    flat: &FlatScene,
-    method: Method,
-    bake: Option<&Bake>,
-    s: &Settings,
-    eye: glam::Vec3,
-) -> Vec<Vec<glam::Vec3>> {
-    let occluders = (method == Method::ExactVis).then(|| occluder_bvh(flat));
+/// instance in [`FlatScene::instances`] order.
+pub fn shade_vertices(scene: &Scene, flat: &FlatScene, method: Method, eye: glam::Vec3) -> Vec<Vec<glam::Vec3>> {
+    let exact = match method {
+        Method::ExactVis { res } => Some((occluder_bvh(flat), res)),
+        _ => None,
+    };
+    let trees = match method {
+        Method::Bspvt(bake) => Some(bake),
+        _ => None,
+    };
     (0..flat.instances.len())
         .map(|i| {
             let n = scene.meshes[flat.instances[i].mesh as usize].positions.len();
             (0..n)
                 .into_par_iter()
-                .map(|v| match method {
-                    Method::Bspvt => {
-                        shade_vertex(scene, flat, Some(bake.expect("bspvt shading needs a bake")), i, v, eye)
-                    }
-                    Method::Unshadowed => shade_vertex(scene, flat, None, i, v, eye),
-                    Method::ExactVis => {
+                .map(|v| match &exact {
+                    Some((occluders, res)) => {
                         let (p, normal) = flat.vertex(&scene.meshes, i, v);
-                        let cube = visibility::cast(occluders.as_ref().expect("built above"), p, normal, s.res);
+                        let cube = visibility::cast(occluders, p, normal, *res);
                         let table = crate::math::ltc::table();
                         shade::PointShader::new(&table, p, normal, eye, &flat.instances[i].material)
                             .shade(&flat.lights, shade::Visibility::Exact(&cube))
                     }
+                    None => shade_vertex(scene, flat, trees, i, v, eye),
                 })
                 .collect()
         })
@@ -563,8 +563,8 @@ mod tests {
             .collect();
         let bake = Bake { settings: s, instances, stats: Stats::default() };
         let eye = glam::Vec3::new(0.0, 2.0, 5.0);
-        let placeholder = shade_vertices(&scene, &flat, Method::Bspvt, Some(&bake), &s, eye);
-        let open = shade_vertices(&scene, &flat, Method::Unshadowed, None, &s, eye);
+        let placeholder = shade_vertices(&scene, &flat, Method::Bspvt(&bake), eye);
+        let open = shade_vertices(&scene, &flat, Method::Unshadowed, eye);
         for (a, b) in placeholder.iter().flatten().zip(open.iter().flatten()) {
             assert!((*a - *b).abs().max_element() <= 1e-4 * b.max_element().max(1.0), "{a} vs {b}");
         }
