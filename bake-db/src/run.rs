@@ -471,13 +471,30 @@ fn assemble(
     })
 }
 
-/// A BSPVT chunk's offsets and records, every record checked; an error names the artefact
-/// and the vertex.
-fn bspvt_chunk<'a>(store: &Store, job: &Job, bytes: &'a [u8]) -> Result<(Vec<u32>, &'a [u8])> {
-    let malformed = |why: String| crate::store::DbError::Corrupted {
-        path: store.path().to_path_buf(),
-        detail: format!("BSPVT artefact {} is malformed{why} (run `kage db check`)", job.key.short()),
+/// A stored chunk, checked: a BSPVT chunk's offsets and records, or a PRT chunk's coefficients.
+enum Part<'a> {
+    Trees(Vec<u32>, &'a [u8]),
+    Transfer(&'a [u8]),
+}
+
+/// Checks that a chunk holds what its job needs (every BSPVT tree is walked: a damaged one
+/// would panic in the tree descent; a PRT chunk must hold `coeffs` floats per vertex).
+fn part<'a>(store: &Store, job: &Job, bytes: &'a [u8], coeffs: usize) -> Result<Part<'a>> {
+    let malformed = |why: String| {
+        let kind = if job.kind == Kind::Bspvt { "BSPVT" } else { "PRT" };
+        DbError::Corrupted {
+            path: store.path().to_path_buf(),
+            detail: format!("{kind} artefact {} is malformed{why} (run `kage db check`)", job.key.short()),
+        }
     };
+    if job.kind == Kind::Prt {
+        let expected = 4 * coeffs * job.vertices.len();
+        if bytes.len() != expected {
+            let why = format!(": {} bytes where its {} vertices need {expected}", bytes.len(), job.vertices.len());
+            return Err(malformed(why));
+        }
+        return Ok(Part::Transfer(bytes));
+    }
     let (offsets, data) = chunk_parts(bytes)
         .filter(|(o, _)| o.len() == job.vertices.len() + 1)
         .ok_or_else(|| malformed(String::new()))?;
@@ -485,7 +502,7 @@ fn bspvt_chunk<'a>(store: &Store, job: &Job, bytes: &'a [u8]) -> Result<(Vec<u32
         bspvt::layout::check_record(&data[w[0] as usize..w[1] as usize])
             .map_err(|e| malformed(format!(": vertex {}: {e}", job.vertices.start + v)))?;
     }
-    Ok((offsets, data))
+    Ok(Part::Trees(offsets, data))
 }
 
 /// The engine's bakes from every job's chunk (in plan order); each instance's buffers are sized
@@ -514,28 +531,27 @@ fn bakes(
         Some(_) => per_instance(Kind::Prt).into_iter().map(|n| Vec::with_capacity(n / 4)).collect(),
         None => Vec::new(),
     };
-    // Every BSPVT tree is checked before shading descends it (a damaged one would panic
-    // there): chunk by chunk in parallel, as checking is most of loading's time.
-    let parts: Vec<Option<(Vec<u32>, &[u8])>> = plan
-        .jobs
-        .par_iter()
-        .zip(chunks)
-        .map(|(job, &bytes)| (job.kind == Kind::Bspvt).then(|| bspvt_chunk(store, job, bytes)).transpose())
-        .collect::<Result<_>>()?;
+    // Checked chunk by chunk in parallel: walking the trees is most of loading's time.
+    let coeffs = plan.prt.map_or(0, |s| s.order * s.order);
+    let parts: Vec<Part> =
+        plan.jobs.par_iter().zip(chunks).map(|(job, &bytes)| part(store, job, bytes, coeffs)).collect::<Result<_>>()?;
     let mut leaves_bytes = 0usize;
-    for ((job, &bytes), part) in plan.jobs.iter().zip(chunks).zip(parts) {
-        if let Some((offsets, data)) = part {
-            let inst = &mut bspvt_instances[job.instance];
-            let base = inst.data.len() as u32;
-            inst.offsets.extend(offsets[1..].iter().map(|o| base + o));
-            inst.data.extend_from_slice(data);
-            leaves_bytes += data.len();
-        } else {
-            // One copy into aligned memory (redb's bytes are not aligned for f32).
-            let t = &mut prt_instances[job.instance];
-            let start = t.len();
-            t.resize(start + bytes.len() / 4, 0.0);
-            bytemuck::cast_slice_mut::<f32, u8>(&mut t[start..]).copy_from_slice(&bytes[..bytes.len() / 4 * 4]);
+    for (job, part) in plan.jobs.iter().zip(parts) {
+        match part {
+            Part::Trees(offsets, data) => {
+                let inst = &mut bspvt_instances[job.instance];
+                let base = inst.data.len() as u32;
+                inst.offsets.extend(offsets[1..].iter().map(|o| base + o));
+                inst.data.extend_from_slice(data);
+                leaves_bytes += data.len();
+            }
+            Part::Transfer(bytes) => {
+                // One copy into aligned memory (redb's bytes are not aligned for f32).
+                let t = &mut prt_instances[job.instance];
+                let start = t.len();
+                t.resize(start + bytes.len() / 4, 0.0);
+                bytemuck::cast_slice_mut::<f32, u8>(&mut t[start..]).copy_from_slice(bytes);
+            }
         }
     }
     let vertices: usize = flat.instances.iter().map(|i| scene.meshes[i.mesh as usize].positions.len()).sum();

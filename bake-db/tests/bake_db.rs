@@ -2,6 +2,7 @@
 //! edits (exact counts), and bad database files.
 
 use glam::{Affine3A, Quat, Vec3};
+use kage_bake_db::plan::Kind;
 use kage_bake_db::run::RunStats;
 use kage_bake_db::{DbError, Hooks, Store, plan, run};
 use kage_engine::scene::{EnvMap, EnvironmentLight, Material, Scene, flatten, shapes};
@@ -393,31 +394,48 @@ fn a_refreshed_cache_is_stored_under_the_new_lightings_key_with_a_cold_placement
     assert!(store.get::<u8>(&key).unwrap() == cold.get::<u8>(&key).unwrap(), "same key, same bytes");
 }
 
-#[test]
-fn a_damaged_tree_in_a_stored_artefact_is_a_clear_error_not_a_panic() {
-    let store = Store::open(&scratch("damaged-tree")).unwrap();
+/// Bakes the test scene, lets `damage` change the stored bytes of its first chunk of `kind`
+/// (the chunk's first vertex given), stores them under a checksum that matches (as a buggy or
+/// crafted writer would), and returns the error loading then gives.
+fn load_error_after(name: &str, kind: Kind, damage: impl FnOnce(&mut Vec<u8>) -> usize) -> (String, usize) {
+    let store = Store::open(&scratch(name)).unwrap();
     let s = scene("");
     bake(&store, &s);
     let flat = flatten(&s);
-    let p = plan(&store, &s, &flat, Some(BSPVT), None).unwrap();
-    let job = p.jobs.iter().find(|j| j.kind == kage_bake_db::plan::Kind::Bspvt).unwrap();
+    let p = plan(&store, &s, &flat, Some(BSPVT), Some(prt_settings())).unwrap();
+    let job = p.jobs.iter().find(|j| j.kind == kind).unwrap();
     let mut bytes = store.get::<u8>(&job.key).unwrap().unwrap();
-    // The chunk: vertex count, offsets, records; cut short the first record holding a tree by
-    // turning its last byte (a leaf) into a split with no children. The layout stays intact.
-    let count = u32::from_le_bytes(bytes[..4].try_into().unwrap()) as usize;
-    let offsets: Vec<u32> = bytemuck::pod_collect_to_vec(&bytes[4..8 + 4 * count]);
-    let data = 8 + 4 * count;
-    let v = offsets.windows(2).position(|w| w[1] - w[0] > 12).unwrap();
-    bytes[data + offsets[v + 1] as usize - 1] = 0xFF;
-    let info = kage_bake_db::store::Info {
-        kind: "bspvt".into(),
-        params: String::new(),
-        seconds: 0.0,
-        vertices: 0,
-        checksum: *blake3::hash(&bytes).as_bytes(),
-    };
+    let vertex = job.vertices.start + damage(&mut bytes);
+    let checksum = *blake3::hash(&bytes).as_bytes();
+    let info =
+        kage_bake_db::store::Info { kind: String::new(), params: String::new(), seconds: 0.0, vertices: 0, checksum };
     store.put_batch(&[(job.key, bytes, info)], &[]).unwrap();
-    let Err(e) = run(&store, &s, &flat, &p, &|_| {}) else { panic!("a damaged tree loaded") };
-    let e = e.to_string();
-    assert!(e.contains("malformed") && e.contains(&format!("vertex {}", job.vertices.start + v)), "{e}");
+    let Err(e) = run(&store, &s, &flat, &p, &|_| {}) else { panic!("{name}: a damaged artefact loaded") };
+    (e.to_string(), vertex)
+}
+
+#[test]
+fn a_truncated_prt_artefact_is_a_clear_error_not_a_panic() {
+    // One vertex's coefficients short (shading would slice past the end).
+    let (e, _) = load_error_after("damaged-prt", Kind::Prt, |bytes| {
+        bytes.truncate(bytes.len() - 4 * 9);
+        0
+    });
+    assert!(e.contains("PRT artefact") && e.contains("malformed") && e.contains("vertices need"), "{e}");
+}
+
+#[test]
+fn a_damaged_tree_in_a_stored_artefact_is_a_clear_error_not_a_panic() {
+    let (e, vertex) = load_error_after("damaged-tree", Kind::Bspvt, |bytes| {
+        // The chunk: vertex count, offsets, records; cut short the first record holding a tree
+        // by turning its last byte (a leaf) into a split with no children. The layout stays
+        // intact.
+        let count = u32::from_le_bytes(bytes[..4].try_into().unwrap()) as usize;
+        let offsets: Vec<u32> = bytemuck::pod_collect_to_vec(&bytes[4..8 + 4 * count]);
+        let data = 8 + 4 * count;
+        let v = offsets.windows(2).position(|w| w[1] - w[0] > 12).unwrap();
+        bytes[data + offsets[v + 1] as usize - 1] = 0xFF;
+        v
+    });
+    assert!(e.contains("malformed") && e.contains(&format!("vertex {vertex}")), "{e}");
 }
