@@ -380,7 +380,8 @@ fn a_bake_killed_at_random_points_resumes_to_a_clean_bakes_result() {
     assert_eq!(vertices_from_db(&scene, &db, &d.join("a.csv")), vertices_from_db(&scene, &clean, &d.join("b.csv")));
     let o = kage(&["db", "info", "--db", clean.to_str().unwrap()]);
     let out = String::from_utf8_lossy(&o.stdout);
-    assert!(out.contains("cache \"bspvt tiles v2 res 32 eps 2\": "), "{out}");
+    let tiles = format!("cache \"bspvt tiles v{} res 32 eps 2\": ", kage_engine::bspvt::ALGORITHM_VERSION);
+    assert!(out.contains(&tiles), "{out}");
     // `--watch` holds the database: another process gets a clear error.
     let mut holder = Command::new(env!("CARGO_BIN_EXE_kage"))
         .args(["bake", &scene, "--face-res", "32", "--watch"])

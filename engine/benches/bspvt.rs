@@ -8,11 +8,16 @@
 //!   no scene above reaches even at ε = 0 (their exact trees are smaller).
 //!
 //! Leaves and bytes per vertex, and LTC pieces per evaluation, are printed beside the numbers.
+//! A third function per configuration times the split search alone: building again, from
+//! scratch, every distinct mixed tile that configuration's bake met (Algorithm 1 per tile);
+//! leaves per tile are printed beside it.
 
-use criterion::{Criterion, Throughput, criterion_group, criterion_main};
+use criterion::measurement::WallTime;
+use criterion::{BenchmarkGroup, Criterion, Throughput, criterion_group, criterion_main};
 use glam::{Affine3A, Vec3};
 use kage_engine::bspvt::cache::TileCache;
 use kage_engine::bspvt::shade::{PointShader, Visibility};
+use kage_engine::bspvt::tree::{Node, build_tile};
 use kage_engine::bspvt::{Settings, bake_vertex, layout, occluder_bvh, reach::Reach};
 use kage_engine::math::ltc;
 use kage_engine::scene::{Material, Scene, default_scene, flatten, import, shapes};
@@ -77,6 +82,7 @@ fn measure(c: &mut Criterion, name: &str, scene: &Scene, step: usize) {
         })
         .collect();
     let seconds = start.elapsed().as_secs_f64();
+    bench_tile_builds(&mut g, &tiles);
     let leaves: usize = records.iter().map(|r| layout::tree_counts(r).0).sum();
     let table = ltc::table();
     let shade = |v: usize, rec: &[u8]| {
@@ -105,6 +111,16 @@ fn measure(c: &mut Criterion, name: &str, scene: &Scene, step: usize) {
         b.iter(|| records.par_iter().enumerate().map(|(v, rec)| shade(v, rec).0.x).sum::<f32>())
     });
     g.finish();
+}
+
+/// Times building every tile `tiles` holds again (in parallel, as a bake would).
+fn bench_tile_builds(g: &mut BenchmarkGroup<WallTime>, tiles: &TileCache) {
+    let keys = tiles.keys();
+    let leaves = |nodes: &Vec<Node>| nodes.iter().filter(|n| matches!(n, Node::Leaf(_))).count();
+    let total: usize = keys.par_iter().map(|&k| leaves(&build_tile(k, tiles))).sum();
+    eprintln!("{} distinct mixed tiles, {:.3} leaves per tile", keys.len(), total as f64 / keys.len() as f64);
+    g.throughput(Throughput::Elements(keys.len() as u64));
+    g.bench_function("build_tiles", |b| b.iter(|| keys.par_iter().map(|&k| build_tile(k, tiles).len()).sum::<usize>()));
 }
 
 fn bench(c: &mut Criterion) {

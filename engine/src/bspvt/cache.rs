@@ -11,6 +11,7 @@
 
 use super::tree::Node;
 use super::{ALGORITHM_VERSION, Settings};
+use crate::math::cubemap;
 use std::collections::HashMap;
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -25,10 +26,14 @@ const CAPACITY: usize = 1 << 20;
 /// First bytes of [`TileCache::to_bytes`] (its layout's version).
 const MAGIC: &[u8; 4] = b"kgt1";
 
-/// Subtrees by tile key, for one (face resolution, ε) and [`ALGORITHM_VERSION`].
+/// Subtrees by tile key, for one (face resolution, ε) and [`ALGORITHM_VERSION`], and the texel
+/// weights every build needs.
 #[derive(Debug)]
 pub struct TileCache {
     settings: Settings,
+    /// Per texel of a face (row-major), its solid angle relative to the face's mean texel:
+    /// computed once, as each costs four arc tangents.
+    weights: Vec<f64>,
     map: Mutex<HashMap<TileKey, Vec<Node>>>,
     added: AtomicUsize,
     hits: AtomicUsize,
@@ -37,7 +42,21 @@ pub struct TileCache {
 impl TileCache {
     /// An empty cache for bakes with `settings`.
     pub fn new(settings: &Settings) -> Self {
-        Self { settings: *settings, map: Mutex::default(), added: AtomicUsize::new(0), hits: AtomicUsize::new(0) }
+        let res = settings.res;
+        let mean = 4.0 * std::f64::consts::PI / (6 * res * res) as f64;
+        let weights = (0..res * res).map(|k| cubemap::texel_solid_angle(k % res, k / res, res) / mean).collect();
+        Self {
+            settings: *settings,
+            weights,
+            map: Mutex::default(),
+            added: AtomicUsize::new(0),
+            hits: AtomicUsize::new(0),
+        }
+    }
+
+    /// Texel (i, j)'s solid angle relative to the face's mean texel.
+    pub fn weight(&self, i: usize, j: usize) -> f64 {
+        self.weights[j * self.settings.res + i]
     }
 
     /// The settings its subtrees were built with.
@@ -63,6 +82,13 @@ impl TileCache {
     fn lock(&self) -> std::sync::MutexGuard<'_, HashMap<TileKey, Vec<Node>>> {
         // A worker that panicked mid-insert left a valid map: entries are inserted whole.
         self.map.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// The keys held, sorted.
+    pub fn keys(&self) -> Vec<TileKey> {
+        let mut keys: Vec<TileKey> = self.lock().keys().copied().collect();
+        keys.sort_unstable();
+        keys
     }
 
     /// Entries held.

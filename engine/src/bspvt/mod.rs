@@ -23,6 +23,7 @@ pub mod layout;
 pub mod plan;
 pub mod reach;
 pub mod shade;
+pub mod split;
 pub mod tree;
 pub mod visibility;
 
@@ -37,8 +38,9 @@ use std::time::Instant;
 use visibility::Look;
 
 /// Version of the bake algorithm, part of every bake key: bumped whenever the same inputs
-/// would give different trees (2: trees start with the tile grid of [`tree::TILE`]).
-pub const ALGORITHM_VERSION: u32 = 2;
+/// would give different trees (2: trees start with the tile grid of [`tree::TILE`]; 3: the
+/// split search's looser Nelder–Mead tolerance and fused sums, see [`split`]).
+pub const ALGORITHM_VERSION: u32 = 3;
 
 /// Bake parameters.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -9,12 +9,11 @@
 //! pixels are partitioned, so leaf means match the geometry the shader sees.
 
 use super::Settings;
-use super::cache::TileCache;
-use super::layout::{dequantise_line, quantise_line};
+use super::cache::{TileCache, TileKey};
+use super::layout::quantise_line;
+use super::split::{Line, Pixels, clusters};
 use super::visibility::TileBits;
-use crate::math::{cubemap, nelder_mead};
-use std::cmp::Ordering;
-use std::collections::BinaryHeap;
+use crate::math::cubemap;
 
 /// A node in pre-order: a split line, or a leaf with its mean visibility.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -28,56 +27,6 @@ pub enum Node {
     },
     /// Mean visibility in [0, 1].
     Leaf(f32),
-}
-
-#[derive(Clone, Copy)]
-struct Pixel {
-    s: f64,
-    t: f64,
-    w: f64,
-    v: f64,
-}
-
-struct Cluster {
-    pixels: Vec<u32>,
-    mean: f64,
-    error: f64,
-}
-
-/// Solid-angle-weighted mean and within-cluster error Σ w (V − v̄)² of a pixel set.
-fn mean_and_error(pixels: &[u32], all: &[Pixel]) -> (f64, f64) {
-    let (sw, sv) = pixels
-        .iter()
-        .fold((0.0, 0.0), |(sw, sv), &i| (sw + all[i as usize].w, sv + all[i as usize].w * all[i as usize].v));
-    let mean = if sw > 0.0 { sv / sw } else { 0.0 };
-    // V ∈ {0, 1}: Σ w (V − m)² = Σ w V − m Σ w V.
-    (mean, (sv - mean * sv).max(0.0))
-}
-
-fn cluster(pixels: Vec<u32>, all: &[Pixel]) -> Cluster {
-    let (mean, error) = mean_and_error(&pixels, all);
-    Cluster { pixels, mean, error }
-}
-
-/// Arena node while building.
-enum Built {
-    Leaf(f64),
-    Split { angle: u16, offset: u16, pos: usize, neg: usize },
-}
-
-#[derive(PartialEq)]
-struct Queued(f64, usize);
-impl Eq for Queued {}
-impl PartialOrd for Queued {
-    fn partial_cmp(&self, o: &Self) -> Option<Ordering> {
-        Some(self.cmp(o))
-    }
-}
-impl Ord for Queued {
-    // Largest error first; ties by creation order, for determinism.
-    fn cmp(&self, o: &Self) -> Ordering {
-        self.0.total_cmp(&o.0).then(o.1.cmp(&self.1))
-    }
 }
 
 /// Texels per side of a tile. A face's tree starts with a fixed grid of tiles (axis-aligned
@@ -270,192 +219,27 @@ impl<'a> Grid<'a> {
             return vec![Node::Leaf(if visible == 0 { 0.0 } else { 1.0 })];
         }
         self.built += 1;
-        let Settings { res, epsilon } = *self.cache.settings();
-        self.cache.get_or_build((index, live, visible), || clusters(&tile_pixels(r, res, live, visible), res, epsilon))
+        self.cache.get_or_build((index, live, visible), || build_tile((index, live, visible), self.cache))
     }
+}
+
+/// The subtree Algorithm 1 builds for the mixed tile `key` (see [`TileKey`]) with the settings
+/// and texel weights of `tiles` (whose entries it neither reads nor adds to).
+pub fn build_tile((index, live, visible): TileKey, tiles: &TileCache) -> Vec<Node> {
+    let Settings { res, epsilon } = *tiles.settings();
+    let k = res.div_ceil(TILE);
+    let (i0, j0) = (index as usize % k * TILE, index as usize / k * TILE);
+    let r = Rect { i0, j0, i1: (i0 + TILE).min(res), j1: (j0 + TILE).min(res) };
+    clusters(&tile_pixels(r, tiles, live, visible), res, epsilon)
 }
 
 /// The pixels of tile `r` above the horizon (`live`), visible where `visible` says.
-fn tile_pixels(r: Rect, res: usize, live: u64, visible: u64) -> Vec<Pixel> {
-    let mean_w = 4.0 * std::f64::consts::PI / (6 * res * res) as f64;
+fn tile_pixels(r: Rect, tiles: &TileCache, live: u64, visible: u64) -> Pixels {
     let bit = |(i, j): (usize, usize)| 1u64 << ((j - r.j0) * TILE + i - r.i0);
-    r.texels()
-        .filter(|&x| live & bit(x) != 0)
-        .map(|(i, j)| {
-            let st = cubemap::texel_center(i, j, res);
-            let w = cubemap::texel_solid_angle(i, j, res) / mean_w;
-            Pixel { s: st.x, t: st.y, w, v: if visible & bit((i, j)) != 0 { 1.0 } else { 0.0 } }
-        })
-        .collect()
-}
-
-/// Splits the cluster of all `all` pixels while some cluster's error exceeds ε.
-fn clusters(all: &[Pixel], res: usize, epsilon: f64) -> Vec<Node> {
-    let mut arena: Vec<(Built, Option<Cluster>)> = Vec::new();
-    let root = cluster((0..all.len() as u32).collect(), all);
-    let mut queue = BinaryHeap::new();
-    queue.push(Queued(root.error, 0));
-    arena.push((Built::Leaf(root.mean), Some(root)));
-    while let Some(Queued(error, id)) = queue.pop() {
-        if error <= epsilon {
-            break;
-        }
-        let c = arena[id].1.take().expect("queued clusters keep their pixels");
-        let Some(Split { angle, offset, pos, neg }) = split(&c, all, res) else { continue };
-        let (pos, neg) = (cluster(pos, all), cluster(neg, all));
-        let (ip, ineg) = (arena.len(), arena.len() + 1);
-        queue.push(Queued(pos.error, ip));
-        queue.push(Queued(neg.error, ineg));
-        arena.push((Built::Leaf(pos.mean), Some(pos)));
-        arena.push((Built::Leaf(neg.mean), Some(neg)));
-        arena[id].0 = Built::Split { angle, offset, pos: ip, neg: ineg };
-    }
-    let mut out = Vec::new();
-    let mut stack = vec![0usize];
-    while let Some(i) = stack.pop() {
-        match arena[i].0 {
-            Built::Leaf(v) => out.push(Node::Leaf(v as f32)),
-            Built::Split { angle, offset, pos, neg } => {
-                out.push(Node::Split { angle, offset });
-                stack.push(neg);
-                stack.push(pos);
-            }
-        }
-    }
-    out
-}
-
-/// A chosen split: the quantised line and the pixels on its positive and negative sides.
-struct Split {
-    angle: u16,
-    offset: u16,
-    pos: Vec<u32>,
-    neg: Vec<u32>,
-}
-
-/// A line `cos θ · s + sin θ · t = c` with its sine and cosine evaluated once.
-#[derive(Clone, Copy)]
-struct Line {
-    cos: f64,
-    sin: f64,
-    c: f64,
-}
-
-impl Line {
-    fn new(theta: f64, c: f64) -> Self {
-        Self { cos: theta.cos(), sin: theta.sin(), c }
-    }
-
-    /// Signed distance of a pixel centre.
-    fn side(&self, p: &Pixel) -> f64 {
-        self.cos * p.s + self.sin * p.t - self.c
-    }
-}
-
-/// E(P, l) with the exact Heaviside.
-fn seed_error(c: &Cluster, all: &[Pixel], theta: f64, off: f64) -> f64 {
-    let line = Line::new(theta, off);
-    c.pixels
-        .iter()
-        .map(|&i| {
-            let p = &all[i as usize];
-            let h = if line.side(p) > 0.0 { 1.0 } else { 0.0 };
-            p.w * (h - p.v).powi(2)
-        })
-        .sum()
-}
-
-/// The best quantised line for cluster `c` and the two pixel sets it makes; `None` when no
-/// line separates anything (then the cluster stays a leaf).
-///
-/// Nelder–Mead minimises E(P, l) (with a one-texel linear ramp for H, so the simplex sees a
-/// slope) from the two best initial lines; among the resulting and the initial lines, after
-/// quantisation, the one whose two children have the least within-cluster error wins. E alone
-/// can prefer leaving a small visible blob on the negative side (no split at all); the
-/// children's error cannot.
-fn split(c: &Cluster, all: &[Pixel], res: usize) -> Option<Split> {
-    let tau = 0.5 * 2.0 / res as f64;
-    // The simplex evaluates E a few hundred times: over a contiguous copy, not via indices.
-    let pixels: Vec<Pixel> = c.pixels.iter().map(|&i| all[i as usize]).collect();
-    let soft = |x: &[f64]| -> f64 {
-        let line = Line::new(x[0], x[1]);
-        pixels
-            .iter()
-            .map(|p| {
-                // A linear ramp one texel wide: cheap, and smooth enough for the simplex.
-                let h = (0.5 + line.side(p) / (2.0 * tau)).clamp(0.0, 1.0);
-                p.w * (h - p.v).powi(2)
-            })
-            .sum()
-    };
-    let mut ranked: Vec<(f64, (f64, f64))> =
-        initial_lines(c, all).into_iter().map(|(t, o)| (seed_error(c, all, t, o), (t, o))).collect();
-    ranked.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let starts: Vec<(f64, f64)> = ranked.into_iter().map(|(_, line)| line).collect();
-    let opts = nelder_mead::Options { max_evals: 80, tolerance: 1e-6, restarts: 1 };
-    let mut candidates = starts.clone();
-    for &(theta, off) in starts.iter().take(2) {
-        let m = nelder_mead::minimize(soft, &[theta, off], &[0.2, 2.0 / res as f64], opts);
-        candidates.push((m.x[0], m.x[1]));
-    }
-    let mut best: Option<(f64, Split)> = None;
-    for (t, o) in candidates {
-        let o = max_margin_offset(c, all, t, o);
-        let (qa, qo) = quantise_line(t, o);
-        let (t, o) = dequantise_line(qa, qo);
-        let line = Line::new(t, o);
-        let (pos, neg): (Vec<u32>, Vec<u32>) = c.pixels.iter().partition(|&&i| line.side(&all[i as usize]) > 0.0);
-        if pos.is_empty() || neg.is_empty() {
-            continue;
-        }
-        let e = mean_and_error(&pos, all).1 + mean_and_error(&neg, all).1;
-        if best.as_ref().is_none_or(|b| e < b.0) {
-            best = Some((e, Split { angle: qa, offset: qo, pos, neg }));
-        }
-    }
-    best.map(|(_, split)| split)
-}
-
-/// Moves a line parallel to itself to the middle of the gap between the pixel centres on its
-/// two sides, so a boundary between texels is placed on the texel edge (as the raw cube map
-/// has it) rather than anywhere in the gap.
-fn max_margin_offset(c: &Cluster, all: &[Pixel], theta: f64, off: f64) -> f64 {
-    let (mut below, mut above) = (f64::NEG_INFINITY, f64::INFINITY);
-    let line = Line::new(theta, off);
-    for &i in &c.pixels {
-        let d = line.side(&all[i as usize]);
-        if d > 0.0 {
-            above = above.min(d);
-        } else {
-            below = below.max(d);
-        }
-    }
-    if below.is_finite() && above.is_finite() { off + 0.5 * (below + above) } else { off }
-}
-
-/// Candidate lines: the principal axis of the visibility boundary (both orientations), and
-/// axis-aligned lines through the centroid of the visible pixels.
-fn initial_lines(c: &Cluster, all: &[Pixel]) -> Vec<(f64, f64)> {
-    let vis: Vec<&Pixel> = c.pixels.iter().map(|&i| &all[i as usize]).filter(|p| p.v > 0.5).collect();
-    let occ: Vec<&Pixel> = c.pixels.iter().map(|&i| &all[i as usize]).filter(|p| p.v <= 0.5).collect();
-    let centroid = |ps: &[&Pixel]| {
-        let n = ps.len().max(1) as f64;
-        (ps.iter().map(|p| p.s).sum::<f64>() / n, ps.iter().map(|p| p.t).sum::<f64>() / n)
-    };
-    let (vc, oc) = (centroid(&vis), centroid(&occ));
-    let mid = ((vc.0 + oc.0) * 0.5, (vc.1 + oc.1) * 0.5);
-    let mut lines = Vec::new();
-    // The direction from the occluded centroid to the visible one is the boundary's normal.
-    let (dx, dy) = (vc.0 - oc.0, vc.1 - oc.1);
-    if dx != 0.0 || dy != 0.0 {
-        let theta = dy.atan2(dx).rem_euclid(std::f64::consts::TAU);
-        lines.push((theta, theta.cos() * mid.0 + theta.sin() * mid.1));
-    }
-    for k in 0..4 {
-        let theta = k as f64 * std::f64::consts::FRAC_PI_2;
-        lines.push((theta, theta.cos() * mid.0 + theta.sin() * mid.1));
-    }
-    lines
+    Pixels::new(r.texels().filter(|&x| live & bit(x) != 0).map(|(i, j)| {
+        let st = cubemap::texel_center(i, j, tiles.settings().res);
+        (st.x, st.y, tiles.weight(i, j), visible & bit((i, j)) != 0)
+    }))
 }
 
 /// Index (in `nodes`) of the leaf containing face point (s, t).
@@ -465,9 +249,8 @@ pub fn leaf_index(nodes: &[Node], s: f64, t: f64) -> usize {
         match nodes[i] {
             Node::Leaf(_) => return i,
             Node::Split { angle, offset } => {
-                let (th, c) = dequantise_line(angle, offset);
-                let line = Line::new(th, c);
-                i = if line.side(&Pixel { s, t, w: 0.0, v: 0.0 }) > 0.0 { i + 1 } else { skip(nodes, i + 1) };
+                let side = Line::dequantised(angle, offset).side(s, t);
+                i = if side > 0.0 { i + 1 } else { skip(nodes, i + 1) };
             }
         }
     }

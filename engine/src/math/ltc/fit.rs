@@ -137,11 +137,13 @@ pub fn fit_one(start: &Ltc, v: DVec3, alpha: f64, isotropic: bool) -> Ltc {
         }
         l
     };
-    let x0: Vec<f64> = if isotropic { vec![start.m11] } else { vec![start.m11, start.m22, start.m13] };
-    let step = vec![0.05; x0.len()];
     let opts = nelder_mead::Options { max_evals: 400, tolerance: 1e-7, restarts: 1 };
-    let best = nelder_mead::minimize(|p| error(&make(p), v, alpha), &x0, &step, opts);
-    make(&best.x)
+    let fit = |p: &[f64]| error(&make(p), v, alpha);
+    if isotropic {
+        make(&nelder_mead::minimize(|p| fit(p), [start.m11], [0.05], opts).x)
+    } else {
+        make(&nelder_mead::minimize(|p| fit(p), [start.m11, start.m22, start.m13], [0.05; 3], opts).x)
+    }
 }
 
 /// Fits entry (a, t) given the previous fit along its chain.
