@@ -1,8 +1,5 @@
-//! BSP visibility trees (Algorithm 1 of the seed, with its two corrections): per cube face, a
-//! priority queue of pixel clusters by error; the worst cluster is split by the oriented line
-//! minimising E(P, l) = Σ w (H(d(p)) − V(p))² while any cluster's own error Σ w (V − v̄)²
-//! exceeds ε. Weights w are texel solid angles relative to the face's mean texel, so errors
-//! are in "pixels". A leaf keeps the solid-angle-weighted mean visibility.
+//! BSP visibility trees: per cube face, a fixed grid of [`TILE`]-texel tiles, and inside each
+//! mixed tile Algorithm 1 of the seed with its two corrections (see [`super::split`]).
 //!
 //! Lines are `cos θ · s + sin θ · t = c` in face coordinates; the positive side
 //! (`cos θ s + sin θ t − c > 0`) is the first child. Line parameters are quantised *before*
