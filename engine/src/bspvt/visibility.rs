@@ -189,7 +189,7 @@ fn tile_mask(t: usize, k: usize, res: usize) -> u64 {
 /// [`TILE`]-texel tiles, the last ones narrower when `res` is not a multiple):
 /// `texel(tile, bit, direction)` returns [`VISIBLE`], [`OCCLUDED`] or [`SKIPPED`]. A tile kept
 /// is not looked at texel by texel: when it is live (see [`live_tiles`]) all of it is
-/// `SKIPPED`. In a tile cast entirely above the horizon only the texels of row `j` in
+/// `SKIPPED`. In a tile whose texel centres are all above the horizon only the texels of row `j` in
 /// `columns(tile, j)` are asked; the others are `SKIPPED` too.
 pub fn cast_tiles(
     n: Vec3,
@@ -221,9 +221,14 @@ pub fn cast_tiles(
             let (i1, j1) = ((i0 + TILE).min(res), (j0 + TILE).min(res));
             let heights = tile_heights.corners(t);
             let all = tile_mask(t, k, res);
-            // Entirely above the horizon (its lowest point is a corner): every texel is cast
-            // through its centre, and only the asked columns need looking at.
-            let above = heights.iter().all(|&h| h > 1e-9);
+            // Every texel centre above the horizon (the lowest is a corner texel's: height is
+            // affine over a face): every texel is cast through its centre, and only the asked
+            // columns need looking at. Tiles on the horizon line of a vertex whose normal is
+            // a face axis qualify, though their corners are on it.
+            let centre_height = |i: usize, j: usize| centres[(f * res + j) * res + i].dot(nd);
+            let above = [(i0, j0), (i1 - 1, j0), (i0, j1 - 1), (i1 - 1, j1 - 1)]
+                .iter()
+                .all(|&(i, j)| centre_height(i, j) > 1e-9);
             match tiles[t] {
                 Look::Keep if heights.iter().any(|&h| h > 0.0) => {
                     *bits = TileBits { live: all, visible: 0, skipped: all };
@@ -270,9 +275,9 @@ pub enum Look {
     Keep,
     /// Its texels above the horizon are asked for.
     Cast,
-    /// Every ray through it is known to be blocked: all `OCCLUDED` when the tile is entirely
-    /// above the horizon (the texel rays through its centres stay inside it), else as `Cast`
-    /// (rays lifted above the horizon may leave it).
+    /// Every ray through it is known to be blocked: all `OCCLUDED` when its texel centres are
+    /// all above the horizon (the texel rays through them stay inside it), else as `Cast` (rays
+    /// lifted above the horizon may leave it).
     Blocked,
     /// No light can be seen through it (see [`super::reach`]): left as if below the horizon, so
     /// that the tree spends no node on it (its neighbours' leaves cover it).
@@ -315,11 +320,13 @@ mod tests {
     fn selected_casts_agree_with_the_full_cast() {
         let roof = [Vec3::new(-2.0, 1.0, -2.0), Vec3::new(2.0, 1.0, -2.0), Vec3::new(0.0, 1.0, 2.0)];
         let occ = Occluders::new(&[vec![roof]]);
-        // 20: the last tile of a face is narrower.
-        let res: usize = 20;
-        let k = res.div_ceil(TILE);
-        let flags: Vec<Look> = (0..k * k).map(|t| [Look::Keep, Look::Cast, Look::Blocked][t % 3]).collect();
-        for n in [Vec3::Y, Vec3::new(0.6, 0.0, 0.8), Vec3::new(-0.3, -0.9, 0.3).normalize()] {
+        // 20: the last tile of a face is narrower; 16: the horizon of +Y runs along tile edges.
+        let cases = [20, 16].into_iter().flat_map(|res: usize| {
+            [Vec3::Y, Vec3::new(0.6, 0.0, 0.8), Vec3::new(-0.3, -0.9, 0.3).normalize()].map(|n| (res, n))
+        });
+        for (res, n) in cases {
+            let k = res.div_ceil(TILE);
+            let flags: Vec<Look> = (0..k * k).map(|t| [Look::Keep, Look::Cast, Look::Blocked][t % 3]).collect();
             for f in 0..cubemap::FACES {
                 let full = cast_face(&occ, Vec3::ZERO, n, f, res);
                 let live = live_tiles(n, f, res);
@@ -335,10 +342,12 @@ mod tests {
                     let in_live_tile =
                         (0..res * res).any(|y| tile_bit(y % res, y / res, k).0 == tile && full[y] != BELOW);
                     assert_eq!(live[tile], in_live_tile, "n {n}, face {f}, tile {tile}");
+                    // Every texel centre of the tile above the horizon.
                     let (i0, j0) = (i / TILE * TILE, j / TILE * TILE);
-                    let above = [(i0, j0), (i0 + TILE, j0), (i0, j0 + TILE), (i0 + TILE, j0 + TILE)]
-                        .iter()
-                        .all(|&(a, b)| corner_height(n.as_dvec3(), f, res)(a.min(res), b.min(res)) > 1e-9);
+                    let above =
+                        (j0..(j0 + TILE).min(res)).flat_map(|b| (i0..(i0 + TILE).min(res)).map(move |a| (a, b))).all(
+                            |(a, b)| cubemap::face_to_dir(f, cubemap::texel_center(a, b, res)).dot(n.as_dvec3()) > 1e-9,
+                        );
                     let expected = if flags[tile] == Look::Blocked && above {
                         OCCLUDED
                     } else if flags[tile] != Look::Keep {
