@@ -23,6 +23,9 @@ pub struct Beam {
     /// Per triangle whose plane is far enough from the origin: unit normals of its three edge
     /// planes, the triangle on their positive side.
     planes: Vec<[Vec3; 3]>,
+    /// Bit `b` set when triangle `b` of `planes` turns its front (counter-clockwise) side to
+    /// the origin.
+    front: u32,
     /// Whether some triangle's plane passes too close to the origin to rule out a hit.
     near: bool,
 }
@@ -50,12 +53,20 @@ impl Beam {
             // The numerator of the triangle's solid angle (Van Oosterom & Strackee) over its
             // vertices' distances: larger for triangles covering more directions.
             let size = normal.dot(v[0]).abs() / (v[0].length() * v[1].length() * v[2].length());
-            planes.push((size, [edge(v[1], v[2]), edge(v[2], v[0]), edge(v[0], v[1])]));
+            planes.push((size, side < 0.0, [edge(v[1], v[2]), edge(v[2], v[0]), edge(v[0], v[1])]));
         }
         // Hits are found sooner in the triangles that cover more directions (the answer does
         // not depend on the order).
         planes.sort_by(|a, b| b.0.total_cmp(&a.0));
-        Self { planes: planes.into_iter().map(|(_, p)| p).collect(), near }
+        let front = planes.iter().enumerate().fold(0, |m, (b, p)| m | (p.1 as u32) << b);
+        Self { planes: planes.into_iter().map(|(.., p)| p).collect(), front, near }
+    }
+
+    /// The edge planes (see [`Self::inside`]) of the triangles that turn their front to the
+    /// origin: a ray into a closed mesh enters through one of them, so they are the ones a
+    /// search for certain hits needs to look at (the others can only add hits near their edges).
+    pub fn front_edge_planes(&self) -> impl Iterator<Item = &[Vec3; 3]> {
+        self.planes.iter().enumerate().filter(|(b, _)| self.front >> b & 1 == 1).map(|(_, p)| p)
     }
 
     /// The triangles the ray from the origin along unit `d` certainly meets, as bits (in the

@@ -9,6 +9,7 @@ use super::{tiles_per_side, tree};
 use crate::accel::{self, beam::Beam};
 use crate::math::cubemap;
 use glam::{DVec2, DVec3, Vec3};
+use std::ops::Range;
 
 /// How far (in direction cosines) a ray may pass outside the box's cone from `p` and still meet
 /// the box from its offset origin: the offset is below 6e-5 · (|p|∞ + 1) (see
@@ -68,36 +69,34 @@ impl SeenBox {
         self.silhouette32.iter().all(|m| m.dot(d) <= ORIGIN_SLACK as f32)
     }
 
-    /// Per texel row `j` of face `f`, the columns whose centre directions can pass
+    /// Per texel row `j` in `rows` of face `f`, the columns whose centre directions can pass
     /// [`Self::meets`] (a superset): the silhouette planes bound an interval of the row's face
     /// coordinate s, since a direction's unnormalised form `c + s·S + t·T` (face basis) has
     /// length in [1, √3]. All columns when there are no planes (the exact test applies).
-    pub fn columns(&self, f: usize, res: usize) -> Vec<std::ops::Range<usize>> {
+    pub fn columns(&self, f: usize, res: usize, rows: Range<usize>) -> Vec<Range<usize>> {
         let (c, s_axis, t_axis) = cubemap::face_basis(f);
         // m · û ≤ slack (with single-precision rounding) implies m · u ≤ 2·slack.
         let bound = 2.0 * ORIGIN_SLACK;
         let planes: Vec<[f64; 3]> = self.silhouette.iter().map(|m| [m.dot(c), m.dot(t_axis), m.dot(s_axis)]).collect();
-        (0..res)
-            .map(|j| {
-                let t = cubemap::texel_center(0, j, res).y;
-                let (mut lo, mut hi) = (f64::NEG_INFINITY, f64::INFINITY);
-                for [mc, mt, b] in &planes {
-                    // m · u = a + s·b ≤ bound.
-                    let (a, b) = (mc + t * mt, *b);
-                    match b.partial_cmp(&0.0) {
-                        Some(std::cmp::Ordering::Greater) => hi = hi.min((bound - a) / b),
-                        Some(std::cmp::Ordering::Less) => lo = lo.max((bound - a) / b),
-                        _ if a > bound => hi = f64::NEG_INFINITY,
-                        _ => {}
-                    }
+        rows.map(|j| {
+            let t = cubemap::texel_center(0, j, res).y;
+            let (mut lo, mut hi) = (f64::NEG_INFINITY, f64::INFINITY);
+            for [mc, mt, b] in &planes {
+                // m · u = a + s·b ≤ bound.
+                let (a, b) = (mc + t * mt, *b);
+                match b.partial_cmp(&0.0) {
+                    Some(std::cmp::Ordering::Greater) => hi = hi.min((bound - a) / b),
+                    Some(std::cmp::Ordering::Less) => lo = lo.max((bound - a) / b),
+                    _ if a > bound => hi = f64::NEG_INFINITY,
+                    _ => {}
                 }
-                // Texel i's centre is s = (2i + 1)/res − 1; one texel of slack for rounding.
-                let column = |s: f64| (s + 1.0) * res as f64 / 2.0 - 0.5;
-                let first = column(lo).floor().max(0.0) as usize;
-                let end = (column(hi).ceil() + 1.0).clamp(0.0, res as f64) as usize;
-                first.min(end)..end
-            })
-            .collect()
+            }
+            // Texel i's centre is s = (2i + 1)/res − 1; one texel of slack for rounding.
+            let first = column(lo, res).floor().max(0.0) as usize;
+            let end = (column(hi, res).ceil() + 1.0).clamp(0.0, res as f64) as usize;
+            first.min(end)..end
+        })
+        .collect()
     }
 
     /// How much each tile sees of the box (per face, row-major tiles: `6 · tiles_per_side²`):
@@ -193,6 +192,85 @@ pub fn blocked_tiles(beam: &Beam, cover: &[Cover], n: Vec3, res: usize) -> Vec<b
     out
 }
 
+/// Per texel row `j` in `rows` of face `f`, the longest run of columns whose centre rays
+/// certainly meet one of `beam`'s front triangles — by more than [`Beam::hits`] asks, so it
+/// answers them `Some(true)` — and lie [`HIGH_ENOUGH`] above the horizon of unit normal `n`, so
+/// that they are cast through their centres from the beam's origin.
+pub fn certain_runs(beam: &Beam, n: Vec3, f: usize, res: usize, rows: Range<usize>) -> Vec<Range<usize>> {
+    let horizon = HalfSpace::new(f, n, HIGH_ENOUGH);
+    let triangles: Vec<[HalfSpace; 3]> =
+        beam.front_edge_planes().map(|p| p.map(|m| HalfSpace::new(f, m, accel::beam::MARGIN))).collect();
+    rows.map(|j| {
+        let t = cubemap::texel_center(0, j, res).y;
+        let Some(above) = horizon.clip(t, (-1.0, 1.0)) else { return 0..0 };
+        let mut runs = [(0, 0); accel::beam::MAX_TRIANGLES];
+        let mut count = 0;
+        for planes in &triangles {
+            let Some((lo, hi)) = planes.iter().try_fold(above, |span, h| h.clip(t, span)) else { continue };
+            // Centres strictly inside (lo, hi).
+            let first = (column(lo, res).floor() + 1.0).max(0.0) as usize;
+            let end = column(hi, res).ceil().clamp(0.0, res as f64) as usize;
+            if first < end {
+                runs[count] = (first, end);
+                count += 1;
+            }
+        }
+        let runs = &mut runs[..count];
+        runs.sort_unstable();
+        // Merge overlapping or touching runs; keep the longest.
+        let (mut best, mut current) = ((0, 0), (0, 0));
+        for &(start, end) in runs.iter() {
+            current = if start <= current.1 && current.0 < current.1 {
+                (current.0, current.1.max(end))
+            } else {
+                (start, end)
+            };
+            if current.1 - current.0 > best.1 - best.0 {
+                best = current;
+            }
+        }
+        best.0..best.1
+    })
+    .collect()
+}
+
+/// The directions û with `m · û > b` (plus the single-precision rounding of that test) on the
+/// rows of a face: where `m · u > b·|u|max` on the row's unnormalised `u = c + s·S + t·T`,
+/// with |u|max = √(2 + t²) over the row, a half-line of s.
+struct HalfSpace {
+    /// m · c, m · T, 1/(m · S) (infinite when 0), b.
+    mc: f64,
+    mt: f64,
+    inv_ms: f64,
+    b: f64,
+}
+
+impl HalfSpace {
+    fn new(f: usize, m: Vec3, b: f32) -> Self {
+        // Above the rounding of the single-precision dot products `Beam::hits` computes.
+        const ROUNDING: f64 = 1e-6;
+        let (c, s_axis, t_axis) = cubemap::face_basis(f);
+        let m = m.as_dvec3();
+        Self { mc: m.dot(c), mt: m.dot(t_axis), inv_ms: 1.0 / m.dot(s_axis), b: b as f64 + ROUNDING }
+    }
+
+    /// The part of the interval `(lo, hi)` of s on row `t` inside the half-space, if any.
+    fn clip(&self, t: f64, (lo, hi): (f64, f64)) -> Option<(f64, f64)> {
+        let excess = self.b * (2.0 + t * t).sqrt() - (self.mc + t * self.mt);
+        let (lo, hi) = match self.inv_ms {
+            x if x.is_infinite() => (if excess < 0.0 { lo } else { hi }, hi),
+            x if x > 0.0 => (lo.max(excess * x), hi),
+            x => (lo, hi.min(excess * x)),
+        };
+        (lo < hi).then_some((lo, hi))
+    }
+}
+
+/// The fractional column index of face coordinate s (texel i's centre is at i).
+fn column(s: f64, res: usize) -> f64 {
+    (s + 1.0) * res as f64 / 2.0 - 0.5
+}
+
 /// A face's tile grid, which depends on the resolution alone.
 struct FaceGrid {
     /// Unit normals of the planes of the grid lines s = edge(t), then t = edge(t), for
@@ -284,7 +362,7 @@ mod tests {
             for n in [Vec3::Y, Vec3::new(0.6, 0.8, 0.0), Vec3::new(0.0, 0.6, -0.8)] {
                 let seen = SeenBox::new(p, n, lo, hi);
                 let flags = seen.tiles(res);
-                let columns: Vec<_> = (0..6).map(|f| seen.columns(f, res)).collect();
+                let columns: Vec<_> = (0..6).map(|f| seen.columns(f, res, 0..res)).collect();
                 for (f, i, j) in (0..6).flat_map(|f| (0..res * res).map(move |t| (f, t % res, t / res))) {
                     let Some(d) = visibility::texel_ray(f, i, j, n.as_dvec3(), res).map(|d| d.as_vec3()) else {
                         continue;
@@ -348,6 +426,45 @@ mod tests {
             }
         }
         assert!(found > 20, "{found} blocked tiles");
+    }
+
+    /// Every texel of a certain run is answered `Some(true)` by the beam, through its centre,
+    /// from the beam's origin; and the runs hold most of the texels the beam answers so.
+    #[test]
+    fn certain_runs_are_certain_hits() {
+        let slab = crate::scene::shapes::cuboid(Vec3::new(1.5, 0.1, 0.5));
+        let at = |v: u32| slab.positions[v as usize] + Vec3::new(0.3, 1.2, -0.2);
+        let triangles: Vec<[Vec3; 3]> = slab.triangles.iter().map(|t| t.map(at)).collect();
+        let occ = accel::Occluders::new(&[triangles]);
+        let (mut in_runs, mut answered) = (0, 0);
+        for res in [64, 20] {
+            for (p, n) in [
+                (Vec3::ZERO, Vec3::Y),
+                (Vec3::new(2.5, 0.0, 1.0), Vec3::Y),
+                (Vec3::new(-0.4, 0.3, 0.2), Vec3::new(0.6, 0.8, 0.0)),
+                (Vec3::new(0.3, 2.0, -0.2), Vec3::NEG_Y),
+            ] {
+                let origin = visibility::horizon_origin(p, n);
+                let beam = occ.beam(0, origin).expect("a box makes a beam");
+                for f in 0..6 {
+                    let runs = certain_runs(&beam, n, f, res, 0..res);
+                    for (j, i) in (0..res).flat_map(|j| (0..res).map(move |i| (j, i))) {
+                        let centre = cubemap::face_to_dir(f, cubemap::texel_center(i, j, res));
+                        let ray = visibility::texel_ray(f, i, j, n.as_dvec3(), res);
+                        let d = centre.as_vec3();
+                        let certain = beam.hits(d) == Some(true) && n.dot(d) > HIGH_ENOUGH;
+                        answered += certain as usize;
+                        if runs[j].contains(&i) {
+                            in_runs += 1;
+                            let at = format!("res {res}, p {p}, n {n}: texel ({f}, {i}, {j})");
+                            assert!(certain && ray == Some(centre), "{at}");
+                            assert_eq!(visibility::ray_origin(origin, p, n, d), origin, "{at}");
+                        }
+                    }
+                }
+            }
+        }
+        assert!(in_runs * 10 > answered * 8, "{in_runs} texels in runs of {answered} certain hits");
     }
 
     /// The silhouette planes touch the box and bound its cone: every corner is on or behind

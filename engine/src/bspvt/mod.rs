@@ -186,7 +186,8 @@ pub struct Change {
 /// only be blocked now by a changed occluder (cast against those alone), a blocked one that
 /// meets no old bounds stays blocked; only tiles whose visibility changed are built again.
 /// A changed occluder with few triangles is tested without its BVH ([`accel::beam`]) where
-/// the answer is certain, and tiles whose every ray certainly meets it are not visited.
+/// the answer is certain, and neither tiles whose every ray certainly meets it nor the runs of
+/// a row's texels that certainly do are visited texel by texel.
 /// Identical to [`bake_vertex`] of the edited scene: a ray's result against an occluder
 /// depends on that occluder alone (see [`Occluders`]). An empty `old` record bakes from
 /// scratch. Settings, subtrees and reach as in [`bake_vertex`]; `old` must have been baked
@@ -326,7 +327,6 @@ impl<'a> Edit<'a> {
         let live: Vec<bool> =
             visibility::live_tiles(self.n, f, res).into_iter().enumerate().map(|(t, l)| l && reached(t)).collect();
         let was = tree::old_visibility(old.0, old.1, res, &live);
-        let rows: Vec<Vec<Range<usize>>> = self.boxes().map(|b| b.bounds.columns(f, res)).collect();
         let looks: Vec<Look> = (0..dirty.len())
             .map(|t| match (reached(t), dirty[t], self.blocked[first + t]) {
                 (false, ..) => Look::Unreached,
@@ -335,9 +335,49 @@ impl<'a> Edit<'a> {
                 (true, true, true) => Look::Blocked,
             })
             .collect();
-        let columns = |t: usize, j: usize| self.columns(first + t, j, &rows);
+        let cast = |t: usize| matches!(looks[t], Look::Cast | Look::Blocked);
+        // The rows of the tiles that may be cast: the only ones asked about.
+        let span = tile_rows(res, cast);
+        let face = first..first + dirty.len();
+        let rows: Vec<Vec<Range<usize>>> = self
+            .boxes()
+            .map(|b| {
+                let seen = b.cover[face.clone()].contains(&dirty::Cover::Some);
+                if seen { b.bounds.columns(f, res, span.clone()) } else { Vec::new() }
+            })
+            .collect();
+        let occluded = self.certain_runs(f, res, span.clone(), cast);
+        let row = |t: usize, j: usize| visibility::Row {
+            ask: self.columns(first + t, &rows, j - span.start),
+            occluded: occluded[j - span.start].clone(),
+        };
         let texel = |t: usize, bit, d| self.texel(first + t, d, was[t] & bit != 0, rays);
-        visibility::cast_tiles(self.n, f, res, &looks, columns, texel)
+        visibility::cast_tiles(self.n, f, res, &looks, row, texel)
+    }
+
+    /// Per texel row in `span` of face `f`, the longest run of columns whose rays certainly
+    /// meet a changed occluder's triangles now (see [`dirty::certain_runs`]), looked for in the
+    /// rows of the tiles `cast` picks that can see the occluder's bounds.
+    fn certain_runs(
+        &self,
+        f: usize,
+        res: usize,
+        span: Range<usize>,
+        cast: impl Fn(usize) -> bool,
+    ) -> Vec<Range<usize>> {
+        let first = f * tiles_per_side(res).pow(2);
+        let mut out = vec![0..0; span.len()];
+        for b in &self.after {
+            let Some(beam) = &b.beam else { continue };
+            let rows = tile_rows(res, |t| cast(t) && b.cover[first + t] != dirty::Cover::None);
+            for (j, run) in rows.clone().zip(dirty::certain_runs(beam, self.n, f, res, rows)) {
+                let longest = &mut out[j - span.start];
+                if run.len() > longest.len() {
+                    *longest = run;
+                }
+            }
+        }
+        out
     }
 
     /// Old bounds, then new.
@@ -345,14 +385,14 @@ impl<'a> Edit<'a> {
         self.before.iter().chain(&self.after)
     }
 
-    /// The columns of texel row `j` through tile `t` (of all six faces) whose rays can meet a
-    /// box: the hull over [`Self::boxes`] of their `rows[b][j]` ([`dirty::SeenBox::columns`]),
+    /// The columns of a texel row through tile `t` (of all six faces) whose rays can meet a
+    /// box: the hull over [`Self::boxes`] of their `rows[b][row]` ([`dirty::SeenBox::columns`]),
     /// all columns for a box covering the tile, none for one it cannot see.
-    fn columns(&self, t: usize, j: usize, rows: &[Vec<Range<usize>>]) -> Range<usize> {
+    fn columns(&self, t: usize, rows: &[Vec<Range<usize>>], row: usize) -> Range<usize> {
         let all = 0..usize::MAX;
         let spans = self.boxes().zip(rows).filter_map(|(b, r)| match b.cover[t] {
             dirty::Cover::None => None,
-            dirty::Cover::Some => Some(r[j].clone()),
+            dirty::Cover::Some => Some(r[row].clone()),
             dirty::Cover::All => Some(all.clone()),
         });
         spans.filter(|r| !r.is_empty()).reduce(|a, b| a.start.min(b.start)..a.end.max(b.end)).unwrap_or(0..0)
@@ -385,6 +425,17 @@ impl<'a> Edit<'a> {
                 visibility::cast_ray(self.occluders, o, d)
             }
         }
+    }
+}
+
+/// The texel rows of a face (resolution `res`) from the first to the last row of the tiles
+/// `pick` picks.
+fn tile_rows(res: usize, pick: impl Fn(usize) -> bool) -> Range<usize> {
+    let k = tiles_per_side(res);
+    let picked = || (0..k * k).filter(|&t| pick(t));
+    match (picked().next(), picked().next_back()) {
+        (Some(a), Some(b)) => a / k * tree::TILE..((b / k + 1) * tree::TILE).min(res),
+        _ => 0..0,
     }
 }
 

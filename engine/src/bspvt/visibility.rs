@@ -60,7 +60,8 @@ pub fn cast_face_tiles(
         .map(|t| if reached.is_none_or(|r| r[t]) { Look::Cast } else { Look::Unreached })
         .collect();
     let above = horizon_origin(p, n);
-    cast_tiles(n, f, res, &looks, |_, _| 0..res, |_, _, d| cast_ray(occluders, ray_origin(above, p, n, d), d))
+    let every = |_, _| Row { ask: 0..res, occluded: 0..0 };
+    cast_tiles(n, f, res, &looks, every, |_, _, d| cast_ray(occluders, ray_origin(above, p, n, d), d))
 }
 
 /// The direction cast for texel (i, j) of face `f` above the horizon of unit normal `nd`:
@@ -189,14 +190,15 @@ fn tile_mask(t: usize, k: usize, res: usize) -> u64 {
 /// [`TILE`]-texel tiles, the last ones narrower when `res` is not a multiple):
 /// `texel(tile, bit, direction)` returns [`VISIBLE`], [`OCCLUDED`] or [`SKIPPED`]. A tile kept
 /// is not looked at texel by texel: when it is live (see [`live_tiles`]) all of it is
-/// `SKIPPED`. In a tile whose texel centres are all above the horizon only the texels of row `j` in
-/// `columns(tile, j)` are asked; the others are `SKIPPED` too.
+/// `SKIPPED`. Of a cast tile's row `j`, the columns `rows(tile, j).occluded` are `OCCLUDED`
+/// without asking; in a tile whose texel centres are all above the horizon only the other
+/// columns in `rows(tile, j).ask` are asked, the rest are `SKIPPED` too.
 pub fn cast_tiles(
     n: Vec3,
     f: usize,
     res: usize,
     tiles: &[Look],
-    columns: impl Fn(usize, usize) -> std::ops::Range<usize>,
+    rows: impl Fn(usize, usize) -> Row,
     mut texel: impl FnMut(usize, u64, Vec3) -> u8,
 ) -> Vec<TileBits> {
     let nd = n.as_dvec3();
@@ -243,8 +245,14 @@ pub fn cast_tiles(
             }
             let mut asked = 0;
             for j in j0..j1 {
-                let cols = if above { columns(t, j) } else { i0..i1 };
-                for i in cols.start.max(i0)..cols.end.min(i1) {
+                let row = rows(t, j);
+                let known = row.occluded.start.max(i0)..row.occluded.end.min(i1);
+                if !known.is_empty() {
+                    // Occluded: live, neither visible nor skipped.
+                    asked |= (u64::MAX >> (64 - known.len())) << tile_bit(known.start, j, k).1.trailing_zeros();
+                }
+                let cols = if above { row.ask } else { i0..i1 };
+                for i in (cols.start.max(i0)..cols.end.min(i1)).filter(|i| !known.contains(i)) {
                     let centre = centres[(f * res + j) * res + i];
                     let d = if above { Some(centre) } else { ray_through(centre, f, i, j, nd, res) };
                     let Some(d) = d else { continue };
@@ -266,6 +274,16 @@ pub fn cast_tiles(
         }
     });
     out
+}
+
+/// What [`cast_tiles`] does with a texel row of a cast tile.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Row {
+    /// The columns to ask for, when every texel centre of the tile is above the horizon (else
+    /// all are asked).
+    pub ask: std::ops::Range<usize>,
+    /// Columns known `OCCLUDED` without asking; their centres must be above the horizon.
+    pub occluded: std::ops::Range<usize>,
 }
 
 /// How [`cast_tiles`] treats a tile.
@@ -314,8 +332,8 @@ mod tests {
 
     /// A kept tile is all `SKIPPED` exactly when the full cast has a texel of it above the
     /// horizon (else all `BELOW`, and [`live_tiles`] agrees); a cast one has the states `texel`
-    /// gives, which it is asked for exactly above the horizon; a blocked one entirely above the
-    /// horizon is all `OCCLUDED`, else as if cast.
+    /// gives, which it is asked for exactly above the horizon, except the known occluded ones;
+    /// a blocked one entirely above the horizon is all `OCCLUDED`, else as if cast.
     #[test]
     fn selected_casts_agree_with_the_full_cast() {
         let roof = [Vec3::new(-2.0, 1.0, -2.0), Vec3::new(2.0, 1.0, -2.0), Vec3::new(0.0, 1.0, 2.0)];
@@ -333,8 +351,16 @@ mod tests {
                 let texel = |_, _, d: Vec3| {
                     if d.x > 0.0 { cast_ray(&occ, offset_ray_origin(Vec3::ZERO, n, d), d) } else { SKIPPED }
                 };
-                // Rows ask for columns [j mod 5, j mod 5 + 9): most tiles are cut by it.
-                let columns = |_, j: usize| j % 5..j % 5 + 9;
+                let height =
+                    |i: usize, j: usize| cubemap::face_to_dir(f, cubemap::texel_center(i, j, res)).dot(n.as_dvec3());
+                // Rows ask for columns [j mod 5, j mod 5 + 9): most tiles are cut by it. Columns
+                // [j mod 4, j mod 4 + 3) are known occluded where their centres are above the
+                // horizon, as the contract asks.
+                let occluded = |j: usize| {
+                    let run = j % 4..(j % 4 + 3).min(res);
+                    if run.clone().all(|i| height(i, j) > 0.0) { run } else { 0..0 }
+                };
+                let columns = |_, j: usize| Row { ask: j % 5..j % 5 + 9, occluded: occluded(j) };
                 let some = TileBits::to_face(&cast_tiles(n, f, res, &flags, columns, texel), res);
                 for (x, (&a, &b)) in full.iter().zip(&some).enumerate() {
                     let (i, j) = (x % res, x / res);
@@ -344,11 +370,11 @@ mod tests {
                     assert_eq!(live[tile], in_live_tile, "n {n}, face {f}, tile {tile}");
                     // Every texel centre of the tile above the horizon.
                     let (i0, j0) = (i / TILE * TILE, j / TILE * TILE);
-                    let above =
-                        (j0..(j0 + TILE).min(res)).flat_map(|b| (i0..(i0 + TILE).min(res)).map(move |a| (a, b))).all(
-                            |(a, b)| cubemap::face_to_dir(f, cubemap::texel_center(a, b, res)).dot(n.as_dvec3()) > 1e-9,
-                        );
-                    let expected = if flags[tile] == Look::Blocked && above {
+                    let above = (j0..(j0 + TILE).min(res))
+                        .flat_map(|b| (i0..(i0 + TILE).min(res)).map(move |a| (a, b)))
+                        .all(|(a, b)| height(a, b) > 1e-9);
+                    let known = flags[tile] != Look::Keep && occluded(j).contains(&i);
+                    let expected = if (flags[tile] == Look::Blocked && above) || known {
                         OCCLUDED
                     } else if flags[tile] != Look::Keep {
                         let d = texel_ray(f, i, j, n.as_dvec3(), res).map(|d| d.as_vec3());
