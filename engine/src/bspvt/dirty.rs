@@ -5,10 +5,11 @@
 //! test runs on every texel of a touched tile, so from far enough away it is a few dot products
 //! against the planes bounding the box's cone rather than a ray–box intersection.
 
-use super::{tiles_per_side, tree};
+use super::grid::{FaceGrid, with_grids};
+use super::tiles_per_side;
 use crate::accel::{self, beam::Beam};
 use crate::math::cubemap;
-use glam::{DVec2, DVec3, Vec3};
+use glam::{DVec3, Vec3};
 use std::ops::Range;
 
 /// How far (in direction cosines) a ray may pass outside the box's cone from `p` and still meet
@@ -123,31 +124,41 @@ impl SeenBox {
                     continue;
                 }
                 // Per grid line: the box lies entirely before it, or entirely past it.
-                let sides: Vec<(bool, bool)> = grid.lines.iter().map(|pl| (outside(*pl), outside(-*pl))).collect();
-                let (cols, rows) = sides.split_at(k + 1);
-                // Per grid corner, bit b set when it lies beyond silhouette plane b by the margin,
-                // or inside it (a box has at most 12 such planes, one per edge).
-                let masks: Vec<(u16, u16)> = grid
-                    .corners
+                let sides: Vec<(bool, bool)> = grid
+                    .lines
                     .iter()
-                    .map(|d| {
+                    .map(|pl| {
+                        let x = || self.corners.iter().zip(&lengths).map(|(c, l)| (pl.dot(*c), margin * l));
+                        (x().all(|(x, m)| x < -m), x().all(|(x, m)| x > m))
+                    })
+                    .collect();
+                let (cols, rows) = sides.split_at(k + 1);
+                // Per grid corner, computed when a tile first needs it: bit b set when it lies
+                // beyond silhouette plane b by the margin, or inside it (a box has at most 12
+                // such planes, one per edge).
+                let mut masks: Vec<Option<(u16, u16)>> = vec![None; grid.corners.len()];
+                let mut mask = |c: usize| {
+                    *masks[c].get_or_insert_with(|| {
                         self.silhouette.iter().enumerate().fold((0, 0), |(beyond, inside), (b, m)| {
-                            let x = m.dot(*d);
+                            let x = m.dot(grid.corners[c]);
                             (beyond | ((x > margin) as u16) << b, inside | ((x <= 0.0) as u16) << b)
                         })
                     })
-                    .collect();
+                };
                 let every = (1u16 << self.silhouette.len()) - 1;
-                for (tj, ti) in (0..k).flat_map(|tj| (0..k).map(move |ti| (tj, ti))) {
-                    let framed = !(cols[ti].0 || cols[ti + 1].1 || rows[tj].0 || rows[tj + 1].1);
+                for t in 0..k * k {
+                    let (ti, tj) = (t % k, t / k);
+                    if cols[ti].0 || cols[ti + 1].1 || rows[tj].0 || rows[tj + 1].1 {
+                        out.push(Cover::None);
+                        continue;
+                    }
                     // A direction in the tile is a positive combination of its corners: beyond a
                     // plane by the margin when all four corners are, inside every plane when all
                     // four are.
-                    let at = tj * (k + 1) + ti;
-                    let (beyond, inside) = [at, at + 1, at + k + 1, at + k + 2]
-                        .iter()
-                        .fold((every, every), |(b, i), &c| (b & masks[c].0, i & masks[c].1));
-                    out.push(if !framed || beyond != 0 {
+                    let (beyond, inside) = FaceGrid::tile_corners(t, k)
+                        .into_iter()
+                        .fold((every, every), |(b, i), c| (b & mask(c).0, i & mask(c).1));
+                    out.push(if beyond != 0 {
                         Cover::None
                     } else if every != 0 && inside == every {
                         Cover::All
@@ -177,8 +188,7 @@ pub fn blocked_tiles(beam: &Beam, cover: &[Cover], n: Vec3, res: usize) -> Vec<b
             // Per grid corner, computed when a tile first needs it.
             let mut inside = vec![None; (k + 1) * (k + 1)];
             for t in (0..k * k).filter(|t| cover[f * k * k + t] == Cover::All) {
-                let at = t / k * (k + 1) + t % k;
-                let mask = [at, at + 1, at + k + 1, at + k + 2].iter().fold(u32::MAX, |m, &c| {
+                let mask = FaceGrid::tile_corners(t, k).into_iter().fold(u32::MAX, |m, c| {
                     m & *inside[c].get_or_insert_with(|| {
                         let d = grid.corners[c].as_vec3();
                         // Any positive combination of the corners is as high (see `Beam::inside`).
@@ -271,42 +281,6 @@ fn column(s: f64, res: usize) -> f64 {
     (s + 1.0) * res as f64 / 2.0 - 0.5
 }
 
-/// A face's tile grid, which depends on the resolution alone.
-struct FaceGrid {
-    /// Unit normals of the planes of the grid lines s = edge(t), then t = edge(t), for
-    /// t = 0..=k (positive side: larger s or t).
-    lines: Vec<DVec3>,
-    /// Unit directions of the grid's (k + 1)² corners, row-major.
-    corners: Vec<DVec3>,
-}
-
-impl FaceGrid {
-    fn new(f: usize, res: usize) -> Self {
-        let k = tiles_per_side(res);
-        let edge = |t: usize| 2.0 * (t * tree::TILE).min(res) as f64 / res as f64 - 1.0;
-        let line = |a: f64, b: f64| (0..=k).map(move |t| cubemap::line_plane(f, a, b, -edge(t)).normalize());
-        let lines = line(1.0, 0.0).chain(line(0.0, 1.0)).collect();
-        let corner = |x: usize| cubemap::face_to_dir(f, DVec2::new(edge(x % (k + 1)), edge(x / (k + 1))));
-        Self { lines, corners: (0..(k + 1) * (k + 1)).map(corner).collect() }
-    }
-}
-
-/// Runs `f` on the six faces' grids at resolution `res`.
-fn with_grids<R>(res: usize, f: impl FnOnce(&[FaceGrid]) -> R) -> R {
-    GRIDS.with_borrow_mut(|(at, grids)| {
-        if *at != res {
-            (*at, *grids) = (res, (0..6).map(|f| FaceGrid::new(f, res)).collect());
-        }
-        f(grids)
-    })
-}
-
-thread_local! {
-    /// The six faces' grids at the last resolution this thread used (see `visibility`'s table
-    /// of texel directions for why per thread).
-    static GRIDS: std::cell::RefCell<(usize, Vec<FaceGrid>)> = const { std::cell::RefCell::new((0, Vec::new())) };
-}
-
 /// The corners of the box `[lo, hi]` relative to `p` (bit 0 of the index picks x, 1 y, 2 z).
 fn corners_from(p: DVec3, lo: DVec3, hi: DVec3) -> [DVec3; 8] {
     std::array::from_fn(|c| DVec3::select(glam::BVec3::new(c & 1 == 0, c & 2 == 0, c & 4 == 0), lo, hi) - p)
@@ -329,7 +303,7 @@ fn silhouette_planes(corners: &[DVec3; 8]) -> Vec<DVec3> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bspvt::visibility;
+    use crate::bspvt::{tree, visibility};
 
     /// The tests are conservative: no texel ray the texel test rejects, nor any in a tile the
     /// tile test leaves clean, meets the box (from the ray's offset origin, as cast), and no

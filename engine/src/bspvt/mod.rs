@@ -19,6 +19,7 @@
 
 pub mod cache;
 pub mod dirty;
+pub mod grid;
 pub mod layout;
 pub mod plan;
 pub mod reach;
@@ -324,8 +325,8 @@ impl<'a> Edit<'a> {
         let first = f * dirty.len();
         let reached = |t: usize| self.reached.as_ref().is_none_or(|r| r[first + t]);
         // The tiles that shaped the old tree: above the horizon and in reach.
-        let live: Vec<bool> =
-            visibility::live_tiles(self.n, f, res).into_iter().enumerate().map(|(t, l)| l && reached(t)).collect();
+        let face = visibility::Horizon::new(self.n, f, res);
+        let live: Vec<bool> = face.live().into_iter().enumerate().map(|(t, l)| l && reached(t)).collect();
         let was = tree::old_visibility(old.0, old.1, res, &live);
         let looks: Vec<Look> = (0..dirty.len())
             .map(|t| match (reached(t), dirty[t], self.blocked[first + t]) {
@@ -338,11 +339,11 @@ impl<'a> Edit<'a> {
         let cast = |t: usize| matches!(looks[t], Look::Cast | Look::Blocked);
         // The rows of the tiles that may be cast: the only ones asked about.
         let span = tile_rows(res, cast);
-        let face = first..first + dirty.len();
+        let tiles = first..first + dirty.len();
         let rows: Vec<Vec<Range<usize>>> = self
             .boxes()
             .map(|b| {
-                let seen = b.cover[face.clone()].contains(&dirty::Cover::Some);
+                let seen = b.cover[tiles.clone()].contains(&dirty::Cover::Some);
                 if seen { b.bounds.columns(f, res, span.clone()) } else { Vec::new() }
             })
             .collect();
@@ -352,7 +353,7 @@ impl<'a> Edit<'a> {
             occluded: occluded[j - span.start].clone(),
         };
         let texel = |t: usize, bit, d| self.texel(first + t, d, was[t] & bit != 0, rays);
-        visibility::cast_tiles(self.n, f, res, &looks, row, texel)
+        visibility::cast_tiles(&face, &looks, row, texel)
     }
 
     /// Per texel row in `span` of face `f`, the longest run of columns whose rays certainly

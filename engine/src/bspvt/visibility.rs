@@ -1,6 +1,7 @@
 //! Per-vertex visibility cube maps, ray-cast with the BVH. Texels entirely below the vertex's
 //! horizon are never cast: LTC clips there, so their visibility cannot matter.
 
+use super::grid;
 use super::tree::TILE;
 use crate::accel::{Occluders, offset_ray_origin};
 use crate::math::cubemap;
@@ -61,7 +62,7 @@ pub fn cast_face_tiles(
         .collect();
     let above = horizon_origin(p, n);
     let every = |_, _| Row { ask: 0..res, occluded: 0..0 };
-    cast_tiles(n, f, res, &looks, every, |_, _, d| cast_ray(occluders, ray_origin(above, p, n, d), d))
+    cast_tiles(&Horizon::new(n, f, res), &looks, every, |_, _, d| cast_ray(occluders, ray_origin(above, p, n, d), d))
 }
 
 /// The direction cast for texel (i, j) of face `f` above the horizon of unit normal `nd`:
@@ -139,41 +140,49 @@ fn tile_bit(i: usize, j: usize, k: usize) -> (usize, u64) {
     ((j / TILE) * k + i / TILE, 1u64 << ((j % TILE) * TILE + i % TILE))
 }
 
-/// Which tiles of face `f` (row-major) have a texel above the horizon of unit normal `n`: those
-/// with a corner above it (the height's sign is affine over a face, so a tile's highest point
-/// is a corner, and a texel with a corner above the horizon is cast; see [`texel_ray`]).
+/// Which tiles of face `f` (row-major) have a texel above the horizon of unit normal `n` (see
+/// [`Horizon::live`]).
 pub fn live_tiles(n: Vec3, f: usize, res: usize) -> Vec<bool> {
-    let heights = TileHeights::new(n.as_dvec3(), f, res);
-    (0..heights.k * heights.k).map(|t| heights.corners(t).iter().any(|&h| h > 0.0)).collect()
+    Horizon::new(n, f, res).live()
 }
 
-/// The height above the horizon of unit normal `nd` of texel corner (i, j) of face `f`.
-fn corner_height(nd: DVec3, f: usize, res: usize) -> impl Fn(usize, usize) -> f64 {
-    let edge = move |k: usize| 2.0 * k as f64 / res as f64 - 1.0;
-    move |i, j| cubemap::face_to_dir(f, glam::DVec2::new(edge(i), edge(j))).dot(nd)
-}
-
-/// [`corner_height`] at the corners of a face's tiles, each computed once.
-struct TileHeights {
+/// Face `f` of a vertex's visibility cube map at resolution `res`, with the heights above the
+/// horizon of its unit normal `n` of the face's tile-grid corners (see [`grid`]).
+pub struct Horizon {
+    n: Vec3,
+    f: usize,
+    res: usize,
     /// Tiles per side.
     k: usize,
     /// (k + 1)² heights, row-major.
     heights: Vec<f64>,
 }
 
-impl TileHeights {
-    fn new(nd: DVec3, f: usize, res: usize) -> Self {
-        let k = res.div_ceil(TILE);
-        let height = corner_height(nd, f, res);
-        let heights =
-            (0..(k + 1) * (k + 1)).map(|c| height((c % (k + 1) * TILE).min(res), (c / (k + 1) * TILE).min(res)));
-        Self { k, heights: heights.collect() }
+impl Horizon {
+    /// Face `f` at resolution `res` of a vertex with unit normal `n`.
+    pub fn new(n: Vec3, f: usize, res: usize) -> Self {
+        let nd = n.as_dvec3();
+        let heights = grid::with_grids(res, |grids| grids[f].corners.iter().map(|c| c.dot(nd)).collect());
+        Self { n, f, res, k: res.div_ceil(TILE), heights }
+    }
+
+    /// Which tiles (row-major) have a texel above the horizon: those with a corner above it
+    /// (the height's sign is affine over a face, so a tile's highest point is a corner, and a
+    /// texel with a corner above the horizon is cast; see [`texel_ray`]).
+    pub fn live(&self) -> Vec<bool> {
+        (0..self.k * self.k).map(|t| self.corners(t).iter().any(|&h| h > 0.0)).collect()
+    }
+
+    /// Whether the whole face is below the horizon: its four corners are (with a margin for
+    /// rounding there).
+    fn below(&self) -> bool {
+        let k = self.k;
+        [0, k, k * (k + 1), (k + 1) * (k + 1) - 1].iter().all(|&c| self.heights[c] < -1e-9)
     }
 
     /// Tile `t`'s corner heights.
     fn corners(&self, t: usize) -> [f64; 4] {
-        let at = t / self.k * (self.k + 1) + t % self.k;
-        [at, at + 1, at + self.k + 1, at + self.k + 2].map(|c| self.heights[c])
+        grid::FaceGrid::tile_corners(t, self.k).map(|c| self.heights[c])
     }
 }
 
@@ -185,8 +194,8 @@ fn tile_mask(t: usize, k: usize, res: usize) -> u64 {
     (0..h).fold(0, |m, j| m | row << (j * TILE))
 }
 
-/// The tiles of face `f` for a vertex with unit normal `n`, asking `texel` for the state of
-/// each texel above the horizon, tile by tile as `tiles` says (see [`Look`]; row-major,
+/// The tiles of a vertex's `face`, asking `texel` for the state of each texel above the
+/// horizon, tile by tile as `tiles` says (see [`Look`]; row-major,
 /// [`TILE`]-texel tiles, the last ones narrower when `res` is not a multiple):
 /// `texel(tile, bit, direction)` returns [`VISIBLE`], [`OCCLUDED`] or [`SKIPPED`]. A tile kept
 /// is not looked at texel by texel: when it is live (see [`live_tiles`]) all of it is
@@ -194,23 +203,17 @@ fn tile_mask(t: usize, k: usize, res: usize) -> u64 {
 /// without asking; in a tile whose texel centres are all above the horizon only the other
 /// columns in `rows(tile, j).ask` are asked, the rest are `SKIPPED` too.
 pub fn cast_tiles(
-    n: Vec3,
-    f: usize,
-    res: usize,
+    face: &Horizon,
     tiles: &[Look],
     rows: impl Fn(usize, usize) -> Row,
     mut texel: impl FnMut(usize, u64, Vec3) -> u8,
 ) -> Vec<TileBits> {
-    let nd = n.as_dvec3();
-    let height = corner_height(nd, f, res);
-    let k = res.div_ceil(TILE);
+    let (f, res, k) = (face.f, face.res, face.k);
+    let nd = face.n.as_dvec3();
     let mut out = vec![TileBits::default(); k * k];
-    // A face is below the horizon when its corners are (with a margin for rounding at the
-    // face's corners).
-    if [(0, 0), (res, 0), (0, res), (res, res)].iter().all(|&(i, j)| height(i, j) < -1e-9) {
+    if face.below() {
         return out;
     }
-    let tile_heights = TileHeights::new(nd, f, res);
     CENTRES.with_borrow_mut(|(at, centres)| {
         if *at != res {
             *at = res;
@@ -221,7 +224,7 @@ pub fn cast_tiles(
         for (t, bits) in out.iter_mut().enumerate() {
             let (i0, j0) = ((t % k) * TILE, (t / k) * TILE);
             let (i1, j1) = ((i0 + TILE).min(res), (j0 + TILE).min(res));
-            let heights = tile_heights.corners(t);
+            let heights = face.corners(t);
             let all = tile_mask(t, k, res);
             // Every texel centre above the horizon (the lowest is a corner texel's: height is
             // affine over a face): every texel is cast through its centre, and only the asked
@@ -361,7 +364,7 @@ mod tests {
                     if run.clone().all(|i| height(i, j) > 0.0) { run } else { 0..0 }
                 };
                 let columns = |_, j: usize| Row { ask: j % 5..j % 5 + 9, occluded: occluded(j) };
-                let some = TileBits::to_face(&cast_tiles(n, f, res, &flags, columns, texel), res);
+                let some = TileBits::to_face(&cast_tiles(&Horizon::new(n, f, res), &flags, columns, texel), res);
                 for (x, (&a, &b)) in full.iter().zip(&some).enumerate() {
                     let (i, j) = (x % res, x / res);
                     let tile = (j / TILE) * k + i / TILE;
