@@ -212,11 +212,13 @@ pub fn certain_runs(beam: &Beam, n: Vec3, f: usize, res: usize, rows: Range<usiz
         beam.front_edge_planes().map(|p| p.map(|m| HalfSpace::new(f, m, accel::beam::MARGIN))).collect();
     rows.map(|j| {
         let t = cubemap::texel_center(0, j, res).y;
-        let Some(above) = horizon.clip(t, (-1.0, 1.0)) else { return 0..0 };
+        // The longest |u| on the row, |s| ≤ 1.
+        let row = (t, (2.0 + t * t).sqrt());
+        let Some(above) = horizon.clip(row, (-1.0, 1.0)) else { return 0..0 };
         let mut runs = [(0, 0); accel::beam::MAX_TRIANGLES];
         let mut count = 0;
         for planes in &triangles {
-            let Some((lo, hi)) = planes.iter().try_fold(above, |span, h| h.clip(t, span)) else { continue };
+            let Some((lo, hi)) = planes.iter().try_fold(above, |span, h| h.clip(row, span)) else { continue };
             // Centres strictly inside (lo, hi).
             let first = (column(lo, res).floor() + 1.0).max(0.0) as usize;
             let end = column(hi, res).ceil().clamp(0.0, res as f64) as usize;
@@ -264,9 +266,10 @@ impl HalfSpace {
         Self { mc: m.dot(c), mt: m.dot(t_axis), inv_ms: 1.0 / m.dot(s_axis), b: b as f64 + ROUNDING }
     }
 
-    /// The part of the interval `(lo, hi)` of s on row `t` inside the half-space, if any.
-    fn clip(&self, t: f64, (lo, hi): (f64, f64)) -> Option<(f64, f64)> {
-        let excess = self.b * (2.0 + t * t).sqrt() - (self.mc + t * self.mt);
+    /// The part of the interval `(lo, hi)` of s inside the half-space on the row at `t` whose
+    /// longest |u| is `longest`, if any.
+    fn clip(&self, (t, longest): (f64, f64), (lo, hi): (f64, f64)) -> Option<(f64, f64)> {
+        let excess = self.b * longest - (self.mc + t * self.mt);
         let (lo, hi) = match self.inv_ms {
             x if x.is_infinite() => (if excess < 0.0 { lo } else { hi }, hi),
             x if x > 0.0 => (lo.max(excess * x), hi),
