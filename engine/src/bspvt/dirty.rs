@@ -128,8 +128,8 @@ impl SeenBox {
                     .lines
                     .iter()
                     .map(|pl| {
-                        let x = || self.corners.iter().zip(&lengths).map(|(c, l)| (pl.dot(*c), margin * l));
-                        (x().all(|(x, m)| x < -m), x().all(|(x, m)| x > m))
+                        let dots = || self.corners.iter().zip(&lengths).map(|(c, l)| (pl.dot(*c), margin * l));
+                        (dots().all(|(d, m)| d < -m), dots().all(|(d, m)| d > m))
                     })
                     .collect();
                 let (cols, rows) = sides.split_at(k + 1);
