@@ -63,8 +63,9 @@ impl Beam {
     }
 
     /// The edge planes (see [`Self::inside`]) of the triangles that turn their front to the
-    /// origin: a ray into a closed mesh enters through one of them, so they are the ones a
-    /// search for certain hits needs to look at (the others can only add hits near their edges).
+    /// origin: a ray into a closed mesh enters through one of them, so a search for certain hits
+    /// can skip the others (they would add only rays near the front triangles' edges, or, on an
+    /// open mesh, rays that meet back faces alone; a caller asks [`Self::hits`] about those).
     pub fn front_edge_planes(&self) -> impl Iterator<Item = &[Vec3; 3]> {
         self.planes.iter().enumerate().filter(|(b, _)| self.front >> b & 1 == 1).map(|(_, p)| p)
     }
@@ -155,6 +156,23 @@ mod tests {
             assert_eq!((beam.inside(d), beam.hits(d)), (1, Some(true)), "{d}");
         }
         assert_eq!(beam.inside(Vec3::new(1.0, 1.0, 1.0).normalize()), 0);
+    }
+
+    /// Of a closed box (counter-clockwise seen from outside), the front triangles are those of
+    /// the faces the origin sees: two from straight above, six from off a corner; a triangle
+    /// wound the other way is not front.
+    #[test]
+    fn front_triangles_are_the_faces_seen() {
+        let cuboid = crate::scene::shapes::cuboid(Vec3::splat(0.5));
+        let triangles: Vec<[Vec3; 3]> =
+            cuboid.triangles.iter().map(|t| t.map(|v| cuboid.positions[v as usize])).collect();
+        for (origin, seen) in [(Vec3::new(0.0, 3.0, 0.0), 2), (Vec3::new(2.0, 3.0, -4.0), 6)] {
+            assert_eq!(Beam::new(origin, &triangles).front_edge_planes().count(), seen, "{origin}");
+        }
+        let roof = [Vec3::new(-1.0, 1.0, -1.0), Vec3::new(-1.0, 1.0, 1.0), Vec3::new(1.0, 1.0, 0.0)];
+        let flipped = [roof[0], roof[2], roof[1]];
+        let count = |t: [Vec3; 3]| Beam::new(Vec3::ZERO, &[t]).front_edge_planes().count();
+        assert_eq!(count(roof) + count(flipped), 1);
     }
 
     /// A triangle whose plane passes through the origin never gives a certain miss.
