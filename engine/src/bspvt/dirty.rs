@@ -204,7 +204,7 @@ pub fn blocked_tiles(beam: &Beam, cover: &[Cover], n: Vec3, res: usize) -> Vec<b
 
 /// Per texel row `j` in `rows` of face `f`, the longest run of columns whose centre rays
 /// certainly meet one of `beam`'s front triangles — by more than [`Beam::hits`] asks, so it
-/// answers them `Some(true)` — and lie [`HIGH_ENOUGH`] above the horizon of unit normal `n`, so
+/// answers them `Some(true)` — and lie `HIGH_ENOUGH` (10⁻⁴) above the horizon of unit normal `n`, so
 /// that they are cast through their centres from the beam's origin.
 pub fn certain_runs(beam: &Beam, n: Vec3, f: usize, res: usize, rows: Range<usize>) -> Vec<Range<usize>> {
     let horizon = HalfSpace::new(f, n, HIGH_ENOUGH);

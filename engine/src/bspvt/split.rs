@@ -14,7 +14,7 @@ use crate::math::nelder_mead;
 use std::cmp::Ordering;
 use std::collections::BinaryHeap;
 
-/// Pixels per tile at most (a [`Cluster`] is a mask over them).
+/// Pixels per tile at most (a cluster is a mask over them).
 pub const MAX_PIXELS: usize = 64;
 
 /// A line `cos θ · s + sin θ · t = c` in face coordinates, its sine and cosine evaluated once.

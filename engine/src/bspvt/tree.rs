@@ -133,9 +133,10 @@ fn old_tile_visible(old_masks: &[(u32, u64)], tile: u32, old: &[Node]) -> u64 {
     }
 }
 
-/// Each tile's previous visible mask (row-major tiles; see [`old_tile_visible`]; 0 for a tile
-/// with no texel above the horizon), from a face's previous tree `old` and masks; `live` flags
-/// the tiles with a texel above the horizon, which shaped that tree.
+/// Each tile's previous visible mask (row-major tiles: its stored mask, or all or nothing for a
+/// uniform tile; 0 for a tile with no texel above the horizon), from a face's previous tree
+/// `old` and masks; `live` flags the tiles with a texel above the horizon, which shaped that
+/// tree.
 pub fn old_visibility(old: &[Node], old_masks: &[(u32, u64)], res: usize, live: &[bool]) -> Vec<u64> {
     fn walk(r: Rect, old: &[Node], res: usize, live: &[bool], old_masks: &[(u32, u64)], out: &mut [u64]) {
         let k = res.div_ceil(TILE);
