@@ -6,10 +6,13 @@
 //! tile in few ways): on the shipped scenes only 10–50 % of the mixed tiles a bake meets are
 //! distinct. The cache maps a tile's key to its subtree; a hit returns exactly what a build
 //! would, so a bake's bytes never depend on what the cache held (determinism), only its time.
+//! Mirror images of a tile share one entry (see [`super::symmetry`]): the cache holds each
+//! orbit's least key and maps its subtree to the tile asked for ([`TileCache::subtree`]).
 //! The bake database stores the cache between runs (see [`TileCache::to_bytes`]): a re-bake
 //! after an edit finds most of the tiles the edit changed already built.
 
-use super::tree::Node;
+use super::symmetry::Symmetric;
+use super::tree::{Node, TILE, build_tile};
 use super::{ALGORITHM_VERSION, Settings};
 use crate::math::cubemap;
 use std::collections::HashMap;
@@ -34,6 +37,7 @@ pub struct TileCache {
     /// Per texel of a face (row-major), its solid angle relative to the face's mean texel:
     /// computed once, as each costs four arc tangents.
     weights: Vec<f64>,
+    symmetric: Symmetric,
     map: Mutex<HashMap<TileKey, Vec<Node>>>,
     added: AtomicUsize,
     hits: AtomicUsize,
@@ -48,6 +52,7 @@ impl TileCache {
         Self {
             settings: *settings,
             weights,
+            symmetric: Symmetric::of(res),
             map: Mutex::default(),
             added: AtomicUsize::new(0),
             hits: AtomicUsize::new(0),
@@ -62,6 +67,14 @@ impl TileCache {
     /// The settings its subtrees were built with.
     pub fn settings(&self) -> &Settings {
         &self.settings
+    }
+
+    /// The subtree of mixed tile `key`: its orbit's subtree ([`build_tile`] of the orbit's
+    /// least key, cached or built and cached), mapped to the tile.
+    pub fn subtree(&self, key: TileKey) -> Vec<Node> {
+        let (canonical, to) = self.symmetric.canonical(key, self.settings.res.div_ceil(TILE));
+        let nodes = self.get_or_build(canonical, || build_tile(canonical, self));
+        to.inverse().nodes(&nodes)
     }
 
     /// The subtree of `key`: cached, or made by `build` (and cached).

@@ -6,7 +6,8 @@
 //! - [`tree`]: per face, a fixed grid of tiles and inside each the BSP tree of Algorithm 1 with
 //!   the seed's two corrections ([`split`]; tiles make re-bakes local); [`grid`]: the tile
 //!   grid's lines and corner directions;
-//! - [`cache`]: tile subtrees already built, shared by a bake's workers and kept between bakes;
+//! - [`cache`]: tile subtrees already built, shared by a bake's workers and kept between bakes,
+//!   one per orbit of the face's eight [`symmetry`] images;
 //! - [`rebake`]: warm re-bakes after an edit, with [`dirty`]: which tiles and texels an edit
 //!   inside a box can change;
 //! - [`reach`]: which tiles the lights can be seen through (the rest bake as occluded, uncast);
@@ -28,6 +29,7 @@ pub mod reach;
 pub mod rebake;
 pub mod shade;
 pub mod split;
+pub mod symmetry;
 pub mod tree;
 pub mod visibility;
 
@@ -42,8 +44,9 @@ use std::time::Instant;
 
 /// Version of the bake algorithm, part of every bake key: bumped whenever the same inputs
 /// would give different trees (2: trees start with the tile grid of [`tree::TILE`]; 3: the
-/// split search's looser Nelder–Mead tolerance and fused sums, see [`split`]).
-pub const ALGORITHM_VERSION: u32 = 3;
+/// split search's looser Nelder–Mead tolerance and fused sums, see [`split`]; 4: a tile's
+/// subtree is its orbit's, mapped, see [`symmetry`]).
+pub const ALGORITHM_VERSION: u32 = 4;
 
 /// Bake parameters.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -147,8 +147,7 @@ impl PointShader {
             return i + 1;
         }
         let (angle, offset) = split_codes(bytes, i);
-        let (theta, c) = dequantise_line(angle, offset);
-        let (sin, cos) = theta.sin_cos();
+        let ((cos, sin), c) = dequantise_line(angle, offset);
         let (pos, neg) = polygon::split(piece, cubemap::line_plane(face, cos, sin, -c));
         let next = self.walk(bytes, i + 3, face, pos, tex, acc);
         self.walk(bytes, next, face, neg, tex, acc)

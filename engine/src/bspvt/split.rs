@@ -34,8 +34,8 @@ impl Line {
 
     /// The line a quantised code pair stands for.
     pub fn dequantised(angle: u16, offset: u16) -> Self {
-        let (theta, c) = dequantise_line(angle, offset);
-        Self::new(theta, c)
+        let ((cos, sin), c) = dequantise_line(angle, offset);
+        Self { cos, sin, c }
     }
 
     /// Signed distance of face point (s, t).
