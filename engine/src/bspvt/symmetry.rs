@@ -119,7 +119,7 @@ impl Symmetric {
     /// (powers of two; other resolutions build every tile as it is).
     pub fn of(res: usize) -> Self {
         let centre = |i: usize| crate::math::cubemap::texel_center(i, 0, res).x;
-        Self(res % TILE == 0 && (0..res).all(|i| centre(res - 1 - i) == -centre(i)))
+        Self(res.is_multiple_of(TILE) && (0..res).all(|i| centre(res - 1 - i) == -centre(i)))
     }
 
     /// The least of `key`'s images (a face of `k` × `k` tiles) and the symmetry giving it; `key`
