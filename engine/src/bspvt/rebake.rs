@@ -187,9 +187,15 @@ impl<'a> Edit<'a> {
             })
             .collect();
         let occluded = self.certain_runs(f, res, span.clone(), cast);
-        let row = |t: usize, j: usize| visibility::Row {
-            ask: self.columns(first + t, &rows, j - span.start),
-            occluded: occluded[j - span.start].clone(),
+        let k = tiles_per_side(res);
+        let row = |t: usize, j: usize| {
+            let i0 = t % k * tree::TILE;
+            let [before, after] = self.columns(first + t, &rows, j - span.start).map(|c| visibility::row_bits(c, i0));
+            // A texel that was visible can only change inside a new box, one that was not only
+            // inside an old one (see `Self::texel`).
+            let was = (was[t] >> (j % tree::TILE * tree::TILE)) as u8;
+            let occluded = visibility::row_bits(occluded[j - span.start].clone(), i0);
+            visibility::Row { ask: (was & after) | (!was & before), occluded }
         };
         let texel = |t: usize, bit, d| self.texel(first + t, d, was[t] & bit != 0, rays);
         visibility::cast_tiles(&face, &looks, row, texel)
@@ -225,17 +231,18 @@ impl<'a> Edit<'a> {
         self.before.iter().chain(&self.after)
     }
 
-    /// The columns of a texel row through tile `t` (of all six faces) whose rays can meet a
-    /// box: the hull over [`Self::boxes`] of their `rows[b][row]` ([`dirty::SeenBox::columns`]),
-    /// all columns for a box covering the tile, none for one it cannot see.
-    fn columns(&self, t: usize, rows: &[Vec<Range<usize>>], row: usize) -> Range<usize> {
-        let all = 0..usize::MAX;
-        let spans = self.boxes().zip(rows).filter_map(|(b, r)| match b.cover[t] {
-            dirty::Cover::None => None,
-            dirty::Cover::Some => Some(r[row].clone()),
-            dirty::Cover::All => Some(all.clone()),
-        });
-        spans.filter(|r| !r.is_empty()).reduce(|a, b| a.start.min(b.start)..a.end.max(b.end)).unwrap_or(0..0)
+    /// The columns of a texel row through tile `t` (of all six faces) whose rays can meet an
+    /// old box, and a new one: the hulls over the old and over the new [`Self::boxes`] of
+    /// their `rows[b][row]` ([`dirty::SeenBox::columns`]), all columns for a box covering the
+    /// tile, none for one it cannot see.
+    fn columns(&self, t: usize, rows: &[Vec<Range<usize>>], row: usize) -> [Range<usize>; 2] {
+        let span = |(b, r): (&Seen, &Vec<Range<usize>>)| match b.cover[t] {
+            dirty::Cover::None => 0..0,
+            dirty::Cover::Some => r[row].clone(),
+            dirty::Cover::All => 0..usize::MAX,
+        };
+        let (before, after) = rows.split_at(self.before.len());
+        [hull(self.before.iter().zip(before).map(span)), hull(self.after.iter().zip(after).map(span))]
     }
 
     /// The state of the texel cast through tile `t` (of all six faces) in direction `d` (unit,
@@ -266,6 +273,11 @@ impl<'a> Edit<'a> {
             }
         }
     }
+}
+
+/// The smallest range holding every non-empty range of `spans`.
+fn hull(spans: impl Iterator<Item = Range<usize>>) -> Range<usize> {
+    spans.filter(|r| !r.is_empty()).reduce(|a, b| a.start.min(b.start)..a.end.max(b.end)).unwrap_or(0..0)
 }
 
 /// The texel rows of a face (resolution `res`) from the first to the last row of the tiles

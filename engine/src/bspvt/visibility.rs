@@ -61,7 +61,7 @@ pub fn cast_face_tiles(
         .map(|t| if reached.is_none_or(|r| r[t]) { Look::Cast } else { Look::Unreached })
         .collect();
     let above = horizon_origin(p, n);
-    let every = |_, _| Row { ask: 0..res, occluded: 0..0 };
+    let every = |_, _| Row { ask: u8::MAX, occluded: 0 };
     cast_tiles(&Horizon::new(n, f, res), &looks, every, |_, _, d| cast_ray(occluders, ray_origin(above, p, n, d), d))
 }
 
@@ -199,9 +199,9 @@ fn tile_mask(t: usize, k: usize, res: usize) -> u64 {
 /// [`TILE`]-texel tiles, the last ones narrower when `res` is not a multiple):
 /// `texel(tile, bit, direction)` returns [`VISIBLE`], [`OCCLUDED`] or [`SKIPPED`]. A tile kept
 /// is not looked at texel by texel: when it is live (see [`live_tiles`]) all of it is
-/// `SKIPPED`. Of a cast tile's row `j`, the columns `rows(tile, j).occluded` are `OCCLUDED`
-/// without asking; in a tile whose texel centres are all above the horizon only the other
-/// columns in `rows(tile, j).ask` are asked, the rest are `SKIPPED` too.
+/// `SKIPPED`. Of a cast tile's row `j`, the texels `rows(tile, j).occluded` are `OCCLUDED`
+/// without asking; in a tile whose texel centres are all above the horizon only the others
+/// in `rows(tile, j).ask` are asked, the rest are `SKIPPED` too.
 pub fn cast_tiles(
     face: &Horizon,
     tiles: &[Look],
@@ -247,19 +247,25 @@ pub fn cast_tiles(
                 _ => {}
             }
             let mut asked = 0;
+            let width = u8::MAX >> (TILE - (i1 - i0));
             for j in j0..j1 {
                 let row = rows(t, j);
-                let known = row.occluded.start.max(i0)..row.occluded.end.min(i1);
-                if !known.is_empty() {
-                    // Occluded: live, neither visible nor skipped.
-                    asked |= (u64::MAX >> (64 - known.len())) << tile_bit(known.start, j, k).1.trailing_zeros();
-                }
-                let cols = if above { row.ask } else { i0..i1 };
-                for i in (cols.start.max(i0)..cols.end.min(i1)).filter(|i| !known.contains(i)) {
+                let shift = (j - j0) * TILE;
+                let known = row.occluded & width;
+                // Occluded: live, neither visible nor skipped.
+                asked |= u64::from(known) << shift;
+                let mut ask = if above { row.ask } else { width } & width & !known;
+                while ask != 0 {
+                    let i = i0 + ask.trailing_zeros() as usize;
+                    ask &= ask - 1;
                     let centre = centres[(f * res + j) * res + i];
-                    let d = if above { Some(centre) } else { ray_through(centre, f, i, j, nd, res) };
-                    let Some(d) = d else { continue };
-                    let bit = tile_bit(i, j, k).1;
+                    let d = if above {
+                        centre
+                    } else {
+                        let Some(d) = ray_through(centre, f, i, j, nd, res) else { continue };
+                        d
+                    };
+                    let bit = 1u64 << (shift + i - i0);
                     asked |= bit;
                     // Without branches: the outcome is data, and mispredicting it cost more
                     // than the masks.
@@ -279,14 +285,23 @@ pub fn cast_tiles(
     out
 }
 
-/// What [`cast_tiles`] does with a texel row of a cast tile.
-#[derive(Clone, Debug, PartialEq, Eq)]
+/// What [`cast_tiles`] does with a texel row of a cast tile: bit `c` of a mask is the row's
+/// texel in the tile's column `c` (so a tile is at most 8 texels wide).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Row {
-    /// The columns to ask for, when every texel centre of the tile is above the horizon (else
+    /// The texels to ask for, when every texel centre of the tile is above the horizon (else
     /// all are asked).
-    pub ask: std::ops::Range<usize>,
-    /// Columns known `OCCLUDED` without asking; their centres must be above the horizon.
-    pub occluded: std::ops::Range<usize>,
+    pub ask: u8,
+    /// Texels known `OCCLUDED` without asking; their centres must be above the horizon.
+    pub occluded: u8,
+}
+
+const _: () = assert!(TILE <= u8::BITS as usize, "a row mask holds a tile's row");
+
+/// The mask (see [`Row`]) of the face columns `columns` in a tile row starting at column `i0`.
+pub fn row_bits(columns: std::ops::Range<usize>, i0: usize) -> u8 {
+    let (start, end) = (columns.start.max(i0), columns.end.min(i0 + TILE));
+    if start >= end { 0 } else { (u8::MAX >> (TILE - (end - start))) << (start - i0) }
 }
 
 /// How [`cast_tiles`] treats a tile.
@@ -363,7 +378,10 @@ mod tests {
                     let run = j % 4..(j % 4 + 3).min(res);
                     if run.clone().all(|i| height(i, j) > 0.0) { run } else { 0..0 }
                 };
-                let columns = |_, j: usize| Row { ask: j % 5..j % 5 + 9, occluded: occluded(j) };
+                let columns = |t: usize, j: usize| {
+                    let i0 = t % k * TILE;
+                    Row { ask: row_bits(j % 5..j % 5 + 9, i0), occluded: row_bits(occluded(j), i0) }
+                };
                 let some = TileBits::to_face(&cast_tiles(&Horizon::new(n, f, res), &flags, columns, texel), res);
                 for (x, (&a, &b)) in full.iter().zip(&some).enumerate() {
                     let (i, j) = (x % res, x / res);
@@ -403,6 +421,20 @@ mod tests {
             let mut v = || Vec3::new(r.random_range(-1.0..1.0), r.random_range(-1.0..1.0), r.random_range(-1.0..1.0));
             let (p, n, d) = (v() * 100.0, v().normalize(), v().normalize());
             assert_eq!(ray_origin(horizon_origin(p, n), p, n, d), offset_ray_origin(p, n, d), "p {p}, n {n}, d {d}");
+        }
+    }
+
+    /// A row mask holds exactly the columns of the range inside the tile's eight.
+    #[test]
+    fn row_bits_hold_the_columns_in_the_tile() {
+        assert_eq!(row_bits(0..64, 8), u8::MAX);
+        assert_eq!(row_bits(3..5, 0), 0b1_1000);
+        assert_eq!(row_bits(10..12, 8), 0b1100);
+        assert_eq!(row_bits(14..40, 8), 0b1100_0000);
+        assert_eq!((row_bits(0..8, 8), row_bits(16..20, 8), row_bits(5..5, 0)), (0, 0, 0));
+        for (a, b) in [(0, 3), (2, 9), (7, 8), (9, 15)] {
+            let bits = row_bits(a..b, 8);
+            assert!((8..16).all(|i| (bits >> (i - 8) & 1 == 1) == (a..b).contains(&i)), "{a}..{b}");
         }
     }
 
