@@ -45,7 +45,7 @@ pub fn rebake_vertex(
     let cold = old.record.is_empty();
     let edit = Edit::new(occluders, (p, n), changes, reach, s.res);
     let mut dirty = vec![cold; 6 * per_face];
-    for cover in edit.before.iter().chain(&edit.after).map(|b| &b.cover) {
+    for cover in edit.boxes().map(|b| &b.cover) {
         dirty.iter_mut().zip(cover).for_each(|(a, c)| *a |= *c != dirty::Cover::None);
     }
     if let Some(reached) = &edit.reached {
@@ -178,27 +178,35 @@ impl<'a> Edit<'a> {
         let cast = |t: usize| matches!(looks[t], Look::Cast | Look::Blocked);
         // The rows of the tiles that may be cast: the only ones asked about.
         let span = tile_rows(res, cast);
-        let tiles = first..first + dirty.len();
-        let rows: Vec<Vec<Range<usize>>> = self
-            .boxes()
-            .map(|b| {
-                let seen = b.cover[tiles.clone()].contains(&dirty::Cover::Some);
-                if seen { b.bounds.columns(f, res, span.clone()) } else { Vec::new() }
-            })
-            .collect();
-        let occluded = self.certain_runs(f, res, span.clone(), cast);
-        let k = tiles_per_side(res);
-        let row = |t: usize, j: usize| {
-            let i0 = t % k * tree::TILE;
-            let [before, after] = self.columns(first + t, &rows, j - span.start).map(|c| visibility::row_bits(c, i0));
-            // A texel that was visible can only change inside a new box, one that was not only
-            // inside an old one (see `Self::texel`).
-            let was = (was[t] >> (j % tree::TILE * tree::TILE)) as u8;
-            let occluded = visibility::row_bits(occluded[j - span.start].clone(), i0);
-            visibility::Row { ask: (was & after) | (!was & before), occluded }
-        };
+        let [before, after] = [&self.before, &self.after].map(|boxes| self.seen(boxes, f, res, span.clone()));
+        let occluded = visibility::tile_masks(res, span.clone(), &self.certain_runs(f, res, span.clone(), cast));
+        // A texel that was visible can only change inside a new box, one that was not only
+        // inside an old one (see `Self::texel`).
+        let asks =
+            |t: usize| visibility::Ask { ask: (was[t] & after[t]) | (!was[t] & before[t]), occluded: occluded[t] };
         let texel = |t: usize, bit, d| self.texel(first + t, d, was[t] & bit != 0, rays);
-        visibility::cast_tiles(&face, &looks, row, texel)
+        visibility::cast_tiles(&face, &looks, asks, texel)
+    }
+
+    /// Per tile of face `f` (row-major), the texels of rows `span` whose rays can meet one of
+    /// `boxes` (see [`dirty::SeenBox::columns`]; all of a tile a box covers).
+    fn seen(&self, boxes: &[Seen], f: usize, res: usize, span: Range<usize>) -> Vec<u64> {
+        let per_face = tiles_per_side(res).pow(2);
+        let mut masks = vec![0; per_face];
+        for b in boxes {
+            let cover = &b.cover[f * per_face..(f + 1) * per_face];
+            let some = cover.contains(&dirty::Cover::Some);
+            let rows = if some { b.bounds.columns(f, res, span.clone()) } else { Vec::new() };
+            let seen = visibility::tile_masks(res, span.clone(), &rows);
+            for ((m, c), s) in masks.iter_mut().zip(cover).zip(seen) {
+                *m |= match c {
+                    dirty::Cover::None => 0,
+                    dirty::Cover::Some => s,
+                    dirty::Cover::All => u64::MAX,
+                };
+            }
+        }
+        masks
     }
 
     /// Per texel row in `span` of face `f`, the longest run of columns whose rays certainly
@@ -231,20 +239,6 @@ impl<'a> Edit<'a> {
         self.before.iter().chain(&self.after)
     }
 
-    /// The columns of a texel row through tile `t` (of all six faces) whose rays can meet an
-    /// old box, and a new one: the hulls over the old and over the new [`Self::boxes`] of
-    /// their `rows[b][row]` ([`dirty::SeenBox::columns`]), all columns for a box covering the
-    /// tile, none for one it cannot see.
-    fn columns(&self, t: usize, rows: &[Vec<Range<usize>>], row: usize) -> [Range<usize>; 2] {
-        let span = |(b, r): (&Seen, &Vec<Range<usize>>)| match b.cover[t] {
-            dirty::Cover::None => 0..0,
-            dirty::Cover::Some => r[row].clone(),
-            dirty::Cover::All => 0..usize::MAX,
-        };
-        let (before, after) = rows.split_at(self.before.len());
-        [hull(self.before.iter().zip(before).map(span)), hull(self.after.iter().zip(after).map(span))]
-    }
-
     /// The state of the texel cast through tile `t` (of all six faces) in direction `d` (unit,
     /// above the horizon), which was visible or not: [`visibility::SKIPPED`] when it cannot
     /// have changed; `rays` counts the rays cast.
@@ -273,11 +267,6 @@ impl<'a> Edit<'a> {
             }
         }
     }
-}
-
-/// The smallest range holding every non-empty range of `spans`.
-fn hull(spans: impl Iterator<Item = Range<usize>>) -> Range<usize> {
-    spans.filter(|r| !r.is_empty()).reduce(|a, b| a.start.min(b.start)..a.end.max(b.end)).unwrap_or(0..0)
 }
 
 /// The texel rows of a face (resolution `res`) from the first to the last row of the tiles

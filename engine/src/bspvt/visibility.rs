@@ -61,7 +61,7 @@ pub fn cast_face_tiles(
         .map(|t| if reached.is_none_or(|r| r[t]) { Look::Cast } else { Look::Unreached })
         .collect();
     let above = horizon_origin(p, n);
-    let every = |_, _| Row { ask: u8::MAX, occluded: 0 };
+    let every = |_| Ask { ask: u64::MAX, occluded: 0 };
     cast_tiles(&Horizon::new(n, f, res), &looks, every, |_, _, d| cast_ray(occluders, ray_origin(above, p, n, d), d))
 }
 
@@ -199,13 +199,13 @@ fn tile_mask(t: usize, k: usize, res: usize) -> u64 {
 /// [`TILE`]-texel tiles, the last ones narrower when `res` is not a multiple):
 /// `texel(tile, bit, direction)` returns [`VISIBLE`], [`OCCLUDED`] or [`SKIPPED`]. A tile kept
 /// is not looked at texel by texel: when it is live (see [`live_tiles`]) all of it is
-/// `SKIPPED`. Of a cast tile's row `j`, the texels `rows(tile, j).occluded` are `OCCLUDED`
-/// without asking; in a tile whose texel centres are all above the horizon only the others
-/// in `rows(tile, j).ask` are asked, the rest are `SKIPPED` too.
+/// `SKIPPED`. Of a cast tile, the texels `asks(tile).occluded` are `OCCLUDED` without asking;
+/// in a tile whose texel centres are all above the horizon only the others in
+/// `asks(tile).ask` are asked, the rest are `SKIPPED` too.
 pub fn cast_tiles(
     face: &Horizon,
     tiles: &[Look],
-    rows: impl Fn(usize, usize) -> Row,
+    asks: impl Fn(usize) -> Ask,
     mut texel: impl FnMut(usize, u64, Vec3) -> u8,
 ) -> Vec<TileBits> {
     let (f, res, k) = (face.f, face.res, face.k);
@@ -246,33 +246,29 @@ pub fn cast_tiles(
                 }
                 _ => {}
             }
-            let mut asked = 0;
-            let width = u8::MAX >> (TILE - (i1 - i0));
-            for j in j0..j1 {
-                let row = rows(t, j);
-                let shift = (j - j0) * TILE;
-                let known = row.occluded & width;
-                // Occluded: live, neither visible nor skipped.
-                asked |= u64::from(known) << shift;
-                let mut ask = if above { row.ask } else { width } & width & !known;
-                while ask != 0 {
-                    let i = i0 + ask.trailing_zeros() as usize;
-                    ask &= ask - 1;
-                    let centre = centres[(f * res + j) * res + i];
-                    let d = if above {
-                        centre
-                    } else {
-                        let Some(d) = ray_through(centre, f, i, j, nd, res) else { continue };
-                        d
-                    };
-                    let bit = 1u64 << (shift + i - i0);
-                    asked |= bit;
-                    // Without branches: the outcome is data, and mispredicting it cost more
-                    // than the masks.
-                    let state = texel(t, bit, d.as_vec3());
-                    bits.visible |= bit & 0u64.wrapping_sub((state == VISIBLE) as u64);
-                    bits.skipped |= bit & 0u64.wrapping_sub((state == SKIPPED) as u64);
-                }
+            let Ask { ask, occluded } = asks(t);
+            // Occluded: live, neither visible nor skipped.
+            let known = occluded & all;
+            let mut asked = known;
+            let mut ask = if above { ask } else { all } & all & !known;
+            while ask != 0 {
+                let b = ask.trailing_zeros() as usize;
+                ask &= ask - 1;
+                let (i, j) = (i0 + b % TILE, j0 + b / TILE);
+                let centre = centres[(f * res + j) * res + i];
+                let d = if above {
+                    centre
+                } else {
+                    let Some(d) = ray_through(centre, f, i, j, nd, res) else { continue };
+                    d
+                };
+                let bit = 1u64 << b;
+                asked |= bit;
+                // Without branches: the outcome is data, and mispredicting it cost more than
+                // the masks.
+                let state = texel(t, bit, d.as_vec3());
+                bits.visible |= bit & 0u64.wrapping_sub((state == VISIBLE) as u64);
+                bits.skipped |= bit & 0u64.wrapping_sub((state == SKIPPED) as u64);
             }
             if above {
                 bits.live = all;
@@ -285,23 +281,34 @@ pub fn cast_tiles(
     out
 }
 
-/// What [`cast_tiles`] does with a texel row of a cast tile: bit `c` of a mask is the row's
-/// texel in the tile's column `c` (so a tile is at most 8 texels wide).
+/// What [`cast_tiles`] does with a cast tile's texels (masks as in [`TileBits`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Row {
+pub struct Ask {
     /// The texels to ask for, when every texel centre of the tile is above the horizon (else
     /// all are asked).
-    pub ask: u8,
+    pub ask: u64,
     /// Texels known `OCCLUDED` without asking; their centres must be above the horizon.
-    pub occluded: u8,
+    pub occluded: u64,
 }
 
-const _: () = assert!(TILE <= u8::BITS as usize, "a row mask holds a tile's row");
-
-/// The mask (see [`Row`]) of the face columns `columns` in a tile row starting at column `i0`.
-pub fn row_bits(columns: std::ops::Range<usize>, i0: usize) -> u8 {
-    let (start, end) = (columns.start.max(i0), columns.end.min(i0 + TILE));
-    if start >= end { 0 } else { (u8::MAX >> (TILE - (end - start))) << (start - i0) }
+/// Per tile of a face at resolution `res` (row-major), the mask (as in [`TileBits`]) of the
+/// texels (i, j) with j in `rows` and i in `columns[j − rows.start]`.
+pub fn tile_masks(res: usize, rows: std::ops::Range<usize>, columns: &[std::ops::Range<usize>]) -> Vec<u64> {
+    let k = res.div_ceil(TILE);
+    let mut out = vec![0; k * k];
+    for (j, c) in rows.zip(columns) {
+        let (start, end) = (c.start, c.end.min(res));
+        if start >= end {
+            continue;
+        }
+        for ti in start / TILE..end.div_ceil(TILE) {
+            let i0 = ti * TILE;
+            let (lo, hi) = (start.max(i0) - i0, end.min(i0 + TILE) - i0);
+            let row = (u64::MAX >> (64 - (hi - lo))) << lo;
+            out[j / TILE * k + ti] |= row << (j % TILE * TILE);
+        }
+    }
+    out
 }
 
 /// How [`cast_tiles`] treats a tile.
@@ -378,10 +385,9 @@ mod tests {
                     let run = j % 4..(j % 4 + 3).min(res);
                     if run.clone().all(|i| height(i, j) > 0.0) { run } else { 0..0 }
                 };
-                let columns = |t: usize, j: usize| {
-                    let i0 = t % k * TILE;
-                    Row { ask: row_bits(j % 5..j % 5 + 9, i0), occluded: row_bits(occluded(j), i0) }
-                };
+                let ask = tile_masks(res, 0..res, &(0..res).map(|j| j % 5..j % 5 + 9).collect::<Vec<_>>());
+                let known = tile_masks(res, 0..res, &(0..res).map(occluded).collect::<Vec<_>>());
+                let columns = |t: usize| Ask { ask: ask[t], occluded: known[t] };
                 let some = TileBits::to_face(&cast_tiles(&Horizon::new(n, f, res), &flags, columns, texel), res);
                 for (x, (&a, &b)) in full.iter().zip(&some).enumerate() {
                     let (i, j) = (x % res, x / res);
@@ -424,17 +430,17 @@ mod tests {
         }
     }
 
-    /// A row mask holds exactly the columns of the range inside the tile's eight.
+    /// A tile mask holds exactly the texels of the rows' column ranges inside the tile.
     #[test]
-    fn row_bits_hold_the_columns_in_the_tile() {
-        assert_eq!(row_bits(0..64, 8), u8::MAX);
-        assert_eq!(row_bits(3..5, 0), 0b1_1000);
-        assert_eq!(row_bits(10..12, 8), 0b1100);
-        assert_eq!(row_bits(14..40, 8), 0b1100_0000);
-        assert_eq!((row_bits(0..8, 8), row_bits(16..20, 8), row_bits(5..5, 0)), (0, 0, 0));
-        for (a, b) in [(0, 3), (2, 9), (7, 8), (9, 15)] {
-            let bits = row_bits(a..b, 8);
-            assert!((8..16).all(|i| (bits >> (i - 8) & 1 == 1) == (a..b).contains(&i)), "{a}..{b}");
+    fn tile_masks_hold_the_texels_of_the_ranges() {
+        let res = 20;
+        let rows = 3..17;
+        let columns: Vec<std::ops::Range<usize>> = rows.clone().map(|j| j % 7..j * 3 % 23).collect();
+        let masks = tile_masks(res, rows.clone(), &columns);
+        for (i, j) in (0..res * res).map(|x| (x % res, x / res)) {
+            let (t, bit) = tile_bit(i, j, res.div_ceil(TILE));
+            let inside = rows.contains(&j) && columns[j - rows.start].contains(&i);
+            assert_eq!(masks[t] & bit != 0, inside, "texel ({i}, {j})");
         }
     }
 
