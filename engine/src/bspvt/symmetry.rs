@@ -1,8 +1,9 @@
 //! The eight symmetries of a cube face (the square's dihedral group: mirrors in s and in t,
 //! and the swap of s and t), acting on tiles, texel masks and quantised lines.
 //!
-//! Texel solid angles depend on s² + t² alone, so Algorithm 1's problem in a tile and in its
-//! mirror images are the same problem. A tile's subtree is therefore built once per orbit, for
+//! The solid angle a face subtends per unit of area depends on s² + t² alone, so mirror-image
+//! texels subtend equal solid angles, and Algorithm 1's problem in a tile and in its mirror
+//! images are the same problem. A tile's subtree is therefore built once per orbit, for
 //! the orbit's least key ([`canonical`]), and mapped to the other seven (see
 //! [`super::cache::TileCache::subtree`]): a shadow edge crossing a tile one way and its mirror
 //! image cost one build. The mapping is exact — a mapped line puts every mapped point on the
