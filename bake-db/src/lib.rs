@@ -4,6 +4,8 @@
 //!
 //! - [`store`]: the file (schema version; tables for meshes, artefacts, metadata, scenes,
 //!   lineage and bakers' caches), batched writes, integrity check and garbage collection;
+//! - [`bvhs`]: the BSPVT occluders' BVHs, kept between runs so that an edit rebuilds only
+//!   the BVHs of the instances it touched;
 //! - [`key`]: bake keys, blake3 of everything a result depends on;
 //! - [`plan`]: which artefacts a scene needs (chunks of [`plan::CHUNK`] vertices per instance
 //!   and technique), which are cached;
@@ -20,10 +22,11 @@
 //!   bit-identical on any thread count, and a warm re-bake gives the cold bake's bytes.
 //! - **Crash safety**: each batch is one transaction; a process killed at any moment loses at
 //!   most the batch in flight, and the next run bakes only what is missing.
-//! - **Caches cost only time**: a baker's cache (BSPVT tile subtrees) returns exactly what a
-//!   build would; a damaged one is ignored and rebuilt, `gc` drops them all.
+//! - **Caches cost only time**: a baker's cache (BSPVT tile subtrees, occluder BVHs) returns
+//!   exactly what a build would; a damaged one is ignored and rebuilt, `gc` drops them all.
 //! - **Clear errors**: a locked, corrupted or incompatible file is an error naming the file.
 
+pub mod bvhs;
 pub mod key;
 pub mod pack;
 pub mod plan;

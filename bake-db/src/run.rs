@@ -146,7 +146,7 @@ pub fn run_cancellable(store: &Store, scene: &Scene, flat: &FlatScene, plan: &Pl
     // What only baking needs is set up only when something of its kind is missing.
     let baking = |kind: Kind| misses.iter().any(|j| j.kind == kind);
     let bspvt = plan.bspvt.filter(|_| baking(Kind::Bspvt));
-    let occluders = bspvt.map(|_| bspvt::occluder_bvh(flat));
+    let (occluders, new_bvhs) = bspvt.map(|_| crate::bvhs::occluders(store, flat)).transpose()?.unzip();
     let tiles = bspvt.map(|s| load_tiles(store, &s)).transpose()?;
     let transfer = plan.prt.filter(|_| baking(Kind::Prt)).map(|s| prt::Baker::new(scene, flat, &s));
     let ctx = Context {
@@ -197,10 +197,9 @@ pub fn run_cancellable(store: &Store, scene: &Scene, flat: &FlatScene, plan: &Pl
         Ok(())
     });
     // Kept even when the run failed or was cancelled: what was built stays useful.
-    let saved = tiles
-        .as_ref()
-        .filter(|t| t.added() > 0)
-        .map_or(Ok(()), |t| store.put_cache(&tiles_name(t.settings()), &t.to_bytes()));
+    let mut caches = new_bvhs.unwrap_or_default();
+    caches.extend(tiles.as_ref().filter(|t| t.added() > 0).map(|t| (tiles_name(t.settings()), t.to_bytes())));
+    let saved = store.put_caches(&caches);
     written?;
     saved?;
     stats.tiles_from_cache = tiles.as_ref().map_or(0, |t| t.hits());

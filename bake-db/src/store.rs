@@ -32,6 +32,9 @@ const LINEAGE: TableDefinition<&[u8], &[u8]> = TableDefinition::new("lineage");
 /// checks itself when loaded. Older files lack the table: readers treat it as empty.
 const CACHES: TableDefinition<&str, &[u8]> = TableDefinition::new("caches");
 
+/// A cache's name and bytes.
+pub type Cache = (String, Vec<u8>);
+
 /// What can go wrong with the database file.
 #[derive(Debug, thiserror::Error)]
 pub enum DbError {
@@ -230,10 +233,16 @@ impl Store {
         })
     }
 
-    /// Stores (replaces) the cache under `name`.
-    pub fn put_cache(&self, name: &str, bytes: &[u8]) -> Result<()> {
+    /// Stores (replaces) caches by name, in one transaction; writes nothing when there are none.
+    pub fn put_caches(&self, caches: &[Cache]) -> Result<()> {
+        if caches.is_empty() {
+            return Ok(());
+        }
         self.write(|t| {
-            t.open_table(CACHES)?.insert(name, bytes)?;
+            let mut table = t.open_table(CACHES)?;
+            for (name, bytes) in caches {
+                table.insert(name.as_str(), bytes.as_slice())?;
+            }
             Ok(())
         })
     }

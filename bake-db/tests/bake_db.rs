@@ -211,6 +211,33 @@ fn bad_database_files_give_clear_errors() {
     assert!(matches!(e, DbError::Schema { found: 99, .. }) && e.to_string().contains("schema version 99"), "{e}");
 }
 
+/// The occluders' BVHs are stored by a run for the instances with enough triangles (here the
+/// ground alone) and restored by the next; a damaged entry is built and stored again, and the
+/// bytes are a cold bake's either way.
+#[test]
+fn occluder_bvhs_outlive_runs_and_damage_costs_only_time() {
+    let store = Store::open(&scratch("bvhs")).unwrap();
+    let bvhs = |s: &Store| -> Vec<String> {
+        s.caches().unwrap().into_iter().map(|c| c.0).filter(|n| n.starts_with("bvh ")).collect()
+    };
+    bake(&store, &scene(""));
+    let names = bvhs(&store);
+    assert_eq!(names.len(), 1, "{names:?}");
+    let good = store.cache(&names[0]).unwrap().unwrap();
+    let mut damaged = good.clone();
+    damaged[good.len() / 2] ^= 0x04;
+    store.put_caches(&[(names[0].clone(), damaged)]).unwrap();
+    let (warm, bytes, _) = bake(&store, &scene("move"));
+    let fresh = Store::open(&scratch("bvhs-fresh")).unwrap();
+    let (_, cold, _) = bake(&fresh, &scene("move"));
+    assert!(warm.warm > 0 && bytes == cold, "{warm:?}");
+    assert_eq!(store.cache(&names[0]).unwrap(), Some(good.clone()), "built and stored again");
+    assert_eq!(bvhs(&store), names, "the moved box has too few triangles for an entry");
+    assert_eq!(fresh.cache(&names[0]).unwrap(), Some(good), "the same build in another database");
+    store.gc().unwrap();
+    assert!(bvhs(&store).is_empty(), "gc drops them with the other caches");
+}
+
 /// The BSPVT tile cache is stored by a run and used by the next; a damaged one only costs
 /// time (the re-bake still gives a cold bake's bytes, and stores a good cache again); `gc`
 /// drops it.
@@ -220,7 +247,9 @@ fn the_tile_cache_outlives_runs_and_damage_costs_only_time() {
     let name = run::tiles_name(&BSPVT);
     let (first, ..) = bake(&store, &scene(""));
     let stored = store.cache(&name).unwrap().expect("a cold bake stores its tiles");
-    assert_eq!(store.caches().unwrap(), vec![(name.clone(), stored.len())]);
+    let caches = store.caches().unwrap();
+    assert!(caches.contains(&(name.clone(), stored.len())), "{caches:?}");
+    assert_eq!(caches.len(), 2, "the tiles and the ground's BVH: {caches:?}");
     let cache = bspvt::cache::TileCache::from_bytes(&BSPVT, &stored).expect("a well-formed cache");
     // Every tile built is a stored entry or a hit — or, rarely, a second worker's build of a
     // tile another was building at the same moment (neither a hit nor a new entry).
@@ -228,7 +257,7 @@ fn the_tile_cache_outlives_runs_and_damage_costs_only_time() {
     assert!(cache.len() + first.tiles_from_cache <= first.tiles_built, "{first:?}");
     let mut damaged = stored.clone();
     damaged[stored.len() / 2] ^= 0x10;
-    store.put_cache(&name, &damaged).unwrap();
+    store.put_caches(&[(name.clone(), damaged)]).unwrap();
     let (_, bytes, _) = bake(&store, &scene("move"));
     let (_, cold, _) = bake(&Store::open(&scratch("tiles-fresh")).unwrap(), &scene("move"));
     assert!(bytes == cold, "a re-bake past a damaged cache gives a cold bake's bytes");

@@ -6,6 +6,7 @@
 
 pub mod beam;
 mod instances;
+mod stored;
 
 pub use instances::Occluders;
 pub(crate) use instances::slab_hits;

@@ -135,13 +135,19 @@ pub struct Bake {
 /// Everything that casts shadows on polygonal-light receivers (not the lights), one BVH per
 /// instance (see [`Occluders`]: an edit cannot change rays against the other instances).
 pub fn occluder_bvh(flat: &FlatScene) -> Occluders {
+    Occluders::new(&occluder_triangles(flat))
+}
+
+/// Each instance's occluding triangles (its own, lights excepted), by instance index: what
+/// [`occluder_bvh`] builds its BVHs over.
+pub fn occluder_triangles(flat: &FlatScene) -> Vec<Vec<[glam::Vec3; 3]>> {
     let mut parts: Vec<Vec<[glam::Vec3; 3]>> = vec![Vec::new(); flat.instances.len()];
     for (t, r) in flat.triangles.iter().zip(&flat.refs) {
         if r.light == NO_LIGHT {
             parts[r.owner as usize].push(*t);
         }
     }
-    Occluders::new(&parts)
+    parts
 }
 
 /// One vertex's bake: its record and what a warm re-bake of it needs.

@@ -11,6 +11,7 @@ use super::layout::quantise_line;
 use super::split::{Line, Pixels, clusters};
 use super::visibility::TileBits;
 use crate::math::cubemap;
+use std::ops::Range;
 
 /// A node in pre-order: a split line, or a leaf with its mean visibility.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -86,6 +87,11 @@ impl Rect {
         (self.j0..self.j1).flat_map(move |j| (self.i0..self.i1).map(move |i| (i, j)))
     }
 
+    /// The columns and rows of the tiles it covers.
+    fn tile_ranges(self) -> (Range<usize>, Range<usize>) {
+        (self.i0 / TILE..self.i1.div_ceil(TILE), self.j0 / TILE..self.j1.div_ceil(TILE))
+    }
+
     /// Tiles across (s) and down (t): regions start on tile boundaries, the last tile of a
     /// face whose resolution is not a multiple of [`TILE`] is narrower.
     fn tiles(self) -> (usize, usize) {
@@ -107,10 +113,10 @@ impl Rect {
     }
 }
 
-/// Whether a tile of region `r` is live (`live(tile index)`, `k` tiles per side).
-fn region_live(r: Rect, k: usize, live: impl Fn(usize) -> bool) -> bool {
-    let (ti, tj) = (r.i0 / TILE..r.i1.div_ceil(TILE), r.j0 / TILE..r.j1.div_ceil(TILE));
-    tj.flat_map(|j| ti.clone().map(move |i| (i, j))).any(|(i, j)| live(j * k + i))
+/// Whether `pick(tile index)` holds for a tile of region `r` (`k` tiles per side).
+fn any_tile(r: Rect, k: usize, pick: impl Fn(usize) -> bool) -> bool {
+    let (ti, tj) = r.tile_ranges();
+    tj.flat_map(|j| ti.clone().map(move |i| (i, j))).any(|(i, j)| pick(j * k + i))
 }
 
 /// The previous subtrees of the two halves of a region whose previous subtree is `old`: a
@@ -140,7 +146,7 @@ fn old_tile_visible(old_masks: &[(u32, u64)], tile: u32, old: &[Node]) -> u64 {
 pub fn old_visibility(old: &[Node], old_masks: &[(u32, u64)], res: usize, live: &[bool]) -> Vec<u64> {
     fn walk(r: Rect, old: &[Node], res: usize, live: &[bool], old_masks: &[(u32, u64)], out: &mut [u64]) {
         let k = res.div_ceil(TILE);
-        if !region_live(r, k, |t| live[t]) {
+        if !any_tile(r, k, |t| live[t]) {
             return;
         }
         if r.tiles() == (1, 1) {
@@ -149,7 +155,7 @@ pub fn old_visibility(old: &[Node], old_masks: &[(u32, u64)], res: usize, live: 
             return;
         }
         let (_, pos, neg) = r.halves(res);
-        let both = region_live(pos, k, |t| live[t]) && region_live(neg, k, |t| live[t]);
+        let both = any_tile(pos, k, |t| live[t]) && any_tile(neg, k, |t| live[t]);
         let (old_pos, old_neg) = old_halves(old, both);
         walk(pos, old_pos, res, live, old_masks, out);
         walk(neg, old_neg, res, live, old_masks, out);
@@ -179,13 +185,25 @@ impl<'a> Grid<'a> {
 
     /// Whether any texel of `r` is above the horizon.
     fn live(&self, r: Rect) -> bool {
-        region_live(r, self.k, |t| self.tiles[t].live != 0)
+        any_tile(r, self.k, |t| self.tiles[t].live != 0)
+    }
+
+    /// Whether no texel of `r` was cast: each keeps its old state.
+    fn untouched(&self, r: Rect) -> bool {
+        !any_tile(r, self.k, |t| self.tiles[t].skipped != self.tiles[t].live)
     }
 
     /// The subtree of region `r`; `old` is its previous subtree.
     fn region(&mut self, r: Rect, old: &[Node]) -> Option<Vec<Node>> {
         if !self.live(r) {
             return None;
+        }
+        if !old.is_empty() && self.untouched(r) {
+            // What the recursion would rebuild tile by tile (see `Self::tile`), in one copy.
+            let ((ti, tj), k) = (r.tile_ranges(), self.k);
+            let inside = |t: usize| ti.contains(&(t % k)) && tj.contains(&(t / k));
+            self.masks.extend(self.old_masks.iter().filter(|m| inside(m.0 as usize)));
+            return Some(old.to_vec());
         }
         if r.tiles() == (1, 1) {
             return Some(self.tile(r, old));
