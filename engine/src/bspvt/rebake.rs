@@ -179,7 +179,7 @@ impl<'a> Edit<'a> {
         // The rows of the tiles that may be cast: the only ones asked about.
         let span = tile_rows(res, cast);
         let [before, after] = [&self.before, &self.after].map(|boxes| self.seen(boxes, f, res, span.clone()));
-        let occluded = visibility::tile_masks(res, span.clone(), &self.certain_runs(f, res, span.clone(), cast));
+        let occluded = visibility::tile_masks(res, self.certain_runs(f, res, cast));
         // A texel that was visible can only change inside a new box, one that was not only
         // inside an old one (see `Self::texel`).
         let asks =
@@ -197,7 +197,7 @@ impl<'a> Edit<'a> {
             let cover = &b.cover[f * per_face..(f + 1) * per_face];
             let some = cover.contains(&dirty::Cover::Some);
             let rows = if some { b.bounds.columns(f, res, span.clone()) } else { Vec::new() };
-            let seen = visibility::tile_masks(res, span.clone(), &rows);
+            let seen = visibility::tile_masks(res, span.clone().zip(rows));
             for ((m, c), s) in masks.iter_mut().zip(cover).zip(seen) {
                 *m |= match c {
                     dirty::Cover::None => 0,
@@ -209,27 +209,16 @@ impl<'a> Edit<'a> {
         masks
     }
 
-    /// Per texel row in `span` of face `f`, the longest run of columns whose rays certainly
-    /// meet a changed occluder's triangles now (see [`dirty::certain_runs`]), looked for in the
-    /// rows of the tiles `cast` picks that can see the occluder's bounds.
-    fn certain_runs(
-        &self,
-        f: usize,
-        res: usize,
-        span: Range<usize>,
-        cast: impl Fn(usize) -> bool,
-    ) -> Vec<Range<usize>> {
+    /// The runs of columns (`(row, columns)` pairs) of face `f` whose rays certainly meet a
+    /// changed occluder's triangles now (see [`dirty::certain_runs`]), looked for in the rows of
+    /// the tiles `cast` picks that can see the occluder's bounds.
+    fn certain_runs(&self, f: usize, res: usize, cast: impl Fn(usize) -> bool) -> Vec<(usize, Range<usize>)> {
         let first = f * tiles_per_side(res).pow(2);
-        let mut out = vec![0..0; span.len()];
+        let mut out = Vec::new();
         for b in &self.after {
             let Some(beam) = &b.beam else { continue };
             let rows = tile_rows(res, |t| cast(t) && b.cover[first + t] != dirty::Cover::None);
-            for (j, run) in rows.clone().zip(dirty::certain_runs(beam, self.n, f, res, rows)) {
-                let longest = &mut out[j - span.start];
-                if run.len() > longest.len() {
-                    *longest = run;
-                }
-            }
+            out.extend(dirty::certain_runs(beam, self.n, f, res, rows));
         }
         out
     }

@@ -292,11 +292,11 @@ pub struct Ask {
 }
 
 /// Per tile of a face at resolution `res` (row-major), the mask (as in [`TileBits`]) of the
-/// texels (i, j) with j in `rows` and i in `columns[j − rows.start]`.
-pub fn tile_masks(res: usize, rows: std::ops::Range<usize>, columns: &[std::ops::Range<usize>]) -> Vec<u64> {
+/// texels (i, j) of the `(j, columns)` runs.
+pub fn tile_masks(res: usize, runs: impl IntoIterator<Item = (usize, std::ops::Range<usize>)>) -> Vec<u64> {
     let k = res.div_ceil(TILE);
     let mut out = vec![0; k * k];
-    for (j, c) in rows.zip(columns) {
+    for (j, c) in runs {
         let (start, end) = (c.start, c.end.min(res));
         if start >= end {
             continue;
@@ -385,8 +385,8 @@ mod tests {
                     let run = j % 4..(j % 4 + 3).min(res);
                     if run.clone().all(|i| height(i, j) > 0.0) { run } else { 0..0 }
                 };
-                let ask = tile_masks(res, 0..res, &(0..res).map(|j| j % 5..j % 5 + 9).collect::<Vec<_>>());
-                let known = tile_masks(res, 0..res, &(0..res).map(occluded).collect::<Vec<_>>());
+                let ask = tile_masks(res, (0..res).map(|j| (j, j % 5..j % 5 + 9)));
+                let known = tile_masks(res, (0..res).map(|j| (j, occluded(j))));
                 let columns = |t: usize| Ask { ask: ask[t], occluded: known[t] };
                 let some = TileBits::to_face(&cast_tiles(&Horizon::new(n, f, res), &flags, columns, texel), res);
                 for (x, (&a, &b)) in full.iter().zip(&some).enumerate() {
@@ -436,7 +436,7 @@ mod tests {
         let res = 20;
         let rows = 3..17;
         let columns: Vec<std::ops::Range<usize>> = rows.clone().map(|j| j % 7..j * 3 % 23).collect();
-        let masks = tile_masks(res, rows.clone(), &columns);
+        let masks = tile_masks(res, rows.clone().zip(columns.iter().cloned()));
         for (i, j) in (0..res * res).map(|x| (x % res, x / res)) {
             let (t, bit) = tile_bit(i, j, res.div_ceil(TILE));
             let inside = rows.contains(&j) && columns[j - rows.start].contains(&i);
