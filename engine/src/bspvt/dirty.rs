@@ -134,8 +134,10 @@ impl SeenBox {
                     .lines
                     .iter()
                     .map(|pl| {
-                        let dots = || self.corners.iter().zip(&lengths).map(|(c, l)| (pl.dot(*c), margin * l));
-                        (dots().all(|(d, m)| d < -m), dots().all(|(d, m)| d > m))
+                        self.corners.iter().zip(&lengths).fold((true, true), |(before, past), (c, l)| {
+                            let (d, m) = (pl.dot(*c), margin * l);
+                            (before && d < -m, past && d > m)
+                        })
                     })
                     .collect();
                 let (cols, rows) = sides.split_at(k + 1);

@@ -166,7 +166,6 @@ impl<'a> Edit<'a> {
         // The tiles that shaped the old tree: above the horizon and in reach.
         let face = visibility::Horizon::new(self.n, f, res);
         let live: Vec<bool> = face.live().into_iter().enumerate().map(|(t, l)| l && reached(t)).collect();
-        let was = tree::old_visibility(old.0, old.1, res, &live);
         let looks: Vec<Look> = (0..dirty.len())
             .map(|t| match (reached(t), dirty[t], self.blocked[first + t]) {
                 (false, ..) => Look::Unreached,
@@ -176,6 +175,8 @@ impl<'a> Edit<'a> {
             })
             .collect();
         let cast = |t: usize| matches!(looks[t], Look::Cast | Look::Blocked);
+        // Only the tiles that may be cast ask what their texels were.
+        let was = tree::old_visibility(old.0, old.1, res, &live, &(0..dirty.len()).map(cast).collect::<Vec<_>>());
         // The rows of the tiles that may be cast: the only ones asked about.
         let span = tile_rows(res, cast);
         let [before, after] = [&self.before, &self.after].map(|boxes| self.seen(boxes, f, res, span.clone()));

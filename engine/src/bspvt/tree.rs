@@ -140,13 +140,15 @@ fn old_tile_visible(old_masks: &[(u32, u64)], tile: u32, old: &[Node]) -> u64 {
 }
 
 /// Each tile's previous visible mask (row-major tiles: its stored mask, or all or nothing for a
-/// uniform tile; 0 for a tile with no texel above the horizon), from a face's previous tree
-/// `old` and masks; `live` flags the tiles with a texel above the horizon, which shaped that
-/// tree.
-pub fn old_visibility(old: &[Node], old_masks: &[(u32, u64)], res: usize, live: &[bool]) -> Vec<u64> {
-    fn walk(r: Rect, old: &[Node], res: usize, live: &[bool], old_masks: &[(u32, u64)], out: &mut [u64]) {
+/// uniform tile), from a face's previous tree `old` and masks, for the tiles `wanted` flags (0
+/// for the others and for tiles with no texel above the horizon); `live` flags the tiles with
+/// a texel above the horizon, which shaped that tree. Only the subtrees holding a wanted tile
+/// are walked.
+pub fn old_visibility(old: &[Node], old_masks: &[(u32, u64)], res: usize, live: &[bool], wanted: &[bool]) -> Vec<u64> {
+    type Flags<'a> = (&'a [bool], &'a [bool]);
+    fn walk(r: Rect, old: &[Node], res: usize, (live, wanted): Flags, old_masks: &[(u32, u64)], out: &mut [u64]) {
         let k = res.div_ceil(TILE);
-        if !any_tile(r, k, |t| live[t]) {
+        if !any_tile(r, k, |t| live[t] && wanted[t]) {
             return;
         }
         if r.tiles() == (1, 1) {
@@ -157,11 +159,11 @@ pub fn old_visibility(old: &[Node], old_masks: &[(u32, u64)], res: usize, live: 
         let (_, pos, neg) = r.halves(res);
         let both = any_tile(pos, k, |t| live[t]) && any_tile(neg, k, |t| live[t]);
         let (old_pos, old_neg) = old_halves(old, both);
-        walk(pos, old_pos, res, live, old_masks, out);
-        walk(neg, old_neg, res, live, old_masks, out);
+        walk(pos, old_pos, res, (live, wanted), old_masks, out);
+        walk(neg, old_neg, res, (live, wanted), old_masks, out);
     }
     let mut out = vec![0; live.len()];
-    walk(Rect { i0: 0, j0: 0, i1: res, j1: res }, old, res, live, old_masks, &mut out);
+    walk(Rect { i0: 0, j0: 0, i1: res, j1: res }, old, res, (live, wanted), old_masks, &mut out);
     out
 }
 
@@ -404,7 +406,7 @@ mod tests {
             // The old tree and masks tell every tile's old visibility.
             let before_bits = TileBits::from_face(&before, res);
             let live: Vec<bool> = before_bits.iter().map(|b| b.live != 0).collect();
-            let old_visible = old_visibility(old.nodes.as_deref().unwrap(), &old.masks, res, &live);
+            let old_visible = old_visibility(old.nodes.as_deref().unwrap(), &old.masks, res, &live, &live);
             for (b, v) in before_bits.iter().zip(old_visible) {
                 assert_eq!(v & b.live, b.visible);
             }
