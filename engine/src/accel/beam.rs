@@ -85,11 +85,18 @@ impl Beam {
     pub fn hits(&self, d: Vec3) -> Option<bool> {
         let mut open = self.near;
         for planes in &self.planes {
-            let dots = planes.map(|m| m.dot(d));
-            if dots.iter().all(|&x| x > MARGIN) {
+            // A plane the direction is certainly outside of settles the triangle: no need for
+            // the others' dots (most rays asked about miss most triangles).
+            let mut inside = true;
+            let missed = planes.iter().any(|m| {
+                let x = m.dot(d);
+                inside &= x > MARGIN;
+                x < -MARGIN
+            });
+            if inside {
                 return Some(true);
             }
-            open |= !dots.iter().any(|&x| x < -MARGIN);
+            open |= !missed;
         }
         (!open).then_some(false)
     }

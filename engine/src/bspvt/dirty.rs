@@ -12,10 +12,14 @@ use crate::math::cubemap;
 use glam::{DVec3, Vec3};
 use std::ops::Range;
 
-/// How far (in direction cosines) a ray may pass outside the box's cone from `p` and still meet
-/// the box from its offset origin: the offset is below 6e-5 · (|p|∞ + 1) (see
-/// [`accel::offset_ray_origin`]) and the cone test is only used beyond 1e-2 · (|p|∞ + 1).
-const ORIGIN_SLACK: f64 = 1e-2;
+/// A ray's origin lies within this times (|p|∞ + 1) of the vertex `p` it is cast from (see
+/// [`accel::offset_ray_origin`]).
+const ORIGIN_OFFSET: f64 = 6e-5;
+
+/// The cone test is used for boxes farther than this times (|p|∞ + 1) from the vertex: there a
+/// ray passes at most ORIGIN_OFFSET / (CONE_DISTANCE − ORIGIN_OFFSET) ≈ 6·10⁻³ (in direction
+/// cosines) outside the box's cone from `p` and still meets it from its offset origin.
+const CONE_DISTANCE: f64 = 1e-2;
 
 /// More than the rounding of the single-precision dot products of unit vectors that the
 /// per-texel tests ([`SeenBox::meets`], [`Beam::hits`]) compute, the vectors' own conversion to
@@ -48,8 +52,12 @@ pub struct SeenBox {
     /// Unit normals of the planes through `p` touching the box along one of its edges, the box
     /// on their non-positive side (its silhouette); empty when `p` is inside or too close.
     silhouette: Vec<DVec3>,
-    /// The same in single precision, for the per-texel test (whose slack dwarfs the rounding).
+    /// The same in single precision, for the per-texel test.
     silhouette32: Vec<Vec3>,
+    /// How far outside the cone (in direction cosines) a ray from the offset origin can pass
+    /// and still meet the box, single-precision rounding included: δ / (distance − δ) for an
+    /// origin offset δ.
+    slack: f32,
 }
 
 impl SeenBox {
@@ -59,10 +67,13 @@ impl SeenBox {
         let (lod, hid) = (lo.as_dvec3(), hi.as_dvec3());
         let corners = corners_from(pd, lod, hid);
         let distance = (lod - pd).max(pd - hid).max(DVec3::ZERO).length();
-        let far = distance >= ORIGIN_SLACK * (pd.abs().max_element() + 1.0);
+        let scale = pd.abs().max_element() + 1.0;
+        let far = distance >= CONE_DISTANCE * scale;
         let silhouette = if far { silhouette_planes(&corners) } else { Vec::new() };
         let silhouette32 = silhouette.iter().map(|m| m.as_vec3()).collect();
-        Self { p, n, lo, hi, corners, silhouette, silhouette32 }
+        let offset = ORIGIN_OFFSET * scale;
+        let slack = (offset / (distance - offset) + SINGLE_ROUNDING) as f32;
+        Self { p, n, lo, hi, corners, silhouette, silhouette32, slack }
     }
 
     /// Whether the ray cast from the vertex in direction `d` (unit, above its horizon) can meet
@@ -72,7 +83,7 @@ impl SeenBox {
         if self.silhouette.is_empty() {
             return accel::ray_meets_box(accel::offset_ray_origin(self.p, self.n, d), d, self.lo, self.hi);
         }
-        self.silhouette32.iter().all(|m| m.dot(d) <= ORIGIN_SLACK as f32)
+        self.silhouette32.iter().all(|m| m.dot(d) <= self.slack)
     }
 
     /// Per texel row `j` in `rows` of face `f`, the columns whose centre directions can pass
@@ -86,7 +97,7 @@ impl SeenBox {
         rows.map(|j| {
             let t = cubemap::texel_center(0, j, res).y;
             // m · û ≤ slack in single precision implies m · u ≤ (slack + rounding) · |u|.
-            let bound = (ORIGIN_SLACK + SINGLE_ROUNDING) * (2.0 + t * t).sqrt();
+            let bound = (self.slack as f64 + SINGLE_ROUNDING) * (2.0 + t * t).sqrt();
             let (mut lo, mut hi) = (f64::NEG_INFINITY, f64::INFINITY);
             for [mc, mt, b] in &planes {
                 // m · u = a + s·b ≤ bound.
@@ -314,6 +325,11 @@ mod tests {
         // The columns' ends are the texel centres the row's bounds allow, not a texel more.
         assert!(spare < rows / 4, "{spare} texels in the columns fail the texel test, on {rows} rows");
         assert!(wanted < dirty / 3 && wanted < hits + hits / 4, "{wanted} wanted of {dirty} dirty texels, {hits} hits");
+        // Just beyond the distance where the cone test starts (its slack is widest there, ≈ 5e-3)
+        // and far away (narrowest).
+        let edges = [Vec3::new(0.1, 0.975, 0.1), Vec3::new(0.725, 1.05, 0.3), Vec3::new(15.0, 0.0, 6.0)];
+        let [.., hits, _, _, _] = check_box_tests(64, edges.iter());
+        assert!(hits > 0);
         // A resolution whose tile grid has more than 128 corners per face.
         let [_, _, _, hits, ..] = check_box_tests(136, points.iter().step_by(12));
         assert!(hits > 0);
@@ -361,6 +377,31 @@ mod tests {
             }
         }
         [clean, dirty, wanted, hits, covered, spare, rows]
+    }
+
+    /// Rays from a vertex's offset origin aimed at the box's corners graze it: each that meets
+    /// the box must pass the cone test, whose slack covers the origin's offset — checked where
+    /// that matters most, just beyond the distance where the cone test starts.
+    #[test]
+    fn rays_grazing_the_box_from_the_offset_origin_are_taken() {
+        let (lo, hi) = (Vec3::new(-0.5, 1.0, -0.2), Vec3::new(0.7, 1.1, 0.4));
+        let normals = [Vec3::Y, Vec3::X, Vec3::NEG_X, Vec3::Z, Vec3::new(0.6, 0.8, 0.0), Vec3::new(0.0, 0.6, -0.8)];
+        let mut grazing = 0;
+        for p in [Vec3::new(0.1, 0.975, 0.1), Vec3::new(0.725, 1.05, 0.3), Vec3::new(-0.52, 0.98, -0.23)] {
+            for n in normals {
+                let seen = SeenBox::new(p, n, lo, hi);
+                assert!(!seen.silhouette.is_empty(), "p {p}: the cone test applies");
+                let origin = visibility::horizon_origin(p, n);
+                for q in corners_from(DVec3::ZERO, lo.as_dvec3(), hi.as_dvec3()) {
+                    let d = (q.as_vec3() - origin).normalize();
+                    if n.dot(d) > 1e-3 && accel::ray_meets_box(origin, d, lo, hi) {
+                        grazing += 1;
+                        assert!(seen.meets(d), "p {p}, n {n}: the ray to corner {q} meets the box");
+                    }
+                }
+            }
+        }
+        assert!(grazing > 30, "{grazing} grazing rays");
     }
 
     /// Every texel ray of a tile found blocked meets the triangles, as the BVH casts it; and

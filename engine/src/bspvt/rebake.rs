@@ -196,9 +196,10 @@ impl<'a> Edit<'a> {
         let mut masks = vec![0; per_face];
         for b in boxes {
             let cover = &b.cover[f * per_face..(f + 1) * per_face];
-            let some = cover.contains(&dirty::Cover::Some);
-            let rows = if some { b.bounds.columns(f, res, span.clone()) } else { Vec::new() };
-            let seen = visibility::tile_masks(res, span.clone().zip(rows));
+            // Only the tiles the box covers in part use their rows' columns.
+            let some = tile_rows(res, |t| cover[t] == dirty::Cover::Some);
+            let rows = some.start.max(span.start)..some.end.min(span.end);
+            let seen = visibility::tile_masks(res, rows.clone().zip(b.bounds.columns(f, res, rows)));
             for ((m, c), s) in masks.iter_mut().zip(cover).zip(seen) {
                 *m |= match c {
                     dirty::Cover::None => 0,
