@@ -11,6 +11,7 @@ use crate::accel::{self, beam::Beam};
 use crate::math::cubemap;
 use glam::{DVec3, Vec3};
 use std::ops::Range;
+use wide::f64x4;
 
 /// A ray's origin lies within this times (|p|∞ + 1) of the vertex `p` it is cast from (see
 /// [`accel::offset_ray_origin`]).
@@ -54,6 +55,9 @@ pub struct SeenBox {
     silhouette: Vec<DVec3>,
     /// The same in single precision, for the per-texel test.
     silhouette32: Vec<Vec3>,
+    /// The same four at a time, as x, y and z lanes (the last group padded with zero planes),
+    /// for the tile test.
+    silhouette4: Vec<[f64x4; 3]>,
     /// How far outside the cone (in direction cosines) a ray from the offset origin can pass
     /// and still meet the box, single-precision rounding included: δ / (distance − δ) for an
     /// origin offset δ.
@@ -71,9 +75,16 @@ impl SeenBox {
         let far = distance >= CONE_DISTANCE * scale;
         let silhouette = if far { silhouette_planes(&corners) } else { Vec::new() };
         let silhouette32 = silhouette.iter().map(|m| m.as_vec3()).collect();
+        let silhouette4 = silhouette
+            .chunks(4)
+            .map(|g| {
+                let lanes = |axis: fn(&DVec3) -> f64| f64x4::new(std::array::from_fn(|l| g.get(l).map_or(0.0, axis)));
+                [lanes(|m| m.x), lanes(|m| m.y), lanes(|m| m.z)]
+            })
+            .collect();
         let offset = ORIGIN_OFFSET * scale;
         let slack = (offset / (distance - offset) + SINGLE_ROUNDING) as f32;
-        Self { p, n, lo, hi, corners, silhouette, silhouette32, slack }
+        Self { p, n, lo, hi, corners, silhouette, silhouette32, silhouette4, slack }
     }
 
     /// Whether the ray cast from the vertex in direction `d` (unit, above its horizon) can meet
@@ -117,6 +128,21 @@ impl SeenBox {
         .collect()
     }
 
+    /// Which silhouette planes the unit direction `c` lies beyond by `margin` (bit b for plane
+    /// b), and which it lies inside or on: four planes per instruction, each dot product
+    /// computed as [`DVec3::dot`] computes it (so with the same bits).
+    fn corner_masks(&self, c: DVec3, margin: f64) -> (u16, u16) {
+        let every = (1u16 << self.silhouette.len()) - 1;
+        let (x, y, z) = (f64x4::splat(c.x), f64x4::splat(c.y), f64x4::splat(c.z));
+        let (beyond, inside) =
+            self.silhouette4.iter().enumerate().fold((0, 0), |(beyond, inside), (g, [mx, my, mz])| {
+                let dot = *mx * x + *my * y + *mz * z;
+                let (b, i) = (dot.simd_gt(f64x4::splat(margin)), dot.simd_le(f64x4::ZERO));
+                (beyond | (b.to_bitmask() as u16) << (4 * g), inside | (i.to_bitmask() as u16) << (4 * g))
+            });
+        (beyond & every, inside & every)
+    }
+
     /// How much each tile sees of the box (per face, row-major tiles: `6 · tiles_per_side²`):
     /// [`Cover::None`] when a plane of the tile's frustum or of the box's silhouette separates
     /// the two, with a margin of two texels for the rays cast just above the horizon;
@@ -156,14 +182,7 @@ impl SeenBox {
                 // beyond silhouette plane b by the margin, or inside it (a box has at most 12
                 // such planes, one per edge).
                 let mut masks: Vec<Option<(u16, u16)>> = vec![None; grid.corners.len()];
-                let mut mask = |c: usize| {
-                    *masks[c].get_or_insert_with(|| {
-                        self.silhouette.iter().enumerate().fold((0, 0), |(beyond, inside), (b, m)| {
-                            let x = m.dot(grid.corners[c]);
-                            (beyond | ((x > margin) as u16) << b, inside | ((x <= 0.0) as u16) << b)
-                        })
-                    })
-                };
+                let mut mask = |c: usize| *masks[c].get_or_insert_with(|| self.corner_masks(grid.corners[c], margin));
                 let every = (1u16 << self.silhouette.len()) - 1;
                 for t in 0..k * k {
                     let (ti, tj) = (t % k, t / k);
@@ -377,6 +396,29 @@ mod tests {
             }
         }
         [clean, dirty, wanted, hits, covered, spare, rows]
+    }
+
+    /// The tile test's corner masks, four planes at a time, equal the plane-by-plane ones.
+    #[test]
+    fn corner_masks_equal_the_scalar_ones() {
+        use rand::Rng as _;
+        let mut rng = crate::math::rng::seeded(5);
+        let (lo, hi) = (Vec3::new(-0.5, 1.0, -0.2), Vec3::new(0.7, 1.1, 0.4));
+        for p in [Vec3::ZERO, Vec3::new(2.0, 0.5, -1.0), Vec3::new(0.1, 1.05, 2.0), Vec3::new(-3.0, 4.0, 0.3)] {
+            let seen = SeenBox::new(p, Vec3::Y, lo, hi);
+            assert!(seen.silhouette.len() >= 4);
+            for _ in 0..2000 {
+                let c =
+                    DVec3::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0));
+                let c = c.normalize();
+                let margin = rng.random_range(0.0..0.1);
+                let scalar = seen.silhouette.iter().enumerate().fold((0, 0), |(beyond, inside), (b, m)| {
+                    let x = m.dot(c);
+                    (beyond | ((x > margin) as u16) << b, inside | ((x <= 0.0) as u16) << b)
+                });
+                assert_eq!(seen.corner_masks(c, margin), scalar, "p {p}, c {c}");
+            }
+        }
     }
 
     /// Rays from a vertex's offset origin aimed at the box's corners graze it: each that meets
