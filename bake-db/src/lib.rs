@@ -11,7 +11,7 @@
 //!   and technique), which are cached;
 //! - [`run`]: bakes the misses on rayon while one writer commits batches, re-bakes BSPVT warm
 //!   from lineage after edits (with the BSPVT tile cache kept between runs), and assembles the
-//!   engine's bakes;
+//!   engine's bakes ([`bake`]: the same without assembling, reading no cached chunk);
 //! - [`records`]: radiance-cache records, keyed by geometry, materials, direct light and
 //!   settings;
 //! - [`pack`]: asset packs (glTF binary + the `KAGE_baked_shadows` extension) written and read.
@@ -36,5 +36,5 @@ pub mod store;
 
 pub use key::Key;
 pub use plan::{Plan, plan};
-pub use run::{Chunk, Hooks, Outcome, RunStats, run, run_cancellable};
+pub use run::{Chunk, Hooks, Outcome, RunStats, bake, run, run_cancellable};
 pub use store::{DbError, Store};

@@ -136,6 +136,35 @@ impl Chunk<'_> {
 /// returned, and the next run finds their results cached.
 pub fn run_cancellable(store: &Store, scene: &Scene, flat: &FlatScene, plan: &Plan, hooks: Hooks) -> Result<Outcome> {
     let start = Instant::now();
+    let (stats, fresh) = bake_misses(store, scene, flat, plan, hooks)?;
+    let outcome = assemble(store, scene, flat, plan, &fresh, stats)?;
+    Ok(Outcome { stats: RunStats { seconds: start.elapsed().as_secs_f64(), ..outcome.stats }, ..outcome })
+}
+
+/// [`run`] without assembling the bakes: the plan's misses are baked and committed, and no
+/// cached chunk is read (what `kage bake` needs, whatever the database's size).
+pub fn bake(
+    store: &Store,
+    scene: &Scene,
+    flat: &FlatScene,
+    plan: &Plan,
+    progress: &(dyn Fn(usize) + Sync),
+) -> Result<RunStats> {
+    let start = Instant::now();
+    let hooks = Hooks { progress, cancel: &AtomicBool::new(false), chunk: None };
+    let (stats, _) = bake_misses(store, scene, flat, plan, hooks)?;
+    Ok(RunStats { seconds: start.elapsed().as_secs_f64(), ..stats })
+}
+
+/// Bakes and commits the plan's misses (see [`run_cancellable`]); returns what it did and the
+/// fresh artefacts by key.
+fn bake_misses(
+    store: &Store,
+    scene: &Scene,
+    flat: &FlatScene,
+    plan: &Plan,
+    hooks: Hooks,
+) -> Result<(RunStats, HashMap<Key, Vec<u8>>)> {
     let Hooks { progress, cancel, chunk } = hooks;
     if let Some(f) = chunk {
         for job in plan.jobs.iter().filter(|j| j.cached) {
@@ -207,8 +236,7 @@ pub fn run_cancellable(store: &Store, scene: &Scene, flat: &FlatScene, plan: &Pl
     let meshes: Vec<([u8; 32], u32, u32)> =
         scene.meshes.iter().map(|m| (m.hash.0, m.positions.len() as u32, m.triangles.len() as u32)).collect();
     store.put_meshes(&meshes)?;
-    let outcome = assemble(store, scene, flat, plan, &fresh, stats)?;
-    Ok(Outcome { stats: RunStats { seconds: start.elapsed().as_secs_f64(), ..outcome.stats }, ..outcome })
+    Ok((stats, fresh))
 }
 
 /// Receives finished artefacts and commits them in batches; returns them all.

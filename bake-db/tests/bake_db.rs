@@ -211,6 +211,24 @@ fn bad_database_files_give_clear_errors() {
     assert!(matches!(e, DbError::Schema { found: 99, .. }) && e.to_string().contains("schema version 99"), "{e}");
 }
 
+/// `bake` (what `kage bake` runs) commits what `run` commits, cold and warm, with the same
+/// counts, without assembling the bakes.
+#[test]
+fn bake_commits_what_run_commits() {
+    let (only, full) = (Store::open(&scratch("bake-only")).unwrap(), Store::open(&scratch("bake-full")).unwrap());
+    for edit in ["", "move"] {
+        let s = scene(edit);
+        let flat = flatten(&s);
+        let p = plan(&only, &s, &flat, Some(BSPVT), Some(prt_settings())).unwrap();
+        let stats = kage_bake_db::bake(&only, &s, &flat, &p, &|_| {}).unwrap();
+        let (expected, bytes, _) = bake(&full, &s);
+        let counts = |r: &RunStats| (r.cached, r.cold, r.warm, r.vertices_baked, r.rays_cast, r.tiles_built);
+        assert_eq!(counts(&stats), counts(&expected), "{edit:?}");
+        let stored: Vec<Vec<u8>> = p.jobs.iter().map(|j| only.get::<u8>(&j.key).unwrap().expect("stored")).collect();
+        assert!(stored == bytes, "{edit:?}: the same artefacts");
+    }
+}
+
 /// The occluders' BVHs are stored by a run for the instances with enough triangles (here the
 /// ground alone) and restored by the next; a damaged entry is built and stored again, and the
 /// bytes are a cold bake's either way.
