@@ -104,18 +104,21 @@ impl SeenBox {
     /// test applies).
     pub fn columns(&self, f: usize, res: usize, rows: Range<usize>) -> Vec<Range<usize>> {
         let (c, s_axis, t_axis) = cubemap::face_basis(f);
-        let planes: Vec<[f64; 3]> = self.silhouette.iter().map(|m| [m.dot(c), m.dot(t_axis), m.dot(s_axis)]).collect();
+        // m · c, m · T, m · S and its reciprocal (a product, not a quotient, per row: the bounds'
+        // rounding changes by an ulp, far inside the columns' widening below).
+        let planes: Vec<[f64; 4]> =
+            self.silhouette.iter().map(|m| [m.dot(c), m.dot(t_axis), m.dot(s_axis), 1.0 / m.dot(s_axis)]).collect();
         rows.map(|j| {
             let t = cubemap::texel_center(0, j, res).y;
             // m · û ≤ slack in single precision implies m · u ≤ (slack + rounding) · |u|.
             let bound = (self.slack as f64 + SINGLE_ROUNDING) * (2.0 + t * t).sqrt();
             let (mut lo, mut hi) = (f64::NEG_INFINITY, f64::INFINITY);
-            for [mc, mt, b] in &planes {
+            for [mc, mt, b, inv_b] in &planes {
                 // m · u = a + s·b ≤ bound.
-                let (a, b) = (mc + t * mt, *b);
+                let a = mc + t * mt;
                 match b.partial_cmp(&0.0) {
-                    Some(std::cmp::Ordering::Greater) => hi = hi.min((bound - a) / b),
-                    Some(std::cmp::Ordering::Less) => lo = lo.max((bound - a) / b),
+                    Some(std::cmp::Ordering::Greater) => hi = hi.min((bound - a) * inv_b),
+                    Some(std::cmp::Ordering::Less) => lo = lo.max((bound - a) * inv_b),
                     _ if a > bound => hi = f64::NEG_INFINITY,
                     _ => {}
                 }
