@@ -224,8 +224,15 @@ pub fn cast_tiles(
         for (t, bits) in out.iter_mut().enumerate() {
             let (i0, j0) = ((t % k) * TILE, (t / k) * TILE);
             let (i1, j1) = ((i0 + TILE).min(res), (j0 + TILE).min(res));
-            let heights = face.corners(t);
             let all = tile_mask(t, k, res);
+            match tiles[t] {
+                Look::Keep if face.corners(t).iter().any(|&h| h > 0.0) => {
+                    *bits = TileBits { live: all, visible: 0, skipped: all };
+                    continue;
+                }
+                Look::Keep | Look::Unreached => continue,
+                Look::Cast | Look::Blocked => {}
+            }
             // Every texel centre above the horizon (the lowest is a corner texel's: height is
             // affine over a face): every texel is cast through its centre, and only the asked
             // columns need looking at. Tiles on the horizon line of a vertex whose normal is
@@ -234,17 +241,9 @@ pub fn cast_tiles(
             let above = [(i0, j0), (i1 - 1, j0), (i0, j1 - 1), (i1 - 1, j1 - 1)]
                 .iter()
                 .all(|&(i, j)| centre_height(i, j) > 1e-9);
-            match tiles[t] {
-                Look::Keep if heights.iter().any(|&h| h > 0.0) => {
-                    *bits = TileBits { live: all, visible: 0, skipped: all };
-                    continue;
-                }
-                Look::Keep | Look::Unreached => continue,
-                Look::Blocked if above => {
-                    *bits = TileBits { live: all, visible: 0, skipped: 0 };
-                    continue;
-                }
-                _ => {}
+            if tiles[t] == Look::Blocked && above {
+                *bits = TileBits { live: all, visible: 0, skipped: 0 };
+                continue;
             }
             let Ask { ask, occluded } = asks(t);
             // Occluded: live, neither visible nor skipped.
