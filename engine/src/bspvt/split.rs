@@ -29,6 +29,7 @@ pub struct Line {
 impl Line {
     /// The line of angle `theta` and offset `c`, its sine and cosine to within 1e-12 (enough to
     /// steer the search; lines the tree keeps are [`Self::dequantised`]).
+    #[inline]
     pub fn new(theta: f64, c: f64) -> Self {
         let (sin, cos) = sin_cos(theta);
         Self { cos, sin, c }
