@@ -1,7 +1,7 @@
 //! The BSPVT occluders' BVHs, kept between runs in the store's `caches` table: a BVH is a pure
 //! function of its instance's world-space triangles (obvhs' build is deterministic), so an edit
-//! rebuilds only the BVHs of the instances it touched. On the slab scene the ground's BVH took
-//! longer to build than the warm re-bake's own work on several hundred vertices.
+//! rebuilds only the BVHs of the instances it touched. On the slab scene, building the ground's
+//! BVH (4608 triangles, obvhs' slowest preset) had been 3.6 % of a warm re-bake's CPU time.
 //!
 //! Like every cache it costs only time: an entry is named by a hash of the triangles and the
 //! builder, restored exactly or not at all ([`SceneBvh::from_bytes`]), and `gc` drops them.
