@@ -12,8 +12,6 @@ use super::SceneBvh;
 use glam::Vec3;
 use obvhs::aabb::Aabb;
 use obvhs::cwbvh::{CwBvh, node::CwBvhNode};
-use obvhs::rt_triangle::RtTriangle;
-use obvhs::triangle::Triangle;
 
 /// First bytes (the layout's version).
 const MAGIC: &[u8; 4] = b"kbv1";
@@ -61,18 +59,7 @@ impl SceneBvh {
             exact_node_aabbs: None,
             uses_spatial_splits: splits == 1,
         };
-        if !walkable(&bvh, triangles.len()) {
-            return None;
-        }
-        let tris = bvh
-            .primitive_indices
-            .iter()
-            .map(|&i| {
-                let [v0, v1, v2] = triangles[i as usize];
-                RtTriangle::from(&Triangle { v0: v0.into(), v1: v1.into(), v2: v2.into() })
-            })
-            .collect();
-        Some(Self { bvh, tris })
+        walkable(&bvh, triangles.len()).then(|| Self::from_parts(bvh, triangles))
     }
 }
 
