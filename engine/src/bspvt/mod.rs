@@ -45,8 +45,9 @@ use std::time::Instant;
 /// Version of the bake algorithm, part of every bake key: bumped whenever the same inputs
 /// would give different trees (2: trees start with the tile grid of [`tree::TILE`]; 3: the
 /// split search's looser Nelder–Mead tolerance and fused sums, see [`split`]; 4: a tile's
-/// subtree is its orbit's, mapped, see [`symmetry`], and the search's own sine and cosine).
-pub const ALGORITHM_VERSION: u32 = 4;
+/// subtree is its orbit's, mapped, see [`symmetry`], and the search's own sine and cosine; 5: three
+/// single-precision searches without restarts, see [`split`]).
+pub const ALGORITHM_VERSION: u32 = 5;
 
 /// Bake parameters.
 #[derive(Clone, Copy, Debug, PartialEq)]
