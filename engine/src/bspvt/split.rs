@@ -13,6 +13,7 @@ use super::tree::Node;
 use crate::math::nelder_mead;
 use std::cmp::Ordering;
 use std::collections::BinaryHeap;
+use wide::f64x4;
 
 /// Pixels per tile at most (a cluster is a mask over them).
 pub const MAX_PIXELS: usize = 64;
@@ -105,20 +106,42 @@ impl Pixels {
         out
     }
 
-    /// The pixels of `mask` on the positive side of `line`.
-    fn positive(&self, mask: u64, line: &Line) -> u64 {
-        bits(mask).filter(|&i| line.side(self.get(i).0, self.get(i).1) > 0.0).fold(0, |m, i| m | 1 << i)
-    }
-
     /// Solid-angle-weighted mean and within-cluster error Σ w (V − v̄)² of the pixels of `mask`.
     fn mean_and_error(&self, mask: u64) -> (f64, f64) {
-        let (sw, sv) = bits(mask).fold((0.0, 0.0), |(sw, sv), i| {
-            let (_, _, w, v) = self.get(i);
-            (sw + w, sv + w * v)
-        });
-        let mean = if sw > 0.0 { sv / sw } else { 0.0 };
-        // V ∈ {0, 1}: Σ w (V − m)² = Σ w V − m Σ w V.
-        (mean, (sv - mean * sv).max(0.0))
+        mean_and_error(bits(mask).fold((0.0, 0.0), |sums, i| add(sums, self.get(i))))
+    }
+
+    /// Per group of four pixels, the signed distances to `line` (as [`Line::side`] computes
+    /// them) and which lanes hold pixels rather than padding.
+    fn sides(&self, line: &Line) -> impl Iterator<Item = (usize, f64x4, f64x4)> {
+        let (cos, sin, c) = (f64x4::splat(line.cos), f64x4::splat(line.sin), f64x4::splat(line.c));
+        let lanes = f64x4::new([0.0, 1.0, 2.0, 3.0]);
+        (0..self.len.div_ceil(4).min(MAX_PIXELS / 4)).map(move |q| {
+            let d = cos * f64x4::new(self.s[q]) + sin * f64x4::new(self.t[q]) - c;
+            (q, d, (lanes + f64x4::splat((4 * q) as f64)).simd_lt(f64x4::splat(self.len as f64)))
+        })
+    }
+
+    /// Its pixels on the positive side of `line` (a mask over its indices) and the error the
+    /// two sides keep, Σ w (V − v̄)² within each (summed four lanes at a time).
+    fn divide(&self, line: &Line) -> (u64, f64) {
+        let zero = f64x4::ZERO;
+        let (mut positive, mut sums) = (0, [zero; 4]);
+        for (q, d, _) in self.sides(line) {
+            let (w, v, side) = (f64x4::new(self.w[q]), f64x4::new(self.v[q]), d.simd_gt(zero));
+            positive |= u64::from(side.to_bitmask()) << (4 * q);
+            let wv = w * v;
+            // The padding weighs nothing, whichever side it falls on.
+            let [pw, pv, nw, nv] = sums;
+            sums = [
+                pw + side.select(w, zero),
+                pv + side.select(wv, zero),
+                nw + side.select(zero, w),
+                nv + side.select(zero, wv),
+            ];
+        }
+        let [pw, pv, nw, nv] = sums.map(f64x4::reduce_add);
+        (positive & self.all(), mean_and_error((pw, pv)).1 + mean_and_error((nw, nv)).1)
     }
 
     /// Σ w (H − V)² over every pixel, H the line's side through `h(signed distance)`: four
@@ -186,6 +209,29 @@ fn bits(mut mask: u64) -> impl Iterator<Item = usize> {
             mask &= mask - 1;
             i
         })
+    })
+}
+
+/// Weight and weighted visibility sums `(Σ w, Σ w V)` with pixel `(s, t, w, v)` added.
+#[inline]
+fn add((sw, sv): (f64, f64), (_, _, w, v): (f64, f64, f64, f64)) -> (f64, f64) {
+    (sw + w, sv + w * v)
+}
+
+/// The weighted mean and the error Σ w (V − v̄)² of pixels with sums `(Σ w, Σ w V)`.
+fn mean_and_error((sw, sv): (f64, f64)) -> (f64, f64) {
+    let mean = if sw > 0.0 { sv / sw } else { 0.0 };
+    // V ∈ {0, 1}: Σ w (V − m)² = Σ w V − m Σ w V.
+    (mean, (sv - mean * sv).max(0.0))
+}
+
+/// The bits of `mask` that gathered mask `bits` picks: bit k of `bits` stands for the k-th
+/// set bit of `mask` (see [`Pixels::gather`]).
+fn scatter(mut picked: u64, mask: u64) -> u64 {
+    bits(mask).fold(0, |out, i| {
+        let bit = picked & 1;
+        picked >>= 1;
+        out | bit << i
     })
 }
 
@@ -327,12 +373,13 @@ fn split(c: &Cluster, all: &Pixels, res: usize) -> Option<(u16, u16, u64)> {
     // Three starts without restarts, stopped at a spread of 3e-4, build fewer leaves with less
     // error than two starts restarted once at 1e-4, in less time (README, "Split search speed").
     let opts = nelder_mead::Options { max_evals: 80, tolerance: 3e-4, restarts: 0 };
-    // A line's split after quantisation and the error its children would keep.
+    // A line's split after quantisation (a mask over the gathered pixels) and the error its
+    // children would keep.
+    let every = pixels.all();
     let judge = |(t, o): (f64, f64)| {
-        let (qa, qo) = quantise_line(t, max_margin_offset(c.mask, all, t, o));
-        let pos = all.positive(c.mask, &Line::dequantised(qa, qo));
-        let e = all.mean_and_error(pos).1 + all.mean_and_error(c.mask & !pos).1;
-        (pos != 0 && pos != c.mask).then_some((e, (qa, qo, pos)))
+        let (qa, qo) = quantise_line(t, max_margin_offset(&pixels, t, o));
+        let (pos, e) = pixels.divide(&Line::dequantised(qa, qo));
+        (pos != 0 && pos != every).then_some((e, (qa, qo, pos)))
     };
     // The first of equally good lines wins.
     let better = |best: Option<(f64, _)>, next: Option<(f64, _)>| match (best, next) {
@@ -348,24 +395,22 @@ fn split(c: &Cluster, all: &Pixels, res: usize) -> Option<(u16, u16, u64)> {
         let m = nelder_mead::minimize(soft, [theta, off], [0.2, 2.0 / res as f64], opts);
         best = better(best, judge((m.x[0], m.x[1])));
     }
-    best.map(|(_, split)| split)
+    best.map(|(_, (qa, qo, pos))| (qa, qo, scatter(pos, c.mask)))
 }
 
 /// Moves a line parallel to itself to the middle of the gap between the pixel centres of
-/// `mask` on its two sides, so a boundary between texels is placed on the texel edge (as the
+/// `pixels` on its two sides, so a boundary between texels is placed on the texel edge (as the
 /// raw cube map has it) rather than anywhere in the gap.
-fn max_margin_offset(mask: u64, all: &Pixels, theta: f64, off: f64) -> f64 {
-    let (mut below, mut above) = (f64::NEG_INFINITY, f64::INFINITY);
-    let line = Line::new(theta, off);
-    for i in bits(mask) {
-        let (s, t, ..) = all.get(i);
-        let d = line.side(s, t);
-        if d > 0.0 {
-            above = above.min(d);
-        } else {
-            below = below.max(d);
-        }
+fn max_margin_offset(pixels: &Pixels, theta: f64, off: f64) -> f64 {
+    let (inf, zero) = (f64x4::splat(f64::INFINITY), f64x4::ZERO);
+    let (mut below, mut above) = (-inf, inf);
+    for (_, d, pixel) in pixels.sides(&Line::new(theta, off)) {
+        let positive = d.simd_gt(zero);
+        above = above.min((pixel & positive).select(d, inf));
+        below = below.max((pixel & !positive).select(d, -inf));
     }
+    let below = below.to_array().into_iter().fold(f64::NEG_INFINITY, f64::max);
+    let above = above.to_array().into_iter().fold(f64::INFINITY, f64::min);
     if below.is_finite() && above.is_finite() { off + 0.5 * (below + above) } else { off }
 }
 
@@ -445,6 +490,32 @@ mod tests {
                 assert!((single - exact).abs() <= bound, "mask {mask:#x}, line {k}: {single} vs {exact}");
             }
         }
+    }
+
+    /// `divide` splits gathered pixels as `Line::side` does and keeps the children's error
+    /// within rounding of the per-side sums; the largest-margin offset sits halfway between the
+    /// nearest pixels on either side, for clusters of 1 to 64 pixels (the padding ignored).
+    #[test]
+    fn divide_and_margin_agree_with_one_pixel_at_a_time() {
+        let all = pixels(64);
+        for mask in [1u64, 0b111, 0x5555_5555_5555_5555, 0xFFFF_0000_0000_0001, u64::MAX] {
+            let gathered = all.gather(mask);
+            for k in 0..300 {
+                let (theta, c) = (k as f64 * 0.37, 0.6 * (k as f64).sin());
+                let line = Line::new(theta, c);
+                let d: Vec<f64> = (0..gathered.len).map(|i| line.side(gathered.get(i).0, gathered.get(i).1)).collect();
+                let positive = (0..gathered.len).filter(|&i| d[i] > 0.0).fold(0u64, |m, i| m | 1 << i);
+                let error = gathered.mean_and_error(positive).1 + gathered.mean_and_error(gathered.all() & !positive).1;
+                let (fast, fast_error) = gathered.divide(&line);
+                assert_eq!(fast, positive, "mask {mask:#x}, line {k}");
+                assert!((fast_error - error).abs() <= 1e-12 * (1.0 + error), "{fast_error} vs {error}");
+                let above = d.iter().copied().filter(|&d| d > 0.0).fold(f64::INFINITY, f64::min);
+                let below = d.iter().copied().filter(|&d| d <= 0.0).fold(f64::NEG_INFINITY, f64::max);
+                let margin = if above.is_finite() && below.is_finite() { c + 0.5 * (below + above) } else { c };
+                assert_eq!(max_margin_offset(&gathered, theta, c), margin, "mask {mask:#x}, line {k}");
+            }
+        }
+        assert_eq!(scatter(0b101, 0b1011_0000), 0b1001_0000);
     }
 
     /// The search's sine and cosine are within 1e-12 of libm's, across many turns either way.
