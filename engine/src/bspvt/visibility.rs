@@ -69,7 +69,12 @@ pub fn cast_face_tiles(
 /// its centre, or for a texel the horizon crosses the centre's projection onto the horizon
 /// lifted slightly above it; `None` when the texel is entirely below the horizon.
 pub fn texel_ray(f: usize, i: usize, j: usize, nd: DVec3, res: usize) -> Option<DVec3> {
-    ray_through(cubemap::face_to_dir(f, cubemap::texel_center(i, j, res)), f, i, j, nd, res)
+    ray_through(centre(f, i, j, res), f, i, j, nd, res)
+}
+
+/// The unit direction through the centre of texel (i, j) of face `f`.
+fn centre(f: usize, i: usize, j: usize, res: usize) -> DVec3 {
+    cubemap::face_to_dir(f, cubemap::texel_center(i, j, res))
 }
 
 /// [`texel_ray`] given the texel's unit centre direction.
@@ -218,7 +223,7 @@ pub fn cast_tiles(
         if *at != res {
             *at = res;
             *centres = (0..cubemap::FACES * res * res)
-                .map(|k| cubemap::face_to_dir(k / (res * res), cubemap::texel_center(k % res, k / res % res, res)))
+                .map(|k| centre(k / (res * res), k % res, k / res % res, res).as_vec3())
                 .collect();
         }
         for (t, bits) in out.iter_mut().enumerate() {
@@ -237,7 +242,7 @@ pub fn cast_tiles(
             // affine over a face): every texel is cast through its centre, and only the asked
             // columns need looking at. Tiles on the horizon line of a vertex whose normal is
             // a face axis qualify, though their corners are on it.
-            let centre_height = |i: usize, j: usize| centres[(f * res + j) * res + i].dot(nd);
+            let centre_height = |i: usize, j: usize| centre(f, i, j, res).dot(nd);
             let above = [(i0, j0), (i1 - 1, j0), (i0, j1 - 1), (i1 - 1, j1 - 1)]
                 .iter()
                 .all(|&(i, j)| centre_height(i, j) > 1e-9);
@@ -254,18 +259,17 @@ pub fn cast_tiles(
                 let b = ask.trailing_zeros() as usize;
                 ask &= ask - 1;
                 let (i, j) = (i0 + b % TILE, j0 + b / TILE);
-                let centre = centres[(f * res + j) * res + i];
                 let d = if above {
-                    centre
+                    centres[(f * res + j) * res + i]
                 } else {
-                    let Some(d) = ray_through(centre, f, i, j, nd, res) else { continue };
-                    d
+                    let Some(d) = ray_through(centre(f, i, j, res), f, i, j, nd, res) else { continue };
+                    d.as_vec3()
                 };
                 let bit = 1u64 << b;
                 asked |= bit;
                 // Without branches: the outcome is data, and mispredicting it cost more than
                 // the masks.
-                let state = texel(t, bit, d.as_vec3());
+                let state = texel(t, bit, d);
                 bits.visible |= bit & 0u64.wrapping_sub((state == VISIBLE) as u64);
                 bits.skipped |= bit & 0u64.wrapping_sub((state == SKIPPED) as u64);
             }
@@ -345,9 +349,10 @@ pub fn ray_origin(above: Vec3, p: Vec3, n: Vec3, d: Vec3) -> Vec3 {
 
 thread_local! {
     /// Unit centre directions of every texel (face-major) at the last resolution this thread
-    /// cast: normalising them per cast was a fifth of a bake. Per thread rather than one lazily
+    /// cast, rounded to single precision as the rays take them (half the memory, so fewer
+    /// cache misses): normalising them per cast was a fifth of a bake. Per thread rather than one lazily
     /// built shared table, because a rayon worker blocked in a shared initialiser can deadlock.
-    static CENTRES: std::cell::RefCell<(usize, Vec<DVec3>)> = const { std::cell::RefCell::new((0, Vec::new())) };
+    static CENTRES: std::cell::RefCell<(usize, Vec<Vec3>)> = const { std::cell::RefCell::new((0, Vec::new())) };
 }
 
 #[cfg(test)]
