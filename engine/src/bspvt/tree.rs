@@ -68,9 +68,10 @@ pub fn build(face: &[u8], res: usize, epsilon: f64) -> FaceTree {
 pub fn rebuild(face: &[TileBits], tiles: &TileCache, old: &[Node], old_masks: &[(u32, u64)]) -> FaceTree {
     let res = tiles.settings().res;
     let mut grid = Grid::new(face, tiles, old_masks);
-    let nodes = grid.region(Rect { i0: 0, j0: 0, i1: res, j1: res }, old);
+    let mut nodes = Vec::new();
+    let live = grid.region(Rect { i0: 0, j0: 0, i1: res, j1: res }, old, &mut nodes);
     grid.masks.sort_unstable_by_key(|m| m.0);
-    FaceTree { nodes, masks: grid.masks, built: grid.built }
+    FaceTree { nodes: live.then_some(nodes), masks: grid.masks, built: grid.built }
 }
 
 /// A rectangle of texels `[i0, i1) × [j0, j1)`.
@@ -195,34 +196,50 @@ impl<'a> Grid<'a> {
         !any_tile(r, self.k, |t| self.tiles[t].skipped != self.tiles[t].live)
     }
 
-    /// The subtree of region `r`; `old` is its previous subtree.
-    fn region(&mut self, r: Rect, old: &[Node]) -> Option<Vec<Node>> {
+    /// Appends the subtree of region `r` to `out` (`old` is its previous subtree): false, and
+    /// nothing appended, when no texel of `r` is above the horizon. One buffer for the whole
+    /// face, rather than a vector per region joined on the way up.
+    fn region(&mut self, r: Rect, old: &[Node], out: &mut Vec<Node>) -> bool {
         if !self.live(r) {
-            return None;
+            return false;
         }
         if !old.is_empty() && self.untouched(r) {
             // What the recursion would rebuild tile by tile (see `Self::tile`), in one copy.
             let ((ti, tj), k) = (r.tile_ranges(), self.k);
             let inside = |t: usize| ti.contains(&(t % k)) && tj.contains(&(t / k));
             self.masks.extend(self.old_masks.iter().filter(|m| inside(m.0 as usize)));
-            return Some(old.to_vec());
+            out.extend_from_slice(old);
+            return true;
         }
         if r.tiles() == (1, 1) {
-            return Some(self.tile(r, old));
+            self.tile(r, old, out);
+            return true;
         }
         let ((angle, offset), pos, neg) = r.halves(self.res);
         let (old_pos, old_neg) = old_halves(old, self.live(pos) && self.live(neg));
-        match (self.region(pos, old_pos), self.region(neg, old_neg)) {
-            (None, x) | (x, None) => x,
-            (Some(p), Some(n)) if p == n && matches!(p[..], [Node::Leaf(v)] if v == 0.0 || v == 1.0) => Some(p),
-            (Some(p), Some(n)) => Some([vec![Node::Split { angle, offset }], p, n].concat()),
+        let at = out.len();
+        out.push(Node::Split { angle, offset });
+        let positive = self.region(pos, old_pos, out);
+        let middle = out.len();
+        let negative = self.region(neg, old_neg, out);
+        if !(positive && negative) {
+            // One half has nothing above the horizon: the other stands for the region.
+            out.remove(at);
+        } else if out[at + 1..middle] == out[middle..] && matches!(out[middle..], [Node::Leaf(v)] if v == 0.0 || v == 1.0)
+        {
+            // Both halves uniformly visible, or both uniformly occluded: one leaf.
+            let leaf = out[middle];
+            out.truncate(at);
+            out.push(leaf);
         }
+        true
     }
 
-    /// The subtree of one tile with a texel above the horizon: its old subtree when its
-    /// visibility did not change, else built by Algorithm 1. Skipped texels take their old
-    /// state: from the tile's old mask, or (a uniform tile has none) from its old leaf.
-    fn tile(&mut self, r: Rect, old: &[Node]) -> Vec<Node> {
+    /// Appends the subtree of one tile with a texel above the horizon to `out`: its old
+    /// subtree when its visibility did not change, else built by Algorithm 1. Skipped texels
+    /// take their old state: from the tile's old mask, or (a uniform tile has none) from its
+    /// old leaf.
+    fn tile(&mut self, r: Rect, old: &[Node], out: &mut Vec<Node>) {
         let index = ((r.j0 / TILE) * self.k + r.i0 / TILE) as u32;
         let TileBits { live, visible, skipped } = self.tiles[index as usize];
         let old_visible = old_tile_visible(self.old_masks, index, old) & live;
@@ -231,13 +248,13 @@ impl<'a> Grid<'a> {
             self.masks.push((index, visible));
         }
         if !old.is_empty() && visible == old_visible {
-            return old.to_vec();
+            out.extend_from_slice(old);
+        } else if visible == 0 || visible == live {
+            out.push(Node::Leaf(if visible == 0 { 0.0 } else { 1.0 }));
+        } else {
+            self.built += 1;
+            out.extend(self.cache.subtree((index, live, visible)));
         }
-        if visible == 0 || visible == live {
-            return vec![Node::Leaf(if visible == 0 { 0.0 } else { 1.0 })];
-        }
-        self.built += 1;
-        self.cache.subtree((index, live, visible))
     }
 }
 
