@@ -7,6 +7,7 @@
 //! that falls back to the BVH then gets exactly the BVH's answer, bit for bit. Warm BSPVT
 //! re-bakes use it to test the few triangles of a moved object against millions of texel rays.
 
+use crate::math::planes::Planes;
 use glam::{DVec3, Vec3};
 
 /// Instances with more triangles than this are left to their BVH.
@@ -23,6 +24,10 @@ pub struct Beam {
     /// Per triangle whose plane is far enough from the origin: unit normals of its three edge
     /// planes, the triangle on their positive side.
     planes: Vec<[Vec3; 3]>,
+    /// The same edge planes all at once, triangle `b`'s at bits 3b, 3b + 1 and 3b + 2.
+    edges: Planes,
+    /// Bit 3b set for each triangle b.
+    firsts: u128,
     /// Bit `b` set when triangle `b` of `planes` turns its front (counter-clockwise) side to
     /// the origin.
     front: u32,
@@ -59,7 +64,9 @@ impl Beam {
         // not depend on the order).
         planes.sort_by(|a, b| b.0.total_cmp(&a.0));
         let front = planes.iter().enumerate().fold(0, |m, (b, p)| m | (p.1 as u32) << b);
-        Self { planes: planes.into_iter().map(|(.., p)| p).collect(), front, near }
+        let planes: Vec<[Vec3; 3]> = planes.into_iter().map(|(.., p)| p).collect();
+        let firsts = (0..planes.len()).fold(0, |m, b| m | 1 << (3 * b));
+        Self { edges: Planes::new(planes.as_flattened()), planes, firsts, front, near }
     }
 
     /// The edge planes (see [`Self::inside`]) of the triangles that turn their front to the
@@ -83,22 +90,14 @@ impl Beam {
     /// `None` when `d` passes within [`MARGIN`] of an edge plane that matters, or near a
     /// triangle whose plane passes close to the origin.
     pub fn hits(&self, d: Vec3) -> Option<bool> {
-        let mut open = self.near;
-        for planes in &self.planes {
-            // A plane the direction is certainly outside of settles the triangle: no need for
-            // the others' dots (most rays asked about miss most triangles).
-            let mut inside = true;
-            let missed = planes.iter().any(|m| {
-                let x = m.dot(d);
-                inside &= x > MARGIN;
-                x < -MARGIN
-            });
-            if inside {
-                return Some(true);
-            }
-            open |= !missed;
+        let (beyond, behind) = self.edges.sides(d, MARGIN);
+        // Certainly inside a triangle: beyond its three edge planes.
+        if beyond & beyond >> 1 & beyond >> 2 & self.firsts != 0 {
+            return Some(true);
         }
-        (!open).then_some(false)
+        // Certainly outside every triangle: behind one of each one's edge planes.
+        let missed = (behind | behind >> 1 | behind >> 2) & self.firsts;
+        (!self.near && missed == self.firsts).then_some(false)
     }
 }
 

@@ -9,6 +9,7 @@ use super::grid::{FaceGrid, with_grids};
 use super::tiles_per_side;
 use crate::accel::{self, beam::Beam};
 use crate::math::cubemap;
+use crate::math::planes::Planes;
 use glam::{DVec3, Vec3};
 use std::ops::Range;
 use wide::f64x4;
@@ -54,7 +55,7 @@ pub struct SeenBox {
     /// on their non-positive side (its silhouette); empty when `p` is inside or too close.
     silhouette: Vec<DVec3>,
     /// The same in single precision, for the per-texel test.
-    silhouette32: Vec<Vec3>,
+    silhouette32: Planes,
     /// The same four at a time, as x, y and z lanes (the last group padded with zero planes),
     /// for the tile test.
     silhouette4: Vec<[f64x4; 3]>,
@@ -74,7 +75,7 @@ impl SeenBox {
         let scale = pd.abs().max_element() + 1.0;
         let far = distance >= CONE_DISTANCE * scale;
         let silhouette = if far { silhouette_planes(&corners) } else { Vec::new() };
-        let silhouette32 = silhouette.iter().map(|m| m.as_vec3()).collect();
+        let silhouette32 = Planes::new(&silhouette.iter().map(|m| m.as_vec3()).collect::<Vec<_>>());
         let silhouette4 = silhouette
             .chunks(4)
             .map(|g| {
@@ -94,7 +95,7 @@ impl SeenBox {
         if self.silhouette.is_empty() {
             return accel::ray_meets_box(accel::offset_ray_origin(self.p, self.n, d), d, self.lo, self.hi);
         }
-        self.silhouette32.iter().all(|m| m.dot(d) <= self.slack)
+        self.silhouette32.sides(d, self.slack).0 == 0
     }
 
     /// Per texel row `j` in `rows` of face `f`, the columns whose centre directions can pass

@@ -225,7 +225,8 @@ impl<'a> Grid<'a> {
         if !(positive && negative) {
             // One half has nothing above the horizon: the other stands for the region.
             out.remove(at);
-        } else if out[at + 1..middle] == out[middle..] && matches!(out[middle..], [Node::Leaf(v)] if v == 0.0 || v == 1.0)
+        } else if out[at + 1..middle] == out[middle..]
+            && matches!(out[middle..], [Node::Leaf(v)] if v == 0.0 || v == 1.0)
         {
             // Both halves uniformly visible, or both uniformly occluded: one leaf.
             let leaf = out[middle];

@@ -9,6 +9,7 @@ pub mod ggx;
 pub mod hsh;
 pub mod ltc;
 pub mod nelder_mead;
+pub mod planes;
 pub mod polygon;
 pub mod quadrature;
 pub mod rng;
