@@ -185,7 +185,11 @@ impl<'a> Edit<'a> {
         // inside an old one (see `Self::texel`).
         let asks =
             |t: usize| visibility::Ask { ask: (was[t] & after[t]) | (!was[t] & before[t]), occluded: occluded[t] };
-        let texel = |t: usize, bit, d| self.texel(first + t, d, was[t] & bit != 0, rays);
+        // A texel centre outside every new box's columns meets none of them (the columns hold
+        // every centre that can; a direction lifted above the horizon is not a centre).
+        let texel = |t: usize, bit, d, centred: bool| {
+            self.texel(first + t, d, (was[t] & bit != 0, !centred || after[t] & bit != 0), rays)
+        };
         visibility::cast_tiles(&face, &looks, asks, texel)
     }
 
@@ -231,10 +235,11 @@ impl<'a> Edit<'a> {
     }
 
     /// The state of the texel cast through tile `t` (of all six faces) in direction `d` (unit,
-    /// above the horizon), which was visible or not: [`visibility::SKIPPED`] when it cannot
-    /// have changed; `rays` counts the rays cast.
-    fn texel(&self, t: usize, d: glam::Vec3, was_visible: bool, rays: &mut usize) -> u8 {
-        let mut after = self.after.iter().filter(|b| b.meets(t, d)).peekable();
+    /// above the horizon), which was visible or not, and whose ray may meet a new box or
+    /// certainly meets none: [`visibility::SKIPPED`] when it cannot have changed; `rays` counts
+    /// the rays cast.
+    fn texel(&self, t: usize, d: glam::Vec3, (was_visible, may_meet): (bool, bool), rays: &mut usize) -> u8 {
+        let mut after = self.after.iter().filter(|b| may_meet && b.meets(t, d)).peekable();
         // Visible: only what is now inside a changed occluder's bounds could block it.
         // Blocked, by no changed occluder: what blocked it stayed put.
         let unchanged = if was_visible { after.peek().is_none() } else { !self.before.iter().any(|b| b.meets(t, d)) };

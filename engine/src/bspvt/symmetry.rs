@@ -129,8 +129,20 @@ impl Symmetric {
         if !self.0 {
             return (key, Symmetry::IDENTITY);
         }
-        // Ties (a key its own mirror image) go to the first symmetry, for determinism.
-        Symmetry::ALL.iter().map(|&g| (g.key(key, k), g)).min_by_key(|&(image, _)| image).expect("eight symmetries")
+        // The least key has the least tile index: only the symmetries giving that index need
+        // their masks mapped. Ties (a key its own mirror image) go to the first symmetry, for
+        // determinism.
+        let index = |g: Symmetry| {
+            let (i, j) = g.cell((key.0 as usize % k, key.0 as usize / k), k);
+            j * k + i
+        };
+        let least = Symmetry::ALL.iter().map(|&g| index(g)).min().expect("eight symmetries");
+        Symmetry::ALL
+            .iter()
+            .filter(|&&g| index(g) == least)
+            .map(|&g| (g.key(key, k), g))
+            .min_by_key(|&(image, _)| image)
+            .expect("a symmetry gives the least index")
     }
 }
 
@@ -140,6 +152,7 @@ mod tests {
     use crate::bspvt::layout::dequantise_line;
     use crate::bspvt::split::Line;
     use crate::math::cubemap;
+    use rand::Rng;
 
     impl Symmetry {
         /// The image of face point (s, t).
@@ -210,16 +223,25 @@ mod tests {
         }
     }
 
-    /// The canonical key is the same for every image of a key and is one of them; resolutions
-    /// that are not symmetric keep keys as they are.
+    /// The canonical key is the least of a key's eight images, found by the first symmetry
+    /// giving it (tiles on the face's diagonals and middle lines included, and keys that are
+    /// their own mirror images); it is the same for every image of a key; resolutions that are
+    /// not symmetric keep keys as they are.
     #[test]
     fn canonical_keys_are_shared_by_an_orbit() {
-        let key = (10, u64::MAX, 0x0000_0000_0F0F_0301);
-        let (canon, g) = Symmetric::of(64).canonical(key, 8);
-        assert_eq!(g.key(key, 8), canon);
-        for h in Symmetry::ALL {
-            assert_eq!(Symmetric::of(64).canonical(h.key(key, 8), 8).0, canon, "{h:?}");
+        let mut r = crate::math::rng::seeded(2);
+        let masks = [0, u64::MAX, 0x0000_0000_0F0F_0301, 0xFF00_FF00_FF00_FF00, 0x8142_2418_1824_4281];
+        for index in [0, 3, 9, 10, 27, 36, 63] {
+            for key in masks.iter().flat_map(|&m| [(index, u64::MAX, m), (index, m | 1, m & r.random::<u64>())]) {
+                let (canon, g) = Symmetric::of(64).canonical(key, 8);
+                let least = Symmetry::ALL.iter().map(|&h| (h.key(key, 8), h)).min_by_key(|&(image, _)| image);
+                assert_eq!(Some((canon, g)), least, "{key:?}");
+                for h in Symmetry::ALL {
+                    assert_eq!(Symmetric::of(64).canonical(h.key(key, 8), 8).0, canon, "{h:?}");
+                }
+            }
         }
+        let key = (10, u64::MAX, 0x0000_0000_0F0F_0301);
         assert_eq!(Symmetric::of(60).canonical(key, 8), (key, Symmetry::IDENTITY));
         assert_eq!(Symmetric::of(48), Symmetric(false), "texel centres of 48 do not mirror exactly");
     }

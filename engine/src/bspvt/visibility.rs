@@ -62,7 +62,7 @@ pub fn cast_face_tiles(
         .collect();
     let above = horizon_origin(p, n);
     let every = |_| Ask { ask: u64::MAX, occluded: 0 };
-    cast_tiles(&Horizon::new(n, f, res), &looks, every, |_, _, d| cast_ray(occluders, ray_origin(above, p, n, d), d))
+    cast_tiles(&Horizon::new(n, f, res), &looks, every, |_, _, d, _| cast_ray(occluders, ray_origin(above, p, n, d), d))
 }
 
 /// The direction cast for texel (i, j) of face `f` above the horizon of unit normal `nd`:
@@ -202,7 +202,8 @@ fn tile_mask(t: usize, k: usize, res: usize) -> u64 {
 /// The tiles of a vertex's `face`, asking `texel` for the state of each texel above the
 /// horizon, tile by tile as `tiles` says (see [`Look`]; row-major,
 /// [`TILE`]-texel tiles, the last ones narrower when `res` is not a multiple):
-/// `texel(tile, bit, direction)` returns [`VISIBLE`], [`OCCLUDED`] or [`SKIPPED`]. A tile kept
+/// `texel(tile, bit, direction, centred)` returns [`VISIBLE`], [`OCCLUDED`] or [`SKIPPED`]
+/// (`centred`: the direction is the texel centre's, not lifted above the horizon). A tile kept
 /// is not looked at texel by texel: when it is live (see [`live_tiles`]) all of it is
 /// `SKIPPED`. Of a cast tile, the texels `asks(tile).occluded` are `OCCLUDED` without asking;
 /// in a tile whose texel centres are all above the horizon only the others in
@@ -211,7 +212,7 @@ pub fn cast_tiles(
     face: &Horizon,
     tiles: &[Look],
     asks: impl Fn(usize) -> Ask,
-    mut texel: impl FnMut(usize, u64, Vec3) -> u8,
+    mut texel: impl FnMut(usize, u64, Vec3, bool) -> u8,
 ) -> Vec<TileBits> {
     let (f, res, k) = (face.f, face.res, face.k);
     let nd = face.n.as_dvec3();
@@ -269,7 +270,7 @@ pub fn cast_tiles(
                 asked |= bit;
                 // Without branches: the outcome is data, and mispredicting it cost more than
                 // the masks.
-                let state = texel(t, bit, d);
+                let state = texel(t, bit, d, above);
                 bits.visible |= bit & 0u64.wrapping_sub((state == VISIBLE) as u64);
                 bits.skipped |= bit & 0u64.wrapping_sub((state == SKIPPED) as u64);
             }
@@ -377,7 +378,7 @@ mod tests {
             for f in 0..cubemap::FACES {
                 let full = cast_face(&occ, Vec3::ZERO, n, f, res);
                 let live = live_tiles(n, f, res);
-                let texel = |_, _, d: Vec3| {
+                let texel = |_, _, d: Vec3, _| {
                     if d.x > 0.0 { cast_ray(&occ, offset_ray_origin(Vec3::ZERO, n, d), d) } else { SKIPPED }
                 };
                 let height =
