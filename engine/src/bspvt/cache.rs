@@ -69,27 +69,33 @@ impl TileCache {
         &self.settings
     }
 
-    /// The subtree of mixed tile `key`: its orbit's subtree ([`build_tile`] of the orbit's
-    /// least key, cached or built and cached), mapped to the tile.
-    pub fn subtree(&self, key: TileKey) -> Vec<Node> {
+    /// Appends the subtree of mixed tile `key` to `out`: its orbit's subtree ([`build_tile`] of
+    /// the orbit's least key, cached or built and cached), mapped to the tile.
+    pub fn subtree(&self, key: TileKey, out: &mut Vec<Node>) {
         let (canonical, to) = self.symmetric.canonical(key, self.settings.res.div_ceil(TILE));
-        let nodes = self.get_or_build(canonical, || build_tile(canonical, self));
-        to.inverse().nodes(&nodes)
+        self.with_subtree(canonical, || build_tile(canonical, self), |nodes| to.inverse().extend(out, nodes));
     }
 
-    /// The subtree of `key`: cached, or made by `build` (and cached).
-    pub fn get_or_build(&self, key: TileKey, build: impl FnOnce() -> Vec<Node>) -> Vec<Node> {
+    /// `read` of the subtree of `key`: cached (read under the cache's lock, not copied), or
+    /// made by `build` (and cached).
+    pub fn with_subtree<R>(
+        &self,
+        key: TileKey,
+        build: impl FnOnce() -> Vec<Node>,
+        read: impl FnOnce(&[Node]) -> R,
+    ) -> R {
         if let Some(nodes) = self.lock().get(&key) {
             self.hits.fetch_add(1, Ordering::Relaxed);
-            return nodes.clone();
+            return read(nodes);
         }
         // Built outside the lock: two workers may build the same tile once each, to equal results.
         let nodes = build();
+        let answer = read(&nodes);
         let mut map = self.lock();
-        if map.len() < CAPACITY && map.insert(key, nodes.clone()).is_none() {
+        if map.len() < CAPACITY && map.insert(key, nodes).is_none() {
             self.added.fetch_add(1, Ordering::Relaxed);
         }
-        nodes
+        answer
     }
 
     fn lock(&self) -> std::sync::MutexGuard<'_, HashMap<TileKey, Vec<Node>>> {
@@ -220,10 +226,9 @@ mod tests {
     fn filled(s: &Settings) -> TileCache {
         let cache = TileCache::new(s);
         let subtree = vec![Node::Split { angle: 2047, offset: 4094 }, Node::Leaf(0.0), Node::Leaf(0.37)];
-        cache.get_or_build((3, u64::MAX, 0x0F0F), || subtree);
-        cache.get_or_build((0, 0xFF, 0x1), || {
-            vec![Node::Split { angle: 0, offset: 0 }, Node::Leaf(1.0), Node::Leaf(0.5)]
-        });
+        cache.with_subtree((3, u64::MAX, 0x0F0F), || subtree, |_| ());
+        let other = || vec![Node::Split { angle: 0, offset: 0 }, Node::Leaf(1.0), Node::Leaf(0.5)];
+        cache.with_subtree((0, 0xFF, 0x1), other, |_| ());
         cache
     }
 
@@ -231,7 +236,7 @@ mod tests {
     #[test]
     fn a_hit_returns_what_was_built() {
         let cache = filled(&Settings::default());
-        let again = cache.get_or_build((3, u64::MAX, 0x0F0F), || panic!("a hit must not build"));
+        let again = cache.with_subtree((3, u64::MAX, 0x0F0F), || panic!("a hit must not build"), <[Node]>::to_vec);
         assert_eq!(again[2], Node::Leaf(0.37));
         assert_eq!((cache.len(), cache.added(), cache.hits()), (2, 2, 1));
     }

@@ -87,14 +87,14 @@ impl Symmetry {
         a.rem_euclid(TURN) as u16
     }
 
-    /// The image of a subtree: the same shape, each split's line mapped (its offset is
+    /// Appends the image of a subtree to `out`: the same shape, each split's line mapped (its offset is
     /// unchanged, and each side's subtree stays on its side).
-    pub fn nodes(self, nodes: &[Node]) -> Vec<Node> {
+    pub fn extend(self, out: &mut Vec<Node>, nodes: &[Node]) {
         let line = |n: &Node| match *n {
             Node::Split { angle, offset } => Node::Split { angle: self.angle(angle), offset },
             leaf => leaf,
         };
-        nodes.iter().map(line).collect()
+        out.extend(nodes.iter().map(line));
     }
 }
 

@@ -8,7 +8,7 @@
 use super::Settings;
 use super::cache::{TileCache, TileKey};
 use super::layout::quantise_line;
-use super::split::{Line, Pixels, clusters};
+use super::split::{Line, Pixels, bits, clusters};
 use super::visibility::TileBits;
 use crate::math::cubemap;
 use std::ops::Range;
@@ -84,10 +84,6 @@ struct Rect {
 }
 
 impl Rect {
-    fn texels(self) -> impl Iterator<Item = (usize, usize)> {
-        (self.j0..self.j1).flat_map(move |j| (self.i0..self.i1).map(move |i| (i, j)))
-    }
-
     /// The columns and rows of the tiles it covers.
     fn tile_ranges(self) -> (Range<usize>, Range<usize>) {
         (self.i0 / TILE..self.i1.div_ceil(TILE), self.j0 / TILE..self.j1.div_ceil(TILE))
@@ -254,7 +250,7 @@ impl<'a> Grid<'a> {
             out.push(Node::Leaf(if visible == 0 { 0.0 } else { 1.0 }));
         } else {
             self.built += 1;
-            out.extend(self.cache.subtree((index, live, visible)));
+            self.cache.subtree((index, live, visible), out);
         }
     }
 }
@@ -271,10 +267,11 @@ pub fn build_tile((index, live, visible): TileKey, tiles: &TileCache) -> Vec<Nod
 
 /// The pixels of tile `r` above the horizon (`live`), visible where `visible` says.
 fn tile_pixels(r: Rect, tiles: &TileCache, live: u64, visible: u64) -> Pixels {
-    let bit = |(i, j): (usize, usize)| 1u64 << ((j - r.j0) * TILE + i - r.i0);
-    Pixels::new(r.texels().filter(|&x| live & bit(x) != 0).map(|(i, j)| {
+    // Set bits lowest first: the texels in row-major order.
+    Pixels::new(bits(live).map(|b| {
+        let (i, j) = (r.i0 + b % TILE, r.j0 + b / TILE);
         let st = cubemap::texel_center(i, j, tiles.settings().res);
-        (st.x, st.y, tiles.weight(i, j), visible & bit((i, j)) != 0)
+        (st.x, st.y, tiles.weight(i, j), visible >> b & 1 != 0)
     }))
 }
 
