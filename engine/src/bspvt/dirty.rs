@@ -158,8 +158,8 @@ impl SeenBox {
             return vec![Cover::Some; 6 * k * k];
         }
         let margin = 4.0 / res as f64;
-        let lengths = self.corners.map(|c| c.length());
-        let outside = |plane: DVec3| self.corners.iter().zip(&lengths).all(|(c, l)| plane.dot(*c) < -margin * l);
+        let corners = Corners::new(&self.corners, margin);
+        let outside = |plane: DVec3| corners.sides(plane).0;
         if outside(self.n.as_dvec3()) {
             return vec![Cover::None; 6 * k * k];
         }
@@ -171,46 +171,70 @@ impl SeenBox {
                     continue;
                 }
                 // Per grid line: the box lies entirely before it, or entirely past it.
-                let sides: Vec<(bool, bool)> = grid
-                    .lines
-                    .iter()
-                    .map(|pl| {
-                        self.corners.iter().zip(&lengths).fold((true, true), |(before, past), (c, l)| {
-                            let (d, m) = (pl.dot(*c), margin * l);
-                            (before && d < -m, past && d > m)
-                        })
-                    })
-                    .collect();
+                let sides: Vec<(bool, bool)> = grid.lines.iter().map(|pl| corners.sides(*pl)).collect();
                 let (cols, rows) = sides.split_at(k + 1);
+                // The columns and rows of tiles whose bounding grid lines leave the box between
+                // them: only their tiles can see it.
+                let between =
+                    |lines: &[(bool, bool)]| (0..k).filter(|&x| !lines[x].0 && !lines[x + 1].1).collect::<Vec<_>>();
+                let (across, down) = (between(cols), between(rows));
                 // Per grid corner, computed when a tile first needs it: bit b set when it lies
                 // beyond silhouette plane b by the margin, or inside it (a box has at most 12
                 // such planes, one per edge).
                 let mut masks: Vec<Option<(u16, u16)>> = vec![None; grid.corners.len()];
                 let mut mask = |c: usize| *masks[c].get_or_insert_with(|| self.corner_masks(grid.corners[c], margin));
                 let every = (1u16 << self.silhouette.len()) - 1;
-                for t in 0..k * k {
-                    let (ti, tj) = (t % k, t / k);
-                    if cols[ti].0 || cols[ti + 1].1 || rows[tj].0 || rows[tj + 1].1 {
-                        out.push(Cover::None);
-                        continue;
-                    }
+                let face = out.len();
+                out.resize(face + k * k, Cover::None);
+                for t in down.iter().flat_map(|tj| across.iter().map(move |ti| tj * k + ti)) {
                     // A direction in the tile is a positive combination of its corners: beyond a
                     // plane by the margin when all four corners are, inside every plane when all
                     // four are.
                     let (beyond, inside) = FaceGrid::tile_corners(t, k)
                         .into_iter()
                         .fold((every, every), |(b, i), c| (b & mask(c).0, i & mask(c).1));
-                    out.push(if beyond != 0 {
+                    out[face + t] = if beyond != 0 {
                         Cover::None
                     } else if every != 0 && inside == every {
                         Cover::All
                     } else {
                         Cover::Some
-                    });
+                    };
                 }
             }
         });
         out
+    }
+}
+
+/// A box's eight corners relative to a viewpoint, four per vector, with the margins
+/// (`margin` times their lengths) by which a plane through the viewpoint must clear them.
+struct Corners {
+    x: [f64x4; 2],
+    y: [f64x4; 2],
+    z: [f64x4; 2],
+    margins: [f64x4; 2],
+}
+
+impl Corners {
+    fn new(corners: &[DVec3; 8], margin: f64) -> Self {
+        let lanes = |h: usize, axis: fn(&DVec3) -> f64| f64x4::new(std::array::from_fn(|l| axis(&corners[4 * h + l])));
+        let half = |axis: fn(&DVec3) -> f64| [lanes(0, axis), lanes(1, axis)];
+        let (x, y, z) = (half(|c| c.x), half(|c| c.y), half(|c| c.z));
+        let margins = [0, 1].map(|h| f64x4::new(std::array::from_fn(|l| margin * corners[4 * h + l].length())));
+        Self { x, y, z, margins }
+    }
+
+    /// Whether every corner lies before the plane through the viewpoint with normal `pl` by its
+    /// margin, and whether every corner lies past it: each dot product computed as
+    /// [`DVec3::dot`] computes it (so with the same bits).
+    fn sides(&self, pl: DVec3) -> (bool, bool) {
+        let (px, py, pz) = (f64x4::splat(pl.x), f64x4::splat(pl.y), f64x4::splat(pl.z));
+        (0..2).fold((true, true), |(before, past), h| {
+            let d = px * self.x[h] + py * self.y[h] + pz * self.z[h];
+            let m = self.margins[h];
+            (before && d.simd_lt(-m).all(), past && d.simd_gt(m).all())
+        })
     }
 }
 
