@@ -59,6 +59,18 @@ fn lerp<const N: usize>(a: &[f64; N], b: &[f64; N], t: f64) -> [f64; N] {
     std::array::from_fn(|k| a[k] + t * (b[k] - a[k]))
 }
 
+/// Sorts simplex vertices by value, stably (as `sort_by` would): an insertion sort in place,
+/// since N + 1 is a handful and the library's out-of-line small sort cost a call per step.
+fn sort_by_value<const N: usize>(simplex: &mut [([f64; N], f64)]) {
+    for i in 1..simplex.len() {
+        let mut j = i;
+        while j > 0 && simplex[j - 1].1.total_cmp(&simplex[j].1).is_gt() {
+            simplex.swap(j - 1, j);
+            j -= 1;
+        }
+    }
+}
+
 fn one_start<const N: usize>(
     f: &mut impl FnMut(&[f64; N]) -> f64,
     x0: [f64; N],
@@ -75,7 +87,7 @@ fn one_start<const N: usize>(
     }
     let mut evals = N + 1;
     while evals < opts.max_evals {
-        simplex.sort_by(|a, b| a.1.total_cmp(&b.1));
+        sort_by_value(&mut simplex);
         if (simplex[N].1 - simplex[0].1).abs() <= opts.tolerance * (1.0 + simplex[0].1.abs()) {
             break;
         }
@@ -108,7 +120,7 @@ fn one_start<const N: usize>(
             (contracted, fc)
         };
     }
-    simplex.sort_by(|a, b| a.1.total_cmp(&b.1));
+    sort_by_value(&mut simplex);
     (simplex[0].0, simplex[0].1, evals)
 }
 
