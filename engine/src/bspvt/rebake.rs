@@ -51,12 +51,14 @@ pub fn rebake_vertex(
     if let Some(reached) = &edit.reached {
         dirty.iter_mut().zip(reached).for_each(|(d, r)| *d &= r);
     }
+    debug_assert!(old.masks.is_sorted_by_key(|m| m.0), "a bake's masks are by tile index");
     let kept = if cold { [&[][..]; 6] } else { layout::vertex_faces(&old.record) };
     let mut out = VertexBake::default();
     let faces: [Vec<u8>; 6] = std::array::from_fn(|f| {
         let range = (f * per_face) as u32..((f + 1) * per_face) as u32;
-        let old_masks: tree::Masks =
-            old.masks.iter().filter(|m| range.contains(&m.0)).map(|&(t, m)| (t - range.start, m)).collect();
+        // The masks are by tile index: the face's are one run of them.
+        let run = old.masks.partition_point(|m| m.0 < range.start)..old.masks.partition_point(|m| m.0 < range.end);
+        let old_masks: tree::Masks = old.masks[run].iter().map(|&(t, m)| (t - range.start, m)).collect();
         let dirty = &dirty[f * per_face..(f + 1) * per_face];
         if !dirty.contains(&true) {
             out.masks.extend(old_masks.iter().map(|&(t, m)| (t + range.start, m)));
