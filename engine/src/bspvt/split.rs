@@ -5,8 +5,9 @@
 //! "pixels". A leaf keeps the solid-angle-weighted mean visibility.
 //!
 //! A cluster is a bit mask over the tile's pixels, so splitting allocates nothing; the split
-//! search gathers a cluster's pixels into arrays once and evaluates its objective four pixels
-//! at a time.
+//! search gathers a cluster's pixels into arrays once, evaluates its objective eight pixels at a
+//! time in single precision ([`Ramp`]) and judges each candidate line four pixels at a time in
+//! double precision ([`Pixels::divide`]).
 
 use super::layout::{dequantise_line, quantise_line};
 use super::tree::Node;
@@ -225,7 +226,7 @@ fn mean_and_error((sw, sv): (f64, f64)) -> (f64, f64) {
     (mean, (sv - mean * sv).max(0.0))
 }
 
-/// The bits of `mask` that gathered mask `bits` picks: bit k of `bits` stands for the k-th
+/// The bits of `mask` that gathered mask `picked` picks: bit k of `picked` stands for the k-th
 /// set bit of `mask` (see [`Pixels::gather`]).
 fn scatter(mut picked: u64, mask: u64) -> u64 {
     bits(mask).fold(0, |out, i| {
@@ -239,7 +240,8 @@ fn scatter(mut picked: u64, mask: u64) -> u64 {
 /// objective only steers the search (partitions and errors are computed in double precision),
 /// and eight lanes take fewer instructions per evaluation than four in double precision.
 struct Ramp {
-    quads: usize,
+    /// Groups of eight holding pixels.
+    groups: usize,
     s: [wide::f32x8; MAX_PIXELS / 8],
     t: [wide::f32x8; MAX_PIXELS / 8],
     w: [wide::f32x8; MAX_PIXELS / 8],
@@ -254,7 +256,7 @@ impl Ramp {
             std::array::from_fn(|q| f32x8::new(std::array::from_fn(|l| a[2 * q + l / 4][l % 4] as f32)))
         };
         Self {
-            quads: pixels.len.div_ceil(8),
+            groups: pixels.len.div_ceil(8),
             s: lanes(&pixels.s),
             t: lanes(&pixels.t),
             w: lanes(&pixels.w),
@@ -271,7 +273,7 @@ impl Ramp {
             (f32x8::splat(line.cos as f32), f32x8::splat(line.sin as f32), f32x8::splat(-line.c as f32));
         let (slope, half) = (f32x8::splat(slope), f32x8::splat(0.5));
         let mut sum = f32x8::ZERO;
-        for q in 0..self.quads.min(MAX_PIXELS / 8) {
+        for q in 0..self.groups.min(MAX_PIXELS / 8) {
             let d = cos.mul_add(self.s[q], sin.mul_add(self.t[q], minus_c));
             let h = (half + d * slope).fast_max(f32x8::ZERO).fast_min(f32x8::ONE);
             let e = h - self.v[q];
