@@ -6,8 +6,8 @@
 //!
 //! A cluster is a bit mask over the tile's pixels, so splitting allocates nothing; the split
 //! search gathers a cluster's pixels into arrays once, evaluates its objective eight pixels at a
-//! time in single precision ([`Ramp`]) and judges each candidate line four pixels at a time in
-//! double precision ([`Pixels::divide`]).
+//! time in single precision (`Ramp`) and judges each candidate line four pixels at a time in
+//! double precision (`Pixels::divide`).
 
 use super::layout::{dequantise_line, quantise_line};
 use super::tree::Node;
