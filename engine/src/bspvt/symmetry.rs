@@ -4,7 +4,7 @@
 //! The solid angle a face subtends per unit of area depends on s² + t² alone, so mirror-image
 //! texels subtend equal solid angles, and Algorithm 1's problem in a tile and in its mirror
 //! images are the same problem. A tile's subtree is therefore built once per orbit, for
-//! the orbit's least key ([`canonical`]), and mapped to the other seven (see
+//! the orbit's least key ([`Symmetric::canonical`]), and mapped to the other seven (see
 //! [`super::cache::TileCache::subtree`]): a shadow edge crossing a tile one way and its mirror
 //! image cost one build. The mapping is exact — a mapped line puts every mapped point on the
 //! side the original put the point on — because [`super::layout::dequantise_line`] evaluates
