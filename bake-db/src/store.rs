@@ -112,9 +112,14 @@ pub struct CheckReport {
 
 impl Store {
     /// Opens (creating if needed, with its parent folder) the database at `path`.
+    ///
+    /// A new database is made whole under a temporary name and then linked into place, so a
+    /// process killed while creating it never leaves a half-written file at `path`.
     pub fn open(path: &Path) -> Result<Self> {
-        if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-            std::fs::create_dir_all(dir).map_err(|e| storage(path, e))?;
+        let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+        std::fs::create_dir_all(dir).map_err(|e| storage(path, e))?;
+        if !path.exists() {
+            Self::create(path, dir)?;
         }
         let db = Database::create(path).map_err(|e| match e {
             redb::DatabaseError::DatabaseAlreadyOpen => DbError::Locked(path.to_path_buf()),
@@ -122,7 +127,25 @@ impl Store {
         })?;
         let store = Self { db, path: path.to_path_buf() };
         store.init()?;
+        sweep_partials(path, dir);
         Ok(store)
+    }
+
+    /// Writes an initialised database beside `path` and links it there unless another process
+    /// got there first (then its file is the one used).
+    fn create(path: &Path, dir: &Path) -> Result<()> {
+        let io = |e: std::io::Error| storage(path, e);
+        let partial =
+            tempfile::Builder::new().prefix(&partial_prefix(path)).suffix(".partial").tempfile_in(dir).map_err(io)?;
+        let redb = |e: redb::DatabaseError| storage(path, redb::Error::from(e));
+        let backend = redb::backends::FileBackend::new(partial.reopen().map_err(io)?).map_err(redb)?;
+        let db = Database::builder().create_with_backend(backend).map_err(redb)?;
+        Self { db, path: path.to_path_buf() }.init()?;
+        match partial.persist_noclobber(path) {
+            Ok(_) => Ok(()),
+            Err(e) if e.error.kind() == std::io::ErrorKind::AlreadyExists => Ok(()),
+            Err(e) => Err(io(e.error)),
+        }
     }
 
     /// The file's path.
@@ -424,6 +447,26 @@ impl Store {
             Ok(())
         })?;
         Ok(doomed.len())
+    }
+}
+
+/// How the temporary files that [`Store::create`] makes for `path` start.
+fn partial_prefix(path: &Path) -> String {
+    format!(".{}.", path.file_name().map_or("bake".into(), |n| n.to_string_lossy()))
+}
+
+/// Removes temporary files left by processes killed while creating `path`. Creating one takes
+/// milliseconds, so any older than a minute is abandoned.
+fn sweep_partials(path: &Path, dir: &Path) {
+    let prefix = partial_prefix(path);
+    let Ok(entries) = std::fs::read_dir(dir) else { return };
+    for entry in entries.flatten() {
+        let name = entry.file_name();
+        let name = name.to_string_lossy();
+        let stale = entry.metadata().and_then(|m| m.modified()).ok().and_then(|t| t.elapsed().ok());
+        if name.starts_with(&prefix) && name.ends_with(".partial") && stale.is_some_and(|age| age.as_secs() > 60) {
+            let _ = std::fs::remove_file(entry.path());
+        }
     }
 }
 

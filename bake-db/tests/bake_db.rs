@@ -211,6 +211,48 @@ fn bad_database_files_give_clear_errors() {
     assert!(matches!(e, DbError::Schema { found: 99, .. }) && e.to_string().contains("schema version 99"), "{e}");
 }
 
+/// A process killed while creating a database must not leave a half-written file behind: the
+/// file appears whole (with the header it keeps) or not at all, and abandoned temporary files
+/// are swept.
+#[test]
+fn a_new_database_appears_whole_and_abandoned_partials_are_swept() {
+    for round in 0..20 {
+        let path = scratch(&format!("appears-{round}"));
+        let watched = path.clone();
+        let first_seen = std::thread::spawn(move || {
+            loop {
+                if let Ok(bytes) = std::fs::read(&watched) {
+                    return bytes;
+                }
+                std::hint::spin_loop();
+            }
+        });
+        drop(Store::open(&path).unwrap());
+        // What a process killed at that instant would have left: it must open as it is.
+        let copy = path.with_extension("seen");
+        std::fs::write(&copy, first_seen.join().unwrap()).unwrap();
+        let opened = Store::open(&copy);
+        assert!(opened.is_ok(), "round {round}: the file appeared unfinished: {}", opened.err().unwrap());
+    }
+    let path = scratch("partials");
+    let dir = path.parent().unwrap();
+    let (stale, fresh, other) =
+        (dir.join(".bake.redb.x1.partial"), dir.join(".bake.redb.x2.partial"), dir.join("keep.partial"));
+    for p in [&stale, &fresh, &other] {
+        std::fs::write(p, b"half").unwrap();
+    }
+    let old = std::time::SystemTime::now() - std::time::Duration::from_secs(3600);
+    for p in [&stale, &other] {
+        std::fs::File::options().write(true).open(p).unwrap().set_modified(old).unwrap();
+    }
+    drop(Store::open(&path).unwrap());
+    assert!(!stale.exists(), "an abandoned partial is swept");
+    assert!(fresh.exists(), "a partial that may still be in progress is kept");
+    assert!(other.exists(), "files that are not this database's partials are kept");
+    let left: Vec<_> = std::fs::read_dir(dir).unwrap().map(|e| e.unwrap().file_name()).collect();
+    assert_eq!(left.len(), 3, "creating the database left nothing else behind: {left:?}");
+}
+
 /// `bake` (what `kage bake` runs) commits what `run` commits, cold and warm, with the same
 /// counts, without assembling the bakes.
 #[test]
