@@ -36,5 +36,5 @@ pub mod store;
 
 pub use key::Key;
 pub use plan::{Plan, plan};
-pub use run::{Chunk, Hooks, Outcome, RunStats, bake, run, run_cancellable};
+pub use run::{Chunk, Hooks, Outcome, RunStats, bake, load, run, run_cancellable};
 pub use store::{DbError, Store};

@@ -141,6 +141,15 @@ pub fn run_cancellable(store: &Store, scene: &Scene, flat: &FlatScene, plan: &Pl
     Ok(Outcome { stats: RunStats { seconds: start.elapsed().as_secs_f64(), ..outcome.stats }, ..outcome })
 }
 
+/// The bakes of a fully cached `plan`, read from the store without writing anything (not even
+/// the scene's references); `None` when any chunk is missing.
+pub fn load(store: &Store, scene: &Scene, flat: &FlatScene, plan: &Plan) -> Result<Option<Outcome>> {
+    if plan.misses().next().is_some() {
+        return Ok(None);
+    }
+    assemble(store, scene, flat, plan, &HashMap::new(), RunStats::default()).map(Some)
+}
+
 /// [`run`] without assembling the bakes: the plan's misses are baked and committed, and no
 /// cached chunk is read (what `kage bake` needs, whatever the database's size).
 pub fn bake(

@@ -4,7 +4,7 @@
 use glam::{Affine3A, Quat, Vec3};
 use kage_bake_db::plan::Kind;
 use kage_bake_db::run::RunStats;
-use kage_bake_db::{DbError, Hooks, Store, plan, run};
+use kage_bake_db::{DbError, Hooks, Store, load, plan, run};
 use kage_engine::scene::{EnvMap, EnvironmentLight, Material, Scene, flatten, shapes};
 use kage_engine::{bspvt, prt};
 use std::path::PathBuf;
@@ -92,13 +92,14 @@ fn a_second_bake_does_no_work_and_matches_a_fresh_one_and_the_engine() {
 }
 
 #[test]
-fn fresh_and_stored_chunks_assemble_alike_and_a_cached_run_writes_nothing() {
+fn fresh_and_stored_chunks_assemble_alike_and_cached_runs_and_loads_write_nothing() {
     let path = scratch("mixed");
     let store = Store::open(&path).unwrap();
     bake(&store, &scene(""));
     let edited = scene("move");
     let flat = flatten(&edited);
     let planned = || plan(&store, &edited, &flat, Some(BSPVT), Some(prt_settings())).unwrap();
+    assert!(load(&store, &edited, &flat, &planned()).unwrap().is_none(), "a plan with misses loads nothing");
     let mixed = run(&store, &edited, &flat, &planned(), &|_| {}).unwrap();
     assert!(mixed.stats.cached > 0 && mixed.stats.cold + mixed.stats.warm > 0, "{:?}", mixed.stats);
     let file = std::fs::read(&path).unwrap();
@@ -106,6 +107,14 @@ fn fresh_and_stored_chunks_assemble_alike_and_a_cached_run_writes_nothing() {
     let cached = run(&store, &edited, &flat, &p, &|_| {}).unwrap();
     assert_eq!(cached.stats.cached, p.jobs.len());
     assert!(std::fs::read(&path).unwrap() == file, "planning and running a fully cached scene commit nothing");
+    // Loading reads the same bakes and writes nothing, not even a plan of part of the scene
+    // as the scene's references.
+    let loaded = load(&store, &edited, &flat, &p).unwrap().expect("all cached");
+    let prt_only = plan(&store, &edited, &flat, None, Some(prt_settings())).unwrap();
+    let prt = load(&store, &edited, &flat, &prt_only).unwrap().expect("all cached").prt.unwrap();
+    assert!(std::fs::read(&path).unwrap() == file, "loading commits nothing");
+    assert_eq!(loaded.bspvt.unwrap().instances, cached.bspvt.as_ref().unwrap().instances);
+    assert!(prt.instances == cached.prt.as_ref().unwrap().instances);
     assert_eq!(mixed.bspvt.unwrap().instances, cached.bspvt.unwrap().instances, "chunks in plan order");
     assert!(mixed.prt.unwrap().instances == cached.prt.unwrap().instances);
 }

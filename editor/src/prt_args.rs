@@ -62,58 +62,108 @@ impl PrtArgs {
     }
 
     /// The settings to bake and shade with, printing the plan when one is made.
-    pub fn settings(&self, scene: &Scene, flat: &FlatScene, budget: Option<f64>, eye: glam::Vec3) -> prt::Settings {
+    pub fn settings(&self, scene: &Scene, flat: &FlatScene, budget: Option<f64>) -> prt::Settings {
         if let Some(s) = self.explicit() {
             return s;
         }
-        let (s, why) = prt::plan::choose(scene, flat, budget.unwrap_or(DEFAULT_BUDGET), eye, &self.base());
+        let (s, why) = prt::plan::choose(scene, flat, budget.unwrap_or(DEFAULT_BUDGET), &self.base());
         for line in why {
             crate::emit(&format!("plan: {line}\n"));
         }
         s
     }
 
-    /// [`PrtArgs::settings`], with the plan's choice kept in the bake database under a key of
-    /// everything it depends on (geometry, materials, environment, budget), so that planning a
-    /// cached scene stays fast.
+    /// [`PrtArgs::settings`], with the plan's choices kept in the bake database so that planning
+    /// a cached scene stays fast. The order and window are keyed on what they read, which no
+    /// move of a group changes; the region count also on where everything is, and after a move
+    /// it is measured again with the transfer the database holds (a truncated bake at a lower
+    /// order is that order's bake bit for bit), so a plan never depends on what was cached.
     pub fn settings_cached(
         &self,
         store: &kage_bake_db::Store,
         scene: &Scene,
         flat: &FlatScene,
         budget: Option<f64>,
-        eye: glam::Vec3,
     ) -> anyhow::Result<prt::Settings> {
-        if let Some(s) = self.explicit() {
-            return Ok(s);
-        }
+        let (Some(env), None) = (&flat.environment, self.explicit()) else {
+            return Ok(self.settings(scene, flat, budget));
+        };
         let budget = budget.unwrap_or(DEFAULT_BUDGET);
-        let name = format!("prt-plan/{}", plan_key(scene, flat, budget, self.directions).short());
+        let key = |placed| plan_key(scene, flat, budget, self.directions, placed);
+        let order_name = format!("prt-order/{}", key(false).finish().short());
         let windows = [Window::None, Window::Hanning, Window::Lanczos];
-        if let Some(v) = store.meta(&name)?
-            && let [order, regions, w] = v[..]
-            && let Some(&window) = windows.get(w as usize)
-        {
-            crate::emit(&format!("plan: SH order {order}, {regions} regions, {window:?} window (cached plan)\n"));
-            return Ok(prt::Settings { order: order as usize, regions: regions as usize, window, ..self.base() });
+        let mut pilot = None;
+        let s = match store.meta(&order_name)?.as_deref() {
+            Some(&[order, w]) if (w as usize) < windows.len() => {
+                let window = windows[w as usize];
+                crate::emit(&format!("plan: SH order {order}, {window:?} window (cached plan)\n"));
+                prt::Settings { order: order as usize, window, ..self.base() }
+            }
+            _ => {
+                let (s, why, high) = prt::plan::choose_order(scene, flat, env, budget, &self.base());
+                crate::emit(&format!("plan: {why}\n"));
+                let w = windows.iter().position(|w| *w == s.window).unwrap_or(0) as u8;
+                store.put_meta(&order_name, &[s.order as u8, w])?;
+                pilot = Some(high);
+                s
+            }
+        };
+        let regions_name = format!(
+            "prt-regions/{}",
+            key(true).u64("order", s.order as u64).u64("window", s.window as u64).finish().short()
+        );
+        if let Some(&[q]) = store.meta(&regions_name)?.as_deref() {
+            crate::emit(&format!("plan: {q} regions (cached plan)\n"));
+            return Ok(prt::Settings { regions: q as usize, ..s });
         }
-        let s = self.settings(scene, flat, Some(budget), eye);
-        let w = windows.iter().position(|w| *w == s.window).unwrap_or(0) as u8;
-        store.put_meta(&name, &[s.order as u8, s.regions as u8, w])?;
+        let transfer = match pilot {
+            Some(high) => high.truncated(s.order),
+            None => stored_transfer(store, scene, flat, &s)?.unwrap_or_else(|| prt::bake(scene, flat, &s, &|_| {})),
+        };
+        let (s, why) = prt::plan::choose_regions(scene, flat, env, &transfer, budget, &s);
+        crate::emit(&format!("plan: {why}\n"));
+        store.put_meta(&regions_name, &[s.regions as u8])?;
         Ok(s)
     }
 }
 
-/// A key of everything the PRT plan reads.
-fn plan_key(scene: &Scene, flat: &FlatScene, budget: f64, directions: u32) -> kage_bake_db::Key {
+/// The PRT transfer for `s` when the database holds all of it.
+fn stored_transfer(
+    store: &kage_bake_db::Store,
+    scene: &Scene,
+    flat: &FlatScene,
+    s: &prt::Settings,
+) -> anyhow::Result<Option<prt::Bake>> {
+    let plan = kage_bake_db::plan(store, scene, flat, None, Some(*s))?;
+    Ok(kage_bake_db::load(store, scene, flat, &plan)?.and_then(|o| o.prt))
+}
+
+/// A key of everything the PRT plan reads: each instance's mesh, material, group and transform
+/// within it, its orientation, and the environment; with `placed`, where each instance is too.
+fn plan_key(
+    scene: &Scene,
+    flat: &FlatScene,
+    budget: f64,
+    directions: u32,
+    placed: bool,
+) -> kage_bake_db::key::KeyHasher {
     let mut h =
         kage_bake_db::key::KeyHasher::new("prt-plan").f64("budget", budget).u64("directions", directions as u64);
-    for inst in &flat.instances {
+    let locals = prt::local_transforms(scene, flat);
+    let mut groups = Vec::new();
+    for (inst, local) in flat.instances.iter().zip(&locals) {
         let m = inst.material;
         let material = [m.base_color.x, m.base_color.y, m.base_color.z, m.metallic, m.roughness, m.specular];
+        let group = groups.iter().position(|g| *g == inst.group).unwrap_or_else(|| {
+            groups.push(inst.group);
+            groups.len() - 1
+        });
+        let world = if placed { inst.world } else { glam::Affine3A { translation: glam::Vec3A::ZERO, ..inst.world } };
         h = h
             .bytes("mesh", &scene.meshes[inst.mesh as usize].hash.0)
-            .affine("world", &inst.world)
+            .u64("group", group as u64)
+            .affine("local", local)
+            .affine("world", &world)
             .bytes("material", bytemuck::cast_slice(&material));
     }
     if let Some(env) = &flat.environment {
@@ -123,5 +173,5 @@ fn plan_key(scene: &Scene, flat: &FlatScene, budget: f64, directions: u32) -> ka
             .f64("intensity", env.intensity as f64)
             .f64("rotation", env.rotation as f64);
     }
-    h.finish()
+    h
 }

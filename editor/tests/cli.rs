@@ -313,6 +313,42 @@ fn prt_methods_plan_render_and_move_groups() {
     std::fs::remove_dir_all(d).unwrap();
 }
 
+/// The PRT plan's order survives a group's move (it reads no placement), its region count is
+/// measured again on the new arrangement with the database's transfer, and both agree with a
+/// plan made from scratch; a rotation plans the order again.
+#[test]
+fn the_prt_plan_keeps_its_order_across_moves_and_matches_a_fresh_plan() {
+    let d = scratch("prt-plan");
+    let scene = shared("scenes/bunny_two_groups.gltf");
+    let env = shared("envmaps/city.hdr");
+    let bake = |db: &str, edit: &[&str]| {
+        let db = d.join(db);
+        let mut args = vec!["bake", &scene, "--env", &env, "--face-res", "8", "--directions", "256"];
+        args.extend_from_slice(&["--db", db.to_str().unwrap()]);
+        args.extend_from_slice(edit);
+        let o = kage(&args);
+        assert!(o.status.success(), "{edit:?}: {}", stderr(&o));
+        let out = String::from_utf8_lossy(&o.stdout).into_owned();
+        let lines: Vec<String> = out.lines().filter(|l| l.starts_with("plan: ")).map(str::to_string).collect();
+        (out, lines)
+    };
+    let moved = ["--move", "group_bunny=0.5,0,0.5"];
+    let (_, first) = bake("a.redb", &[]);
+    assert!(first[0].contains("against order 12") && first[1].contains("against Monte Carlo"), "{first:?}");
+    let (out, warm) = bake("a.redb", &moved);
+    let order = first[0].split(':').nth(1).unwrap().trim().to_string();
+    assert!(warm[0].starts_with(&format!("plan: {order},")) && warm[0].ends_with("(cached plan)"), "{order} {warm:?}");
+    let cached = out.lines().find_map(|l| l.trim().split_once(" chunks cached")).map(|(n, _)| n.to_string());
+    let all = cached.as_deref().and_then(|n| n.split_once(" of ")).is_some_and(|(a, b)| a == b);
+    assert!(all, "a move re-bakes no PRT: {out}");
+    let (_, fresh) = bake("b.redb", &moved);
+    assert_eq!(warm[1], fresh[1], "the same measurements, with the stored transfer and with a pilot's");
+    assert_eq!(fresh[0], first[0], "the order reads no placement");
+    let (_, rotated) = bake("a.redb", &["--rotate", "group_bunny=0,1,0,40"]);
+    assert!(rotated[0].contains("against order 12"), "a rotation plans the order again: {rotated:?}");
+    std::fs::remove_dir_all(d).unwrap();
+}
+
 /// Per-vertex BSPVT radiance rendered from the database at `db` (the CSV's bytes).
 fn vertices_from_db(scene: &str, db: &Path, out: &Path) -> Vec<u8> {
     let o = kage(&[

@@ -54,11 +54,10 @@ impl BakeOptions {
         anyhow::ensure!((4..=1024).contains(&self.face_res), "--face-res must be in 4..=1024");
         anyhow::ensure!(self.epsilon >= 0.0, "--epsilon must be ≥ 0");
         let bspvt = Some(bspvt::Settings { res: self.face_res, epsilon: self.epsilon });
-        let eye = scene.first_camera().map_or(glam::Vec3::new(0.0, 4.0, 8.0), |c| c.eye());
         let prt = flat
             .environment
             .is_some()
-            .then(|| self.prt.settings_cached(store, scene, flat, self.error_budget, eye))
+            .then(|| self.prt.settings_cached(store, scene, flat, self.error_budget))
             .transpose()?;
         Ok(plan(store, scene, flat, bspvt, prt)?)
     }

@@ -350,8 +350,8 @@ fn prt(
     }
     let store = args.db.open_if_used(&args.scene)?;
     let settings = match &store {
-        Some(store) => args.prt.settings_cached(store, scene, flat, args.error_budget, camera.eye())?,
-        None => args.prt.settings(scene, flat, args.error_budget, camera.eye()),
+        Some(store) => args.prt.settings_cached(store, scene, flat, args.error_budget)?,
+        None => args.prt.settings(scene, flat, args.error_budget),
     };
     let Some(lighting) = prt::Lighting::new(scene, &settings) else {
         bail!("{}: PRT shades environment lighting and the scene has none (pass --env FILE.hdr)", scene.source);

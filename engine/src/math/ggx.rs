@@ -113,44 +113,21 @@ struct AlbedoTable {
     b: Vec<f32>,
 }
 
+/// The tables as shipped: `tests::integrate_albedo` over the grid (roughness-major), all of A then
+/// all of B, little-endian f32. Integrating them costs every process ~80 ms of CPU;
+/// `the_shipped_albedo_tables_are_their_integrals` checks them (and rewrites them when
+/// `KAGE_REGENERATE` is set).
+const SHIPPED_ALBEDO: &[u8] = include_bytes!("ggx_albedo.bin");
+const _: () = assert!(SHIPPED_ALBEDO.len() == 8 * ALBEDO_N * ALBEDO_N);
+
 fn albedo_table() -> &'static AlbedoTable {
     static TABLE: OnceLock<AlbedoTable> = OnceLock::new();
     TABLE.get_or_init(|| {
-        // Sequential on purpose: a rayon job waiting inside this initialiser may steal another
-        // job that asks for the table on the same thread, which would deadlock the OnceLock.
-        let (a, b) = (0..ALBEDO_N * ALBEDO_N)
-            .map(|k| {
-                let (ri, mi) = (k / ALBEDO_N, k % ALBEDO_N);
-                let alpha = alpha_from_roughness(ri as f32 / (ALBEDO_N - 1) as f32);
-                integrate_albedo((mi as f32 / (ALBEDO_N - 1) as f32).max(1e-3), alpha)
-            })
-            .unzip();
+        let mut a: Vec<f32> =
+            SHIPPED_ALBEDO.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
+        let b = a.split_off(ALBEDO_N * ALBEDO_N);
         AlbedoTable { a, b }
     })
-}
-
-/// ∫ f cos with F split into (1 − w) and w, by stratified visible-normal sampling.
-fn integrate_albedo(mu: f32, alpha: f32) -> (f32, f32) {
-    const S: usize = 48;
-    let wo = Vec3::new((1.0 - mu * mu).sqrt(), 0.0, mu);
-    let (mut sa, mut sb) = (0.0f64, 0.0f64);
-    for i in 0..S {
-        for j in 0..S {
-            let u = Vec2::new((i as f32 + 0.5) / S as f32, (j as f32 + 0.5) / S as f32);
-            let h = sample_visible_normal(wo, alpha, u);
-            let wi = 2.0 * wo.dot(h) * h - wo;
-            if wi.z <= 0.0 {
-                continue;
-            }
-            // f·cos/pdf = F · G2/G1(ωo) for visible-normal sampling.
-            let weight = (g2(wo, wi, alpha) / g1(wo, alpha)) as f64;
-            let w = (1.0 - wo.dot(h).clamp(0.0, 1.0)).powi(5) as f64;
-            sa += weight * (1.0 - w);
-            sb += weight * w;
-        }
-    }
-    let n = (S * S) as f64;
-    ((sa / n) as f32, (sb / n) as f32)
 }
 
 /// Directional albedo of the specular lobe for `cos θo = mu`, with F0/F90 per channel.
@@ -174,6 +151,52 @@ mod tests {
     use super::*;
     use crate::math::{rng, sampling};
     use rand::Rng;
+
+    /// ∫ f cos with F split into (1 − w) and w, by stratified visible-normal sampling.
+    fn integrate_albedo(mu: f32, alpha: f32) -> (f32, f32) {
+        const S: usize = 48;
+        let wo = Vec3::new((1.0 - mu * mu).sqrt(), 0.0, mu);
+        let (mut sa, mut sb) = (0.0f64, 0.0f64);
+        for i in 0..S {
+            for j in 0..S {
+                let u = Vec2::new((i as f32 + 0.5) / S as f32, (j as f32 + 0.5) / S as f32);
+                let h = sample_visible_normal(wo, alpha, u);
+                let wi = 2.0 * wo.dot(h) * h - wo;
+                if wi.z <= 0.0 {
+                    continue;
+                }
+                // f·cos/pdf = F · G2/G1(ωo) for visible-normal sampling.
+                let weight = (g2(wo, wi, alpha) / g1(wo, alpha)) as f64;
+                let w = (1.0 - wo.dot(h).clamp(0.0, 1.0)).powi(5) as f64;
+                sa += weight * (1.0 - w);
+                sb += weight * w;
+            }
+        }
+        let n = (S * S) as f64;
+        ((sa / n) as f32, (sb / n) as f32)
+    }
+
+    #[test]
+    fn the_shipped_albedo_tables_are_their_integrals() {
+        let (a, b): (Vec<f32>, Vec<f32>) = (0..ALBEDO_N * ALBEDO_N)
+            .map(|k| {
+                let (ri, mi) = (k / ALBEDO_N, k % ALBEDO_N);
+                let alpha = alpha_from_roughness(ri as f32 / (ALBEDO_N - 1) as f32);
+                integrate_albedo((mi as f32 / (ALBEDO_N - 1) as f32).max(1e-3), alpha)
+            })
+            .unzip();
+        if std::env::var_os("KAGE_REGENERATE").is_some() {
+            let bytes: Vec<u8> = a.iter().chain(&b).flat_map(|v| v.to_le_bytes()).collect();
+            std::fs::write(concat!(env!("CARGO_MANIFEST_DIR"), "/src/math/ggx_albedo.bin"), bytes).unwrap();
+            return;
+        }
+        let t = albedo_table();
+        for (shipped, integrated) in t.a.iter().zip(&a).chain(t.b.iter().zip(&b)) {
+            // Bit for bit where the platform's sine and cosine round like the generator's.
+            assert!((shipped - integrated).abs() <= 1e-6, "{shipped} vs {integrated}");
+        }
+        assert!(t.a.iter().chain(&t.b).any(|v| *v > 0.5), "the table holds values, not zeros");
+    }
 
     fn dir(theta: f32, phi: f32) -> Vec3 {
         Vec3::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos())

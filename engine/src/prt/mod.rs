@@ -278,6 +278,12 @@ pub fn vertex_albedo(scene: &Scene, flat: &FlatScene, eye: Vec3) -> Vec<Vec<Vec3
         .collect()
 }
 
+/// Per instance, the diffuse albedo seen head-on (along the normal): what shading that must
+/// serve every view (a bake plan's measurements) weights with.
+pub(crate) fn head_on_albedos(flat: &FlatScene) -> Vec<Vec3> {
+    flat.instances.iter().map(|i| Bsdf::new(&i.material, Vec3::Z).diffuse_albedo()).collect()
+}
+
 fn albedo_at(scene: &Scene, flat: &FlatScene, i: usize, v: usize, eye: Vec3) -> Vec3 {
     let (p, normal) = flat.vertex(&scene.meshes, i, v);
     let wo = ShadingFrame::from_normal(normal).to_local((eye - p).normalize_or(normal));
@@ -356,8 +362,34 @@ impl Frame {
         Self::from_posed(scene, flat, bake, posed, eye)
     }
 
+    /// [`Frame::prepare`] with every albedo seen head-on instead of from an eye: shading that
+    /// depends on no camera, which is what a bake plan measures (the bake serves every view).
+    pub fn prepare_head_on(
+        scene: &Scene,
+        flat: &FlatScene,
+        bake: &Bake,
+        light: &Lighting,
+        method: Method,
+        s: &Settings,
+    ) -> Self {
+        let posed = Posed::new(scene, flat, bake.order, light, method, s, &mut ShadowCache::default());
+        let albedo = head_on_albedos(flat);
+        Self::from_posed_with(scene, flat, bake, posed, &|i, _| albedo[i])
+    }
+
     /// Reconstructs `Ls` and `T(v, w_i)` per vertex from `bake` under lighting already posed.
     pub fn from_posed(scene: &Scene, flat: &FlatScene, bake: &Bake, posed: Posed, eye: Vec3) -> Self {
+        Self::from_posed_with(scene, flat, bake, posed, &|i, v| albedo_at(scene, flat, i, v, eye))
+    }
+
+    /// [`Frame::from_posed`] with `albedo(instance, vertex)`.
+    fn from_posed_with(
+        scene: &Scene,
+        flat: &FlatScene,
+        bake: &Bake,
+        posed: Posed,
+        albedo_of: &(dyn Fn(usize, usize) -> Vec3 + Sync),
+    ) -> Self {
         let (order, q) = (posed.order, posed.regions.len());
         let (mut ls, mut albedo, mut shadow_t) = (Vec::new(), Vec::new(), Vec::new());
         for i in 0..flat.instances.len() {
@@ -374,7 +406,7 @@ impl Frame {
                             (t.iter().zip(y).map(|(t, y)| *t as f64 * y).sum::<f64>()).max(0.0) as f32
                         })
                         .collect();
-                    (l.as_vec3(), albedo_at(scene, flat, i, v, eye), ts)
+                    (l.as_vec3(), albedo_of(i, v), ts)
                 })
                 .collect();
             ls.push(rows.iter().map(|r| r.0).collect());

@@ -11,7 +11,6 @@ use super::lighting::{self, Window};
 use super::{Bake, Frame, Lighting, Method, Settings, bake, regions};
 use crate::accel::{SceneBvh, offset_ray_origin};
 use crate::math::{relative_rmse, rng};
-use crate::reference::Bsdf;
 use crate::scene::{EnvironmentLight, FlatScene, NO_LIGHT, Scene};
 use glam::{Vec2, Vec3};
 use rand::Rng;
@@ -29,94 +28,102 @@ const PILOT: usize = 400;
 const PILOT_SAMPLES: usize = 1024;
 
 /// The chosen settings with one line per decision, each with the measured errors.
-pub fn choose(scene: &Scene, flat: &FlatScene, budget: f64, eye: Vec3, base: &Settings) -> (Settings, Vec<String>) {
-    let Some(env) = flat.environment.clone() else {
+///
+/// Shading is measured with every albedo seen head-on ([`Frame::prepare_head_on`]): the bake serves
+/// every view, so no camera enters the plan.
+pub fn choose(scene: &Scene, flat: &FlatScene, budget: f64, base: &Settings) -> (Settings, Vec<String>) {
+    let Some(env) = &flat.environment else {
         return (*base, vec!["no environment light: PRT has nothing to shade".into()]);
     };
+    let (s, why_order, high) = choose_order(scene, flat, env, budget, base);
+    let (s, why_regions) = choose_regions(scene, flat, env, &high.truncated(s.order), budget, &s);
+    (s, vec![why_order, why_regions])
+}
+
+/// Shading of `b` under `l`, with head-on albedos.
+fn shade(scene: &Scene, flat: &FlatScene, b: &Bake, l: &Lighting, m: Method, s: &Settings) -> Vec<Vec<Vec3>> {
+    Frame::prepare_head_on(scene, flat, b, l, m, s).vertex_values(scene, flat)
+}
+
+/// `env` at [`REFERENCE_ORDER`] with no regions, under `window`.
+fn unshadowed(coeffs: &lighting::RgbCoeffs, window: Window) -> Lighting {
+    Lighting { coeffs: coeffs.clone(), regions: Vec::new(), window, lobes: lighting::negative_lobes(coeffs, window) }
+}
+
+/// The SH order and window (the rest of `base` kept), the reason, and the pilot transfer at
+/// [`REFERENCE_ORDER`]. Self-shadowed shading reads only each group's own geometry, its
+/// orientation, the materials and the environment, so moving a group never changes this choice.
+pub fn choose_order(
+    scene: &Scene,
+    flat: &FlatScene,
+    env: &EnvironmentLight,
+    budget: f64,
+    base: &Settings,
+) -> (Settings, String, Bake) {
     let high = bake(scene, flat, &Settings { order: REFERENCE_ORDER, ..*base }, &|_| {});
-    let coeffs = lighting::project(&env, REFERENCE_ORDER);
-    let light = |window| Lighting {
-        coeffs: coeffs.clone(),
-        regions: Vec::new(),
-        window,
-        lobes: lighting::negative_lobes(&coeffs, window),
-    };
-    let shade = |b: &Bake, l: &Lighting, m| Frame::prepare(scene, flat, b, l, m, base, eye).vertex_values(scene, flat);
-    let truth: Vec<Vec3> = shade(&high, &light(Window::None), Method::SelfOnly).concat();
-    let mut chosen = None;
+    let coeffs = lighting::project(env, REFERENCE_ORDER);
+    let self_only = |b: &Bake, w| shade(scene, flat, b, &unshadowed(&coeffs, w), Method::SelfOnly, base).concat();
+    let truth = self_only(&high, Window::None);
     let mut measured = Vec::new();
     for order in ORDERS {
         let b = high.truncated(order);
-        let errs = [Window::None, Window::Hanning]
-            .map(|w| (relative_rmse(&shade(&b, &light(w), Method::SelfOnly).concat(), &truth), w));
+        let errs = [Window::None, Window::Hanning].map(|w| (relative_rmse(&self_only(&b, w), &truth), w));
         let (err, window) = if errs[1].0 < errs[0].0 { errs[1] } else { errs[0] };
-        measured.push(format!(
-            "{order}: {:.2} %{}",
-            100.0 * err,
-            if window == Window::Hanning { " (Hanning)" } else { "" }
-        ));
-        if err <= budget || order == *ORDERS.end() {
-            chosen = Some((order, window, err <= budget));
-            break;
+        let hanning = if window == Window::Hanning { " (Hanning)" } else { "" };
+        measured.push(format!("{order}: {:.2} %{hanning}", 100.0 * err));
+        let met = err <= budget;
+        if met || order == *ORDERS.end() {
+            let why = format!(
+                "SH order {order}{}: {} budget {:.1} % against order {REFERENCE_ORDER} ({})",
+                if window == Window::Hanning { " with a Hanning window" } else { "" },
+                if met { "smallest within the" } else { "highest tried; misses the" },
+                100.0 * budget,
+                measured.join(", ")
+            );
+            return (Settings { order, window, ..*base }, why, high);
         }
     }
-    let (order, window, met) = chosen.expect("ORDERS is not empty");
-    let mut s = Settings { order, window, ..*base };
-    let mut why = vec![format!(
-        "SH order {order}{}: {} budget {:.1} % against order {REFERENCE_ORDER} ({})",
-        if window == Window::Hanning { " with a Hanning window" } else { "" },
-        if met { "smallest within the" } else { "highest tried; misses the" },
-        100.0 * budget,
-        measured.join(", ")
-    )];
-    why.push(choose_regions(scene, flat, &env, &high.truncated(order), budget, eye, &mut s, &coeffs));
-    (s, why)
+    unreachable!("the last order always returns")
 }
 
-/// Picks `s.regions`; returns the reason.
-#[allow(clippy::too_many_arguments)]
-fn choose_regions(
+/// The region count for `s` (whose order and window are chosen), measured with `b`, the
+/// transfer at `s.order`, against Monte Carlo; the settings with it, and the reason.
+pub fn choose_regions(
     scene: &Scene,
     flat: &FlatScene,
     env: &EnvironmentLight,
     b: &Bake,
     budget: f64,
-    eye: Vec3,
-    s: &mut Settings,
-    coeffs: &lighting::RgbCoeffs,
-) -> String {
+    s: &Settings,
+) -> (Settings, String) {
     let groups: std::collections::BTreeSet<_> = flat.instances.iter().map(|i| i.group).collect();
     if groups.len() < 2 {
-        return "one rigid group: no shadows between groups to compute".into();
+        return (*s, "one rigid group: no shadows between groups to compute".into());
     }
+    let coeffs = lighting::project(env, REFERENCE_ORDER);
     let sample = pilot_vertices(scene, flat);
-    let exact = exact_other_term(scene, flat, env, &sample, eye);
+    let exact = exact_other_term(scene, flat, env, &sample);
+    let pick = |v: &[Vec<Vec3>]| sample.iter().map(|&(i, k)| v[i][k]).collect::<Vec<_>>();
+    // Self-shadowed shading does not depend on the regions.
+    let light = unshadowed(&coeffs, s.window);
+    let own = pick(&shade(scene, flat, b, &light, Method::SelfOnly, s));
+    let den: f64 = own.iter().map(|a| a.as_dvec3().length_squared()).sum();
     let mut measured = Vec::new();
     for q in REGION_COUNTS {
-        let l = Lighting {
-            coeffs: coeffs.clone(),
-            regions: regions::decompose(env, q),
-            window: s.window,
-            lobes: lighting::negative_lobes(coeffs, s.window),
-        };
-        let frame =
-            |m| Frame::prepare(scene, flat, b, &l, m, &Settings { regions: q, ..*s }, eye).vertex_values(scene, flat);
-        let (own, with) = (frame(Method::SelfOnly), frame(Method::WithOthers));
-        let pick = |v: &[Vec<Vec3>]| sample.iter().map(|&(i, k)| v[i][k]).collect::<Vec<_>>();
-        let (own, with) = (pick(&own), pick(&with));
-        let term: Vec<Vec3> = own.iter().zip(&with).map(|(a, b)| *a - *b).collect();
-        let num: f64 = term.iter().zip(&exact).map(|(a, b)| (*a - *b).as_dvec3().length_squared()).sum();
-        let den: f64 = own.iter().map(|a| a.as_dvec3().length_squared()).sum();
+        let l = Lighting { regions: regions::decompose(env, q), ..light.clone() };
+        let with = pick(&shade(scene, flat, b, &l, Method::WithOthers, &Settings { regions: q, ..*s }));
+        let num: f64 =
+            own.iter().zip(&with).zip(&exact).map(|((a, b), e)| (*a - *b - *e).as_dvec3().length_squared()).sum();
         let err = if den > 0.0 { (num / den).sqrt() } else { 0.0 };
         measured.push(format!("{q}: {:.2} %", 100.0 * err));
         if err <= budget || q == REGION_COUNTS[REGION_COUNTS.len() - 1] {
-            s.regions = q;
-            return format!(
+            let why = format!(
                 "{q} regions: {} budget for the other-group term against Monte Carlo on {} vertices ({})",
                 if err <= budget { "smallest within the" } else { "largest tried; misses the" },
                 sample.len(),
                 measured.join(", ")
             );
+            return (Settings { regions: q, ..*s }, why);
         }
     }
     unreachable!("the last candidate always returns")
@@ -132,13 +139,7 @@ fn pilot_vertices(scene: &Scene, flat: &FlatScene) -> Vec<(usize, usize)> {
 }
 
 /// Monte Carlo of `ρ/π ∫ L cos V_self (1 − V_others) dω` at each sample vertex.
-fn exact_other_term(
-    scene: &Scene,
-    flat: &FlatScene,
-    env: &EnvironmentLight,
-    sample: &[(usize, usize)],
-    eye: Vec3,
-) -> Vec<Vec3> {
+fn exact_other_term(scene: &Scene, flat: &FlatScene, env: &EnvironmentLight, sample: &[(usize, usize)]) -> Vec<Vec3> {
     let mut groups: Vec<hecs::Entity> = flat.instances.iter().map(|i| i.group).collect();
     groups.sort();
     groups.dedup();
@@ -155,15 +156,14 @@ fn exact_other_term(
             SceneBvh::new(&tris)
         })
         .collect();
+    let albedos = super::head_on_albedos(flat);
     sample
         .par_iter()
         .enumerate()
         .map(|(k, &(i, v))| {
             let (p, n) = flat.vertex(&scene.meshes, i, v);
             let own = groups.iter().position(|g| *g == flat.instances[i].group).expect("listed");
-            let frame = crate::math::frame::Frame::from_normal(n);
-            let albedo =
-                Bsdf::new(&flat.instances[i].material, frame.to_local((eye - p).normalize_or(n))).diffuse_albedo();
+            let albedo = albedos[i];
             let mut r = rng::stream(0xE0, k as u64);
             let side = (PILOT_SAMPLES as f64).sqrt() as usize;
             let mut sum = Vec3::ZERO;

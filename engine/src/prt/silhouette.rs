@@ -13,6 +13,7 @@
 
 use crate::math::frame::Frame;
 use glam::{Vec2, Vec3};
+use wide::f32x8;
 
 /// A silhouette's lookup parameters (see [`Silhouette::params`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -118,42 +119,65 @@ impl Silhouette {
         Vec2::new(p.dot(self.u_axis), p.dot(self.v_axis)) + self.offset
     }
 
+    /// Keeps the largest depth of `t` at the centre of every texel it covers (barycentric
+    /// coordinates all ≥ 0), eight texels of a row at a time.
     fn rasterise(&mut self, t: &[Vec3; 3]) {
         let q = t.map(|p| self.texel_coords(p));
-        let z = t.map(|p| p.dot(self.frame.n));
+        let z = t.map(|p| f32x8::splat(p.dot(self.frame.n)));
         let area = (q[1] - q[0]).perp_dot(q[2] - q[0]);
         if area.abs() < 1e-12 {
             return;
         }
         let lo = q[0].min(q[1]).min(q[2]).floor().max(Vec2::ZERO);
         let hi = q[0].max(q[1]).max(q[2]).ceil().min(Vec2::splat(self.res as f32));
+        let (e1, e2, area) = (q[1] - q[0], q[2] - q[0], f32x8::splat(area));
+        let centres = f32x8::from([0.5, 1.5, 2.5, 3.5, 4.5, 5.5, 6.5, 7.5]);
+        let (x0, x1) = (lo.x as usize, hi.x as usize);
         for y in lo.y as usize..hi.y as usize {
-            for x in lo.x as usize..hi.x as usize {
-                let c = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
-                let b1 = (c - q[0]).perp_dot(q[2] - q[0]) / area;
-                let b2 = (q[1] - q[0]).perp_dot(c - q[0]) / area;
-                let b0 = 1.0 - b1 - b2;
-                if b0 < 0.0 || b1 < 0.0 || b2 < 0.0 {
-                    continue;
-                }
+            // The scalar operations of `(c − q0)·perp` lane by lane, so every lane rounds as
+            // one texel computed alone would.
+            let dy = f32x8::splat(y as f32 + 0.5 - q[0].y);
+            let row = &mut self.far[y * self.res..(y + 1) * self.res];
+            for start in (x0..x1).step_by(8) {
+                let dx = f32x8::splat(start as f32) + centres - f32x8::splat(q[0].x);
+                let b1 = (dx * f32x8::splat(e2.y) - dy * f32x8::splat(e2.x)) / area;
+                let b2 = (f32x8::splat(e1.x) * dy - f32x8::splat(e1.y) * dx) / area;
+                let b0 = f32x8::ONE - b1 - b2;
+                let zero = f32x8::ZERO;
+                // `≥ 0` where the scalar test was `!(< 0)`: they differ only for NaN, whose
+                // depth is NaN too and never kept.
+                let inside = b0.simd_ge(zero) & b1.simd_ge(zero) & b2.simd_ge(zero);
                 let depth = b0 * z[0] + b1 * z[1] + b2 * z[2];
-                let f = &mut self.far[y * self.res + x];
-                *f = f.max(depth);
-                self.covered = (
-                    self.covered.0.min(Vec2::new(x as f32, y as f32)),
-                    self.covered.1.max(Vec2::new(x as f32 + 1.0, y as f32 + 1.0)),
-                );
+                let texels = &mut row[start..x1.min(start + 8)];
+                let mut far = [f32::NEG_INFINITY; 8];
+                far[..texels.len()].copy_from_slice(texels);
+                let far = f32x8::from(far);
+                let kept = (depth.simd_gt(far) & inside).select(depth, far).to_array();
+                texels.copy_from_slice(&kept[..texels.len()]);
             }
         }
     }
 
+    /// The table and the covered texels' bounds, from the far depths.
     fn build_sat(&mut self) {
         let (n, w) = (self.res, self.res + 1);
         for y in 0..n {
             let mut row = 0.0;
+            let (mut first, mut last) = (n, 0);
             for x in 0..n {
-                row += f32::from(u8::from(self.far[y * n + x] > f32::NEG_INFINITY));
+                let covered = self.far[y * n + x] > f32::NEG_INFINITY;
+                if covered {
+                    first = first.min(x);
+                    last = x + 1;
+                }
+                row += f32::from(u8::from(covered));
                 self.sat[(y + 1) * w + x + 1] = self.sat[y * w + x + 1] + row;
+            }
+            if first < n {
+                self.covered = (
+                    self.covered.0.min(Vec2::new(first as f32, y as f32)),
+                    self.covered.1.max(Vec2::new(last as f32, (y + 1) as f32)),
+                );
             }
         }
     }
@@ -282,6 +306,73 @@ mod tests {
             }
         }
         assert!(!s.reaches(Vec3::new(5.0, -1.0, 5.0), 0.5, 0.1));
+    }
+
+    /// The rasteriser one texel at a time, as it was written first.
+    fn rasterise_scalar(s: &mut Silhouette, t: &[Vec3; 3]) {
+        let q = t.map(|p| s.texel_coords(p));
+        let z = t.map(|p| p.dot(s.frame.n));
+        let area = (q[1] - q[0]).perp_dot(q[2] - q[0]);
+        if area.abs() < 1e-12 {
+            return;
+        }
+        let lo = q[0].min(q[1]).min(q[2]).floor().max(Vec2::ZERO);
+        let hi = q[0].max(q[1]).max(q[2]).ceil().min(Vec2::splat(s.res as f32));
+        for y in lo.y as usize..hi.y as usize {
+            for x in lo.x as usize..hi.x as usize {
+                let c = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
+                let b1 = (c - q[0]).perp_dot(q[2] - q[0]) / area;
+                let b2 = (q[1] - q[0]).perp_dot(c - q[0]) / area;
+                let b0 = 1.0 - b1 - b2;
+                if b0 < 0.0 || b1 < 0.0 || b2 < 0.0 {
+                    continue;
+                }
+                let depth = b0 * z[0] + b1 * z[1] + b2 * z[2];
+                let f = &mut s.far[y * s.res + x];
+                *f = f.max(depth);
+            }
+        }
+    }
+
+    #[test]
+    fn the_eight_lane_rasteriser_matches_the_scalar_one_bit_for_bit() {
+        use rand::Rng;
+        let mut r = crate::math::rng::seeded(11);
+        let mut p = || Vec3::new(r.random_range(-1.0..1.0), r.random_range(-1.0..1.0), r.random_range(-1.0..1.0));
+        // Small, large, sliver and degenerate triangles.
+        let mut tris: Vec<[Vec3; 3]> = (0..300).map(|_| [p(), p(), p()]).collect();
+        tris.extend((0..100).map(|_| {
+            let (a, b) = (p(), p());
+            [a, b, a + (b - a) * 0.5 + Vec3::splat(1e-3)]
+        }));
+        tris.push([Vec3::ZERO, Vec3::X, 2.0 * Vec3::X]);
+        for (w, res) in [(Vec3::Y, 128), (Vec3::new(0.3, 1.0, -0.2).normalize(), 61)] {
+            let fast = Silhouette::build(&tris, Vec3::ZERO, 1.5, w, res);
+            let mut slow = Silhouette::build(&[], Vec3::ZERO, 1.5, w, res);
+            for t in &tris {
+                rasterise_scalar(&mut slow, t);
+            }
+            let bits = |s: &Silhouette| s.far.iter().map(|f| f.to_bits()).collect::<Vec<_>>();
+            assert!(bits(&fast) == bits(&slow), "res {res}");
+            assert!(fast.far.iter().filter(|f| f.is_finite()).count() > res * res / 4);
+        }
+    }
+
+    #[test]
+    fn the_covered_bounds_are_those_of_the_covered_texels() {
+        let tilted = sil(Vec3::new(0.3, 1.0, -0.2).normalize());
+        let empty = Silhouette::build(&[], Vec3::ZERO, 1.0, Vec3::Y, 16);
+        assert_eq!(empty.covered, (Vec2::MAX, Vec2::MIN), "nothing covered: an empty box");
+        for s in [sil(Vec3::Y), tilted] {
+            let n = s.res;
+            let texels: Vec<Vec2> = (0..n * n)
+                .filter(|k| s.far[*k] > f32::NEG_INFINITY)
+                .map(|k| Vec2::new((k % n) as f32, (k / n) as f32))
+                .collect();
+            let lo = texels.iter().fold(Vec2::MAX, |a, t| a.min(*t));
+            let hi = texels.iter().fold(Vec2::MIN, |a, t| a.max(*t + 1.0));
+            assert!(texels.len() > 100 && s.covered == (lo, hi), "{:?} vs {:?}", s.covered, (lo, hi));
+        }
     }
 
     #[test]
