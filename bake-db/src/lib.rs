@@ -7,9 +7,9 @@
 //! - [`bvhs`]: the BSPVT occluders' BVHs, kept between runs so that an edit rebuilds only
 //!   the BVHs of the instances it touched;
 //! - [`key`]: bake keys, blake3 of everything a result depends on;
-//! - [`plan`]: which artefacts a scene needs (chunks of [`plan::CHUNK`] vertices per instance
+//! - [`plan`](mod@plan): which artefacts a scene needs (chunks of [`plan::CHUNK`] vertices per instance
 //!   and technique), which are cached;
-//! - [`run`]: bakes the misses on rayon while one writer commits batches, re-bakes BSPVT warm
+//! - [`run`](mod@run): bakes the misses on rayon while one writer commits batches, re-bakes BSPVT warm
 //!   from lineage after edits (with the BSPVT tile cache kept between runs), and assembles the
 //!   engine's bakes ([`bake`]: the same without assembling, reading no cached chunk);
 //! - [`records`]: radiance-cache records, keyed by geometry, materials, direct light and

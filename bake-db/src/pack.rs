@@ -31,7 +31,7 @@ pub struct Contents {
     pub prt: Option<(prt::Bake, Lighting, prt::Settings)>,
 }
 
-/// Everything [`write`] needs.
+/// Everything [`write`](fn@write) needs.
 pub struct Export<'a> {
     /// The scene.
     pub scene: &'a Scene,
