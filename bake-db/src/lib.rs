@@ -12,6 +12,8 @@
 //! - [`run`](mod@run): bakes the misses on rayon while one writer commits batches, re-bakes BSPVT warm
 //!   from lineage after edits (with the BSPVT tile cache kept between runs), and assembles the
 //!   engine's bakes ([`bake`]: the same without assembling, reading no cached chunk);
+//! - [`pilot`]: the PRT plan's pilot transfer, kept so that re-planning after a rotation reads
+//!   it instead of baking it;
 //! - [`records`]: radiance-cache records, keyed by geometry, materials, direct light and
 //!   settings;
 //! - [`pack`]: asset packs (glTF binary + the `KAGE_baked_shadows` extension) written and read.
@@ -29,6 +31,7 @@
 pub mod bvhs;
 pub mod key;
 pub mod pack;
+pub mod pilot;
 pub mod plan;
 pub mod records;
 pub mod run;

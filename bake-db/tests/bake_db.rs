@@ -220,6 +220,30 @@ fn bad_database_files_give_clear_errors() {
     assert!(matches!(e, DbError::Schema { found: 99, .. }) && e.to_string().contains("schema version 99"), "{e}");
 }
 
+/// The PRT plan's pilot is cached bit for bit, survives moves (it is group-local), and a damaged
+/// entry is baked again, never used.
+#[test]
+fn the_pilot_is_cached_exactly_survives_moves_and_a_damaged_entry_is_baked_again() {
+    let store = Store::open(&scratch("pilot")).unwrap();
+    let base = prt_settings();
+    let pilot = |s: &Scene| kage_bake_db::pilot::pilot(&store, s, &flatten(s), &base).unwrap().instances;
+    let entries =
+        || store.caches().unwrap().into_iter().filter(|(n, _)| n.starts_with("prt pilot")).collect::<Vec<_>>();
+    let s = scene("");
+    let fresh = prt::plan::pilot(&s, &flatten(&s), &base).instances;
+    assert!(pilot(&s) == fresh && entries().len() == 1, "baked and stored");
+    assert!(pilot(&s) == fresh, "read back bit for bit");
+    let moved = scene("move");
+    assert!(pilot(&moved) == fresh && entries().len() == 1, "a move reads the same entry");
+    let (name, _) = entries().remove(0);
+    let mut damaged = store.cache(&name).unwrap().unwrap();
+    damaged[100] ^= 1;
+    store.put_caches(&[(name.clone(), damaged.clone())]).unwrap();
+    assert!(pilot(&s) == fresh, "a damaged entry is baked again");
+    assert!(store.cache(&name).unwrap().unwrap() != damaged, "and replaced");
+    assert!(pilot(&scene("mesh")) != fresh && entries().len() == 2, "a changed mesh has its own pilot");
+}
+
 /// A process killed while creating a database must not leave a half-written file behind: the
 /// file appears whole (with the header it keeps) or not at all, and abandoned temporary files
 /// are swept.

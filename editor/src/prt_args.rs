@@ -75,9 +75,10 @@ impl PrtArgs {
 
     /// [`PrtArgs::settings`], with the plan's choices kept in the bake database so that planning
     /// a cached scene stays fast. The order and window are keyed on what they read, which no
-    /// move of a group changes; the region count also on where everything is, and after a move
-    /// it is measured again with the transfer the database holds (a truncated bake at a lower
-    /// order is that order's bake bit for bit), so a plan never depends on what was cached.
+    /// move of a group changes (a rotation plans them again, from the cached pilot); the region
+    /// count also on where everything is, and after a move it is measured again with the
+    /// transfer the database holds (a truncated bake at a lower order is that order's bake bit
+    /// for bit), so a plan never depends on what was cached.
     pub fn settings_cached(
         &self,
         store: &kage_bake_db::Store,
@@ -100,7 +101,8 @@ impl PrtArgs {
                 prt::Settings { order: order as usize, window, ..self.base() }
             }
             _ => {
-                let (s, why, high) = prt::plan::choose_order(scene, flat, env, budget, &self.base());
+                let high = kage_bake_db::pilot::pilot(store, scene, flat, &self.base())?;
+                let (s, why) = prt::plan::choose_order(scene, flat, env, budget, &self.base(), &high);
                 crate::emit(&format!("plan: {why}\n"));
                 let w = windows.iter().position(|w| *w == s.window).unwrap_or(0) as u8;
                 store.put_meta(&order_name, &[s.order as u8, w])?;

@@ -315,7 +315,8 @@ fn prt_methods_plan_render_and_move_groups() {
 
 /// The PRT plan's order survives a group's move (it reads no placement), its region count is
 /// measured again on the new arrangement with the database's transfer, and both agree with a
-/// plan made from scratch; a rotation plans the order again.
+/// plan made from scratch; a rotation plans the order again, from the cached pilot, also as a
+/// plan from scratch does.
 #[test]
 fn the_prt_plan_keeps_its_order_across_moves_and_matches_a_fresh_plan() {
     let d = scratch("prt-plan");
@@ -344,8 +345,11 @@ fn the_prt_plan_keeps_its_order_across_moves_and_matches_a_fresh_plan() {
     let (_, fresh) = bake("b.redb", &moved);
     assert_eq!(warm[1], fresh[1], "the same measurements, with the stored transfer and with a pilot's");
     assert_eq!(fresh[0], first[0], "the order reads no placement");
-    let (_, rotated) = bake("a.redb", &["--rotate", "group_bunny=0,1,0,40"]);
-    assert!(rotated[0].contains("against order 12"), "a rotation plans the order again: {rotated:?}");
+    // A rotation plans the order again (with the cached pilot), as a fresh plan does.
+    let turned = ["--rotate", "group_bunny=0,1,0,40"];
+    let (_, rotated) = bake("a.redb", &turned);
+    assert!(rotated[0].contains("against order 12"), "{rotated:?}");
+    assert_eq!(rotated[..2], bake("c.redb", &turned).1[..2]);
     std::fs::remove_dir_all(d).unwrap();
 }
 

@@ -35,7 +35,8 @@ pub fn choose(scene: &Scene, flat: &FlatScene, budget: f64, base: &Settings) -> 
     let Some(env) = &flat.environment else {
         return (*base, vec!["no environment light: PRT has nothing to shade".into()]);
     };
-    let (s, why_order, high) = choose_order(scene, flat, env, budget, base);
+    let high = pilot(scene, flat, base);
+    let (s, why_order) = choose_order(scene, flat, env, budget, base, &high);
     let (s, why_regions) = choose_regions(scene, flat, env, &high.truncated(s.order), budget, &s);
     (s, vec![why_order, why_regions])
 }
@@ -50,20 +51,26 @@ fn unshadowed(coeffs: &lighting::RgbCoeffs, window: Window) -> Lighting {
     Lighting { coeffs: coeffs.clone(), regions: Vec::new(), window, lobes: lighting::negative_lobes(coeffs, window) }
 }
 
-/// The SH order and window (the rest of `base` kept), the reason, and the pilot transfer at
-/// [`REFERENCE_ORDER`]. Self-shadowed shading reads only each group's own geometry, its
-/// orientation, the materials and the environment, so moving a group never changes this choice.
+/// The transfer the plan measures against: every instance at [`REFERENCE_ORDER`] with `base`'s
+/// directions. Like every PRT bake it reads only each group's own geometry.
+pub fn pilot(scene: &Scene, flat: &FlatScene, base: &Settings) -> Bake {
+    bake(scene, flat, &Settings { order: REFERENCE_ORDER, ..*base }, &|_| {})
+}
+
+/// The SH order and window (the rest of `base` kept) and the reason, measured with `high`, the
+/// [`pilot`]. Self-shadowed shading reads only each group's own geometry, its orientation, the
+/// materials and the environment, so moving a group never changes this choice.
 pub fn choose_order(
     scene: &Scene,
     flat: &FlatScene,
     env: &EnvironmentLight,
     budget: f64,
     base: &Settings,
-) -> (Settings, String, Bake) {
-    let high = bake(scene, flat, &Settings { order: REFERENCE_ORDER, ..*base }, &|_| {});
+    high: &Bake,
+) -> (Settings, String) {
     let coeffs = lighting::project(env, REFERENCE_ORDER);
     let self_only = |b: &Bake, w| shade(scene, flat, b, &unshadowed(&coeffs, w), Method::SelfOnly, base).concat();
-    let truth = self_only(&high, Window::None);
+    let truth = self_only(high, Window::None);
     let mut measured = Vec::new();
     for order in ORDERS {
         let b = high.truncated(order);
@@ -80,7 +87,7 @@ pub fn choose_order(
                 100.0 * budget,
                 measured.join(", ")
             );
-            return (Settings { order, window, ..*base }, why, high);
+            return (Settings { order, window, ..*base }, why);
         }
     }
     unreachable!("the last order always returns")
