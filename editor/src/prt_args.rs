@@ -2,7 +2,7 @@
 //! budget (the default).
 
 use kage_engine::prt::{self, lighting::Window};
-use kage_engine::scene::{FlatScene, Scene};
+use kage_engine::scene::{EnvironmentLight, FlatScene, Scene};
 
 /// Window choices on the command line.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
@@ -90,31 +90,16 @@ impl PrtArgs {
             return Ok(self.settings(scene, flat, budget));
         };
         let budget = budget.unwrap_or(DEFAULT_BUDGET);
-        let key = |placed| plan_key(scene, flat, budget, self.directions, placed);
-        let order_name = format!("prt-order/{}", key(false).finish().short());
-        let windows = [Window::None, Window::Hanning, Window::Lanczos];
-        let mut pilot = None;
-        let s = match store.meta(&order_name)?.as_deref() {
-            Some(&[order, w]) if (w as usize) < windows.len() => {
-                let window = windows[w as usize];
-                crate::emit(&format!("plan: SH order {order}, {window:?} window (cached plan)\n"));
-                prt::Settings { order: order as usize, window, ..self.base() }
-            }
-            _ => {
-                let high = kage_bake_db::pilot::pilot(store, scene, flat, &self.base())?;
-                let (s, why) = prt::plan::choose_order(scene, flat, env, budget, &self.base(), &high);
-                crate::emit(&format!("plan: {why}\n"));
-                let w = windows.iter().position(|w| *w == s.window).unwrap_or(0) as u8;
-                store.put_meta(&order_name, &[s.order as u8, w])?;
-                pilot = Some(high);
-                s
-            }
-        };
-        let regions_name = format!(
+        let (s, pilot) = self.cached_order(store, scene, flat, env, budget)?;
+        let name = format!(
             "prt-regions/{}",
-            key(true).u64("order", s.order as u64).u64("window", s.window as u64).finish().short()
+            plan_key(scene, flat, budget, self.directions, true)
+                .u64("order", s.order as u64)
+                .u64("window", window_index(s.window) as u64)
+                .finish()
+                .short()
         );
-        if let Some(&[q]) = store.meta(&regions_name)?.as_deref() {
+        if let Some(&[q]) = store.meta(&name)?.as_deref() {
             crate::emit(&format!("plan: {q} regions (cached plan)\n"));
             return Ok(prt::Settings { regions: q as usize, ..s });
         }
@@ -124,9 +109,39 @@ impl PrtArgs {
         };
         let (s, why) = prt::plan::choose_regions(scene, flat, env, &transfer, budget, &s);
         crate::emit(&format!("plan: {why}\n"));
-        store.put_meta(&regions_name, &[s.regions as u8])?;
+        store.put_meta(&name, &[s.regions as u8])?;
         Ok(s)
     }
+
+    /// The planned order and window, from the database or measured (then also the pilot).
+    fn cached_order(
+        &self,
+        store: &kage_bake_db::Store,
+        scene: &Scene,
+        flat: &FlatScene,
+        env: &EnvironmentLight,
+        budget: f64,
+    ) -> anyhow::Result<(prt::Settings, Option<prt::Bake>)> {
+        let name = format!("prt-order/{}", plan_key(scene, flat, budget, self.directions, false).finish().short());
+        if let Some(&[order, w]) = store.meta(&name)?.as_deref()
+            && let Some(&window) = WINDOWS.get(w as usize)
+        {
+            crate::emit(&format!("plan: SH order {order}, {window:?} window (cached plan)\n"));
+            return Ok((prt::Settings { order: order as usize, window, ..self.base() }, None));
+        }
+        let high = kage_bake_db::pilot::pilot(store, scene, flat, &self.base())?;
+        let (s, why) = prt::plan::choose_order(scene, flat, env, budget, &self.base(), &high);
+        crate::emit(&format!("plan: {why}\n"));
+        store.put_meta(&name, &[s.order as u8, window_index(s.window)])?;
+        Ok((s, Some(high)))
+    }
+}
+
+/// The windows, in the order the database stores them.
+const WINDOWS: [Window; 3] = [Window::None, Window::Hanning, Window::Lanczos];
+
+fn window_index(w: Window) -> u8 {
+    WINDOWS.iter().position(|x| *x == w).unwrap_or(0) as u8
 }
 
 /// The PRT transfer for `s` when the database holds all of it.
