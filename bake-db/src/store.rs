@@ -144,7 +144,8 @@ impl Store {
         match partial.persist_noclobber(path) {
             Ok(_) => Ok(()),
             Err(e) if e.error.kind() == std::io::ErrorKind::AlreadyExists => Ok(()),
-            Err(e) => Err(io(e.error)),
+            // A filesystem without hard links or no-replace renames: a plain rename, atomic too.
+            Err(e) => e.file.persist(path).map(drop).map_err(|e| io(e.error)),
         }
     }
 

@@ -6,6 +6,11 @@
 //!   budget (relative to the shading) of a Monte Carlo estimate of the same term (1024
 //!   importance-sampled environment rays per pilot vertex, shadow rays against the groups);
 //!   skipped when the scene has one group.
+//!
+//! Shading is measured with head-on albedos, so no camera enters a plan. The order reads only
+//! each group's own geometry, orientation, materials and the environment, never where groups
+//! are; callers that cache plans ([`choose_order`], [`choose_regions`] apart) keep the order
+//! across moves and measure only q again.
 
 use super::lighting::{self, Window};
 use super::{Bake, Frame, Lighting, Method, Settings, bake, regions};
