@@ -12,10 +12,10 @@ use kage_bake_db::{Store, plan, run};
 use kage_engine::scene::{Scene, default_scene, flatten, import};
 use kage_engine::{bspvt, prt};
 
-const PAPER_SCENE: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/assets/scenes/teapot_quad_light.gltf");
+const PAPER_SCENE: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../assets/scenes/teapot_quad_light.gltf");
 
 fn paper_scene() -> Scene {
-    let mut scene = import::import(PAPER_SCENE.as_ref(), Default::default()).expect("the shared teapot scene");
+    let mut scene = import::import(PAPER_SCENE.as_ref(), Default::default()).expect("the teapot scene in assets/");
     scene.refine_instances("teapot", 17_000).expect("the teapot refines");
     scene
 }

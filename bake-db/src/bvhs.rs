@@ -1,12 +1,12 @@
-//! The BSPVT occluders' BVHs, kept between runs in the store's `caches` table: a BVH is a pure
+//! The BSPVT occluders' BVHs, kept between runs in the store's memos: a BVH is a pure
 //! function of its instance's world-space triangles (obvhs' build is deterministic), so an edit
 //! rebuilds only the BVHs of the instances it touched. On the slab scene, building the ground's
 //! BVH (4608 triangles, obvhs' slowest preset) had been 3.6 % of a warm re-bake's CPU time.
 //!
-//! Like every cache it costs only time: an entry is named by a hash of the triangles and the
+//! Like every memo it costs only time: an entry is named by a hash of the triangles and the
 //! builder, restored exactly or not at all ([`SceneBvh::from_bytes`]), and `gc` drops them.
 
-use crate::store::{Cache, Result, Store};
+use crate::store::{Memo, Result, Store};
 use glam::Vec3;
 use kage_engine::accel::{Occluders, SceneBvh};
 use kage_engine::bspvt;
@@ -23,10 +23,10 @@ const MIN_TRIANGLES: usize = 256;
 
 /// The scene's BSPVT occluders, each instance's BVH restored from the store where it holds one
 /// for exactly its triangles, else built; also the entries to store for the BVHs built.
-pub fn occluders(store: &Store, flat: &FlatScene) -> Result<(Occluders, Vec<Cache>)> {
+pub fn occluders(store: &Store, flat: &FlatScene) -> Result<(Occluders, Vec<Memo>)> {
     let parts = bspvt::occluder_triangles(flat);
     let names: Vec<Option<String>> = parts.iter().map(|t| (t.len() >= MIN_TRIANGLES).then(|| name(t))).collect();
-    let stored = names.iter().map(|n| n.as_deref().map_or(Ok(None), |n| store.cache(n))).collect::<Result<Vec<_>>>()?;
+    let stored = names.iter().map(|n| n.as_deref().map_or(Ok(None), |n| store.memo(n))).collect::<Result<Vec<_>>>()?;
     let mut built = Vec::new();
     let occluders = Occluders::with(&parts, |i, triangles| {
         let restored = stored[i].as_deref().and_then(|b| SceneBvh::from_bytes(triangles, b));

@@ -3,16 +3,16 @@
 //! The bake database: every baker's results, content-addressed in one redb file per project.
 //!
 //! - [`store`]: the file (schema version; tables for meshes, artefacts, metadata, scenes,
-//!   lineage and bakers' caches), batched writes, integrity check and garbage collection;
+//!   lineage and bakers' memos), batched writes, integrity check and garbage collection;
 //! - [`bvhs`]: the BSPVT occluders' BVHs, kept between runs so that an edit rebuilds only
 //!   the BVHs of the instances it touched;
 //! - [`key`]: bake keys, blake3 of everything a result depends on;
 //! - [`plan`](mod@plan): which artefacts a scene needs (chunks of [`plan::CHUNK`] vertices per instance
 //!   and technique), which are cached;
 //! - [`run`](mod@run): bakes the misses on rayon while one writer commits batches, re-bakes BSPVT warm
-//!   from lineage after edits (with the BSPVT tile cache kept between runs), and assembles the
+//!   from lineage after edits (with the BSPVT subtree memo kept between runs), and assembles the
 //!   engine's bakes ([`bake`]: the same without assembling, reading no cached chunk);
-//! - [`pilot`]: the PRT plan's pilot transfer, kept so that re-planning after a rotation reads
+//! - [`pilot`]: the PRT budget's pilot transfer, kept so that re-planning after a rotation reads
 //!   it instead of baking it;
 //! - [`records`]: radiance-cache records, keyed by geometry, materials, direct light and
 //!   settings;
@@ -24,7 +24,7 @@
 //!   bit-identical on any thread count, and a warm re-bake gives the cold bake's bytes.
 //! - **Crash safety**: each batch is one transaction; a process killed at any moment loses at
 //!   most the batch in flight, and the next run bakes only what is missing.
-//! - **Caches cost only time**: a baker's cache (BSPVT tile subtrees, occluder BVHs) returns
+//! - **Memos cost only time**: a baker's memo (BSPVT tile subtrees, occluder BVHs) returns
 //!   exactly what a build would; a damaged one is ignored and rebuilt, `gc` drops them all.
 //! - **Clear errors**: a locked, corrupted or incompatible file is an error naming the file.
 

@@ -9,8 +9,9 @@
 //! extension restores what the preview material replaced (the real materials) and the bakes.
 
 use glam::{DVec3, Vec3};
+use kage_engine::math::color::linear_to_srgb;
 use kage_engine::prt::{self, Lighting, lighting::Window, regions::Region};
-use kage_engine::scene::texture::{Wrap, linear_to_srgb};
+use kage_engine::scene::texture::Wrap;
 use kage_engine::scene::{
     Camera, FlatScene, InGroup, Material, Name, NodeId, PolygonLight, Projection, RigidGroup, Scene, Texture, Transform,
 };

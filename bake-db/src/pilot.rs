@@ -1,10 +1,10 @@
-//! The PRT plan's pilot transfer ([`prt::plan::pilot`]: every instance at the reference order),
-//! kept in the store's `caches` table so that planning the order again — after a group turns,
+//! The PRT budget's pilot transfer ([`prt::budget::pilot`]: every instance at the reference order),
+//! kept in the store's memos so that planning the order again — after a group turns,
 //! which turns the environment in its frame — reads it instead of baking it. The pilot is
 //! group-local like every PRT bake, so its name hashes the keys the PRT artefacts at the
 //! reference order would have; a cached pilot is the baked one bit for bit.
 //!
-//! Like every cache it costs only time: an entry checks its own checksum and shape when read
+//! Like every memo it costs only time: an entry checks its own checksum and shape when read
 //! (a damaged one is baked again), and `gc` drops it.
 
 use crate::key::KeyHasher;
@@ -16,15 +16,15 @@ use kage_engine::scene::{FlatScene, Scene};
 /// The pilot for `base`'s directions, from the store when it holds a sound one, else baked and
 /// stored.
 pub fn pilot(store: &Store, scene: &Scene, flat: &FlatScene, base: &prt::Settings) -> Result<prt::Bake> {
-    let reference = prt::Settings { order: prt::plan::REFERENCE_ORDER, ..*base };
+    let reference = prt::Settings { order: prt::budget::REFERENCE_ORDER, ..*base };
     let keys: Vec<u8> =
         plan(store, scene, flat, None, Some(reference))?.keys().iter().flat_map(|k| *k.as_bytes()).collect();
     let name = format!("prt pilot {}", KeyHasher::new("prt pilot").bytes("keys", &keys).finish().short());
-    if let Some(bake) = store.cache(&name)?.and_then(|b| from_bytes(&b, scene, flat)) {
+    if let Some(bake) = store.memo(&name)?.and_then(|b| from_bytes(&b, scene, flat)) {
         return Ok(bake);
     }
-    let bake = prt::plan::pilot(scene, flat, base);
-    store.put_caches(&[(name, to_bytes(&bake))])?;
+    let bake = prt::budget::pilot(scene, flat, base);
+    store.put_memos(&[(name, to_bytes(&bake))])?;
     Ok(bake)
 }
 
@@ -51,7 +51,7 @@ fn from_bytes(bytes: &[u8], scene: &Scene, flat: &FlatScene) -> Option<prt::Bake
     let mut word = || words.next().map(u32::from_le_bytes).map(|w| w as usize);
     let (order, count) = (word()?, word()?);
     let coeffs = kage_engine::math::sh::num_coeffs(order);
-    if order != prt::plan::REFERENCE_ORDER || count != flat.instances.len() {
+    if order != prt::budget::REFERENCE_ORDER || count != flat.instances.len() {
         return None;
     }
     let lengths = (0..count).map(|_| word()).collect::<Option<Vec<usize>>>()?;

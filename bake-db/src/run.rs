@@ -5,13 +5,13 @@
 //! texels of its vertices whose rays meet the old or new bounds of an occluder that changed
 //! are looked at, and of those only the rays whose result can have changed are cast (a ray
 //! that was visible only against the changed occluders); only the cube-face tiles whose
-//! visibility changed are built again, most of them found in the tile cache the store keeps
+//! visibility changed are built again, most of them found in the subtree memo the store keeps
 //! between runs; the other tiles' subtrees are kept. The lineage keeps, beside the previous
 //! artefact's key and the occluders it saw, the visible-texel masks of every vertex's mixed
 //! tiles (uniform tiles need none), so the texels not cast again keep their exact old state.
 //! The result is byte-identical to a cold bake, because a ray's result against an occluder
 //! depends on that occluder alone and a face's tree is its tiles' subtrees joined by a fixed
-//! grid (`bspvt::tree::TILE`).
+//! grid (`bspvt::node::TILE`).
 
 use crate::key::Key;
 use crate::plan::{Job, Kind, Occluder, Plan, decode_occluders, encode_occluders};
@@ -53,12 +53,12 @@ pub struct RunStats {
     /// occluder's bounds warm).
     pub rays_cast: usize,
     /// BSPVT mixed cube-face tiles whose subtrees were made anew (all cold; only those whose
-    /// visibility changed warm), by Algorithm 1 or from the tile cache.
+    /// visibility changed warm), by Algorithm 1 or from the subtree memo.
     pub tiles_built: usize,
-    /// Of those, the ones the tile cache had (shared by the run's workers and kept in the
-    /// database between runs; see `bspvt::cache`). Depends on timing: two workers can build
+    /// Of those, the ones the subtree memo had (shared by the run's workers and kept in the
+    /// database between runs; see `bspvt::memo`). Depends on timing: two workers can build
     /// the same new tile at once.
-    pub tiles_from_cache: usize,
+    pub tiles_from_memo: usize,
     /// Wall-clock seconds.
     pub seconds: f64,
 }
@@ -235,12 +235,12 @@ fn bake_misses(
         Ok(())
     });
     // Kept even when the run failed or was cancelled: what was built stays useful.
-    let mut caches = new_bvhs.unwrap_or_default();
-    caches.extend(tiles.as_ref().filter(|t| t.added() > 0).map(|t| (tiles_name(t.settings()), t.to_bytes())));
-    let saved = store.put_caches(&caches);
+    let mut memos = new_bvhs.unwrap_or_default();
+    memos.extend(tiles.as_ref().filter(|t| t.added() > 0).map(|t| (tiles_name(t.settings()), t.to_bytes())));
+    let saved = store.put_memos(&memos);
     written?;
     saved?;
-    stats.tiles_from_cache = tiles.as_ref().map_or(0, |t| t.hits());
+    stats.tiles_from_memo = tiles.as_ref().map_or(0, |t| t.hits());
     store.put_scene(&scene.source, &plan.keys(), &plan.snapshot.hash)?;
     let meshes: Vec<([u8; 32], u32, u32)> =
         scene.meshes.iter().map(|m| (m.hash.0, m.positions.len() as u32, m.triangles.len() as u32)).collect();
@@ -288,7 +288,7 @@ struct Context<'a> {
     plan: &'a Plan,
     store: &'a Store,
     occluders: Option<&'a Occluders>,
-    tiles: Option<&'a bspvt::cache::TileCache>,
+    tiles: Option<&'a bspvt::memo::SubtreeMemo>,
     transfer: Option<&'a prt::Baker>,
 }
 
@@ -380,17 +380,17 @@ impl Context<'_> {
     }
 }
 
-/// The store's name for the tile cache of `s`.
+/// The store's name for the subtree memo of `s`.
 pub fn tiles_name(s: &bspvt::Settings) -> String {
     format!("bspvt tiles v{} res {} eps {}", bspvt::ALGORITHM_VERSION, s.res, s.epsilon)
 }
 
-/// The stored tile cache for `s`, or an empty one (none stored, or damaged: it only costs time).
-fn load_tiles(store: &Store, s: &bspvt::Settings) -> Result<bspvt::cache::TileCache> {
-    let stored = store.cache(&tiles_name(s))?;
+/// The stored subtree memo for `s`, or an empty one (none stored, or damaged: it only costs time).
+fn load_tiles(store: &Store, s: &bspvt::Settings) -> Result<bspvt::memo::SubtreeMemo> {
+    let stored = store.memo(&tiles_name(s))?;
     Ok(stored
-        .and_then(|b| bspvt::cache::TileCache::from_bytes(s, &b))
-        .unwrap_or_else(|| bspvt::cache::TileCache::new(s)))
+        .and_then(|b| bspvt::memo::SubtreeMemo::from_bytes(s, &b))
+        .unwrap_or_else(|| bspvt::memo::SubtreeMemo::new(s)))
 }
 
 /// Every occluder added, removed or changed between two snapshots, with its old and new

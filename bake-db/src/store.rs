@@ -27,13 +27,14 @@ const SCENES: TableDefinition<&str, &[u8]> = TableDefinition::new("scenes");
 const EXTRAS: TableDefinition<&str, &[u8]> = TableDefinition::new("extras");
 /// Lineage slot → the last artefact baked there and what it was baked against.
 const LINEAGE: TableDefinition<&[u8], &[u8]> = TableDefinition::new("lineage");
-/// Name → a baker's cache of partial results (e.g. BSPVT tile subtrees), kept between runs to
-/// speed re-bakes up; never part of an artefact, so losing it costs only time. Each value
-/// checks itself when loaded. Older files lack the table: readers treat it as empty.
-const CACHES: TableDefinition<&str, &[u8]> = TableDefinition::new("caches");
+/// Name → a memo: partial results a baker keeps between runs to speed re-bakes up (e.g. BSPVT
+/// tile subtrees, occluder BVHs); never part of an artefact, so losing one costs only time.
+/// Each value checks itself when loaded. Older files lack the table: readers treat it as empty.
+/// The table keeps its schema-1 name, "caches".
+const MEMOS: TableDefinition<&str, &[u8]> = TableDefinition::new("caches");
 
-/// A cache's name and bytes.
-pub type Cache = (String, Vec<u8>);
+/// A memo's name and bytes.
+pub type Memo = (String, Vec<u8>);
 
 /// What can go wrong with the database file.
 #[derive(Debug, thiserror::Error)]
@@ -236,18 +237,18 @@ impl Store {
         self.read(|t| Ok(t.open_table(LINEAGE)?.get(slot.as_bytes().as_slice())?.map(|v| v.value().to_vec())))
     }
 
-    /// The cache stored under `name`.
-    pub fn cache(&self, name: &str) -> Result<Option<Vec<u8>>> {
-        self.read(|t| match t.open_table(CACHES) {
+    /// The memo stored under `name`.
+    pub fn memo(&self, name: &str) -> Result<Option<Vec<u8>>> {
+        self.read(|t| match t.open_table(MEMOS) {
             Ok(c) => Ok(c.get(name)?.map(|v| v.value().to_vec())),
             Err(redb::TableError::TableDoesNotExist(_)) => Ok(None),
             Err(e) => Err(e.into()),
         })
     }
 
-    /// The stored caches' names and sizes in bytes, by name.
-    pub fn caches(&self) -> Result<Vec<(String, usize)>> {
-        self.read(|t| match t.open_table(CACHES) {
+    /// The stored memos' names and sizes in bytes, by name.
+    pub fn memos(&self) -> Result<Vec<(String, usize)>> {
+        self.read(|t| match t.open_table(MEMOS) {
             Ok(c) => c
                 .iter()?
                 .map(|item| item.map(|(k, v)| (k.value().to_string(), v.value().len())).map_err(Into::into))
@@ -257,14 +258,14 @@ impl Store {
         })
     }
 
-    /// Stores (replaces) caches by name, in one transaction; writes nothing when there are none.
-    pub fn put_caches(&self, caches: &[Cache]) -> Result<()> {
-        if caches.is_empty() {
+    /// Stores (replaces) memos by name, in one transaction; writes nothing when there are none.
+    pub fn put_memos(&self, memos: &[Memo]) -> Result<()> {
+        if memos.is_empty() {
             return Ok(());
         }
         self.write(|t| {
-            let mut table = t.open_table(CACHES)?;
-            for (name, bytes) in caches {
+            let mut table = t.open_table(MEMOS)?;
+            for (name, bytes) in memos {
                 table.insert(name.as_str(), bytes.as_slice())?;
             }
             Ok(())
@@ -295,7 +296,7 @@ impl Store {
         })
     }
 
-    /// A metadata value (e.g. a cached parameter plan).
+    /// A metadata value (e.g. PRT parameters chosen from a budget).
     pub fn meta(&self, name: &str) -> Result<Option<Vec<u8>>> {
         self.read(|t| Ok(t.open_table(META)?.get(name)?.map(|v| v.value().to_vec())))
     }
@@ -444,7 +445,7 @@ impl Store {
                 a.remove(k.as_slice())?;
                 i.remove(k.as_slice())?;
             }
-            t.delete_table(CACHES)?;
+            t.delete_table(MEMOS)?;
             Ok(())
         })?;
         Ok(doomed.len())

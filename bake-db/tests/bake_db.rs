@@ -220,27 +220,26 @@ fn bad_database_files_give_clear_errors() {
     assert!(matches!(e, DbError::Schema { found: 99, .. }) && e.to_string().contains("schema version 99"), "{e}");
 }
 
-/// The PRT plan's pilot is cached bit for bit, survives moves (it is group-local), and a damaged
+/// The PRT budget's pilot is cached bit for bit, survives moves (it is group-local), and a damaged
 /// entry is baked again, never used.
 #[test]
 fn the_pilot_is_cached_exactly_survives_moves_and_a_damaged_entry_is_baked_again() {
     let store = Store::open(&scratch("pilot")).unwrap();
     let base = prt_settings();
     let pilot = |s: &Scene| kage_bake_db::pilot::pilot(&store, s, &flatten(s), &base).unwrap().instances;
-    let entries =
-        || store.caches().unwrap().into_iter().filter(|(n, _)| n.starts_with("prt pilot")).collect::<Vec<_>>();
+    let entries = || store.memos().unwrap().into_iter().filter(|(n, _)| n.starts_with("prt pilot")).collect::<Vec<_>>();
     let s = scene("");
-    let fresh = prt::plan::pilot(&s, &flatten(&s), &base).instances;
+    let fresh = prt::budget::pilot(&s, &flatten(&s), &base).instances;
     assert!(pilot(&s) == fresh && entries().len() == 1, "baked and stored");
     assert!(pilot(&s) == fresh, "read back bit for bit");
     let moved = scene("move");
     assert!(pilot(&moved) == fresh && entries().len() == 1, "a move reads the same entry");
     let (name, _) = entries().remove(0);
-    let mut damaged = store.cache(&name).unwrap().unwrap();
+    let mut damaged = store.memo(&name).unwrap().unwrap();
     damaged[100] ^= 1;
-    store.put_caches(&[(name.clone(), damaged.clone())]).unwrap();
+    store.put_memos(&[(name.clone(), damaged.clone())]).unwrap();
     assert!(pilot(&s) == fresh, "a damaged entry is baked again");
-    assert!(store.cache(&name).unwrap().unwrap() != damaged, "and replaced");
+    assert!(store.memo(&name).unwrap().unwrap() != damaged, "and replaced");
     assert!(pilot(&scene("mesh")) != fresh && entries().len() == 2, "a changed mesh has its own pilot");
 }
 
@@ -311,27 +310,27 @@ fn bake_commits_what_run_commits() {
 fn occluder_bvhs_outlive_runs_and_damage_costs_only_time() {
     let store = Store::open(&scratch("bvhs")).unwrap();
     let bvhs = |s: &Store| -> Vec<String> {
-        s.caches().unwrap().into_iter().map(|c| c.0).filter(|n| n.starts_with("bvh ")).collect()
+        s.memos().unwrap().into_iter().map(|c| c.0).filter(|n| n.starts_with("bvh ")).collect()
     };
     bake(&store, &scene(""));
     let names = bvhs(&store);
     assert_eq!(names.len(), 1, "{names:?}");
-    let good = store.cache(&names[0]).unwrap().unwrap();
+    let good = store.memo(&names[0]).unwrap().unwrap();
     let mut damaged = good.clone();
     damaged[good.len() / 2] ^= 0x04;
-    store.put_caches(&[(names[0].clone(), damaged)]).unwrap();
+    store.put_memos(&[(names[0].clone(), damaged)]).unwrap();
     let (warm, bytes, _) = bake(&store, &scene("move"));
     let fresh = Store::open(&scratch("bvhs-fresh")).unwrap();
     let (_, cold, _) = bake(&fresh, &scene("move"));
     assert!(warm.warm > 0 && bytes == cold, "{warm:?}");
-    assert_eq!(store.cache(&names[0]).unwrap(), Some(good.clone()), "built and stored again");
+    assert_eq!(store.memo(&names[0]).unwrap(), Some(good.clone()), "built and stored again");
     assert_eq!(bvhs(&store), names, "the moved box has too few triangles for an entry");
-    assert_eq!(fresh.cache(&names[0]).unwrap(), Some(good), "the same build in another database");
+    assert_eq!(fresh.memo(&names[0]).unwrap(), Some(good), "the same build in another database");
     store.gc().unwrap();
     assert!(bvhs(&store).is_empty(), "gc drops them with the other caches");
 }
 
-/// The BSPVT tile cache is stored by a run and used by the next; a damaged one only costs
+/// The BSPVT subtree memo is stored by a run and used by the next; a damaged one only costs
 /// time (the re-bake still gives a cold bake's bytes, and stores a good cache again); `gc`
 /// drops it.
 #[test]
@@ -339,29 +338,29 @@ fn the_tile_cache_outlives_runs_and_damage_costs_only_time() {
     let store = Store::open(&scratch("tiles")).unwrap();
     let name = run::tiles_name(&BSPVT);
     let (first, ..) = bake(&store, &scene(""));
-    let stored = store.cache(&name).unwrap().expect("a cold bake stores its tiles");
-    let caches = store.caches().unwrap();
+    let stored = store.memo(&name).unwrap().expect("a cold bake stores its tiles");
+    let caches = store.memos().unwrap();
     assert!(caches.contains(&(name.clone(), stored.len())), "{caches:?}");
     assert_eq!(caches.len(), 2, "the tiles and the ground's BVH: {caches:?}");
-    let cache = bspvt::cache::TileCache::from_bytes(&BSPVT, &stored).expect("a well-formed cache");
+    let cache = bspvt::memo::SubtreeMemo::from_bytes(&BSPVT, &stored).expect("a well-formed cache");
     // Every tile built is a stored entry or a hit — or, rarely, a second worker's build of a
     // tile another was building at the same moment (neither a hit nor a new entry).
-    assert!(cache.len() > 10 && first.tiles_from_cache > 0, "{first:?}");
-    assert!(cache.len() + first.tiles_from_cache <= first.tiles_built, "{first:?}");
+    assert!(cache.len() > 10 && first.tiles_from_memo > 0, "{first:?}");
+    assert!(cache.len() + first.tiles_from_memo <= first.tiles_built, "{first:?}");
     let mut damaged = stored.clone();
     damaged[stored.len() / 2] ^= 0x10;
-    store.put_caches(&[(name.clone(), damaged)]).unwrap();
+    store.put_memos(&[(name.clone(), damaged)]).unwrap();
     let (_, bytes, _) = bake(&store, &scene("move"));
     let (_, cold, _) = bake(&Store::open(&scratch("tiles-fresh")).unwrap(), &scene("move"));
     assert!(bytes == cold, "a re-bake past a damaged cache gives a cold bake's bytes");
-    let again = store.cache(&name).unwrap().expect("stored again");
+    let again = store.memo(&name).unwrap().expect("stored again");
     // Started afresh: only the tiles the re-bake built.
     assert!(
-        bspvt::cache::TileCache::from_bytes(&BSPVT, &again).is_some_and(|c| !c.is_empty() && c.len() < cache.len())
+        bspvt::memo::SubtreeMemo::from_bytes(&BSPVT, &again).is_some_and(|c| !c.is_empty() && c.len() < cache.len())
     );
     store.gc().unwrap();
-    assert_eq!(store.cache(&name).unwrap(), None, "gc drops caches");
-    assert_eq!(store.caches().unwrap(), vec![]);
+    assert_eq!(store.memo(&name).unwrap(), None, "gc drops caches");
+    assert_eq!(store.memos().unwrap(), vec![]);
 }
 
 #[test]

@@ -1,4 +1,4 @@
-//! The editor on the teapot scene (`../shared/assets/scenes/teapot_quad_light.gltf`, 64² faces,
+//! The editor on the teapot scene (`assets/scenes/teapot_quad_light.gltf`, 64² faces,
 //! ε 2), headless through egui_kittest on the wgpu device wgpu picks (lavapipe without a GPU):
 //! - `frame_ui`: one editor frame with nothing to re-shade (systems, UI, viewport draw);
 //! - `frame_rendered`: the same plus egui's render of the window and its read-back;
@@ -33,7 +33,7 @@ fn root() -> PathBuf {
 }
 
 fn teapot_editor() -> Harness<'static, App> {
-    let assets = root().join("../shared/assets");
+    let assets = root().join("assets");
     let mut scene = import::import(&assets.join("scenes/teapot_quad_light.gltf"), Default::default()).unwrap();
     scene.set_environment(EnvironmentLight::new(EnvMap::load(&assets.join("envmaps/studio.hdr")).unwrap()));
     let work = root().join("target/bench-editor");

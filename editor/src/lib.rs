@@ -30,7 +30,7 @@ struct Cli {
 enum Command {
     /// Meshes, vertices, triangles, lights, groups, cameras and content hashes of a scene.
     Info(commands::info::Args),
-    /// Render an image and/or per-vertex radiance.
+    /// Render an image and/or per-vertex radiance with a shading method (baking what it needs).
     Render(commands::render::Args),
     /// Plan and run the scene's bakes against the bake database (incremental, resumable).
     Bake(commands::bake::Args),
@@ -38,12 +38,11 @@ enum Command {
     Db(commands::db::Args),
     /// Write an asset pack: the scene, its baked data and an unlit preview, as glTF binary.
     Export(commands::export::Args),
-    /// Speed against error of the polygonal-light methods, as Markdown, CSV and a PNG plot.
+    /// Speed against error of every method (polygonal lights, PRT, radiance cache) against the
+    /// Monte Carlo reference: report.md, report.csv and plots.
     Report(commands::report::Args),
-    /// Open the scene editor with live preview (egui + wgpu).
+    /// Open the scene editor: live preview, outliner, inspector, background bakes, hot reload.
     Edit(edit::Args),
-    /// Fit the GGX LTC table and write it as Rust source (developer tool).
-    FitLtc(commands::fit_ltc::Args),
 }
 
 /// Writes to stdout, ignoring a closed pipe (`kage info | head` is not an error).
@@ -64,7 +63,6 @@ pub fn main() -> ExitCode {
     let result = match cli.command {
         Command::Info(a) => commands::info::run(&a),
         Command::Render(a) => commands::render::run(&a),
-        Command::FitLtc(a) => commands::fit_ltc::run(&a),
         Command::Report(a) => commands::report::run(&a),
         Command::Bake(a) => commands::bake::run(&a),
         Command::Db(a) => commands::db::run(&a),

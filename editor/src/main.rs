@@ -1,7 +1,7 @@
 //! The `kage` binary: see the `kage_editor` library for the commands.
 
 /// mimalloc rather than the system allocator: warm re-bakes allocate many small per-vertex
-/// buffers, and took 8 % less CPU time with it (README, "Bake database").
+/// buffers, and took 8 % less CPU time with it (docs/bake-db.md).
 #[global_allocator]
 static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
 

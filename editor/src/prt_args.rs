@@ -42,7 +42,7 @@ pub struct PrtArgs {
     pub directions: u32,
 }
 
-/// The budget PRT plans with when none is given.
+/// The budget PRT chooses its parameters with when none is given.
 pub const DEFAULT_BUDGET: f64 = 0.02;
 
 impl PrtArgs {
@@ -66,7 +66,7 @@ impl PrtArgs {
         if let Some(s) = self.explicit() {
             return s;
         }
-        let (s, why) = prt::plan::choose(scene, flat, budget.unwrap_or(DEFAULT_BUDGET), &self.base());
+        let (s, why) = prt::budget::choose(scene, flat, budget.unwrap_or(DEFAULT_BUDGET), &self.base());
         for line in why {
             crate::emit(&format!("plan: {line}\n"));
         }
@@ -107,7 +107,7 @@ impl PrtArgs {
             Some(high) => high.truncated(s.order),
             None => stored_transfer(store, scene, flat, &s)?.unwrap_or_else(|| prt::bake(scene, flat, &s, &|_| {})),
         };
-        let (s, why) = prt::plan::choose_regions(scene, flat, env, &transfer, budget, &s);
+        let (s, why) = prt::budget::choose_regions(scene, flat, env, &transfer, budget, &s);
         crate::emit(&format!("plan: {why}\n"));
         store.put_meta(&name, &[s.regions as u8])?;
         Ok(s)
@@ -130,7 +130,7 @@ impl PrtArgs {
             return Ok((prt::Settings { order: order as usize, window, ..self.base() }, None));
         }
         let high = kage_bake_db::pilot::pilot(store, scene, flat, &self.base())?;
-        let (s, why) = prt::plan::choose_order(scene, flat, env, budget, &self.base(), &high);
+        let (s, why) = prt::budget::choose_order(scene, flat, env, budget, &self.base(), &high);
         crate::emit(&format!("plan: {why}\n"));
         store.put_meta(&name, &[s.order as u8, window_index(s.window)])?;
         Ok((s, Some(high)))
@@ -155,7 +155,7 @@ fn stored_transfer(
     Ok(kage_bake_db::load(store, scene, flat, &plan)?.and_then(|o| o.prt))
 }
 
-/// A key of everything the PRT plan reads: each instance's mesh, material, group and transform
+/// A key of everything the PRT budget reads: each instance's mesh, material, group and transform
 /// within it, its orientation, and the environment; with `placed`, where each instance is too.
 fn plan_key(
     scene: &Scene,

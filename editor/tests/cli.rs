@@ -15,8 +15,8 @@ fn scratch(name: &str) -> PathBuf {
     d
 }
 
-fn shared(rel: &str) -> String {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/assets").join(rel).display().to_string()
+fn asset(rel: &str) -> String {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets").join(rel).display().to_string()
 }
 
 fn stderr(o: &Output) -> String {
@@ -58,7 +58,7 @@ fn render_writes_png_exr_and_vertex_csv() {
 #[test]
 fn vertices_are_identical_on_one_and_two_threads() {
     let d = scratch("threads");
-    let scene = shared("scenes/cube_on_plane.gltf");
+    let scene = asset("scenes/cube_on_plane.gltf");
     let run = |threads: &str, name: &str| {
         let csv = d.join(name);
         let o = kage(&["render", &scene, "--threads", threads, "--spp", "4", "--vertices-out", csv.to_str().unwrap()]);
@@ -79,7 +79,7 @@ fn bad_input_exits_non_zero_with_a_message() {
         (vec!["info".into(), d.join("nope.glb").display().to_string()], "nope.glb"),
         (vec!["info".into(), "--env".into(), d.join("sky.hdr").display().to_string()], "sky.hdr"),
         (
-            vec!["render".into(), shared("models/bunny.glb"), "-o".into(), d.join("x.png").display().to_string()],
+            vec!["render".into(), asset("models/bunny.glb"), "-o".into(), d.join("x.png").display().to_string()],
             "no camera",
         ),
         (
@@ -96,7 +96,7 @@ fn bad_input_exits_non_zero_with_a_message() {
         ),
         (vec!["render".into(), "--size".into(), "0x10".into()], "bad size"),
         (
-            vec!["info".into(), shared("edge_cases/validator/mesh/unresolved_positions.gltf")],
+            vec!["info".into(), asset("edge_cases/validator/mesh/unresolved_positions.gltf")],
             "accessor 0 does not exist",
         ),
     ];
@@ -117,9 +117,9 @@ fn env_and_camera_overrides_apply() {
     let out = d.join("b.png");
     let o = kage(&[
         "render",
-        &shared("models/bunny.glb"),
+        &asset("models/bunny.glb"),
         "--env",
-        &shared("envmaps/city.hdr"),
+        &asset("envmaps/city.hdr"),
         "--env-rotation",
         "90",
         "--eye",
@@ -135,7 +135,7 @@ fn env_and_camera_overrides_apply() {
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(out.exists());
-    let o = kage(&["info", "--env", &shared("envmaps/sky.exr"), "--env-intensity", "2"]);
+    let o = kage(&["info", "--env", &asset("envmaps/sky.exr"), "--env-intensity", "2"]);
     let text = String::from_utf8(o.stdout).unwrap();
     assert!(text.contains("sky.exr (512×256), intensity 2"), "{text}");
     std::fs::remove_dir_all(d).unwrap();
@@ -144,7 +144,7 @@ fn env_and_camera_overrides_apply() {
 #[test]
 fn polygon_light_methods_render_images_and_vertices() {
     let d = scratch("methods");
-    let scene = shared("scenes/cube_on_plane.gltf");
+    let scene = asset("scenes/cube_on_plane.gltf");
     for method in ["bspvt", "ltc-unshadowed", "ltc-exact-vis"] {
         let (png, csv) = (d.join(format!("{method}.png")), d.join(format!("{method}.csv")));
         let o = kage(&[
@@ -180,7 +180,7 @@ fn polygon_methods_shade_a_scene_without_polygonal_lights_with_or_without_a_data
     // A database plans no BSPVT for such a scene: `--method bspvt` used to panic on the
     // missing trees there, while the in-memory path rendered.
     let d = scratch("no-polygon-lights");
-    let scene = shared("scenes/bunny_two_groups.gltf");
+    let scene = asset("scenes/bunny_two_groups.gltf");
     let (db, csv, png) = (d.join("bake.redb"), d.join("v.csv"), d.join("x.png"));
     for with_db in [false, true] {
         let mut args = vec!["render", &scene, "--method", "bspvt", "--face-res", "8", "--size", "16x9", "--spp", "1"];
@@ -201,14 +201,8 @@ fn polygon_methods_shade_a_scene_without_polygonal_lights_with_or_without_a_data
 fn report_writes_markdown_csv_and_plot() {
     let d = scratch("report");
     let out = d.join("rep");
-    let o = kage(&[
-        "report",
-        &shared("scenes/cube_on_plane.gltf"),
-        "--out",
-        out.to_str().unwrap(),
-        "--reference-spp",
-        "64",
-    ]);
+    let o =
+        kage(&["report", &asset("scenes/cube_on_plane.gltf"), "--out", out.to_str().unwrap(), "--reference-spp", "64"]);
     assert!(o.status.success(), "{}", stderr(&o));
     let md = std::fs::read_to_string(out.join("report.md")).unwrap();
     for method in [
@@ -245,7 +239,7 @@ fn report_writes_markdown_csv_and_plot() {
         assert_eq!((png.width(), png.height()), (640, 400));
     }
     let only = d.join("only");
-    let scene = shared("scenes/cube_on_plane.gltf");
+    let scene = asset("scenes/cube_on_plane.gltf");
     let o = kage(&["report", &scene, "--out", only.to_str().unwrap(), "--reference-spp", "64", "--only", "cache"]);
     assert!(o.status.success(), "{}", stderr(&o));
     let csv = std::fs::read_to_string(only.join("report.csv")).unwrap();
@@ -255,7 +249,7 @@ fn report_writes_markdown_csv_and_plot() {
 
 #[test]
 fn refine_tessellates_a_named_instance_for_every_command() {
-    let scene = shared("scenes/teapot_quad_light.gltf");
+    let scene = asset("scenes/teapot_quad_light.gltf");
     let o = kage(&["info", &scene, "--refine", "teapot=5000"]);
     assert!(o.status.success(), "{}", stderr(&o));
     let out = String::from_utf8(o.stdout).unwrap();
@@ -270,8 +264,8 @@ fn refine_tessellates_a_named_instance_for_every_command() {
 #[test]
 fn prt_methods_plan_render_and_move_groups() {
     let d = scratch("prt");
-    let scene = shared("scenes/bunny_two_groups.gltf");
-    let env = shared("envmaps/city.hdr");
+    let scene = asset("scenes/bunny_two_groups.gltf");
+    let env = asset("envmaps/city.hdr");
     let run = |method: &str, extra: &[&str], name: &str| {
         let csv = d.join(format!("{name}.csv"));
         let png = d.join(format!("{name}.png"));
@@ -308,20 +302,20 @@ fn prt_methods_plan_render_and_move_groups() {
         let o = kage(&args);
         assert!(!o.status.success() && stderr(&o).contains(needle), "{}", stderr(&o));
     }
-    let o = kage(&["render", &shared("scenes/cube_on_plane.gltf"), "--method", "prt"]);
+    let o = kage(&["render", &asset("scenes/cube_on_plane.gltf"), "--method", "prt"]);
     assert!(!o.status.success() && stderr(&o).contains("has none"), "{}", stderr(&o));
     std::fs::remove_dir_all(d).unwrap();
 }
 
-/// The PRT plan's order survives a group's move (it reads no placement), its region count is
+/// The PRT budget's order survives a group's move (it reads no placement), its region count is
 /// measured again on the new arrangement with the database's transfer, and both agree with a
 /// plan made from scratch; a rotation plans the order again, from the cached pilot, also as a
 /// plan from scratch does.
 #[test]
 fn the_prt_plan_keeps_its_order_across_moves_and_matches_a_fresh_plan() {
     let d = scratch("prt-plan");
-    let scene = shared("scenes/bunny_two_groups.gltf");
-    let env = shared("envmaps/city.hdr");
+    let scene = asset("scenes/bunny_two_groups.gltf");
+    let env = asset("envmaps/city.hdr");
     let bake = |db: &str, edit: &[&str]| {
         let db = d.join(db);
         let mut args = vec!["bake", &scene, "--env", &env, "--face-res", "8", "--directions", "256"];
@@ -379,7 +373,7 @@ fn vertices_from_db(scene: &str, db: &Path, out: &Path) -> Vec<u8> {
 fn a_bake_killed_at_random_points_resumes_to_a_clean_bakes_result() {
     let d = scratch("crash");
     let scene = d.join("scene.gltf");
-    std::fs::copy(shared("scenes/emissive_strength_cubes.gltf"), &scene).unwrap();
+    std::fs::copy(asset("scenes/emissive_strength_cubes.gltf"), &scene).unwrap();
     let scene = scene.to_str().unwrap().to_string();
     let clean = d.join("clean.redb");
     let o = kage(&["bake", &scene, "--face-res", "32", "--db", clean.to_str().unwrap()]);
@@ -420,7 +414,7 @@ fn a_bake_killed_at_random_points_resumes_to_a_clean_bakes_result() {
     assert_eq!(vertices_from_db(&scene, &db, &d.join("a.csv")), vertices_from_db(&scene, &clean, &d.join("b.csv")));
     let o = kage(&["db", "info", "--db", clean.to_str().unwrap()]);
     let out = String::from_utf8_lossy(&o.stdout);
-    let tiles = format!("cache \"bspvt tiles v{} res 32 eps 2\": ", kage_engine::bspvt::ALGORITHM_VERSION);
+    let tiles = format!("memo \"bspvt tiles v{} res 32 eps 2\": ", kage_engine::bspvt::ALGORITHM_VERSION);
     assert!(out.contains(&tiles), "{out}");
     // `--watch` holds the database: another process gets a clear error.
     let mut holder = Command::new(env!("CARGO_BIN_EXE_kage"))
@@ -506,9 +500,9 @@ fn export_writes_valid_packs_that_render_like_the_database() {
     ] {
         let name = Path::new(file).file_name().unwrap().to_str().unwrap();
         for ext in ["gltf", "bin"] {
-            std::fs::copy(shared(&format!("{file}.{ext}")), d.join(format!("{name}.{ext}"))).unwrap();
+            std::fs::copy(asset(&format!("{file}.{ext}")), d.join(format!("{name}.{ext}"))).unwrap();
         }
-        std::fs::copy(shared("scenes/stained_glass.png"), d.join("stained_glass.png")).unwrap();
+        std::fs::copy(asset("scenes/stained_glass.png"), d.join("stained_glass.png")).unwrap();
         let scene = d.join(format!("{name}.gltf")).to_str().unwrap().to_string();
         if method == "bspvt" {
             // A light that stays put: the pack carries its reach.
@@ -516,7 +510,7 @@ fn export_writes_valid_packs_that_render_like_the_database() {
         }
         let db = d.join(format!("{method}.redb"));
         let pack = d.join(format!("{method}.glb"));
-        let env = shared("envmaps/sky.hdr");
+        let env = asset("envmaps/sky.hdr");
         let mut args =
             vec!["export", &scene, "--db", db.to_str().unwrap(), "-o", pack.to_str().unwrap(), "--env", &env];
         args.extend(&extra);
@@ -564,7 +558,7 @@ fn export_writes_valid_packs_that_render_like_the_database() {
             assert!(!o.status.success() && e.contains("malformed BSPVT record") && e.contains("bspvt.glb"), "{e}");
         }
     }
-    let o = kage(&["render", "--pack", &shared("scenes/cube_on_plane.gltf"), "--method", "bspvt"]);
+    let o = kage(&["render", "--pack", &asset("scenes/cube_on_plane.gltf"), "--method", "bspvt"]);
     assert!(!o.status.success() && stderr(&o).contains("not a kage pack"), "{}", stderr(&o));
     std::fs::remove_dir_all(d).unwrap();
 }
@@ -585,7 +579,7 @@ fn the_plan_estimate_shrinks_with_a_declared_light_reach() {
     let d = scratch("reach-estimate");
     for ext in ["gltf", "bin"] {
         let file = format!("teapot_quad_light.{ext}");
-        std::fs::copy(shared(&format!("scenes/{file}")), d.join(file)).unwrap();
+        std::fs::copy(asset(&format!("scenes/{file}")), d.join(file)).unwrap();
     }
     let scene = d.join("teapot_quad_light.gltf").to_str().unwrap().to_string();
     let db = d.join("bake.redb").to_str().unwrap().to_string();
@@ -627,7 +621,7 @@ fn damage_first_tree_record(pack: &Path) {
 #[test]
 fn indirect_light_adds_to_per_vertex_methods() {
     let d = scratch("indirect");
-    let scene = shared("scenes/cube_on_plane.gltf");
+    let scene = asset("scenes/cube_on_plane.gltf");
     let run = |extra: &[&str]| {
         let csv = d.join("v.csv");
         let mut args =

@@ -23,8 +23,8 @@ fn scratch(name: &str) -> PathBuf {
     d
 }
 
-fn shared(rel: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/assets").join(rel)
+fn asset(rel: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../assets").join(rel)
 }
 
 /// The tests exercise the WGSL path on lavapipe (auto would pick the CPU there).
@@ -203,7 +203,7 @@ fn light_moves_reshade_at_once_and_group_moves_rebake_bspvt_incrementally() {
 #[test]
 fn the_preview_refines_batch_by_batch_while_the_bakes_stream_in() {
     let dir = scratch("stream");
-    let scene = import::import(&shared("scenes/teapot_quad_light.gltf"), Default::default()).unwrap();
+    let scene = import::import(&asset("scenes/teapot_quad_light.gltf"), Default::default()).unwrap();
     let mut o = options(&dir, None, None);
     o.bspvt.res = 32;
     // Building the harness runs frames until the app is idle: start the bake afterwards.
@@ -362,7 +362,7 @@ fn shader_saves_rebuild_pipelines_and_broken_shaders_keep_the_last_good_one() {
 fn touching_the_scene_file_reimports_it_and_rebakes_only_what_changed() {
     let dir = scratch("touch");
     let scene_path = dir.join("cube_on_plane.gltf");
-    std::fs::copy(shared("scenes/cube_on_plane.gltf"), &scene_path).unwrap();
+    std::fs::copy(asset("scenes/cube_on_plane.gltf"), &scene_path).unwrap();
     let scene = import::import(&scene_path, Default::default()).unwrap();
     let mut opts = options(&dir, Some(scene_path.clone()), None);
     opts.prt = prt::Settings { order: 3, directions: 64, ..opts.prt };
@@ -397,7 +397,7 @@ fn touching_the_scene_file_reimports_it_and_rebakes_only_what_changed() {
     h.step();
     let field = h.get_by_role_and_label(egui::accesskit::Role::TextInput, "glTF file");
     field.focus();
-    field.type_text(shared("models/bunny.glb").to_str().unwrap());
+    field.type_text(asset("models/bunny.glb").to_str().unwrap());
     h.step();
     h.get_by_label("Replace mesh").click();
     h.step();

@@ -4,7 +4,7 @@
 use glam::Vec3;
 use kage_editor::edit::camera::Orbit;
 use kage_editor::edit::viewport::Viewport;
-use kage_engine::output::linear_to_srgb;
+use kage_engine::output::display_srgb;
 use kage_engine::prt::{self, Method};
 use kage_engine::reference::Renderer;
 use kage_engine::scene::{Camera, EnvMap, EnvironmentLight, flatten, import};
@@ -12,7 +12,7 @@ use kage_gpu::{Gpu, Shaders};
 use std::path::PathBuf;
 
 fn asset(rel: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/assets").join(rel)
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../assets").join(rel)
 }
 
 /// Fraction of pixels whose channels all lie within `levels` of the reference's.
@@ -37,10 +37,8 @@ fn per_pixel_prt_matches_the_cpu_per_pixel_render_and_beats_per_vertex_shading()
     let cpu = frame.render(&Renderer::new(&scene), &camera, w, h, 1);
     // Two stops down: the studio light saturates much of the view at 0.
     let exposure = -2.0f32;
-    let reference: Vec<[u8; 3]> = cpu
-        .iter()
-        .map(|p| (*p * exposure.exp2()).to_array().map(|c| (linear_to_srgb(c) * 255.0 + 0.5) as u8))
-        .collect();
+    let reference: Vec<[u8; 3]> =
+        cpu.iter().map(|p| (*p * exposure.exp2()).to_array().map(|c| (display_srgb(c) * 255.0 + 0.5) as u8)).collect();
     assert!(reference.iter().filter(|p| p.iter().any(|c| *c > 0)).count() > w * h / 3, "the scene fills the view");
 
     let mut vp = Viewport::new(&gpu, &Shaders::embedded()).unwrap();

@@ -15,18 +15,19 @@
 use criterion::measurement::WallTime;
 use criterion::{BenchmarkGroup, Criterion, Throughput, criterion_group, criterion_main};
 use glam::{Affine3A, Vec3};
-use kage_engine::bspvt::cache::TileCache;
+use kage_engine::bspvt::memo::SubtreeMemo;
+use kage_engine::bspvt::node::Node;
 use kage_engine::bspvt::shade::{PointShader, Visibility};
-use kage_engine::bspvt::tree::{Node, build_tile};
+use kage_engine::bspvt::tree::build_tile;
 use kage_engine::bspvt::{Settings, bake_vertex, layout, occluder_bvh, reach::Reach};
 use kage_engine::math::ltc;
 use kage_engine::scene::{Material, Scene, default_scene, flatten, import, shapes};
 use rayon::prelude::*;
 
-const PAPER_SCENE: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/assets/scenes/teapot_quad_light.gltf");
+const PAPER_SCENE: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../assets/scenes/teapot_quad_light.gltf");
 
 fn paper_scene() -> Scene {
-    let mut scene = import::import(PAPER_SCENE.as_ref(), Default::default()).expect("the shared teapot scene");
+    let mut scene = import::import(PAPER_SCENE.as_ref(), Default::default()).expect("the teapot scene in assets/");
     scene.refine_instances("teapot", 17_000).expect("the teapot refines");
     scene.clear_environment();
     scene
@@ -59,10 +60,10 @@ fn measure(c: &mut Criterion, name: &str, scene: &Scene, step: usize) {
     g.throughput(Throughput::Elements(bake_sample.len() as u64));
     let reach = Reach::of(&flat.lights);
     g.bench_function("bake_vertices", |b| {
-        // A fresh tile cache per pass: 64 scattered vertices share few tiles, so this is about
+        // A fresh subtree memo per pass: 64 scattered vertices share few tiles, so this is about
         // the uncached rate (whole bakes, which share many, are measured with `kage bake`).
         b.iter(|| {
-            let tiles = TileCache::new(&s);
+            let tiles = SubtreeMemo::new(&s);
             bake_sample
                 .par_iter()
                 .map(|&(i, v)| {
@@ -72,7 +73,7 @@ fn measure(c: &mut Criterion, name: &str, scene: &Scene, step: usize) {
                 .sum::<usize>()
         })
     });
-    let tiles = TileCache::new(&s);
+    let tiles = SubtreeMemo::new(&s);
     let start = std::time::Instant::now();
     let records: Vec<Vec<u8>> = verts
         .par_iter()
@@ -96,7 +97,7 @@ fn measure(c: &mut Criterion, name: &str, scene: &Scene, step: usize) {
     let pieces: Vec<usize> = records.par_iter().enumerate().map(|(v, rec)| shade(v, rec).1).collect();
     let evaluations = verts.len() * flat.lights.len();
     eprintln!(
-        "{name}: {} vertices baked once with one tile cache at {:.0} vertices/s, {:.1} leaves and {:.0} bytes per vertex, {:.2} LTC pieces per evaluation, \
+        "{name}: {} vertices baked once with one subtree memo at {:.0} vertices/s, {:.1} leaves and {:.0} bytes per vertex, {:.2} LTC pieces per evaluation, \
          {:.1} % of vertices with more pieces than lights",
         records.len(),
         records.len() as f64 / seconds,
@@ -114,7 +115,7 @@ fn measure(c: &mut Criterion, name: &str, scene: &Scene, step: usize) {
 }
 
 /// Times building every tile `tiles` holds again (in parallel, as a bake would).
-fn bench_tile_builds(g: &mut BenchmarkGroup<WallTime>, tiles: &TileCache) {
+fn bench_tile_builds(g: &mut BenchmarkGroup<WallTime>, tiles: &SubtreeMemo) {
     let keys = tiles.keys();
     let leaves = |nodes: &Vec<Node>| nodes.iter().filter(|n| matches!(n, Node::Leaf(_))).count();
     let total: usize = keys.par_iter().map(|&k| leaves(&build_tile(k, tiles))).sum();

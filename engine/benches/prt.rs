@@ -8,7 +8,7 @@
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use glam::{Affine3A, Quat, Vec3};
-use kage_engine::prt::{self, Frame, Lighting, Method, ShadowCache};
+use kage_engine::prt::{self, Frame, Lighting, Method, SilhouetteMemo};
 use kage_engine::raster;
 use kage_engine::reference::Renderer;
 use kage_engine::scene::{Camera, EnvMap, EnvironmentLight, Material, Scene, flatten, shapes};
@@ -44,7 +44,7 @@ fn bench(c: &mut Criterion) {
     let camera = scene.first_camera().expect("camera");
     let group = scene.find_group("torus a").expect("group");
     g.throughput(Throughput::Elements(1));
-    let mut cache = ShadowCache::default();
+    let mut cache = SilhouetteMemo::default();
     g.bench_function("frame_after_group_move_512_with_bvh_rebuild", |b| {
         b.iter(|| {
             scene.pose_group(group, Quat::from_rotation_y(0.05), Vec3::new(0.01, 0.0, 0.0));

@@ -7,8 +7,9 @@
 //! `cargo run --release -p kage-engine --example split_quality -- [SCENE.gltf | default] [PASSES]`
 //! (PASSES builds of the corpus, the last one timed; 1 by default).
 
-use kage_engine::bspvt::cache::{TileCache, TileKey};
-use kage_engine::bspvt::tree::{Node, TILE, build_tile, leaf_index};
+use kage_engine::bspvt::memo::SubtreeMemo;
+use kage_engine::bspvt::node::{Node, TILE, TileKey};
+use kage_engine::bspvt::tree::{build_tile, leaf_index};
 use kage_engine::bspvt::{Settings, bake_vertex, occluder_bvh, reach::Reach};
 use kage_engine::math::cubemap;
 use kage_engine::scene::{Scene, default_scene, flatten, import};
@@ -45,11 +46,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     Ok(())
 }
 
-/// The tile cache a bake of every receiver vertex of `scene` fills.
-fn corpus(scene: &Scene) -> TileCache {
+/// The subtree memo a bake of every receiver vertex of `scene` fills.
+fn corpus(scene: &Scene) -> SubtreeMemo {
     let flat = flatten(scene);
     let occluders = occluder_bvh(&flat);
-    let (tiles, reach) = (TileCache::new(&Settings::default()), Reach::of(&flat.lights));
+    let (tiles, reach) = (SubtreeMemo::new(&Settings::default()), Reach::of(&flat.lights));
     let vertices: Vec<(usize, usize)> = (0..flat.instances.len())
         .flat_map(|i| (0..scene.meshes[flat.instances[i].mesh as usize].positions.len()).map(move |v| (i, v)))
         .collect();
@@ -61,7 +62,7 @@ fn corpus(scene: &Scene) -> TileCache {
 }
 
 /// Σ w (V − v̄)² over the leaves of tile `key`'s subtree `nodes`.
-fn within_leaf_error((index, live, visible): TileKey, nodes: &[Node], tiles: &TileCache) -> f64 {
+fn within_leaf_error((index, live, visible): TileKey, nodes: &[Node], tiles: &SubtreeMemo) -> f64 {
     let res = tiles.settings().res;
     let k = res.div_ceil(TILE);
     let (i0, j0) = (index as usize % k * TILE, index as usize / k * TILE);

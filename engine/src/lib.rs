@@ -19,7 +19,7 @@
 //!   number of threads.
 //! - **Bad input never panics**: importers validate what they read and return
 //!   [`Error`] values that name the file and the problem.
-//! - **Conventions** (binding, from `DESIGN.md`): glTF frame (+Y up, right-handed), linear RGB
+//! - **Conventions** (binding, `docs/conventions.md`): glTF frame (+Y up, right-handed), linear RGB
 //!   radiance, GGX with α = roughness², one-sided lights emitting on the CCW side,
 //!   equirectangular environments with `u = frac(atan2(d.x, −d.z)/2π)`, `v = acos(d.y)/π`.
 
@@ -31,8 +31,8 @@ pub mod math;
 pub mod output;
 pub mod prt;
 pub mod raster;
-pub mod ratio;
 pub mod reference;
 pub mod scene;
+pub mod shading;
 
 pub use error::{Error, Result};

@@ -1,14 +1,14 @@
 //! Writing results: EXR (linear radiance), PNG (exposure + sRGB), and per-vertex CSV.
 
+use crate::math::color;
 use crate::{Error, Result};
 use glam::Vec3;
 use std::io::Write;
 use std::path::Path;
 
-/// linear → sRGB transfer function (NaN → 0, clamped to [0, 1]).
-pub fn linear_to_srgb(c: f32) -> f32 {
-    let c = if c.is_nan() { 0.0 } else { c.clamp(0.0, 1.0) };
-    if c <= 0.003_130_8 { 12.92 * c } else { 1.055 * c.powf(1.0 / 2.4) - 0.055 }
+/// A linear value as a display value in [0, 1]: clamped (NaN → 0), then sRGB-encoded.
+pub fn display_srgb(c: f32) -> f32 {
+    color::linear_to_srgb(if c.is_nan() { 0.0 } else { c.clamp(0.0, 1.0) })
 }
 
 /// Writes an image by extension: `.exr` keeps linear radiance; `.png` applies `2^exposure`,
@@ -24,7 +24,7 @@ pub fn write_image(path: &Path, width: usize, height: usize, pixels: &[Vec3], ex
             let scale = exposure.exp2();
             let data: Vec<u8> = pixels
                 .iter()
-                .flat_map(|p| (*p * scale).to_array().map(|c| (linear_to_srgb(c) * 255.0 + 0.5) as u8))
+                .flat_map(|p| (*p * scale).to_array().map(|c| (display_srgb(c) * 255.0 + 0.5) as u8))
                 .collect();
             image::RgbImage::from_raw(width as u32, height as u32, data).expect("size matches").save(path)
         }
@@ -128,8 +128,9 @@ mod tests {
 
     #[test]
     fn srgb_endpoints() {
-        assert_eq!(linear_to_srgb(0.0), 0.0);
-        assert!((linear_to_srgb(1.0) - 1.0).abs() < 1e-6);
-        assert_eq!(linear_to_srgb(f32::NAN), 0.0);
+        assert_eq!(display_srgb(0.0), 0.0);
+        assert!((display_srgb(1.0) - 1.0).abs() < 1e-6);
+        assert_eq!(display_srgb(2.0), display_srgb(1.0));
+        assert_eq!(display_srgb(f32::NAN), 0.0);
     }
 }

@@ -2,9 +2,9 @@
 
 use std::path::{Path, PathBuf};
 
-/// `../shared/assets/<rel>` relative to the workspace root.
+/// `assets/<rel>` in the repository (test scenes, models, environment maps, edge cases).
 pub fn asset(rel: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/assets").join(rel)
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../assets").join(rel)
 }
 
 /// A fresh, empty scratch directory for one test.

@@ -1,7 +1,7 @@
 //! BSPVT against its own comparison modes and the reference, and its hard cases.
 
 use glam::{Affine3A, Vec3};
-use kage_engine::bspvt::cache::TileCache;
+use kage_engine::bspvt::memo::SubtreeMemo;
 use kage_engine::bspvt::shade::{PointShader, Visibility};
 use kage_engine::bspvt::{self, Settings, bake_vertex, occluder_bvh, reach::Reach, visibility};
 use kage_engine::math::ltc;
@@ -27,7 +27,7 @@ fn three_ways(scene: &Scene, r: &Renderer, s: &Settings, i: usize, v: usize, eye
     let occ = occluder_bvh(&r.flat);
     let (p, n) = r.vertex(i, v);
     let shader = PointShader::new(&table, p, n, eye, &r.flat.instances[i].material);
-    let rec = bake_vertex(&occ, p, n, &TileCache::new(s), &Reach::of(&r.flat.lights)).record;
+    let rec = bake_vertex(&occ, p, n, &SubtreeMemo::new(s), &Reach::of(&r.flat.lights)).record;
     let cube = visibility::cast(&occ, p, n, s.res);
     let _ = scene;
     [
@@ -204,8 +204,8 @@ fn the_error_budget_picks_the_cheapest_resolution_and_epsilon_within_it() {
     let scene = import(&asset("scenes/cube_on_plane.gltf"), ImportOptions::default()).unwrap();
     let flat = flatten(&scene);
     let eye = scene.first_camera().unwrap().eye();
-    let (loose, why_loose) = bspvt::plan::choose(&scene, &flat, 0.2, eye);
-    let (tight, why_tight) = bspvt::plan::choose(&scene, &flat, 0.01, eye);
+    let (loose, why_loose) = bspvt::budget::choose(&scene, &flat, 0.2, eye);
+    let (tight, why_tight) = bspvt::budget::choose(&scene, &flat, 0.01, eye);
     eprintln!("{why_loose}\n{why_tight}");
     assert!(loose.res < tight.res, "{why_loose} / {why_tight}");
     assert!(why_tight.contains("pilot on") && why_tight.contains("64²") && why_tight.contains("ε"));
@@ -213,7 +213,7 @@ fn the_error_budget_picks_the_cheapest_resolution_and_epsilon_within_it() {
     let mut dark = Scene::new("test:dark");
     dark.add_object("ground", shapes::grid(2.0, 2), Material::lambertian(Vec3::ONE), Affine3A::IDENTITY);
     let flat = flatten(&dark);
-    assert!(bspvt::plan::choose(&dark, &flat, 0.01, Vec3::Y).1.contains("nothing to bake"));
+    assert!(bspvt::budget::choose(&dark, &flat, 0.01, Vec3::Y).1.contains("nothing to bake"));
     let bake = bspvt::bake(&dark, &flat, &Settings::default(), &|_| {});
     assert_eq!((bake.stats.leaves, bake.stats.bytes), (0, 9 * 12), "six empty face lengths per vertex");
 }

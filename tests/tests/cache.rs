@@ -182,7 +182,7 @@ fn the_cache_matches_the_one_bounce_reference_with_far_fewer_rays_than_gathering
     let gather_rays = renderer.vertex_count() * 256;
     // Measured against this 1024-spp reference (its own noise ≈ 3 %): gathering 256 rays per
     // vertex 0.047 (560K rays); the cache 0.047 with 414 records (106K rays), 0.055 without
-    // gradients. Against 4096 spp: 0.034, 0.031 and 0.044 (README).
+    // gradients. Against 4096 spp: 0.034, 0.031 and 0.044 (docs/radiance-cache.md).
     assert!(e_gather < 0.06, "brute-force gathering vs the reference: {e_gather}");
     assert!(e_cache < 1.1 * e_gather && cache.rays() * 5 <= gather_rays, "cache {e_cache} with {} rays", cache.rays());
     assert!(e_cache < e_flat, "gradients help at equal record count: {e_cache} vs {e_flat}");
@@ -204,7 +204,7 @@ fn the_wide_blend_averages_the_noise_of_few_ray_records() {
     let ratio = (renderer.vertex_count() * 256) as f64 / cache.rays() as f64;
     // Measured: gathering 0.047 (560K rays); a 0.2 with 64 rays per record (47K rays, 11.9×
     // fewer): Ward's blend 0.069, the wide blend 0.053. (On the bunny the wide blend reaches
-    // gathering's error with 15× fewer rays: README.)
+    // gathering's error with 15× fewer rays: docs/radiance-cache.md.)
     assert!(e_wide < 0.85 * e_ward, "the wide blend averages noise: {e_wide} vs Ward's {e_ward}");
     assert!(e_wide < 1.15 * e_gather && ratio >= 10.0, "{e_wide} vs gathering's {e_gather}, {ratio}× fewer rays");
 }

@@ -4,7 +4,7 @@
 
 use glam::{Quat, Vec3};
 use kage_engine::bspvt;
-use kage_engine::prt::{self, Method, ShadowCache, lighting::Window};
+use kage_engine::prt::{self, Method, SilhouetteMemo, lighting::Window};
 use kage_engine::scene::{EnvMap, EnvironmentLight, Scene, default_scene, flatten, import::import};
 use kage_gpu::{Gpu, Shaders, bspvt as gpu_bspvt, prt as gpu_prt};
 use kage_tests::asset;
@@ -70,7 +70,7 @@ fn prt_with_moving_groups_on_the_gpu_matches_the_cpu() {
         let cpu =
             prt::Frame::prepare(scene, &flat, &bake, &light, Method::WithOthers, &s, eye).vertex_values(scene, &flat);
         let posed =
-            prt::Posed::new(scene, &flat, bake.order, &light, Method::WithOthers, &s, &mut ShadowCache::default());
+            prt::Posed::new(scene, &flat, bake.order, &light, Method::WithOthers, &s, &mut SilhouetteMemo::default());
         assert!(posed.silhouettes.len() > 1, "the scene has several groups");
         let on_gpu = gpu_prt::shade_vertices(&gpu, &shader, scene, &flat, &posed, eye).unwrap();
         let w = worst(&on_gpu, &cpu);

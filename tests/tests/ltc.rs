@@ -1,5 +1,5 @@
 //! Our fitted LTC table against brute-force integration of GGX and against the published fit
-//! (`../shared/reference/ltc/ltc.js`, Heitz et al. 2016), over the same random quads.
+//! (`assets/reference/ltc/ltc.js`, Heitz et al. 2016), over the same random quads.
 
 use glam::{DVec3, Vec3};
 use kage_engine::math::ltc::{self, Entry, TABLE_SIZE, Table};
@@ -9,7 +9,7 @@ use rand::Rng;
 
 /// `g_ltc_1` (normalised inverse matrices) and `g_ltc_2` (magnitude, Fresnel) of ltc.js.
 fn published() -> Vec<Entry> {
-    let text = std::fs::read_to_string(asset("../reference/ltc/ltc.js")).expect("published LTC data");
+    let text = std::fs::read_to_string(asset("reference/ltc/ltc.js")).expect("published LTC data");
     let array = |name: &str| -> Vec<f32> {
         let start = text.find(&format!("var {name} = [")).expect("array present") + name.len() + 8;
         let end = start + text[start..].find("];").unwrap();

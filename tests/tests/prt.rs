@@ -251,7 +251,7 @@ fn bunny_two_groups_matches_the_reference_under_every_shared_environment() {
     for (env, bound) in [("city", 0.05), ("sky", 0.07), ("studio", 0.06)] {
         let scene = bunny_scene(env);
         let flat = flatten(&scene);
-        let (s, _) = prt::plan::choose(&scene, &flat, 0.02, &prt::Settings::default());
+        let (s, _) = prt::budget::choose(&scene, &flat, 0.02, &prt::Settings::default());
         let want = reference(&scene, 1024);
         // The gold sphere (node 4) is GGX: PRT gives only its (zero) diffuse part.
         let diffuse = |v: &[Vec<Vec3>]| -> Vec<Vec3> {
@@ -273,7 +273,7 @@ fn a_bake_truncated_to_a_lower_order_is_that_orders_bake_bit_for_bit() {
     let scene = bunny_scene("sky");
     let flat = flatten(&scene);
     let base = prt::Settings { directions: 256, ..prt::Settings::default() };
-    let high = prt::bake(&scene, &flat, &prt::Settings { order: prt::plan::REFERENCE_ORDER, ..base }, &|_| {});
+    let high = prt::bake(&scene, &flat, &prt::Settings { order: prt::budget::REFERENCE_ORDER, ..base }, &|_| {});
     for order in [2, 5, 8] {
         let direct = prt::bake(&scene, &flat, &prt::Settings { order, ..base }, &|_| {});
         let truncated = high.truncated(order);
@@ -299,7 +299,7 @@ fn the_error_budget_plan_of_each_shared_scene() {
         let mut scene = kage_engine::scene::import::import(&asset(file), Default::default()).unwrap();
         scene.set_environment(EnvironmentLight::new(EnvMap::load(&asset(&format!("envmaps/{env}.hdr"))).unwrap()));
         let base = prt::Settings::default();
-        let (s, why) = prt::plan::choose(&scene, &flatten(&scene), 0.05, &base);
+        let (s, why) = prt::budget::choose(&scene, &flatten(&scene), 0.05, &base);
         assert_eq!(s.order, order, "{file} under {env}: {why:?}");
         match regions {
             Some(q) => assert_eq!(s.regions, q, "{file} under {env}: {why:?}"),

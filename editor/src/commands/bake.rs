@@ -40,7 +40,7 @@ pub struct BakeOptions {
     /// BSPVT split threshold ε.
     #[arg(long, default_value_t = 2.0)]
     pub epsilon: f64,
-    /// Error budget of the PRT parameter plan.
+    /// Error budget PRT chooses its parameters with.
     #[arg(long)]
     pub error_budget: Option<f64>,
     #[command(flatten)]
@@ -87,13 +87,13 @@ fn bake_once(args: &Args, store: &Store) -> Result<()> {
     // Only the misses: the assembled bakes (every chunk read and checked) are not needed here.
     let s = with_bar(total, "baking", |p| kage_bake_db::bake(store, &scene, &flat, &plan, p))?;
     crate::emit(&format!(
-        "baked {} chunks cold and {} warm ({} vertices, {} rays, {} tiles built, {} from the tile cache) in {:.2} s; {} cached; {}\n",
+        "baked {} chunks cold and {} warm ({} vertices, {} rays, {} tiles built, {} from the subtree memo) in {:.2} s; {} cached; {}\n",
         s.cold,
         s.warm,
         s.vertices_baked,
         s.rays_cast,
         s.tiles_built,
-        s.tiles_from_cache,
+        s.tiles_from_memo,
         s.seconds,
         s.cached,
         store.path().display()
@@ -116,7 +116,7 @@ pub fn print_plan(store: &Store, scene: &Scene, flat: &FlatScene, plan: &Plan, p
         }
     }
     // Seconds per vertex on one worker: measured by earlier bakes with the same parameters in
-    // this database, else the README's rates (BSPVT ≈ 10 ms per vertex at 64², ∝ res²; PRT
+    // this database, else the default rates of docs/bake-db.md (BSPVT ≈ 10 ms per vertex at 64², ∝ res²; PRT
     // ≈ 80 µs per vertex at 1024 directions, ∝ directions).
     let mut rate = std::collections::HashMap::new();
     for kind in [Kind::Bspvt, Kind::Prt] {

@@ -47,8 +47,8 @@ pub fn run(args: &Args) -> Result<()> {
                 secs * 1e3,
                 bytes as f64 / secs.max(1e-9) / 1e9
             ));
-            for (name, size) in store.caches()? {
-                crate::emit(&format!("  cache \"{name}\": {:.2} MB\n", size as f64 / 1e6));
+            for (name, size) in store.memos()? {
+                crate::emit(&format!("  memo \"{name}\": {:.2} MB\n", size as f64 / 1e6));
             }
         }
         Action::Check(t) => {

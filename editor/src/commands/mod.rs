@@ -3,7 +3,6 @@
 pub mod bake;
 pub mod db;
 pub mod export;
-pub mod fit_ltc;
 pub mod info;
 pub mod render;
 pub mod report;

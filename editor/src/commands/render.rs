@@ -112,7 +112,7 @@ pub struct Args {
     epsilon: f64,
     /// Choose parameters (and report why) from a relative error budget, e.g. 0.01, measured
     /// by a pilot: BSPVT's face resolution and ε (override --face-res and --epsilon); PRT's SH order, window and
-    /// region count (PRT plans with 0.02 when no budget and no PRT parameter is given).
+    /// region count (PRT chooses with 0.02 when no budget and no PRT parameter is given).
     #[arg(long)]
     error_budget: Option<f64>,
     #[command(flatten)]
@@ -269,7 +269,7 @@ fn per_vertex(
 ) -> Result<Outputs> {
     let mut settings = bspvt::Settings { res: args.face_res, epsilon: args.epsilon };
     if let (Method::Bspvt, Some(budget)) = (method, args.error_budget) {
-        let (chosen, why) = bspvt::plan::choose(scene, &renderer.flat, budget, camera.eye());
+        let (chosen, why) = bspvt::budget::choose(scene, &renderer.flat, budget, camera.eye());
         crate::emit(&format!("plan: {why}\n"));
         settings = chosen;
     }
@@ -426,7 +426,7 @@ fn prt_gpu(
 ) -> Result<Outputs> {
     let gpu = gpu_device()?;
     let flat = &renderer.flat;
-    let mut cache = prt::ShadowCache::default();
+    let mut cache = prt::SilhouetteMemo::default();
     let posed = prt::Posed::new(scene, flat, bake.order, lighting, method, settings, &mut cache);
     let shader = kage_gpu::prt::PrtShader::new(&gpu, &kage_gpu::Shaders::embedded(), bake, posed.order)?;
     let start = Instant::now();

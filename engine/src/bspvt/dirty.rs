@@ -1,5 +1,5 @@
 //! What an edit inside an axis-aligned box can change in a vertex's visibility cube map: the
-//! tiles (see [`super::tree::TILE`]) whose cones of directions can see into the box, and in them
+//! tiles (see [`super::node::TILE`]) whose cones of directions can see into the box, and in them
 //! the texels whose rays can meet it. Both tests are conservative — a ray they leave out cannot
 //! meet the box, so its visibility cannot have changed — and cheap where it matters: the texel
 //! test runs on every texel of a touched tile, so from far enough away it is a few dot products
@@ -354,7 +354,7 @@ fn silhouette_planes(corners: &[DVec3; 8]) -> Vec<DVec3> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bspvt::{tree, visibility};
+    use crate::bspvt::{node, visibility};
 
     /// The tests are conservative: no texel ray the texel test rejects, nor any in a tile the
     /// tile test leaves clean, meets the box (from the ray's offset origin, as cast), and no
@@ -409,7 +409,7 @@ mod tests {
                     let column = columns[f][j].contains(&i);
                     assert!(column || !seen.meets(centre), "{}: meets the box outside its row's columns", at());
                     spare += (planes && column && !seen.meets(centre)) as usize;
-                    match flags[f * k * k + (j / tree::TILE) * k + i / tree::TILE] {
+                    match flags[f * k * k + (j / node::TILE) * k + i / node::TILE] {
                         Cover::None => {
                             clean += 1;
                             assert!(!hit, "{} in a clean tile meets the box", at());
@@ -497,8 +497,8 @@ mod tests {
             for t in (0..6 * k * k).filter(|&t| blocked[t]) {
                 found += 1;
                 let (f, ti, tj) = (t / (k * k), t % k, t / k % k);
-                for (i, j) in (0..tree::TILE)
-                    .flat_map(|j| (0..tree::TILE).map(move |i| (ti * tree::TILE + i, tj * tree::TILE + j)))
+                for (i, j) in (0..node::TILE)
+                    .flat_map(|j| (0..node::TILE).map(move |i| (ti * node::TILE + i, tj * node::TILE + j)))
                 {
                     let d = visibility::texel_ray(f, i, j, n.as_dvec3(), res).expect("above the horizon").as_vec3();
                     assert!(

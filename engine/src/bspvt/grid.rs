@@ -1,8 +1,8 @@
-//! A face's fixed tile grid (see [`super::tree::TILE`]) seen from the cube's centre: the planes
+//! A face's fixed tile grid (see [`super::node::TILE`]) seen from the cube's centre: the planes
 //! of its grid lines and the unit directions of its corners. They depend on the resolution
 //! alone and every vertex of a bake needs them, so each thread keeps the last resolution's.
 
-use super::{tiles_per_side, tree};
+use super::{node, tiles_per_side};
 use crate::math::cubemap;
 use glam::{DVec2, DVec3};
 
@@ -24,7 +24,7 @@ impl FaceGrid {
 
     fn new(f: usize, res: usize) -> Self {
         let k = tiles_per_side(res);
-        let edge = |t: usize| 2.0 * (t * tree::TILE).min(res) as f64 / res as f64 - 1.0;
+        let edge = |t: usize| 2.0 * (t * node::TILE).min(res) as f64 / res as f64 - 1.0;
         let line = |a: f64, b: f64| (0..=k).map(move |t| cubemap::line_plane(f, a, b, -edge(t)).normalize());
         let lines = line(1.0, 0.0).chain(line(0.0, 1.0)).collect();
         let corner = |x: usize| cubemap::face_to_dir(f, DVec2::new(edge(x % (k + 1)), edge(x / (k + 1))));

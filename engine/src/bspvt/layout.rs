@@ -10,50 +10,10 @@
 //! A tree with L leaves has L − 1 splits: (L + 3(L − 1)) bytes ≈ 4 bytes per leaf, 2 bytes per
 //! node on average.
 
-use super::tree::Node;
-use std::f64::consts::{SQRT_2, TAU};
+use super::node::Node;
 
 /// Bumped whenever the layout or the baking algorithm changes what is stored.
 pub const FORMAT_VERSION: u32 = 1;
-
-const ANGLE_STEPS: f64 = 2048.0;
-/// Offsets are `(q − 2047) / 2047 · √2`, q ∈ [0, 4094]: symmetric, with 0 exact.
-const OFFSET_HALF: f64 = 2047.0;
-
-/// Quantises a line to (11-bit angle code, 12-bit offset code).
-pub fn quantise_line(theta: f64, c: f64) -> (u16, u16) {
-    let a = ((theta.rem_euclid(TAU) / TAU * ANGLE_STEPS).round() as i64).rem_euclid(ANGLE_STEPS as i64) as u16;
-    let o = (c.clamp(-SQRT_2, SQRT_2) / SQRT_2 * OFFSET_HALF + OFFSET_HALF).round() as u16;
-    (a, o)
-}
-
-/// The line a code pair stands for: its unit normal (cos θ, sin θ) and offset c. The normal
-/// comes from the code's first-octant image by exact sign changes and swaps, so mirror-image
-/// codes give mirror-image normals to the bit (see [`super::symmetry`]).
-pub fn dequantise_line(a: u16, o: u16) -> ((f64, f64), f64) {
-    const QUARTER: u16 = ANGLE_STEPS as u16 / 4;
-    let octant = |r: u16| {
-        let (sin, cos) = (r as f64 / ANGLE_STEPS * TAU).sin_cos();
-        // The octant's edge is its own mirror image: cos π/4 = sin π/4 exactly.
-        if r == QUARTER / 2 { (cos, cos) } else { (cos, sin) }
-    };
-    let a = a % ANGLE_STEPS as u16;
-    let r = a % QUARTER;
-    let (cos, sin) = if r <= QUARTER / 2 {
-        octant(r)
-    } else {
-        let (cos, sin) = octant(QUARTER - r);
-        (sin, cos)
-    };
-    // Quarter turns.
-    let normal = match a / QUARTER {
-        0 => (cos, sin),
-        1 => (-sin, cos),
-        2 => (-cos, -sin),
-        _ => (sin, -cos),
-    };
-    (normal, (o as f64 - OFFSET_HALF) / OFFSET_HALF * SQRT_2)
-}
 
 /// Index just past the encoded subtree that starts at byte `i` of a face's bytes.
 pub fn skip_encoded(bytes: &[u8], mut i: usize) -> usize {
@@ -341,22 +301,7 @@ mod tests {
     }
 
     #[test]
-    fn lines_round_trip_within_a_quantum() {
-        for (t, c) in [(0.0, 0.0), (1.0, -0.5), (6.2, 1.3), (3.3, -1.41)] {
-            let (a, o) = quantise_line(t, c);
-            let ((cos, sin), c2) = dequantise_line(a, o);
-            let t2 = sin.atan2(cos);
-            assert!((cos.hypot(sin) - 1.0).abs() < 1e-15, "a unit normal");
-            let dt = (t2 - t).rem_euclid(TAU);
-            assert!(dt.min(TAU - dt) <= TAU / ANGLE_STEPS / 2.0 + 1e-12);
-            assert!((c2 - c).abs() <= SQRT_2 / OFFSET_HALF / 2.0 + 1e-12);
-            assert_eq!(quantise_line(t2, c2), (a, o), "codes are fixed points");
-        }
-    }
-
-    #[test]
     fn trees_and_records_round_trip() {
-        assert_eq!(dequantise_line(0, 2047), ((1.0, 0.0), 0.0), "offset 0 is exact");
         let tree = vec![
             Node::Split { angle: 2047, offset: 4094 },
             Node::Leaf(1.0),

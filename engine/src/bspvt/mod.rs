@@ -1,12 +1,12 @@
-//! BSPVT: shadows from polygonal lights with BSP visibility trees (Okuno & Iwasaki, seed
-//! `000_…txt`; summary in DESIGN.md).
+//! BSPVT: shadows from polygonal lights with BSP visibility trees (Okuno & Iwasaki;
+//! `docs/references.md`, `docs/bspvt.md`).
 //!
 //! - [`visibility`]: per-vertex visibility cube maps (faces aligned to world axes), cast only
 //!   above the horizon;
 //! - [`tree`]: per face, a fixed grid of tiles and inside each the BSP tree of Algorithm 1 with
-//!   the seed's two corrections ([`split`]; tiles make re-bakes local); [`grid`]: the tile
+//!   the paper's algorithm with two corrections (docs/bspvt.md) ([`split`]; tiles make re-bakes local); [`grid`]: the tile
 //!   grid's lines and corner directions;
-//! - [`cache`]: tile subtrees already built, shared by a bake's workers and kept between bakes,
+//! - [`memo`]: tile subtrees already built, shared by a bake's workers and kept between bakes,
 //!   one per orbit of the face's eight [`symmetry`] images;
 //! - [`rebake`]: warm re-bakes after an edit, with [`dirty`]: which tiles and texels an edit
 //!   inside a box can change;
@@ -20,11 +20,12 @@
 //! at run time, within their declared [`reach::Reach`]), the face resolution and ε; it is
 //! parallel over vertices and deterministic.
 
-pub mod cache;
+pub mod budget;
 pub mod dirty;
 pub mod grid;
 pub mod layout;
-pub mod plan;
+pub mod memo;
+pub mod node;
 pub mod reach;
 pub mod rebake;
 pub mod shade;
@@ -35,7 +36,7 @@ pub mod visibility;
 
 use crate::accel::Occluders;
 use crate::scene::{FlatScene, NO_LIGHT, Scene};
-use cache::TileCache;
+use memo::SubtreeMemo;
 use rayon::prelude::*;
 use reach::Reach;
 pub use rebake::{Change, rebake_vertex};
@@ -43,7 +44,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 
 /// Version of the bake algorithm, part of every bake key: bumped whenever the same inputs
-/// would give different trees (2: trees start with the tile grid of [`tree::TILE`]; 3: the
+/// would give different trees (2: trees start with the tile grid of [`node::TILE`]; 3: the
 /// split search's looser Nelder–Mead tolerance and fused sums, see [`split`]; 4: a tile's
 /// subtree is its orbit's, mapped, see [`symmetry`], and the search's own sine and cosine; 5: three
 /// single-precision searches without restarts, see [`split`]).
@@ -87,7 +88,7 @@ impl BakedInstance {
     /// An instance of `vertices` records that all see their whole hemisphere: what unshadowed
     /// LTC computes, the placeholder while the trees bake.
     pub fn unshadowed(vertices: usize) -> Self {
-        let open = layout::encode_vertex(&std::array::from_fn(|_| Some(vec![tree::Node::Leaf(1.0)])));
+        let open = layout::encode_vertex(&std::array::from_fn(|_| Some(vec![node::Node::Leaf(1.0)])));
         Self { offsets: (0..=vertices).map(|v| (v * open.len()) as u32).collect(), data: open.repeat(vertices) }
     }
 
@@ -161,7 +162,7 @@ pub struct VertexBake {
     pub masks: tree::Masks,
     /// Rays cast.
     pub rays: usize,
-    /// Mixed tiles whose subtrees were made anew (by Algorithm 1, or from the tile cache).
+    /// Mixed tiles whose subtrees were made anew (by Algorithm 1, or from the subtree memo).
     pub built: usize,
 }
 
@@ -172,15 +173,15 @@ pub fn bake_vertex(
     occluders: &Occluders,
     p: glam::Vec3,
     n: glam::Vec3,
-    tiles: &TileCache,
+    tiles: &SubtreeMemo,
     reach: &Reach,
 ) -> VertexBake {
     rebake_vertex(occluders, p, n, (tiles, reach), &VertexBake::default(), &[])
 }
 
-/// Tiles per face side at face resolution `res` (see [`tree::TILE`]).
+/// Tiles per face side at face resolution `res` (see [`node::TILE`]).
 pub fn tiles_per_side(res: usize) -> usize {
-    res.div_ceil(tree::TILE)
+    res.div_ceil(node::TILE)
 }
 
 /// Bakes every receiver vertex, in parallel; `progress` gets the number of vertices done.
@@ -188,7 +189,7 @@ pub fn tiles_per_side(res: usize) -> usize {
 pub fn bake(scene: &Scene, flat: &FlatScene, s: &Settings, progress: &(dyn Fn(usize) + Sync)) -> Bake {
     let start = Instant::now();
     let occluders = occluder_bvh(flat);
-    let tiles = TileCache::new(s);
+    let tiles = SubtreeMemo::new(s);
     let reach = Reach::of(&flat.lights);
     let done = AtomicUsize::new(0);
     let mut stats = Stats::default();

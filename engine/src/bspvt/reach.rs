@@ -128,7 +128,7 @@ mod tests {
                 }
                 let (f, st) = cubemap::dir_to_face(d);
                 let (i, j) = cubemap::texel_of(st, res);
-                let t = f * k * k + (j / crate::bspvt::tree::TILE) * k + i / crate::bspvt::tree::TILE;
+                let t = f * k * k + (j / crate::bspvt::node::TILE) * k + i / crate::bspvt::node::TILE;
                 assert!(reached[t], "p {p} n {n} box {lo}..{hi}: {d} in face {f} texel ({i}, {j})");
             }
         }

@@ -3,10 +3,10 @@
 //! only the rays whose answer can have changed are cast, and only the tiles whose visibility
 //! changed are built again (see [`rebake_vertex`]).
 
-use super::cache::TileCache;
+use super::memo::SubtreeMemo;
 use super::reach::Reach;
 use super::visibility::{self, Look};
-use super::{VertexBake, dirty, layout, tiles_per_side, tree};
+use super::{VertexBake, dirty, layout, node, tiles_per_side, tree};
 use crate::accel::{self, Occluders};
 use std::ops::Range;
 
@@ -36,7 +36,7 @@ pub fn rebake_vertex(
     occluders: &Occluders,
     p: glam::Vec3,
     n: glam::Vec3,
-    (tiles, reach): (&TileCache, &Reach),
+    (tiles, reach): (&SubtreeMemo, &Reach),
     old: &VertexBake,
     changes: &[Change],
 ) -> VertexBake {
@@ -67,7 +67,7 @@ pub fn rebake_vertex(
         // A face that stored no tree was entirely occluded (or below the horizon: never read).
         let old_tree = match (cold, kept[f].is_empty()) {
             (true, _) => Vec::new(),
-            (false, true) => vec![tree::Node::Leaf(0.0)],
+            (false, true) => vec![node::Node::Leaf(0.0)],
             (false, false) => layout::decode_tree(kept[f]),
         };
         let bits = if cold {
@@ -81,7 +81,7 @@ pub fn rebake_vertex(
         let face = tree::rebuild(&bits, tiles, &old_tree, &old_masks);
         out.built += face.built;
         out.masks.extend(face.masks.iter().map(|&(t, m)| (t + range.start, m)));
-        layout::encode_face(face.nodes.as_deref().filter(|t| *t != [tree::Node::Leaf(0.0)]))
+        layout::encode_face(face.nodes.as_deref().filter(|t| *t != [node::Node::Leaf(0.0)]))
     });
     out.record = layout::join_faces(faces.each_ref().map(Vec::as_slice));
     out
@@ -160,7 +160,7 @@ impl<'a> Edit<'a> {
         f: usize,
         res: usize,
         dirty: &[bool],
-        old: (&[tree::Node], &[(u32, u64)]),
+        old: (&[node::Node], &[(u32, u64)]),
         rays: &mut usize,
     ) -> Vec<visibility::TileBits> {
         let first = f * dirty.len();
@@ -273,7 +273,7 @@ fn tile_rows(res: usize, pick: impl Fn(usize) -> bool) -> Range<usize> {
     let k = tiles_per_side(res);
     let picked = || (0..k * k).filter(|&t| pick(t));
     match (picked().next(), picked().next_back()) {
-        (Some(a), Some(b)) => a / k * tree::TILE..((b / k + 1) * tree::TILE).min(res),
+        (Some(a), Some(b)) => a / k * node::TILE..((b / k + 1) * node::TILE).min(res),
         _ => 0..0,
     }
 }

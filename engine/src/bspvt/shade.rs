@@ -3,11 +3,12 @@
 //! vertex, so every split is exact 3D polygon clipping — weighted by visibility. The light is
 //! first clipped at the receiver's horizon: below it the trees hold guesses, not visibility.
 
-use super::layout::{dequantise_line, skip_encoded, split_codes, vertex_faces};
+use super::layout::{skip_encoded, split_codes, vertex_faces};
+use super::node::dequantise_line;
 use super::visibility::{CubeVisibility, VISIBLE};
 use crate::math::{cubemap, ltc, polygon};
-use crate::reference::Bsdf;
 use crate::scene::{FlatLight, Material};
+use crate::shading::Bsdf;
 use glam::{DMat3, DVec3, Vec3};
 
 /// How visibility enters.

@@ -1,4 +1,4 @@
-//! Algorithm 1 inside one tile (at most 64 texels; see [`super::tree::TILE`]): a priority queue
+//! Algorithm 1 inside one tile (at most 64 texels; see [`super::node::TILE`]): a priority queue
 //! of pixel clusters by error; the worst cluster is split by the oriented line minimising
 //! E(P, l) = Σ w (H(d(p)) − V(p))² while any cluster's own error Σ w (V − v̄)² exceeds ε.
 //! Weights w are texel solid angles relative to the face's mean texel, so errors are in
@@ -9,9 +9,8 @@
 //! time in single precision (`Ramp`) and judges each candidate line four pixels at a time in
 //! double precision (`Pixels::divide`).
 
-use super::layout::{dequantise_line, quantise_line};
-use super::tree::Node;
-use crate::math::nelder_mead;
+use super::node::{Node, dequantise_line, quantise_line};
+use crate::math::{nelder_mead, trig};
 use std::cmp::Ordering;
 use std::collections::BinaryHeap;
 use wide::f64x4;
@@ -33,7 +32,7 @@ impl Line {
     /// steer the search; lines the tree keeps are [`Self::dequantised`]).
     #[inline]
     pub fn new(theta: f64, c: f64) -> Self {
-        let (sin, cos) = sin_cos(theta);
+        let (sin, cos) = trig::sin_cos(theta);
         Self { cos, sin, c }
     }
 
@@ -166,40 +165,6 @@ impl Pixels {
 #[cfg(test)]
 fn ramp(d: f64, slope: f64) -> f64 {
     (0.5 + d * slope).clamp(0.0, 1.0)
-}
-
-/// sin x and cos x to within 1e-12 for |x| < 1e5: reduced by quarter turns (π/2 in two parts,
-/// Cody–Waite), then Taylor polynomials on [−π/4, π/4] to the 13th and 14th powers. The search
-/// calls it at every step, where libm's `sin_cos` (correct to the last bit, not inlined) was a
-/// fifth of the search's time.
-#[inline]
-fn sin_cos(x: f64) -> (f64, f64) {
-    use std::f64::consts::{FRAC_2_PI, FRAC_PI_2};
-    // π/2 − FRAC_PI_2.
-    const PIO2_LO: f64 = 6.123_233_995_736_766e-17;
-    let q = (x * FRAC_2_PI).round();
-    let r = (-q).mul_add(PIO2_LO, (-q).mul_add(FRAC_PI_2, x));
-    let r2 = r * r;
-    // 1/n! for the odd and even powers.
-    let odd = [-1.0 / 6.0, 1.0 / 120.0, -1.0 / 5040.0, 1.0 / 362_880.0, -1.0 / 39_916_800.0, 1.0 / 6_227_020_800.0];
-    let even = [
-        -0.5,
-        1.0 / 24.0,
-        -1.0 / 720.0,
-        1.0 / 40_320.0,
-        -1.0 / 3_628_800.0,
-        1.0 / 479_001_600.0,
-        -1.0 / 87_178_291_200.0,
-    ];
-    let horner = |k: &[f64]| k.iter().rev().fold(0.0_f64, |acc, &c| acc.mul_add(r2, c));
-    let sin = (r * r2).mul_add(horner(&odd), r);
-    let cos = r2.mul_add(horner(&even), 1.0);
-    match (q as i64).rem_euclid(4) {
-        0 => (sin, cos),
-        1 => (cos, -sin),
-        2 => (-sin, -cos),
-        _ => (-cos, sin),
-    }
 }
 
 /// The set bits of `mask`, lowest first.
@@ -373,7 +338,7 @@ fn split(c: &Cluster, all: &Pixels, res: usize) -> Option<(u16, u16, u64)> {
     ranked.sort_by(|a, b| a.0.total_cmp(&b.0));
     let starts: Vec<(f64, f64)> = ranked.into_iter().map(|(_, line)| line).collect();
     // Three starts without restarts, stopped at a spread of 3e-4, build fewer leaves with less
-    // error than two starts restarted once at 1e-4, in less time (README, "Split search speed").
+    // error than two starts restarted once at 1e-4, in less time (docs/bspvt.md, "Split search quality and speed").
     let opts = nelder_mead::Options { max_evals: 80, tolerance: 3e-4, restarts: 0 };
     // A line's split after quantisation (a mask over the gathered pixels) and the error its
     // children would keep.
@@ -518,17 +483,6 @@ mod tests {
             }
         }
         assert_eq!(scatter(0b101, 0b1011_0000), 0b1001_0000);
-    }
-
-    /// The search's sine and cosine are within 1e-12 of libm's, across many turns either way.
-    #[test]
-    fn search_sin_cos_is_close_to_libm() {
-        let worst = (-200_000..=200_000).map(|k| k as f64 * 1e-3 + 1e-7 * (k as f64).sin()).fold(0.0f64, |worst, x| {
-            let (s, c) = sin_cos(x);
-            worst.max((s - x.sin()).abs()).max((c - x.cos()).abs())
-        });
-        assert!(worst < 1e-12, "{worst:e}");
-        assert_eq!(sin_cos(0.0), (0.0, 1.0));
     }
 
     /// Every pixel lands in exactly one leaf, leaves hold their pixels' weighted means, splits

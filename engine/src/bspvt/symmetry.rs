@@ -5,15 +5,14 @@
 //! texels subtend equal solid angles, and Algorithm 1's problem in a tile and in its mirror
 //! images are the same problem. A tile's subtree is therefore built once per orbit, for
 //! the orbit's least key ([`Symmetric::canonical`]), and mapped to the other seven (see
-//! [`super::cache::TileCache::subtree`]): a shadow edge crossing a tile one way and its mirror
+//! [`super::memo::SubtreeMemo::subtree`]): a shadow edge crossing a tile one way and its mirror
 //! image cost one build. The mapping is exact — a mapped line puts every mapped point on the
-//! side the original put the point on — because [`super::layout::dequantise_line`] evaluates
+//! side the original put the point on — because [`super::node::dequantise_line`] evaluates
 //! every angle code from its first-octant image, so the codes' cosines and sines are exact
 //! mirrors of one another, and because a face's texel centres are exact mirrors of one another
 //! when the face resolution is a power of two (see [`Symmetric::of`]).
 
-use super::cache::TileKey;
-use super::tree::{Node, TILE};
+use super::node::{Node, TILE, TileKey};
 
 /// Angle codes per turn (see [`super::layout`]): a quarter turn is 512 codes.
 const TURN: i32 = 2048;
@@ -149,7 +148,7 @@ impl Symmetric {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bspvt::layout::dequantise_line;
+    use crate::bspvt::node::dequantise_line;
     use crate::bspvt::split::Line;
     use crate::math::cubemap;
     use rand::Rng;

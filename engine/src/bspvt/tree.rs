@@ -1,39 +1,17 @@
 //! BSP visibility trees: per cube face, a fixed grid of [`TILE`]-texel tiles, and inside each
-//! mixed tile Algorithm 1 of the seed with its two corrections (see [`super::split`]).
+//! mixed tile Algorithm 1 of the BSPVT paper with its two corrections (see [`super::split`]).
 //!
 //! Lines are `cos θ · s + sin θ · t = c` in face coordinates; the positive side
 //! (`cos θ s + sin θ t − c > 0`) is the first child. Line parameters are quantised *before*
 //! pixels are partitioned, so leaf means match the geometry the shader sees.
 
 use super::Settings;
-use super::cache::{TileCache, TileKey};
-use super::layout::quantise_line;
+use super::memo::SubtreeMemo;
+use super::node::{Node, TILE, TileKey, quantise_line};
 use super::split::{Line, Pixels, bits, clusters};
 use super::visibility::TileBits;
 use crate::math::cubemap;
 use std::ops::Range;
-
-/// A node in pre-order: a split line, or a leaf with its mean visibility.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Node {
-    /// Split by the quantised line (angle code, offset code); the positive side comes first.
-    Split {
-        /// 11-bit angle code.
-        angle: u16,
-        /// 12-bit offset code.
-        offset: u16,
-    },
-    /// Mean visibility in [0, 1].
-    Leaf(f32),
-}
-
-/// Texels per side of a tile. A face's tree starts with a fixed grid of tiles (axis-aligned
-/// splits on tile boundaries, halving the tiles of the longer side) and Algorithm 1 runs inside
-/// each tile, so an edit that changes the visibility seen through a few tiles rebuilds only
-/// their subtrees (incremental re-bake). Sibling regions that are both uniformly visible or both
-/// uniformly occluded merge back into one leaf: the grid costs nodes only where the visibility
-/// changes.
-pub const TILE: usize = 8;
 
 /// Visible-texel masks of mixed tiles: (tile index, mask) pairs by tile index (see
 /// [`FaceTree::masks`]).
@@ -48,14 +26,14 @@ pub struct FaceTree {
     /// horizon), by tile index (row-major within the face); bit `(j mod TILE)·TILE + i mod
     /// TILE` is texel (i, j). Uniform tiles need none: their subtree is a 0 or 1 leaf.
     pub masks: Masks,
-    /// Mixed tiles whose subtrees were made anew, by Algorithm 1 or from the [`TileCache`]
+    /// Mixed tiles whose subtrees were made anew, by Algorithm 1 or from the [`SubtreeMemo`]
     /// (the rest were kept or uniform).
     pub built: usize,
 }
 
 /// Builds the tree of one face from its texel states.
 pub fn build(face: &[u8], res: usize, epsilon: f64) -> FaceTree {
-    rebuild(&TileBits::from_face(face, res), &TileCache::new(&Settings { res, epsilon }), &[], &[])
+    rebuild(&TileBits::from_face(face, res), &SubtreeMemo::new(&Settings { res, epsilon }), &[], &[])
 }
 
 /// [`build`] for a face given as tiles (see [`TileBits`]), some of whose texels were not cast
@@ -65,7 +43,7 @@ pub fn build(face: &[u8], res: usize, epsilon: f64) -> FaceTree {
 /// change keeps its old subtree; the others come from `tiles` (whose settings apply) or are
 /// built and added to it. Equal to [`build`] of the fully cast face when the skipped texels'
 /// visibility did not change.
-pub fn rebuild(face: &[TileBits], tiles: &TileCache, old: &[Node], old_masks: &[(u32, u64)]) -> FaceTree {
+pub fn rebuild(face: &[TileBits], tiles: &SubtreeMemo, old: &[Node], old_masks: &[(u32, u64)]) -> FaceTree {
     let res = tiles.settings().res;
     let mut grid = Grid::new(face, tiles, old_masks);
     let mut nodes = Vec::new();
@@ -167,7 +145,7 @@ pub fn old_visibility(old: &[Node], old_masks: &[(u32, u64)], res: usize, live: 
 /// One face's texel states, build parameters and the masks being gathered.
 struct Grid<'a> {
     res: usize,
-    cache: &'a TileCache,
+    memo: &'a SubtreeMemo,
     /// Tiles per side.
     k: usize,
     tiles: &'a [TileBits],
@@ -177,9 +155,9 @@ struct Grid<'a> {
 }
 
 impl<'a> Grid<'a> {
-    fn new(tiles: &'a [TileBits], cache: &'a TileCache, old_masks: &'a [(u32, u64)]) -> Self {
-        let res = cache.settings().res;
-        Self { res, cache, k: res.div_ceil(TILE), tiles, old_masks, masks: Vec::new(), built: 0 }
+    fn new(tiles: &'a [TileBits], memo: &'a SubtreeMemo, old_masks: &'a [(u32, u64)]) -> Self {
+        let res = memo.settings().res;
+        Self { res, memo, k: res.div_ceil(TILE), tiles, old_masks, masks: Vec::new(), built: 0 }
     }
 
     /// Whether any texel of `r` is above the horizon.
@@ -250,14 +228,21 @@ impl<'a> Grid<'a> {
             out.push(Node::Leaf(if visible == 0 { 0.0 } else { 1.0 }));
         } else {
             self.built += 1;
-            self.cache.subtree((index, live, visible), out);
+            memoised_subtree(self.memo, (index, live, visible), out);
         }
     }
 }
 
+/// Appends the subtree of mixed tile `key` to `out`: its orbit's subtree ([`build_tile`] of the
+/// orbit's least key, memoised or built and memoised), mapped to the tile.
+pub fn memoised_subtree(memo: &SubtreeMemo, key: TileKey, out: &mut Vec<Node>) {
+    let (canonical, to) = memo.orbit(key);
+    memo.with_subtree(canonical, || build_tile(canonical, memo), |nodes| to.extend(out, nodes));
+}
+
 /// The subtree Algorithm 1 builds for the mixed tile `key` (see [`TileKey`]) with the settings
 /// and texel weights of `tiles` (whose entries it neither reads nor adds to).
-pub fn build_tile((index, live, visible): TileKey, tiles: &TileCache) -> Vec<Node> {
+pub fn build_tile((index, live, visible): TileKey, tiles: &SubtreeMemo) -> Vec<Node> {
     let Settings { res, epsilon } = *tiles.settings();
     let k = res.div_ceil(TILE);
     let (i0, j0) = (index as usize % k * TILE, index as usize / k * TILE);
@@ -266,7 +251,7 @@ pub fn build_tile((index, live, visible): TileKey, tiles: &TileCache) -> Vec<Nod
 }
 
 /// The pixels of tile `r` above the horizon (`live`), visible where `visible` says.
-fn tile_pixels(r: Rect, tiles: &TileCache, live: u64, visible: u64) -> Pixels {
+fn tile_pixels(r: Rect, tiles: &SubtreeMemo, live: u64, visible: u64) -> Pixels {
     // Set bits lowest first: the texels in row-major order.
     Pixels::new(bits(live).map(|b| {
         let (i, j) = (r.i0 + b % TILE, r.j0 + b / TILE);
@@ -391,8 +376,8 @@ mod tests {
     }
 
     fn rebuild_equals_build(res: usize) {
-        // One cache for every rebuild below, as a bake shares one among its vertices.
-        let cache = TileCache::new(&Settings { res, epsilon: 1.0 });
+        // One memo for every rebuild below, as a bake shares one among its vertices.
+        let memo = SubtreeMemo::new(&Settings { res, epsilon: 1.0 });
         let horizon = |t: f64| t < -0.7;
         let scene = |cx: f64| {
             face_from(res, move |s, t| {
@@ -438,7 +423,7 @@ mod tests {
             let partial: Vec<u8> =
                 (0..res * res).map(|x| if after[x] == BELOW || cast(x) { after[x] } else { SKIPPED }).collect();
             assert!(partial.contains(&SKIPPED), "some texels are kept");
-            let warm = rebuild(&TileBits::from_face(&partial, res), &cache, &old.nodes.clone().unwrap(), &old.masks);
+            let warm = rebuild(&TileBits::from_face(&partial, res), &memo, &old.nodes.clone().unwrap(), &old.masks);
             assert_eq!((&warm.nodes, &warm.masks), (&fresh.nodes, &fresh.masks));
             let mut crossed = changed.clone();
             crossed.sort_unstable();
@@ -455,28 +440,28 @@ mod tests {
             .collect();
         let none: Vec<u8> = face.iter().map(|&s| if s == BELOW { BELOW } else { SKIPPED }).collect();
         for partial in [some, none] {
-            let warm = rebuild(&TileBits::from_face(&partial, res), &cache, &old.nodes.clone().unwrap(), &old.masks);
+            let warm = rebuild(&TileBits::from_face(&partial, res), &memo, &old.nodes.clone().unwrap(), &old.masks);
             assert_eq!((&warm.nodes, &warm.masks, warm.built), (&old.nodes, &old.masks, 0));
         }
     }
 
-    /// A face built again through the cache that built it takes every subtree from the cache,
+    /// A face built again through the memo that built it takes every subtree from the memo,
     /// and equals the first build. The face is its own mirror image in t, so the first build
     /// already shares the subtrees of mirrored tiles.
     #[test]
-    fn cached_subtrees_equal_built_ones() {
+    fn memoised_subtrees_equal_built_ones() {
         let res = 32;
         let face = face_from(res, |s, t| if s * s + 2.0 * t * t < 0.4 || s > 0.7 { OCCLUDED } else { VISIBLE });
-        let cache = TileCache::new(&Settings { res, epsilon: 0.5 });
+        let memo = SubtreeMemo::new(&Settings { res, epsilon: 0.5 });
         let face = TileBits::from_face(&face, res);
-        let first = rebuild(&face, &cache, &[], &[]);
-        assert!(first.built > 4 && cache.hits() > 0 && cache.hits() + cache.added() == first.built);
-        let (hits, added) = (cache.hits(), cache.added());
-        let again = rebuild(&face, &cache, &[], &[]);
+        let first = rebuild(&face, &memo, &[], &[]);
+        assert!(first.built > 4 && memo.hits() > 0 && memo.hits() + memo.added() == first.built);
+        let (hits, added) = (memo.hits(), memo.added());
+        let again = rebuild(&face, &memo, &[], &[]);
         assert_eq!(again, first);
-        assert_eq!((cache.hits(), cache.added()), (hits + first.built, added));
-        // And through the cache's byte form, as a later bake loads it.
-        let loaded = TileCache::from_bytes(cache.settings(), &cache.to_bytes()).expect("round trip");
+        assert_eq!((memo.hits(), memo.added()), (hits + first.built, added));
+        // And through the memo's byte form, as a later bake loads it.
+        let loaded = SubtreeMemo::from_bytes(memo.settings(), &memo.to_bytes()).expect("round trip");
         assert_eq!(rebuild(&face, &loaded, &[], &[]), first);
         assert_eq!((loaded.hits(), loaded.added()), (first.built, 0));
     }

@@ -2,7 +2,7 @@
 //! horizon are never cast: LTC clips there, so their visibility cannot matter.
 
 use super::grid;
-use super::tree::TILE;
+use super::node::TILE;
 use crate::accel::{Occluders, offset_ray_origin};
 use crate::math::cubemap;
 use glam::{DVec3, Vec3};

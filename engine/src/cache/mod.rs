@@ -1,5 +1,5 @@
-//! Hemispherical-harmonic radiance caching (seed `004_…txt`, after Gautron et al. 2004 and
-//! Křivánek et al. 2005): one bounce of indirect light from sparse records.
+//! Hemispherical-harmonic radiance caching (Gautron et al. 2004, Křivánek et al.
+//! 2005; equations H1–H23 as labelled in the article of `docs/references.md`): one bounce of indirect light from sparse records.
 //!
 //! - [`record`]: gathering a record (HSH coefficients, analytic translational gradients,
 //!   harmonic mean distance);
@@ -25,7 +25,7 @@ use std::collections::HashMap;
 pub const ROTATION_SH_ORDER: usize = 8;
 /// Normals closer than this angle (radians) skip the rotation.
 pub const SMALL_ANGLE: f64 = 0.02;
-/// Default roughness below which glossy receivers gather directly (see README: measured).
+/// Default roughness below which glossy receivers gather directly (measured: docs/radiance-cache.md).
 pub const GLOSSY_FALLBACK_ROUGHNESS: f32 = 0.6;
 /// Gauss–Legendre nodes in cos θ of the BRDF projection (twice as many in φ).
 const BRDF_NODES: usize = 32;
@@ -38,7 +38,7 @@ pub enum Blend {
     Ward,
     /// The records whose weight exceeds 1/(2a) — twice Ward's reach —, each weight capped at
     /// 1/a, so a point blends its neighbourhood's records instead of copying the nearest one:
-    /// records of few rays average out their noise (measured in the README).
+    /// records of few rays average out their noise (measured: docs/radiance-cache.md).
     Wide,
 }
 
@@ -344,7 +344,7 @@ impl Cache {
 
     /// Radiance leaving toward local `wo` for a BSDF, from incoming-radiance coefficients in the
     /// same frame: `Σ c_k b_k` with `b_k = ∫ f(ωi, wo) cos θi H_k(ωi) dωi` (H5 with cos θ).
-    pub fn outgoing(&self, c: &[DVec3], bsdf: &crate::reference::Bsdf, wo: Vec3) -> Vec3 {
+    pub fn outgoing(&self, c: &[DVec3], bsdf: &crate::shading::Bsdf, wo: Vec3) -> Vec3 {
         if !bsdf.has_specular() {
             return bsdf.diffuse_albedo() * self.irradiance(c) / std::f32::consts::PI;
         }
@@ -424,7 +424,7 @@ fn diagonal(src: &Source) -> f32 {
 /// can serve (it gathers directly; no records are placed on it).
 pub fn falls_back(renderer: &crate::reference::Renderer, s: &Settings, i: usize) -> bool {
     let m = &renderer.flat.instances[i].material;
-    crate::reference::Bsdf::new(m, Vec3::Z).has_specular() && m.roughness < s.glossy_fallback
+    crate::shading::Bsdf::new(m, Vec3::Z).has_specular() && m.roughness < s.glossy_fallback
 }
 
 /// A cache with records placed at the receiver vertices (in order) that read it (not the
@@ -455,7 +455,7 @@ pub fn shade_vertices(src: &Source, cache: &Cache, eye: Vec3) -> Vec<Vec<Vec3>> 
         .map(|(k, &(i, _, p, n))| {
             let frame = crate::math::frame::Frame::from_normal(n);
             let wo = frame.to_local((eye - p).normalize_or(n));
-            let bsdf = crate::reference::Bsdf::new(&src.renderer.flat.instances[i].material, wo);
+            let bsdf = crate::shading::Bsdf::new(&src.renderer.flat.instances[i].material, wo);
             if falls_back(src.renderer, s, i) {
                 return record::gather_bsdf(src, p, n, &bsdf, wo, s.side(), k as u64);
             }
@@ -481,7 +481,7 @@ pub fn gather_vertices(src: &Source, rays: usize, eye: Vec3) -> Vec<Vec<Vec3>> {
         .enumerate()
         .map(|(k, &(i, _, p, n))| {
             let wo = crate::math::frame::Frame::from_normal(n).to_local((eye - p).normalize_or(n));
-            let bsdf = crate::reference::Bsdf::new(&src.renderer.flat.instances[i].material, wo);
+            let bsdf = crate::shading::Bsdf::new(&src.renderer.flat.instances[i].material, wo);
             record::gather_bsdf(src, p, n, &bsdf, wo, side, k as u64)
         })
         .collect();

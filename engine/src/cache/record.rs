@@ -1,6 +1,6 @@
 //! One radiance-cache record: incoming radiance over the hemisphere above a surface point in
 //! hemispherical harmonics (seed H4), its translational gradients (analytic form, H9–H18 with
-//! the corrections in DESIGN.md), and the harmonic mean distance R_i (H20).
+//! the corrections in docs/references.md), and the harmonic mean distance R_i (H20).
 //!
 //! Gather rays are stratified uniformly in solid angle (each stands for Ω = 2π/N). A ray that
 //! hits a receiver sees the radiance leaving the hit toward the record: the hit triangle's
@@ -434,7 +434,7 @@ pub fn gather_bsdf(
     src: &Source,
     p: Vec3,
     n: Vec3,
-    bsdf: &crate::reference::Bsdf,
+    bsdf: &crate::shading::Bsdf,
     wo: Vec3,
     side: usize,
     index: u64,

@@ -105,7 +105,7 @@ pub fn pdf(wo: Vec3, wi: Vec3, alpha: f32) -> f32 {
 }
 
 /// Resolution of the directional-albedo tables (cos θo × roughness).
-const ALBEDO_N: usize = 32;
+pub const ALBEDO_N: usize = 32;
 
 /// Directional albedo split in the two Fresnel terms: E(μ) = F0·A(μ, r) + F90·B(μ, r).
 struct AlbedoTable {
@@ -113,10 +113,8 @@ struct AlbedoTable {
     b: Vec<f32>,
 }
 
-/// The tables as shipped: `tests::integrate_albedo` over the grid (roughness-major), all of A then
-/// all of B, little-endian f32. Integrating them costs every process ~80 ms of CPU;
-/// `the_shipped_albedo_tables_are_their_integrals` checks them (and rewrites them when
-/// `KAGE_REGENERATE` is set).
+/// The tables as shipped: [`albedo_table_bytes`], written by `cargo xtask ggx-albedo`.
+/// Integrating them costs every process ~80 ms of CPU; a test checks the shipped bytes.
 const SHIPPED_ALBEDO: &[u8] = include_bytes!("ggx_albedo.bin");
 const _: () = assert!(SHIPPED_ALBEDO.len() == 8 * ALBEDO_N * ALBEDO_N);
 
@@ -146,56 +144,62 @@ pub fn directional_albedo(mu: f32, roughness: f32, f0: Vec3, f90: Vec3) -> Vec3 
     f0 * lerp2(&t.a) + f90 * lerp2(&t.b)
 }
 
+/// ∫ f cos over the hemisphere for `cos θo = mu`, with F split into (1 − w) and w (the A and B
+/// terms), by stratified visible-normal sampling: the generator of the shipped tables.
+pub fn integrate_albedo(mu: f32, alpha: f32) -> (f32, f32) {
+    const S: usize = 48;
+    let wo = Vec3::new((1.0 - mu * mu).sqrt(), 0.0, mu);
+    let (mut sa, mut sb) = (0.0f64, 0.0f64);
+    for i in 0..S {
+        for j in 0..S {
+            let u = Vec2::new((i as f32 + 0.5) / S as f32, (j as f32 + 0.5) / S as f32);
+            let h = sample_visible_normal(wo, alpha, u);
+            let wi = 2.0 * wo.dot(h) * h - wo;
+            if wi.z <= 0.0 {
+                continue;
+            }
+            // f·cos/pdf = F · G2/G1(ωo) for visible-normal sampling.
+            let weight = (g2(wo, wi, alpha) / g1(wo, alpha)) as f64;
+            let w = (1.0 - wo.dot(h).clamp(0.0, 1.0)).powi(5) as f64;
+            sa += weight * (1.0 - w);
+            sb += weight * w;
+        }
+    }
+    let n = (S * S) as f64;
+    ((sa / n) as f32, (sb / n) as f32)
+}
+
+/// The directional-albedo tables integrated anew, as shipped: roughness-major over the
+/// [`ALBEDO_N`]² grid, all of A then all of B, little-endian f32.
+pub fn albedo_table_bytes() -> Vec<u8> {
+    let (a, b): (Vec<f32>, Vec<f32>) = (0..ALBEDO_N * ALBEDO_N)
+        .map(|k| {
+            let (ri, mi) = (k / ALBEDO_N, k % ALBEDO_N);
+            let alpha = alpha_from_roughness(ri as f32 / (ALBEDO_N - 1) as f32);
+            integrate_albedo((mi as f32 / (ALBEDO_N - 1) as f32).max(1e-3), alpha)
+        })
+        .unzip();
+    a.iter().chain(&b).flat_map(|v| v.to_le_bytes()).collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::math::{rng, sampling};
     use rand::Rng;
 
-    /// ∫ f cos with F split into (1 − w) and w, by stratified visible-normal sampling.
-    fn integrate_albedo(mu: f32, alpha: f32) -> (f32, f32) {
-        const S: usize = 48;
-        let wo = Vec3::new((1.0 - mu * mu).sqrt(), 0.0, mu);
-        let (mut sa, mut sb) = (0.0f64, 0.0f64);
-        for i in 0..S {
-            for j in 0..S {
-                let u = Vec2::new((i as f32 + 0.5) / S as f32, (j as f32 + 0.5) / S as f32);
-                let h = sample_visible_normal(wo, alpha, u);
-                let wi = 2.0 * wo.dot(h) * h - wo;
-                if wi.z <= 0.0 {
-                    continue;
-                }
-                // f·cos/pdf = F · G2/G1(ωo) for visible-normal sampling.
-                let weight = (g2(wo, wi, alpha) / g1(wo, alpha)) as f64;
-                let w = (1.0 - wo.dot(h).clamp(0.0, 1.0)).powi(5) as f64;
-                sa += weight * (1.0 - w);
-                sb += weight * w;
-            }
-        }
-        let n = (S * S) as f64;
-        ((sa / n) as f32, (sb / n) as f32)
-    }
-
     #[test]
     fn the_shipped_albedo_tables_are_their_integrals() {
-        let (a, b): (Vec<f32>, Vec<f32>) = (0..ALBEDO_N * ALBEDO_N)
-            .map(|k| {
-                let (ri, mi) = (k / ALBEDO_N, k % ALBEDO_N);
-                let alpha = alpha_from_roughness(ri as f32 / (ALBEDO_N - 1) as f32);
-                integrate_albedo((mi as f32 / (ALBEDO_N - 1) as f32).max(1e-3), alpha)
-            })
-            .unzip();
-        if std::env::var_os("KAGE_REGENERATE").is_some() {
-            let bytes: Vec<u8> = a.iter().chain(&b).flat_map(|v| v.to_le_bytes()).collect();
-            std::fs::write(concat!(env!("CARGO_MANIFEST_DIR"), "/src/math/ggx_albedo.bin"), bytes).unwrap();
-            return;
-        }
-        let t = albedo_table();
-        for (shipped, integrated) in t.a.iter().zip(&a).chain(t.b.iter().zip(&b)) {
+        let integrated = albedo_table_bytes();
+        let floats =
+            |b: &[u8]| b.chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect::<Vec<_>>();
+        let (shipped, integrated) = (floats(SHIPPED_ALBEDO), floats(&integrated));
+        assert_eq!(shipped.len(), integrated.len());
+        for (s, i) in shipped.iter().zip(&integrated) {
             // Bit for bit where the platform's sine and cosine round like the generator's.
-            assert!((shipped - integrated).abs() <= 1e-6, "{shipped} vs {integrated}");
+            assert!((s - i).abs() <= 1e-6, "{s} vs {i} (regenerate: cargo xtask ggx-albedo)");
         }
-        assert!(t.a.iter().chain(&t.b).any(|v| *v > 0.5), "the table holds values, not zeros");
+        assert!(shipped.iter().any(|v| *v > 0.5), "the table holds values, not zeros");
     }
 
     fn dir(theta: f32, phi: f32) -> Vec3 {

@@ -1,6 +1,6 @@
 //! Hemispherical harmonics (Gautron et al. 2004) over the upper (+Z) hemisphere.
 //!
-//! Convention (DESIGN.md): `P̃_n^m(cos θ) = P_n^m(2 cos θ − 1)`,
+//! Convention (docs/conventions.md): `P̃_n^m(cos θ) = P_n^m(2 cos θ − 1)`,
 //! `K̃_nm = sqrt((2n+1)/(2π) · (n−|m|)!/(n+|m|)!)`, `H_nm = √2 K̃ P̃^|m| cos(mφ)` (m > 0),
 //! `√2 K̃ P̃^|m| sin(|m|φ)` (m < 0), `K̃ P̃^0` (m = 0); index and "order" as for SH.
 //!

@@ -2,6 +2,7 @@
 //!
 //! No I/O and no global mutable state live here; lazily built tables are immutable once made.
 
+pub mod color;
 pub mod cubemap;
 pub mod distribution;
 pub mod frame;
@@ -15,11 +16,9 @@ pub mod quadrature;
 pub mod rng;
 pub mod sampling;
 pub mod sh;
+pub mod trig;
 
-/// Luminance of a linear Rec.709 colour.
-pub fn luminance(c: glam::Vec3) -> f32 {
-    0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z
-}
+pub use color::luminance;
 
 /// Relative RMSE `√(Σ|x − r|² / Σ|r|²)` of colours against a reference (0 for a black one).
 pub fn relative_rmse(x: &[glam::Vec3], r: &[glam::Vec3]) -> f64 {

@@ -1,6 +1,6 @@
 //! Real orthonormal spherical harmonics.
 //!
-//! Convention (DESIGN.md): index `k = l(l+1) + m`, **no Condon–Shortley phase**; "order n"
+//! Convention (docs/conventions.md): index `k = l(l+1) + m`, **no Condon–Shortley phase**; "order n"
 //! means bands l = 0..n−1 (n² coefficients). θ is measured from +Z of whatever frame the
 //! direction is given in, φ = atan2(y, x):
 //! `Y_lm = √2 K_lm P_l^m(cos θ) cos(mφ)` (m > 0), `√2 K_l|m| P_l^|m| sin(|m|φ)` (m < 0),

@@ -1,4 +1,4 @@
-//! PRT for dynamic scenes (Tamura, Johan & Nishita, seed `003_…txt`; summary in DESIGN.md):
+//! PRT for dynamic scenes (Tamura, Johan & Nishita; `docs/references.md`, `docs/prt.md`):
 //! diffuse surfaces under an environment light, the scene split into rigid groups.
 //!
 //! - [`transfer`]: per vertex, the self-shadowed diffuse transfer in SH, in its group's frame
@@ -8,15 +8,15 @@
 //!   against ringing, and their rotation into each group's frame every frame;
 //! - [`regions`]: the environment as q area lights (power `B_i`, direction `w_i`, `Ω_i`);
 //! - [`silhouette`]: each other group's silhouette along `w_i`, box-filtered per receiver;
-//! - [`plan`]: SH order, region count and window chosen from an error budget.
+//! - [`budget`]: SH order, region count and window chosen from an error budget.
 //!
 //! Per frame ([`Frame::prepare`]): `L(p) = ρ · max(0, Ls(p) − Σ_i B_i T(p, w_i) V_o(p, w_i))`
-//! (seed Eq. 15), where `Ls` and `T(p, w_i)` are windowed SH reconstructions from the vertex
+//! (the PRT paper's Eq. 15), where `Ls` and `T(p, w_i)` are windowed SH reconstructions from the vertex
 //! transfer, interpolated across triangles, and `V_o` combines the other groups as
 //! `1 − Π_o (1 − V_o)`. Images evaluate `V_o` per pixel; `--vertices-out` per vertex.
 
+pub mod budget;
 pub mod lighting;
-pub mod plan;
 pub mod regions;
 pub mod silhouette;
 pub mod transfer;
@@ -25,8 +25,8 @@ use crate::accel::SceneBvh;
 use crate::math::frame::Frame as ShadingFrame;
 use crate::math::sh;
 use crate::raster::{self, Primary, SurfaceHit};
-use crate::reference::Bsdf;
 use crate::scene::{FlatScene, InGroup, PrimitiveId, RigidGroup, Scene, Transform, group_triangles};
+use crate::shading::Bsdf;
 use glam::{Affine3A, DMat3, DVec3, Vec3};
 use lighting::{NegativeLobes, RgbCoeffs, Window};
 use rayon::prelude::*;
@@ -235,7 +235,7 @@ impl Posed {
         light: &Lighting,
         method: Method,
         s: &Settings,
-        cache: &mut ShadowCache,
+        cache: &mut SilhouetteMemo,
     ) -> Self {
         let order = bake_order.min((light.coeffs.len() as f64).sqrt() as usize);
         let window = light.window.per_coeff(order);
@@ -342,7 +342,7 @@ impl Frame {
         s: &Settings,
         eye: Vec3,
     ) -> Self {
-        Self::prepare_cached(scene, flat, bake, light, method, s, eye, &mut ShadowCache::default())
+        Self::prepare_cached(scene, flat, bake, light, method, s, eye, &mut SilhouetteMemo::default())
     }
 
     /// [`Frame::prepare`], reusing from `cache` the silhouettes of groups that did not move
@@ -356,7 +356,7 @@ impl Frame {
         method: Method,
         s: &Settings,
         eye: Vec3,
-        cache: &mut ShadowCache,
+        cache: &mut SilhouetteMemo,
     ) -> Self {
         let posed = Posed::new(scene, flat, bake.order, light, method, s, cache);
         Self::from_posed(scene, flat, bake, posed, eye)
@@ -372,7 +372,7 @@ impl Frame {
         method: Method,
         s: &Settings,
     ) -> Self {
-        let posed = Posed::new(scene, flat, bake.order, light, method, s, &mut ShadowCache::default());
+        let posed = Posed::new(scene, flat, bake.order, light, method, s, &mut SilhouetteMemo::default());
         let albedo = head_on_albedos(flat);
         Self::from_posed_with(scene, flat, bake, posed, &|i, _| albedo[i])
     }
@@ -572,11 +572,11 @@ impl Frame {
 /// Silhouettes kept between frames, per group, keyed by a hash of the group's world triangles,
 /// the regions and the resolution: a group that did not move is not rasterised again.
 #[derive(Default)]
-pub struct ShadowCache {
+pub struct SilhouetteMemo {
     entries: HashMap<usize, (blake3::Hash, Arc<Vec<Silhouette>>)>,
 }
 
-impl ShadowCache {
+impl SilhouetteMemo {
     /// One silhouette list per group index, built or reused.
     pub fn silhouettes(
         &mut self,

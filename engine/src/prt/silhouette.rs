@@ -4,7 +4,7 @@
 //! table), and the occluder's far depth per texel for receivers inside its bounding slab.
 //!
 //! `R` is the distance from the receiver to the plane that touches the occluder's bounding
-//! sphere on the receiver's side, measured per receiver point (the seed measures it from the
+//! sphere on the receiver's side, measured per receiver point (the paper measures it from the
 //! receiving group's centre; per point is the same at the centre and stays right for large
 //! receivers such as a ground plane). **`R ≤ 0`** — the point lies inside the occluder's
 //! bounding slab (touching or nested groups) — gives a hard shadow with a depth test: occluded

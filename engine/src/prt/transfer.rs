@@ -1,4 +1,4 @@
-//! Diffuse self-transfer (seed Eq. 2–5): per vertex, in its group's frame,
+//! Diffuse self-transfer (the PRT paper's Eq. 2–5): per vertex, in its group's frame,
 //! `T_k = ∫ V_self(ω) max(0, ω·n) / π · Y_k(ω) dω`, albedo left out (applied at shading), by
 //! stratified directions shared by every vertex (one SH table, one deterministic set).
 

@@ -9,10 +9,8 @@
 //! Every pixel or vertex draws from its own random stream seeded by (seed, index), so results
 //! are bit-identical on any number of threads; each estimate carries its standard error.
 
-mod bsdf;
 mod integrator;
 
-pub use bsdf::Bsdf;
 pub use integrator::{Renderer, SurfacePoint};
 
 use glam::Vec3;

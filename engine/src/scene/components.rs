@@ -1,4 +1,4 @@
-//! Plain-data ECS components (see `DESIGN.md`).
+//! Plain-data ECS components (conventions: `docs/conventions.md`).
 
 use glam::{Affine3A, Mat3, Quat, Vec2, Vec3};
 
@@ -142,7 +142,7 @@ pub struct MeshRef {
     pub hash: crate::scene::MeshHash,
 }
 
-/// glTF metallic-roughness material (factors only; see `DESIGN.md` for the BRDF).
+/// glTF metallic-roughness material (factors only; see `docs/conventions.md` for the BRDF).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Material {
     /// Linear base colour.

@@ -1,7 +1,7 @@
 //! Environment lights: equirectangular radiance maps (`.hdr`, `.exr`) with luminance importance
 //! sampling, and a procedural sky for the built-in scene.
 //!
-//! Mapping (DESIGN.md): `u = frac(atan2(d.x, −d.z) / 2π)`, `v = acos(d.y) / π`, row 0 = +Y;
+//! Mapping (docs/conventions.md): `u = frac(atan2(d.x, −d.z) / 2π)`, `v = acos(d.y) / π`, row 0 = +Y;
 //! the user rotation turns the map by `rotation` radians about +Y (counter-clockwise seen from above).
 //! Lookups are nearest-texel so that the sampling pdf is exact.
 

@@ -5,8 +5,9 @@
 use super::{Args, Row, Truth, announce, rel};
 use anyhow::Result;
 use glam::Vec3;
+use kage_engine::bspvt;
 use kage_engine::reference::{Renderer, Settings};
-use kage_engine::{bspvt, ratio};
+use kage_engine::shading::ratio;
 use std::time::Instant;
 
 /// Measures the section into `rows`; returns its header line.

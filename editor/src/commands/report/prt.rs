@@ -9,7 +9,7 @@ use crate::progress::bar;
 use anyhow::{Context, Result};
 use glam::Vec3;
 use kage_engine::math::relative_rmse;
-use kage_engine::prt::{self, Lighting, lighting::Window, plan};
+use kage_engine::prt::{self, Lighting, budget, lighting::Window};
 use kage_engine::raster;
 use kage_engine::reference::{Renderer, Settings};
 use kage_engine::scene::{Camera, Scene};
@@ -54,8 +54,8 @@ pub fn run(args: &Args, eye: Vec3, rows: &mut Vec<Row>) -> Result<String> {
         mask: coverage.iter().map(|c| c.x == 1.0).collect(),
     };
     let base = prt::Settings { directions: args.directions, window: Window::None, ..prt::Settings::default() };
-    let top = *plan::ORDERS.end();
-    let lightings: Vec<(usize, Lighting)> = plan::REGION_COUNTS
+    let top = *budget::ORDERS.end();
+    let lightings: Vec<(usize, Lighting)> = budget::REGION_COUNTS
         .iter()
         .map(|&q| {
             Ok((q, Lighting::new(&scene, &prt::Settings { order: top, regions: q, ..base }).context("no environment")?))
@@ -65,7 +65,7 @@ pub fn run(args: &Args, eye: Vec3, rows: &mut Vec<Row>) -> Result<String> {
         announce(&row);
         rows.push(row);
     };
-    for order in plan::ORDERS {
+    for order in budget::ORDERS {
         let s = prt::Settings { order, ..base };
         let bake = prt::bake(&scene, &renderer.flat, &s, &|_| {});
         push(bench.measure("prt-self", format!("order {order}"), &bake, &lightings[0].1, &s));

@@ -1,7 +1,7 @@
 //! Linearly Transformed Cosines (Heitz, Dupuy, Hill & Neubelt 2016) for GGX.
 //!
 //! - [`fit`]: our own fitter (Nelder–Mead on (m11, m22, m13), the error of the published fit),
-//!   which `kage fit-ltc` runs to regenerate the committed table in [`table`].
+//!   which `cargo xtask fit-ltc` runs to regenerate the committed table in [`table`].
 //! - [`Table::lookup`]: bilinear lookup of the inverse matrix, magnitude and Fresnel terms by
 //!   (roughness, cos θv).
 //! - [`integrate`]: the closed-form integral of the clamped cosine over a polygon (sum over
@@ -47,7 +47,7 @@ pub struct Table<'a> {
     entries: &'a [Entry],
 }
 
-/// The committed table fitted by `kage fit-ltc`.
+/// The committed table fitted by `cargo xtask fit-ltc`.
 pub fn table() -> Table<'static> {
     Table { entries: &table::LTC_TABLE }
 }

@@ -13,8 +13,7 @@ pub use light::polygon_normal_area;
 
 use crate::scene::{
     Camera, InGroup, Material, Mesh, MeshRef, Name, NodeId, PolygonLight, PrimitiveId, Projection, RigidGroup, Scene,
-    Texture, Transform, propagate_transforms,
-    texture::{Wrap, srgb_to_linear},
+    Texture, Transform, propagate_transforms, texture::Wrap,
 };
 use crate::{Error, Result};
 use glam::{Affine3A, Mat4, Vec2, Vec3};
@@ -339,7 +338,7 @@ fn decode_texels(data: &gltf::image::Data) -> Option<Vec<Vec3>> {
         _ => return None,
     };
     let px = data.pixels.chunks_exact(channels).map(|p| {
-        let c = |k: usize| srgb_to_linear(p[k.min(channels - 1)] as f32 / 255.0);
+        let c = |k: usize| crate::math::color::srgb_to_linear(p[k.min(channels - 1)] as f32 / 255.0);
         if channels < 3 { Vec3::splat(c(0)) } else { Vec3::new(c(0), c(1), c(2)) }
     });
     Some(px.collect())
