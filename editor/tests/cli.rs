@@ -197,6 +197,11 @@ fn polygon_methods_shade_a_scene_without_polygonal_lights_with_or_without_a_data
     std::fs::remove_dir_all(d).unwrap();
 }
 
+/// Whether some pixel of the PNG at `path` has exactly `rgb`.
+fn png_has_colour(path: &Path, rgb: [u8; 3]) -> bool {
+    image::open(path).unwrap().to_rgb8().pixels().any(|p| p.0 == rgb)
+}
+
 #[test]
 fn report_writes_markdown_csv_and_plot() {
     let d = scratch("report");
@@ -234,10 +239,22 @@ fn report_writes_markdown_csv_and_plot() {
     assert_eq!(tree_error("16² faces, ε 2"), "");
     let e: f64 = tree_error("64² faces, ε 2").parse().unwrap();
     assert!(e > 0.0 && e < 0.01, "tree error {e}");
-    for name in ["report.png", "report-rays.png"] {
-        let png = image::open(out.join(name)).unwrap();
-        assert_eq!((png.width(), png.height()), (640, 400));
+    for (stem, axis) in [("report", "shade time per frame (s)"), ("report-rays", "rays cast")] {
+        let png = image::open(out.join(format!("{stem}.png"))).unwrap().to_rgb8();
+        assert_eq!((png.width(), png.height()), (960, 600));
+        // Drawn text and series, not a blank frame: dark glyph pixels and every series colour.
+        assert!(png.pixels().filter(|p| p.0.iter().all(|c| *c < 80)).count() > 2000, "{stem}.png has no text");
+        let svg = std::fs::read_to_string(out.join(format!("{stem}.svg"))).unwrap();
+        for text in ["kage report: cube_on_plane.gltf", axis, "relative RMSE against the reference"] {
+            assert!(svg.contains(text), "{stem}.svg lacks {text:?}");
+        }
+        assert!(md.contains(&format!("]({stem}.svg)")), "report.md links {stem}.svg");
     }
+    let svg = std::fs::read_to_string(out.join("report.svg")).unwrap();
+    for legend in ["bspvt", "monte-carlo", "ratio-estimator", "64² faces, ε 2"] {
+        assert!(svg.contains(legend), "the legend or a point label lacks {legend:?}");
+    }
+    assert!(png_has_colour(&out.join("report.png"), [220, 50, 40]), "the bspvt series is drawn");
     let only = d.join("only");
     let scene = asset("scenes/cube_on_plane.gltf");
     let o = kage(&["report", &scene, "--out", only.to_str().unwrap(), "--reference-spp", "64", "--only", "cache"]);

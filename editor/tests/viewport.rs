@@ -5,7 +5,7 @@ use glam::Vec3;
 use kage_editor::edit::camera::Orbit;
 use kage_editor::edit::viewport::Viewport;
 use kage_engine::output::display_srgb;
-use kage_engine::prt::{self, Method};
+use kage_engine::prt::{self, Shadows};
 use kage_engine::reference::Renderer;
 use kage_engine::scene::{Camera, EnvMap, EnvironmentLight, flatten, import};
 use kage_gpu::{Gpu, Shaders};
@@ -31,7 +31,7 @@ fn per_pixel_prt_matches_the_cpu_per_pixel_render_and_beats_per_vertex_shading()
     let bake = prt::bake(&scene, &flat, &s, &|_| {});
     let light = prt::Lighting::new(&scene, &s).expect("the scene has an environment");
     let orbit = Orbit { target: Vec3::new(0.0, 0.3, 0.0), distance: 5.0, yaw: 0.6, pitch: 0.7, yfov: 0.8 };
-    let frame = prt::Frame::prepare(&scene, &flat, &bake, &light, Method::WithOthers, &s, orbit.eye());
+    let frame = prt::Frame::prepare(&scene, &flat, &bake, &light, Shadows::WithOthers, &s, orbit.eye());
     let (w, h) = (240, 160);
     let camera = Camera::look_at(orbit.eye(), orbit.target, orbit.yfov);
     let cpu = frame.render(&Renderer::new(&scene), &camera, w, h, 1);

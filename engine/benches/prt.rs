@@ -8,7 +8,7 @@
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use glam::{Affine3A, Quat, Vec3};
-use kage_engine::prt::{self, Frame, Lighting, Method, SilhouetteMemo};
+use kage_engine::prt::{self, Frame, Lighting, Shadows, SilhouetteMemo};
 use kage_engine::raster;
 use kage_engine::reference::Renderer;
 use kage_engine::scene::{Camera, EnvMap, EnvironmentLight, Material, Scene, flatten, shapes};
@@ -51,7 +51,7 @@ fn bench(c: &mut Criterion) {
             let renderer = Renderer::new(&scene);
             let eye = camera.eye();
             let frame =
-                Frame::prepare_cached(&scene, &renderer.flat, &bake, &light, Method::WithOthers, &s, eye, &mut cache);
+                Frame::prepare_cached(&scene, &renderer.flat, &bake, &light, Shadows::WithOthers, &s, eye, &mut cache);
             frame.render(&renderer, &camera, 512, 512, 1).len()
         })
     });
@@ -63,7 +63,7 @@ fn bench(c: &mut Criterion) {
             scene.pose_group(group, Quat::from_rotation_y(0.05), Vec3::new(0.01, 0.0, 0.0));
             let flat = flatten(&scene);
             let eye = camera.eye();
-            let frame = Frame::prepare_cached(&scene, &flat, &bake, &light, Method::WithOthers, &s, eye, &mut cache);
+            let frame = Frame::prepare_cached(&scene, &flat, &bake, &light, Shadows::WithOthers, &s, eye, &mut cache);
             frame.shade_grid(&grid, 512).len()
         })
     });

@@ -61,8 +61,8 @@ fn cube_on_plane_umbra_is_black_and_matches_the_reference() {
     let s = Settings::default();
     let eye = scene.first_camera().unwrap().eye();
     let bake = bspvt::bake(&scene, &r.flat, &s, &|_| {});
-    let values = bspvt::shade_vertices(&scene, &r.flat, bspvt::Method::Bspvt(&bake), eye);
-    let exact = bspvt::shade_vertices(&scene, &r.flat, bspvt::Method::ExactVis { res: s.res }, eye);
+    let values = bspvt::shade_vertices(&scene, &r.flat, bspvt::Shadows::Trees(&bake), eye);
+    let exact = bspvt::shade_vertices(&scene, &r.flat, bspvt::Shadows::Exact { res: s.res }, eye);
     let ground = r.flat.instances.iter().position(|i| i.material.base_color == Vec3::splat(0.8)).unwrap();
     let mut umbra = 0;
     for (v, value) in values[ground].iter().enumerate() {
@@ -331,8 +331,8 @@ fn a_declared_light_reach_bakes_less_and_shades_the_same() {
     for offset in [Vec3::ZERO, Vec3::new(1.0, -0.9, 0.7), Vec3::new(-0.9, 0.9, -1.0)] {
         let mut moved = rb.flat.clone();
         moved.lights.iter_mut().flat_map(|l| l.points.iter_mut()).for_each(|p| *p += offset);
-        let a = bspvt::shade_vertices(&bounded, &moved, bspvt::Method::Bspvt(&with), eye).concat();
-        let b = bspvt::shade_vertices(&roaming, &moved, bspvt::Method::Bspvt(&without), eye).concat();
+        let a = bspvt::shade_vertices(&bounded, &moved, bspvt::Shadows::Trees(&with), eye).concat();
+        let b = bspvt::shade_vertices(&roaming, &moved, bspvt::Shadows::Trees(&without), eye).concat();
         let worst = a
             .iter()
             .zip(&b)

@@ -261,7 +261,7 @@ fn glossy_hits_are_lit_toward_the_record_by_the_direct_method() {
     let r = Renderer::new(&scene);
     let s = bspvt::Settings { res: 32, epsilon: 2.0 };
     let bake = bspvt::bake(&scene, &r.flat, &s, &|_| {});
-    let direct = bspvt::shade_vertices(&scene, &r.flat, bspvt::Method::Bspvt(&bake), EYE);
+    let direct = bspvt::shade_vertices(&scene, &r.flat, bspvt::Shadows::Trees(&bake), EYE);
     let toward = |i: usize, corners: [usize; 3], bary: [f32; 3], p: Vec3| {
         bspvt::shade_point(&scene, &r.flat, Some(&bake), i, corners, bary, p)
     };

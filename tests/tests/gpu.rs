@@ -4,7 +4,7 @@
 
 use glam::{Quat, Vec3};
 use kage_engine::bspvt;
-use kage_engine::prt::{self, Method, SilhouetteMemo, lighting::Window};
+use kage_engine::prt::{self, Shadows, SilhouetteMemo, lighting::Window};
 use kage_engine::scene::{EnvMap, EnvironmentLight, Scene, default_scene, flatten, import::import};
 use kage_gpu::{Gpu, Shaders, bspvt as gpu_bspvt, prt as gpu_prt};
 use kage_tests::asset;
@@ -30,8 +30,8 @@ fn bspvt_agrees(scene: &Scene, eye: Vec3) {
     let bake = bspvt::bake(scene, &flat, &s, &|_| {});
     let shader = gpu_bspvt::BspvtShader::new(&gpu, &Shaders::embedded(), Some(&bake)).unwrap();
     for (mode, method) in [
-        (gpu_bspvt::Mode::Trees, bspvt::Method::Bspvt(&bake)),
-        (gpu_bspvt::Mode::Unshadowed, bspvt::Method::Unshadowed),
+        (gpu_bspvt::Mode::Trees, bspvt::Shadows::Trees(&bake)),
+        (gpu_bspvt::Mode::Unshadowed, bspvt::Shadows::Unshadowed),
     ] {
         let cpu = bspvt::shade_vertices(scene, &flat, method, eye);
         let on_gpu = gpu_bspvt::shade_vertices(&gpu, &shader, scene, &flat, mode, eye).unwrap();
@@ -68,9 +68,9 @@ fn prt_with_moving_groups_on_the_gpu_matches_the_cpu() {
     let compare = |scene: &Scene| {
         let flat = flatten(scene);
         let cpu =
-            prt::Frame::prepare(scene, &flat, &bake, &light, Method::WithOthers, &s, eye).vertex_values(scene, &flat);
+            prt::Frame::prepare(scene, &flat, &bake, &light, Shadows::WithOthers, &s, eye).vertex_values(scene, &flat);
         let posed =
-            prt::Posed::new(scene, &flat, bake.order, &light, Method::WithOthers, &s, &mut SilhouetteMemo::default());
+            prt::Posed::new(scene, &flat, bake.order, &light, Shadows::WithOthers, &s, &mut SilhouetteMemo::default());
         assert!(posed.silhouettes.len() > 1, "the scene has several groups");
         let on_gpu = gpu_prt::shade_vertices(&gpu, &shader, scene, &flat, &posed, eye).unwrap();
         let w = worst(&on_gpu, &cpu);

@@ -2,7 +2,7 @@
 //! closed forms and the reference integrator. Tolerances are stated where they are used.
 
 use glam::{Affine3A, Quat, Vec3};
-use kage_engine::prt::{self, Method, lighting::Window};
+use kage_engine::prt::{self, Shadows, lighting::Window};
 use kage_engine::reference::{Renderer, Settings};
 use kage_engine::scene::{EnvMap, EnvironmentLight, Material, Scene, environment, flatten, shapes};
 use kage_tests::asset;
@@ -10,11 +10,11 @@ use kage_tests::asset;
 const EYE: Vec3 = Vec3::new(0.0, 6.0, 6.0);
 
 /// Per-vertex PRT radiance with `s`, per instance.
-fn shade(scene: &Scene, s: &prt::Settings, method: Method) -> Vec<Vec<Vec3>> {
+fn shade(scene: &Scene, s: &prt::Settings, shadows: Shadows) -> Vec<Vec<Vec3>> {
     let flat = flatten(scene);
     let bake = prt::bake(scene, &flat, s, &|_| {});
     let light = prt::Lighting::new(scene, s).expect("the scene has an environment");
-    prt::Frame::prepare(scene, &flat, &bake, &light, method, s, EYE).vertex_values(scene, &flat)
+    prt::Frame::prepare(scene, &flat, &bake, &light, shadows, s, EYE).vertex_values(scene, &flat)
 }
 
 /// Per-vertex reference (direct light only), per instance.
@@ -58,8 +58,8 @@ fn unoccluded_convex_object_under_a_constant_environment_is_albedo_times_radianc
     let scene = scene.with_environment(EnvironmentLight::new(
         EnvMap::new(64, 32, vec![Vec3::splat(2.0); 2048], "c".into()).unwrap(),
     ));
-    for method in [Method::SelfOnly, Method::WithOthers] {
-        for v in &shade(&scene, &settings(4, 8), method)[0] {
+    for shadows in [Shadows::SelfOnly, Shadows::WithOthers] {
+        for v in &shade(&scene, &settings(4, 8), shadows)[0] {
             // 1024 stratified directions integrate the clamped cosine to a few 1e-3.
             assert!((*v / Vec3::new(1.0, 0.5, 1.6) - 1.0).abs().max_element() < 6e-3, "{v}");
         }
@@ -86,7 +86,7 @@ fn a_single_small_region_gives_the_direct_light_result() {
     let s = prt::Settings { directions: 4096, ..settings(12, 8) };
     let light = prt::Lighting::new(&scene, &s).unwrap();
     let power: f64 = light.regions.iter().map(|r| r.power.x).sum();
-    let got = &shade(&scene, &s, Method::WithOthers)[0];
+    let got = &shade(&scene, &s, Shadows::WithOthers)[0];
     // Direct light from a point-like sun of power B: ρ B cos θ / π, times the box's visibility.
     let flat = flatten(&scene);
     let occluder = kage_engine::accel::SceneBvh::new(&flat.triangles[flat.instances[1].first_triangle as usize..]);
@@ -114,8 +114,8 @@ fn a_single_small_region_gives_the_direct_light_result() {
 fn a_sun_1e5_times_the_sky_matches_the_reference() {
     let scene = box_over_ground(sun_env(1.0, 1e5, Vec3::new(-0.3, 1.0, 0.2)));
     let s = settings(8, 32);
-    let got = shade(&scene, &s, Method::WithOthers);
-    let own = shade(&scene, &s, Method::SelfOnly);
+    let got = shade(&scene, &s, Shadows::WithOthers);
+    let own = shade(&scene, &s, Shadows::SelfOnly);
     let want = reference(&scene, 256);
     assert!(got.iter().flatten().all(|v| v.is_finite() && v.min_element() >= 0.0));
     let (e, e_self) = (rel_rmse(&got[0], &want[0]), rel_rmse(&own[0], &want[0]));
@@ -130,12 +130,12 @@ fn moving_a_group_changes_its_lighting_but_not_its_bake() {
     scene.set_environment(EnvironmentLight::new(EnvMap::load(&asset("envmaps/studio.hdr")).unwrap()));
     let s = settings(4, 16);
     let before = prt::bake(&scene, &flatten(&scene), &s, &|_| {}).instances;
-    let lit_before = shade(&scene, &s, Method::WithOthers);
+    let lit_before = shade(&scene, &s, Shadows::WithOthers);
     let g = scene.find_group("group_box_sphere").unwrap();
     scene.pose_group(g, Quat::from_rotation_z(1.1), Vec3::new(-0.4, 0.3, 0.5));
     let after = prt::bake(&scene, &flatten(&scene), &s, &|_| {}).instances;
     assert!(before == after, "the transfer lives in the group's frame: bit-identical");
-    let lit_after = shade(&scene, &s, Method::WithOthers);
+    let lit_after = shade(&scene, &s, Shadows::WithOthers);
     let flat = flatten(&scene);
     for (i, inst) in flat.instances.iter().enumerate() {
         let moved = inst.group == g;
@@ -175,8 +175,8 @@ fn groups_rotated_by_half_turns_and_mirrored_match_geometry_baked_in_place() {
         fixed.pose_group(g, Quat::IDENTITY, Vec3::splat(-50.0));
         fixed.add_member(g, "torus", torus(), Material::lambertian(Vec3::ONE), pose);
         let fixed = fixed.with_environment(env.clone());
-        let a = &shade(&moved, &s, Method::SelfOnly)[0];
-        let b = &shade(&fixed, &s, Method::SelfOnly)[1];
+        let a = &shade(&moved, &s, Shadows::SelfOnly)[0];
+        let b = &shade(&fixed, &s, Shadows::SelfOnly)[1];
         // Only the direction set's alignment differs: Monte Carlo noise of 4096 directions.
         let err = rel_rmse(a, b);
         assert!(err < 0.01, "pose {pose:?}: {err}");
@@ -200,7 +200,7 @@ fn a_direction_blocked_by_both_groups_is_not_subtracted_twice() {
     );
     let scene = scene.with_environment(sun_env(1.0, 1e4, sun));
     let s = settings(8, 16);
-    let got = shade(&scene, &s, Method::WithOthers);
+    let got = shade(&scene, &s, Shadows::WithOthers);
     let want = reference(&scene, 512);
     let flat = flatten(&scene);
     let ground = flat.instances.iter().position(|i| i.id.node == 0).unwrap();
@@ -225,8 +225,8 @@ fn touching_groups_and_a_single_region_stay_finite_and_shadowed() {
     let scene = scene.with_environment(sun_env(1.0, 3e3, Vec3::new(0.3, 1.0, 0.0)));
     let want = reference(&scene, 256);
     for q in [1, 32] {
-        let got = shade(&scene, &settings(8, q), Method::WithOthers);
-        let own = shade(&scene, &settings(8, q), Method::SelfOnly);
+        let got = shade(&scene, &settings(8, q), Shadows::WithOthers);
+        let own = shade(&scene, &settings(8, q), Shadows::SelfOnly);
         assert!(got.iter().flatten().all(|v| v.is_finite() && v.min_element() >= 0.0), "q = {q}");
         assert!(
             got.iter().flatten().zip(own.iter().flatten()).all(|(g, o)| g.cmple(*o + 1e-6).all()),
@@ -258,8 +258,8 @@ fn bunny_two_groups_matches_the_reference_under_every_shared_environment() {
             v.iter().zip(&flat.instances).filter(|(_, i)| i.id.node != 4).flat_map(|(v, _)| v.iter().copied()).collect()
         };
         let truth = diffuse(&want);
-        let e = rel_rmse(&diffuse(&shade(&scene, &s, Method::WithOthers)), &truth);
-        let e_self = rel_rmse(&diffuse(&shade(&scene, &s, Method::SelfOnly)), &truth);
+        let e = rel_rmse(&diffuse(&shade(&scene, &s, Shadows::WithOthers)), &truth);
+        let e_self = rel_rmse(&diffuse(&shade(&scene, &s, Shadows::SelfOnly)), &truth);
         // Measured against this 1024-spp reference: city 0.028, sky 0.050, studio 0.044;
         // prt-self 0.18, 0.23, 0.29.
         assert!(e < bound && e_self > 3.0 * e, "{env}: prt {e}, prt-self {e_self}");
@@ -316,7 +316,7 @@ fn bakes_and_frames_are_bit_identical_across_thread_counts() {
             let scene = bunny_scene("sky");
             let s = settings(5, 16);
             let bake = prt::bake(&scene, &flatten(&scene), &s, &|_| {});
-            let lit = shade(&scene, &s, Method::WithOthers);
+            let lit = shade(&scene, &s, Shadows::WithOthers);
             let bits: Vec<u32> = bake.instances.concat().iter().map(|v| v.to_bits()).collect();
             let lit: Vec<u32> = lit.concat().iter().flat_map(|v| v.to_array()).map(f32::to_bits).collect();
             (bits, lit)

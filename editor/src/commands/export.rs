@@ -47,11 +47,11 @@ pub fn run(args: &Args) -> Result<()> {
         radiance.iter_mut().flatten().zip(values.into_iter().flatten()).for_each(|(r, v)| *r += v);
     };
     if let Some(b) = &out.bspvt {
-        add(bspvt::shade_vertices(&scene, &flat, bspvt::Method::Bspvt(b), eye));
+        add(bspvt::shade_vertices(&scene, &flat, bspvt::Shadows::Trees(b), eye));
     }
     let lighting = plan.prt.and_then(|s| prt::Lighting::new(&scene, &s).map(|l| (l, s)));
     if let (Some(b), Some((light, s))) = (&out.prt, &lighting) {
-        add(prt::Frame::prepare(&scene, &flat, b, light, prt::Method::WithOthers, s, eye).vertex_values(&scene, &flat));
+        add(prt::Frame::prepare(&scene, &flat, b, light, prt::Shadows::WithOthers, s, eye).vertex_values(&scene, &flat));
     }
     let export = Export {
         scene: &scene,

@@ -5,6 +5,7 @@ use crate::progress::{bar, with_bar};
 use crate::prt_args::PrtArgs;
 use crate::scene_args::SceneArgs;
 use anyhow::{Context, Result, bail};
+use clap::builder::TypedValueParser as _;
 use glam::Vec3;
 use kage_bake_db::pack::Contents;
 use kage_engine::cache::Blend;
@@ -12,26 +13,10 @@ use kage_engine::cache::record::{GlossyDirect, GradientForm, Source};
 use kage_engine::output::{VertexRow, write_image, write_vertex_csv};
 use kage_engine::reference::{Estimate, Renderer, Settings};
 use kage_engine::scene::{Camera, Scene};
+use kage_engine::shading::Method;
 use kage_engine::{bspvt, prt, raster};
 use std::path::PathBuf;
 use std::time::Instant;
-
-/// How radiance is computed.
-#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Method {
-    /// Monte Carlo ground truth (path tracing with MIS).
-    Reference,
-    /// Polygonal lights with BSP visibility trees and LTC (per vertex).
-    Bspvt,
-    /// Polygonal lights with LTC and no shadows (per vertex).
-    LtcUnshadowed,
-    /// Polygonal lights with LTC clipped per visible cube-map texel, no tree (per vertex).
-    LtcExactVis,
-    /// Environment light with PRT: self-shadowing only (per vertex).
-    PrtSelf,
-    /// Environment light with PRT and shadows cast between rigid groups (per pixel in images).
-    Prt,
-}
 
 /// Where one bounce of indirect light comes from.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
@@ -71,7 +56,7 @@ pub struct Args {
     #[command(flatten)]
     scene: SceneArgs,
     /// Shading method.
-    #[arg(long, value_enum, default_value = "reference")]
+    #[arg(long, default_value = "reference", value_parser = method_parser())]
     method: Method,
     /// Samples per pixel / per vertex.
     #[arg(long, default_value_t = 64)]
@@ -154,6 +139,12 @@ pub struct Args {
     no_env: bool,
 }
 
+/// Parses `--method` from the engine's method names, listing each with its description.
+fn method_parser() -> impl clap::builder::TypedValueParser<Value = Method> {
+    let names = Method::ALL.map(|m| clap::builder::PossibleValue::new(m.name()).help(m.about()));
+    clap::builder::PossibleValuesParser::new(names).map(|name| name.parse::<Method>().expect("clap checked the name"))
+}
+
 pub(crate) fn parse_size(s: &str) -> Result<(usize, usize), String> {
     let (w, h) = s.split_once(['x', 'X']).ok_or("expected WxH, e.g. 640x360")?;
     let p =
@@ -194,8 +185,8 @@ pub fn run(args: &Args) -> Result<()> {
     let camera = camera(args, scene.first_camera())?;
     let renderer = Renderer::new(&scene);
     let output = args.output.clone().or_else(|| args.vertices_out.is_none().then(|| PathBuf::from("render.png")));
-    if args.gpu && matches!(args.method, Method::Reference | Method::LtcExactVis) {
-        bail!("--gpu shades bspvt, ltc-unshadowed, prt and prt-self; {:?} runs on the CPU only", args.method);
+    if args.gpu && !args.method.on_gpu() {
+        bail!("--gpu shades bspvt, ltc-unshadowed, prt and prt-self; {} runs on the CPU only", args.method);
     }
     if args.method == Method::Reference && args.indirect != Indirect::None {
         bail!("--indirect is for the per-vertex methods; the reference takes --bounces N");
@@ -285,9 +276,9 @@ fn per_vertex(
     };
     // No bake means no polygonal light (a database plans no BSPVT then): nothing to shadow.
     let kind = match (method, &bake) {
-        (Method::Bspvt, Some(b)) => bspvt::Method::Bspvt(b),
-        (Method::LtcExactVis, _) => bspvt::Method::ExactVis { res: settings.res },
-        _ => bspvt::Method::Unshadowed,
+        (Method::Bspvt, Some(b)) => bspvt::Shadows::Trees(b),
+        (Method::LtcExactVis, _) => bspvt::Shadows::Exact { res: settings.res },
+        _ => bspvt::Shadows::Unshadowed,
     };
     // The GGX albedo table is built on first use: not part of shading a frame.
     let _ = kage_engine::math::ggx::directional_albedo(1.0, 0.5, Vec3::ONE, Vec3::ONE);
@@ -295,7 +286,7 @@ fn per_vertex(
     let values = if args.gpu {
         let gpu = gpu_device()?;
         let shader = kage_gpu::bspvt::BspvtShader::new(&gpu, &kage_gpu::Shaders::embedded(), bake.as_ref())?;
-        let mode = if matches!(kind, bspvt::Method::Bspvt(_)) {
+        let mode = if matches!(kind, bspvt::Shadows::Trees(_)) {
             kage_gpu::bspvt::Mode::Trees
         } else {
             kage_gpu::bspvt::Mode::Unshadowed
@@ -396,12 +387,12 @@ fn prt_shade(
     lighting: &prt::Lighting,
     settings: &prt::Settings,
 ) -> Result<Outputs> {
-    let method = if args.method == Method::Prt { prt::Method::WithOthers } else { prt::Method::SelfOnly };
+    let shadows = args.method.prt_shadows().context("a PRT method")?;
     if args.gpu {
-        return prt_gpu(args, scene, renderer, camera, want_image, bake, lighting, settings, method);
+        return prt_gpu(args, scene, renderer, camera, want_image, bake, lighting, settings, shadows);
     }
     let start = Instant::now();
-    let frame = prt::Frame::prepare(scene, &renderer.flat, bake, lighting, method, settings, camera.eye());
+    let frame = prt::Frame::prepare(scene, &renderer.flat, bake, lighting, shadows, settings, camera.eye());
     let values = frame.vertex_values(scene, &renderer.flat);
     crate::emit(&format!("shade: {} vertices in {:.3} s\n", renderer.vertex_count(), start.elapsed().as_secs_f64()));
     let image = want_image.then(|| {
@@ -422,12 +413,12 @@ fn prt_gpu(
     bake: &prt::Bake,
     lighting: &prt::Lighting,
     settings: &prt::Settings,
-    method: prt::Method,
+    shadows: prt::Shadows,
 ) -> Result<Outputs> {
     let gpu = gpu_device()?;
     let flat = &renderer.flat;
-    let mut cache = prt::SilhouetteMemo::default();
-    let posed = prt::Posed::new(scene, flat, bake.order, lighting, method, settings, &mut cache);
+    let mut memo = prt::SilhouetteMemo::default();
+    let posed = prt::Posed::new(scene, flat, bake.order, lighting, shadows, settings, &mut memo);
     let shader = kage_gpu::prt::PrtShader::new(&gpu, &kage_gpu::Shaders::embedded(), bake, posed.order)?;
     let start = Instant::now();
     let values = kage_gpu::prt::shade_vertices(&gpu, &shader, scene, flat, &posed, camera.eye())?;

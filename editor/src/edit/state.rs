@@ -13,6 +13,7 @@ use kage_engine::scene::{
     Camera, EnvironmentLight, FlatScene, InGroup, Material, Name, PolygonLight, PrimitiveId, RigidGroup, Scene,
     Transform, flatten,
 };
+use kage_engine::shading::Method;
 use kage_engine::{bspvt, prt};
 use kage_gpu::bspvt::BspvtShader;
 use kage_gpu::prt::PrtShader;
@@ -20,52 +21,6 @@ use kage_gpu::{Gpu, Shaders};
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Instant;
-
-/// The shading methods, as on the command line.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Method {
-    /// BSP visibility trees + LTC (GPU).
-    Bspvt,
-    /// LTC without shadows (GPU).
-    LtcUnshadowed,
-    /// LTC clipped per visible cube-map texel (CPU, in the background).
-    LtcExactVis,
-    /// PRT with shadows between groups (GPU).
-    Prt,
-    /// PRT self-shadowing only (GPU).
-    PrtSelf,
-    /// The reference integrator, refined progressively (CPU, in the background).
-    Reference,
-}
-
-impl Method {
-    /// Every method, in menu order.
-    pub const ALL: [Method; 6] =
-        [Method::Bspvt, Method::LtcUnshadowed, Method::LtcExactVis, Method::Prt, Method::PrtSelf, Method::Reference];
-
-    /// The CLI's name.
-    pub fn name(self) -> &'static str {
-        match self {
-            Method::Bspvt => "bspvt",
-            Method::LtcUnshadowed => "ltc-unshadowed",
-            Method::LtcExactVis => "ltc-exact-vis",
-            Method::Prt => "prt",
-            Method::PrtSelf => "prt-self",
-            Method::Reference => "reference",
-        }
-    }
-
-    /// True for the methods computing direct light per vertex (all but the reference), to which
-    /// the radiance cache can add one bounce of indirect light.
-    pub fn direct(self) -> bool {
-        self != Method::Reference
-    }
-
-    /// True for the polygonal-light methods (the environment is not theirs).
-    pub fn polygonal(self) -> bool {
-        matches!(self, Method::Bspvt | Method::LtcUnshadowed | Method::LtcExactVis)
-    }
-}
 
 /// What is selected in the outliner.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -233,7 +188,7 @@ pub struct Editor {
     pub(super) shaders: Shaders,
     pub(super) bspvt_gpu: Option<BspvtShader>,
     pub(super) prt_gpu: Option<PrtShader>,
-    pub(super) shadow_cache: prt::SilhouetteMemo,
+    pub(super) silhouettes: prt::SilhouetteMemo,
     pub(super) watcher: Option<Watcher>,
     pub(super) reference_worker: Option<Worker<Vec<Vec<Vec3>>>>,
     pub(super) exact_worker: Option<Worker<Vec<Vec<Vec3>>>>,
@@ -282,7 +237,7 @@ impl Editor {
             shaders,
             bspvt_gpu: None,
             prt_gpu: None,
-            shadow_cache: prt::SilhouetteMemo::default(),
+            silhouettes: prt::SilhouetteMemo::default(),
             watcher: None,
             reference_worker: None,
             exact_worker: None,

@@ -4,7 +4,7 @@
 
 use super::bake_job::{BakeJob, ChunkData, Landed};
 use super::reload::Change;
-use super::state::{Editor, Method};
+use super::state::Editor;
 use super::worker::Worker;
 use glam::Vec3;
 use kage_bake_db::DbError;
@@ -15,6 +15,7 @@ use kage_engine::cache::{
 };
 use kage_engine::reference::{Renderer, Settings};
 use kage_engine::scene::{EnvMap, EnvironmentLight, Scene, flatten, import};
+use kage_engine::shading::Method;
 use kage_engine::{bspvt, prt};
 use kage_gpu::bspvt::{BspvtShader, Mode};
 use kage_gpu::prt::PrtShader;
@@ -313,21 +314,9 @@ pub fn reference_system(ed: &mut Editor) {
     }
 }
 
-/// The scene with the current method's lights: polygonal-light methods without the
-/// environment, PRT without the polygonal lights, the reference itself with everything.
-fn lit_scene(ed: &Editor) -> Scene {
-    let mut scene = ed.scene.duplicate();
-    match ed.method {
-        m if m.polygonal() => scene.clear_environment(),
-        Method::Prt | Method::PrtSelf => scene.remove_polygon_lights(),
-        _ => {}
-    }
-    scene
-}
-
 /// The reference for the current method's lights, with one bounce when the indirect term is on.
 fn spawn_reference(ed: &Editor) -> Worker<Vec<Vec<Vec3>>> {
-    let scene = lit_scene(ed);
+    let scene = ed.method.lit(&ed.scene);
     let bounces = u32::from(ed.indirect && ed.method.direct());
     let (eye, first) = (ed.orbit.eye(), ed.reference.1);
     let wake = ed.wake.clone();
@@ -463,7 +452,7 @@ fn glossy_direct(ed: &Editor) -> GlossyDirect {
 
 fn spawn_indirect(ed: &mut Editor) -> Worker<Indirect> {
     let job = IndirectJob {
-        scene: lit_scene(ed),
+        scene: ed.method.lit(&ed.scene),
         glossy: glossy_direct(ed),
         direct: ed.direct.clone(),
         eye: ed.orbit.eye(),
@@ -624,8 +613,8 @@ fn polygonal(ed: &mut Editor, mode: Mode, eye: Vec3) -> Vec<Vec<Vec3>> {
                 ed.error(format!("GPU shading: {e}; shading on the CPU"));
             }
             let m = match ed.bakes.bspvt.as_deref().filter(|_| mode == Mode::Trees) {
-                Some(bake) => bspvt::Method::Bspvt(bake),
-                None => bspvt::Method::Unshadowed,
+                Some(bake) => bspvt::Shadows::Trees(bake),
+                None => bspvt::Shadows::Unshadowed,
             };
             bspvt::shade_vertices(&ed.scene, &ed.flat, m, eye)
         }
@@ -644,7 +633,7 @@ fn exact_vis(ed: &mut Editor, eye: Vec3) -> Option<Vec<Vec<Vec3>>> {
         ed.exact_worker = Some(Worker::spawn(
             move |_, send| {
                 let flat = flatten(&scene);
-                send(bspvt::shade_vertices(&scene, &flat, bspvt::Method::ExactVis { res: s.res }, eye));
+                send(bspvt::shade_vertices(&scene, &flat, bspvt::Shadows::Exact { res: s.res }, eye));
             },
             move || wake(),
         ));
@@ -662,14 +651,14 @@ fn prt_gpu(ed: &mut Editor, eye: Vec3) -> Vec<Vec<Vec3>> {
     if !fits(ed, &bake.instances, |t| t.len() / n) {
         return zeros(ed);
     }
-    let method = if ed.method == Method::Prt { prt::Method::WithOthers } else { prt::Method::SelfOnly };
-    let posed = prt::Posed::new(&ed.scene, &ed.flat, bake.order, light, method, &ed.options.prt, &mut ed.shadow_cache);
+    let shadows = ed.method.prt_shadows().unwrap_or(prt::Shadows::SelfOnly);
+    let posed = prt::Posed::new(&ed.scene, &ed.flat, bake.order, light, shadows, &ed.options.prt, &mut ed.silhouettes);
     let gpu = ed.gpu.clone();
     let values = kage_gpu::prt::shade_vertices(&gpu, shader, &ed.scene, &ed.flat, &posed, eye);
     // The viewport shades the shadows between groups per pixel from the frame's vertex terms.
     let frame = prt::Frame::from_posed(&ed.scene, &ed.flat, bake, posed, eye);
     let values = values.map_err(|e| (e, frame.vertex_values(&ed.scene, &ed.flat)));
-    if method == prt::Method::WithOthers && !ed.overlay {
+    if shadows == prt::Shadows::WithOthers && !ed.overlay {
         ed.per_pixel = Some(frame);
     }
     values.unwrap_or_else(|(e, cpu)| {

@@ -1,12 +1,13 @@
 //! The editor window: menu, outliner, inspector, method switches, bake panel, statistics, log,
 //! and the viewport. Each frame runs the systems first, then draws.
 
-use super::state::{Editor, Method, Selection};
+use super::state::{Editor, Selection};
 use super::systems::run_frame;
 use super::viewport::Viewport;
 use eframe::egui;
 use glam::{Quat, Vec3};
 use kage_engine::scene::{EnvironmentLight, Material, PolygonLight, Transform};
+use kage_engine::shading::Method;
 use std::sync::atomic::Ordering;
 use std::time::Instant;
 

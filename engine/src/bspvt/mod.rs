@@ -227,13 +227,14 @@ pub fn bake(scene: &Scene, flat: &FlatScene, s: &Settings, progress: &(dyn Fn(us
     Bake { settings: *s, instances, stats }
 }
 
-/// Which visibility the per-vertex shading uses.
+/// Which shadows the per-vertex shading computes: from baked trees, from visibility cast at
+/// shading time, or none.
 #[derive(Clone, Copy, Debug)]
-pub enum Method<'a> {
+pub enum Shadows<'a> {
     /// Baked BSP visibility trees.
-    Bspvt(&'a Bake),
+    Trees(&'a Bake),
     /// The raw visibility cube map, cast at shading time (the tree's ground truth).
-    ExactVis {
+    Exact {
         /// Texels per cube-face side.
         res: usize,
     },
@@ -243,13 +244,13 @@ pub enum Method<'a> {
 
 /// Outgoing radiance toward `eye` from the polygonal lights at every receiver vertex, per
 /// instance in [`FlatScene::instances`] order.
-pub fn shade_vertices(scene: &Scene, flat: &FlatScene, method: Method, eye: glam::Vec3) -> Vec<Vec<glam::Vec3>> {
-    let exact = match method {
-        Method::ExactVis { res } => Some((occluder_bvh(flat), res)),
+pub fn shade_vertices(scene: &Scene, flat: &FlatScene, shadows: Shadows, eye: glam::Vec3) -> Vec<Vec<glam::Vec3>> {
+    let exact = match shadows {
+        Shadows::Exact { res } => Some((occluder_bvh(flat), res)),
         _ => None,
     };
-    let trees = match method {
-        Method::Bspvt(bake) => Some(bake),
+    let trees = match shadows {
+        Shadows::Trees(bake) => Some(bake),
         _ => None,
     };
     (0..flat.instances.len())
@@ -361,8 +362,8 @@ mod tests {
             .collect();
         let bake = Bake { settings: s, instances, stats: Stats::default() };
         let eye = glam::Vec3::new(0.0, 2.0, 5.0);
-        let placeholder = shade_vertices(&scene, &flat, Method::Bspvt(&bake), eye);
-        let open = shade_vertices(&scene, &flat, Method::Unshadowed, eye);
+        let placeholder = shade_vertices(&scene, &flat, Shadows::Trees(&bake), eye);
+        let open = shade_vertices(&scene, &flat, Shadows::Unshadowed, eye);
         for (a, b) in placeholder.iter().flatten().zip(open.iter().flatten()) {
             assert!((*a - *b).abs().max_element() <= 1e-4 * b.max_element().max(1.0), "{a} vs {b}");
         }

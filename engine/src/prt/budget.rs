@@ -13,7 +13,7 @@
 //! across moves and measure only q again.
 
 use super::lighting::{self, Window};
-use super::{Bake, Frame, Lighting, Method, Settings, bake, regions};
+use super::{Bake, Frame, Lighting, Settings, Shadows, bake, regions};
 use crate::accel::{SceneBvh, offset_ray_origin};
 use crate::math::{relative_rmse, rng};
 use crate::scene::{EnvironmentLight, FlatScene, NO_LIGHT, Scene};
@@ -47,7 +47,7 @@ pub fn choose(scene: &Scene, flat: &FlatScene, budget: f64, base: &Settings) -> 
 }
 
 /// Shading of `b` under `l`, with head-on albedos.
-fn shade(scene: &Scene, flat: &FlatScene, b: &Bake, l: &Lighting, m: Method, s: &Settings) -> Vec<Vec<Vec3>> {
+fn shade(scene: &Scene, flat: &FlatScene, b: &Bake, l: &Lighting, m: Shadows, s: &Settings) -> Vec<Vec<Vec3>> {
     Frame::prepare_head_on(scene, flat, b, l, m, s).vertex_values(scene, flat)
 }
 
@@ -74,7 +74,7 @@ pub fn choose_order(
     high: &Bake,
 ) -> (Settings, String) {
     let coeffs = lighting::project(env, REFERENCE_ORDER);
-    let self_only = |b: &Bake, w| shade(scene, flat, b, &unshadowed(&coeffs, w), Method::SelfOnly, base).concat();
+    let self_only = |b: &Bake, w| shade(scene, flat, b, &unshadowed(&coeffs, w), Shadows::SelfOnly, base).concat();
     let truth = self_only(high, Window::None);
     let mut measured = Vec::new();
     for order in ORDERS {
@@ -118,12 +118,12 @@ pub fn choose_regions(
     let pick = |v: &[Vec<Vec3>]| sample.iter().map(|&(i, k)| v[i][k]).collect::<Vec<_>>();
     // Self-shadowed shading does not depend on the regions.
     let light = unshadowed(&coeffs, s.window);
-    let own = pick(&shade(scene, flat, b, &light, Method::SelfOnly, s));
+    let own = pick(&shade(scene, flat, b, &light, Shadows::SelfOnly, s));
     let den: f64 = own.iter().map(|a| a.as_dvec3().length_squared()).sum();
     let mut measured = Vec::new();
     for q in REGION_COUNTS {
         let l = Lighting { regions: regions::decompose(env, q), ..light.clone() };
-        let with = pick(&shade(scene, flat, b, &l, Method::WithOthers, &Settings { regions: q, ..*s }));
+        let with = pick(&shade(scene, flat, b, &l, Shadows::WithOthers, &Settings { regions: q, ..*s }));
         let num: f64 =
             own.iter().zip(&with).zip(&exact).map(|((a, b), e)| (*a - *b - *e).as_dvec3().length_squared()).sum();
         let err = if den > 0.0 { (num / den).sqrt() } else { 0.0 };

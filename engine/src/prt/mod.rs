@@ -198,7 +198,7 @@ impl Lighting {
 
 /// Which PRT terms to shade.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Method {
+pub enum Shadows {
     /// Self-shadowing only (plain PRT).
     SelfOnly,
     /// Self-shadowing and shadows cast by other groups.
@@ -226,23 +226,23 @@ pub struct Posed {
 }
 
 impl Posed {
-    /// Poses `light` into every group of the snapshot; rasterises (or reuses from `cache`) the
-    /// silhouettes for [`Method::WithOthers`] in a scene with several groups.
+    /// Poses `light` into every group of the snapshot; rasterises (or reuses from `memo`) the
+    /// silhouettes for [`Shadows::WithOthers`] in a scene with several groups.
     pub fn new(
         scene: &Scene,
         flat: &FlatScene,
         bake_order: usize,
         light: &Lighting,
-        method: Method,
+        shadows: Shadows,
         s: &Settings,
-        cache: &mut SilhouetteMemo,
+        memo: &mut SilhouetteMemo,
     ) -> Self {
         let order = bake_order.min((light.coeffs.len() as f64).sqrt() as usize);
         let window = light.window.per_coeff(order);
         let (groups, poses) = group_poses(scene, flat);
         let group_of: Vec<usize> =
             flat.instances.iter().map(|i| groups.iter().position(|g| *g == i.group).expect("listed")).collect();
-        let others = method == Method::WithOthers && groups.len() > 1;
+        let others = shadows == Shadows::WithOthers && groups.len() > 1;
         let regions = if others { light.regions.clone() } else { Vec::new() };
         let (lighting, region_basis) = poses
             .iter()
@@ -261,7 +261,7 @@ impl Posed {
             })
             .unzip();
         let silhouettes =
-            if others { cache.silhouettes(flat, &group_of, groups.len(), &regions, s) } else { Vec::new() };
+            if others { memo.silhouettes(flat, &group_of, groups.len(), &regions, s) } else { Vec::new() };
         let widths = regions.iter().map(|r| r.spread.sqrt() as f32).collect();
         Self { order, lighting, region_basis, group_of, regions, widths, silhouettes }
     }
@@ -332,20 +332,20 @@ fn group_poses(scene: &Scene, flat: &FlatScene) -> (Vec<hecs::Entity>, Vec<(DMat
 
 impl Frame {
     /// Poses the lighting into every group, reconstructs `Ls` and `T(v, w_i)` per vertex, and
-    /// (for [`Method::WithOthers`] in a scene with several groups) rasterises the silhouettes.
+    /// (for [`Shadows::WithOthers`] in a scene with several groups) rasterises the silhouettes.
     pub fn prepare(
         scene: &Scene,
         flat: &FlatScene,
         bake: &Bake,
         light: &Lighting,
-        method: Method,
+        shadows: Shadows,
         s: &Settings,
         eye: Vec3,
     ) -> Self {
-        Self::prepare_cached(scene, flat, bake, light, method, s, eye, &mut SilhouetteMemo::default())
+        Self::prepare_cached(scene, flat, bake, light, shadows, s, eye, &mut SilhouetteMemo::default())
     }
 
-    /// [`Frame::prepare`], reusing from `cache` the silhouettes of groups that did not move
+    /// [`Frame::prepare`], reusing from `memo` the silhouettes of groups that did not move
     /// (after a move, only the moved group's are rasterised again).
     #[allow(clippy::too_many_arguments)]
     pub fn prepare_cached(
@@ -353,12 +353,12 @@ impl Frame {
         flat: &FlatScene,
         bake: &Bake,
         light: &Lighting,
-        method: Method,
+        shadows: Shadows,
         s: &Settings,
         eye: Vec3,
-        cache: &mut SilhouetteMemo,
+        memo: &mut SilhouetteMemo,
     ) -> Self {
-        let posed = Posed::new(scene, flat, bake.order, light, method, s, cache);
+        let posed = Posed::new(scene, flat, bake.order, light, shadows, s, memo);
         Self::from_posed(scene, flat, bake, posed, eye)
     }
 
@@ -369,10 +369,10 @@ impl Frame {
         flat: &FlatScene,
         bake: &Bake,
         light: &Lighting,
-        method: Method,
+        shadows: Shadows,
         s: &Settings,
     ) -> Self {
-        let posed = Posed::new(scene, flat, bake.order, light, method, s, &mut SilhouetteMemo::default());
+        let posed = Posed::new(scene, flat, bake.order, light, shadows, s, &mut SilhouetteMemo::default());
         let albedo = head_on_albedos(flat);
         Self::from_posed_with(scene, flat, bake, posed, &|i, _| albedo[i])
     }

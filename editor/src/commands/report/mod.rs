@@ -1,7 +1,8 @@
 //! `kage report`: speed against error. Runs each technique's methods and parameter sweeps
-//! against the Monte Carlo reference and writes `report.md`, `report.csv` and `report.png`
-//! (relative RMSE against time, log–log, one colour per method) into `--out`, plus
-//! `report-rays.png` (error against rays cast) when the cache section ran.
+//! against the Monte Carlo reference and writes `report.md`, `report.csv` and the plot
+//! `report.png`/`.svg` (relative RMSE against time, log–log, a legend per method, points
+//! labelled with their configuration) into `--out`, plus `report-rays.png`/`.svg` (error
+//! against rays cast) when the cache section ran.
 //!
 //! Sections run when the scene has what they shade: [`polygon`] (polygonal lights, the
 //! environment dropped), [`prt`] (the environment, polygonal lights removed) and [`cache`] (one
@@ -9,6 +10,7 @@
 //! and for PRT also per pixel.
 
 mod cache;
+mod plot;
 mod polygon;
 mod prt;
 
@@ -161,7 +163,8 @@ pub fn run(args: &Args) -> Result<()> {
     }
     anyhow::ensure!(!rows.is_empty(), "{}: none of the chosen sections applies to this scene", scene.source);
     std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
-    let written = write_files(args, &header.join("\n\n"), &rows)?;
+    let title = format!("kage report: {}", scene_name(&scene.source));
+    let written = write_files(args, &title, &header.join("\n\n"), &rows)?;
     crate::emit(&format!("wrote {}/{}\n", args.out.display(), written.join(", ")));
     Ok(())
 }
@@ -187,7 +190,7 @@ fn rel(values: impl Iterator<Item = Vec3>, truth: &[Vec3]) -> (f64, f64) {
 }
 
 /// Writes the report's files; returns their names.
-fn write_files(args: &Args, header: &str, rows: &[Row]) -> Result<Vec<&'static str>> {
+fn write_files(args: &Args, title: &str, header: &str, rows: &[Row]) -> Result<Vec<&'static str>> {
     let mut md = format!("# kage report\n\n{header}\n\n");
     md.push_str("| method | configuration | bake (s) | bake size (KB) | leaves / vertex | shade (s / frame) | RMSE | relative RMSE | per-pixel relative RMSE | tree error (vs exact-vis) |\n");
     md.push_str("|---|---|---|---|---|---|---|---|---|---|\n");
@@ -225,97 +228,25 @@ fn write_files(args: &Args, header: &str, rows: &[Row]) -> Result<Vec<&'static s
             r.rays.map_or(String::new(), |n| n.to_string())
         )?;
     }
-    md.push_str("\nPlot (`report.png`): relative RMSE (vertical) against shade time per frame (horizontal), both log scale; colours: ");
-    md.push_str(
-        &METHODS
-            .iter()
-            .map(|(m, c)| format!("{m} = #{:02x}{:02x}{:02x}", c[0], c[1], c[2]))
-            .collect::<Vec<_>>()
-            .join(", "),
-    );
-    md.push_str(".\n");
     let rays = rows.iter().any(|r| r.rays.is_some());
+    md.push_str("\n![Relative RMSE against shade time per frame](report.svg)\n\n[report.png](report.png) · [report.svg](report.svg)\n");
     if rays {
-        md.push_str("\nPlot (`report-rays.png`): the indirect rows' relative RMSE against rays cast, both log scale, same colours.\n");
+        md.push_str("\n![The indirect rows' relative RMSE against rays cast](report-rays.svg)\n\n[report-rays.png](report-rays.png) · [report-rays.svg](report-rays.svg)\n");
     }
     let write =
         |name: &str, text: &str| std::fs::write(args.out.join(name), text).with_context(|| format!("writing {name}"));
     write("report.md", &md)?;
     write("report.csv", &csv)?;
-    plot(rows, |r| Some(r.shade_s)).save(args.out.join("report.png")).context("writing report.png")?;
-    let mut written = vec!["report.md", "report.csv", "report.png"];
+    plot::write(&args.out, "report", &format!("{title}: error against shade time"), rows, &plot::SHADE_TIME)?;
+    let mut written = vec!["report.md", "report.csv", "report.png", "report.svg"];
     if rays {
-        let png = args.out.join("report-rays.png");
-        plot(rows, |r| r.rays.map(|n| n as f64)).save(png).context("writing report-rays.png")?;
-        written.push("report-rays.png");
+        plot::write(&args.out, "report-rays", &format!("{title}: error against rays cast"), rows, &plot::RAYS)?;
+        written.extend(["report-rays.png", "report-rays.svg"]);
     }
     Ok(written)
 }
 
-const METHODS: [(&str, [u8; 3]); 12] = [
-    ("bspvt", [220, 50, 40]),
-    ("ltc-exact-vis", [40, 120, 220]),
-    ("ltc-unshadowed", [120, 120, 120]),
-    ("monte-carlo", [40, 170, 70]),
-    ("ratio-estimator", [200, 140, 0]),
-    ("prt", [150, 40, 180]),
-    ("prt-self", [0, 170, 170]),
-    ("indirect-gather", [90, 60, 20]),
-    ("hsh-cache", [230, 100, 180]),
-    ("hsh-cache-no-gradients", [160, 160, 40]),
-    ("hsh-cache-numerical-gradients", [60, 200, 120]),
-    ("hsh-cache-wide-blend", [100, 100, 230]),
-];
-
-/// A log–log scatter of relative RMSE against `x` (rows without it are left out) with lines
-/// joining each method's points from left to right (no text: the Markdown says which colour is
-/// which).
-fn plot(rows: &[Row], x: impl Fn(&Row) -> Option<f64>) -> image::RgbImage {
-    let (w, h, m) = (640u32, 400u32, 30.0f64);
-    let mut img = image::RgbImage::from_pixel(w, h, image::Rgb([255, 255, 255]));
-    let rows: Vec<(&Row, f64)> = rows.iter().filter_map(|r| x(r).map(|x| (r, x))).collect();
-    let pts: Vec<(f64, f64)> = rows.iter().map(|(r, x)| (x.max(1e-6).log10(), r.rel_rmse.max(1e-5).log10())).collect();
-    let (x0, x1) = pts.iter().fold((f64::MAX, f64::MIN), |(a, b), p| (a.min(p.0), b.max(p.0)));
-    let (y0, y1) = pts.iter().fold((f64::MAX, f64::MIN), |(a, b), p| (a.min(p.1), b.max(p.1)));
-    let to_px = |(x, y): (f64, f64)| {
-        let fx = if x1 > x0 { (x - x0) / (x1 - x0) } else { 0.5 };
-        let fy = if y1 > y0 { (y - y0) / (y1 - y0) } else { 0.5 };
-        (m + fx * (w as f64 - 2.0 * m), h as f64 - m - fy * (h as f64 - 2.0 * m))
-    };
-    let dot = |img: &mut image::RgbImage, (x, y): (f64, f64), r: i32, c: [u8; 3]| {
-        for dy in -r..=r {
-            for dx in -r..=r {
-                let (px, py) = (x as i32 + dx, y as i32 + dy);
-                if px >= 0 && py >= 0 && (px as u32) < w && (py as u32) < h && dx * dx + dy * dy <= r * r {
-                    img.put_pixel(px as u32, py as u32, image::Rgb(c));
-                }
-            }
-        }
-    };
-    for i in 0..w {
-        dot(&mut img, (i as f64, h as f64 - m), 0, [0, 0, 0]);
-    }
-    for j in 0..h {
-        dot(&mut img, (m, j as f64), 0, [0, 0, 0]);
-    }
-    for (name, colour) in METHODS {
-        let mut line: Vec<(f64, f64)> =
-            rows.iter().zip(&pts).filter(|((r, _), _)| r.method == name).map(|(_, p)| to_px(*p)).collect();
-        line.sort_by(|a, b| a.0.total_cmp(&b.0));
-        for pair in line.windows(2) {
-            for k in 0..=100 {
-                let t = k as f64 / 100.0;
-                dot(
-                    &mut img,
-                    (pair[0].0 + t * (pair[1].0 - pair[0].0), pair[0].1 + t * (pair[1].1 - pair[0].1)),
-                    1,
-                    colour,
-                );
-            }
-        }
-        for p in line {
-            dot(&mut img, p, 4, colour);
-        }
-    }
-    img
+/// A scene's name for titles: the file name of its source, or the source itself.
+fn scene_name(source: &str) -> &str {
+    std::path::Path::new(source).file_name().and_then(|n| n.to_str()).unwrap_or(source)
 }

@@ -105,7 +105,7 @@ impl Bench<'_> {
         light: &Lighting,
         s: &prt::Settings,
     ) -> Row {
-        let kind = if method == "prt" { prt::Method::WithOthers } else { prt::Method::SelfOnly };
+        let kind = if method == "prt" { prt::Shadows::WithOthers } else { prt::Shadows::SelfOnly };
         let eye = self.camera.eye();
         let t = Instant::now();
         let frame = prt::Frame::prepare(self.scene, &self.renderer.flat, bake, light, kind, s, eye);
