@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Smoke test of the real editor window: starts `kage edit` on the built-in scene under Xvfb,
 # waits for its first bakes, takes a screenshot of the X screen and checks it is not blank.
-# usage: tools/editor_smoke.sh PATH/TO/kage [SECONDS]   (run by editor/tests/smoke.rs)
+# usage: tools/editor_smoke.sh PATH/TO/kage [SECONDS]   (run by cli/tests/smoke.rs)
 set -euo pipefail
 kage=$(realpath "$1")
 wait_s=${2:-25}

@@ -12,8 +12,10 @@
 //! - [`run`](mod@run): bakes the misses on rayon while one writer commits batches, re-bakes BSPVT warm
 //!   from lineage after edits (with the BSPVT subtree memo kept between runs), and assembles the
 //!   engine's bakes ([`bake`]: the same without assembling, reading no cached chunk);
-//! - [`pilot`]: the PRT budget's pilot transfer, kept so that re-planning after a rotation reads
-//!   it instead of baking it;
+//! - [`prt_budget`]: PRT's order, window and region count chosen from an error budget and kept
+//!   in `meta`, so that `kage bake`, `kage render` and the editor bake with the same parameters;
+//!   [`pilot`]: its pilot transfer, kept so that choosing again after a rotation reads it
+//!   instead of baking it;
 //! - [`records`]: radiance-cache records, keyed by geometry, materials, direct light and
 //!   settings;
 //! - [`pack`]: asset packs (glTF binary + the `KAGE_baked_shadows` extension) written and read.
@@ -33,6 +35,7 @@ pub mod key;
 pub mod pack;
 pub mod pilot;
 pub mod plan;
+pub mod prt_budget;
 pub mod records;
 pub mod run;
 pub mod store;

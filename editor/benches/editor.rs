@@ -16,8 +16,8 @@ use common::harness;
 use criterion::{Criterion, criterion_group, criterion_main};
 use egui_kittest::Harness;
 use glam::{Quat, Vec3};
-use kage_editor::edit::state::{Options, Selection, ShadeOn};
-use kage_editor::edit::ui::App;
+use kage_editor::state::{Options, Selection, ShadeOn};
+use kage_editor::ui::App;
 use kage_engine::scene::{EnvMap, EnvironmentLight, import};
 use kage_engine::shading::Method;
 use kage_engine::{bspvt, prt};
@@ -87,7 +87,7 @@ fn bench(c: &mut Criterion) {
             b.iter(|| {
                 let ed = &mut h.state_mut().editor;
                 ed.dirty.shade = true;
-                kage_editor::edit::systems::shade_system(ed);
+                kage_editor::systems::shade_system(ed);
             })
         });
     }

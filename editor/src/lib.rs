@@ -1,79 +1,60 @@
-//! `kage`: bake and preview shadows for real-time rendering.
+//! # kage-editor
 //!
-//! Subcommands: `info` (what a scene holds), `render` (images and per-vertex radiance with a
-//! chosen method), `bake` and `db` (the bake database), `report` (speed against error), `edit`
-//! (the scene editor). With no scene argument every command uses the built-in default scene.
+//! The scene editor behind `kage edit`: a live preview of the baked shadows (egui + wgpu) over
+//! the same hecs world the CLI uses. Nothing here blocks the UI thread on long work: bakes,
+//! references and exact visibility run in the background and stream their results in.
+//!
+//! - [`state`]: the model (scene ECS world, view, bakes, results) and the edits;
+//! - [`systems`]: the per-frame schedule — hot reload, poses, environment, bakes, reference,
+//!   shading — plain functions over the state, none of which blocks on long work;
+//! - [`bake_job`]: BSPVT and PRT bakes in parallel in the background, through the database;
+//! - [`viewport`]: the wgpu preview; [`ui`]: the egui panels; [`reload`]: file watching;
+//!   [`camera`]: the orbit camera; [`files`]: save and export.
 
-pub mod commands;
-mod db_args;
-pub mod edit;
-mod progress;
-mod prt_args;
-mod scene_args;
-mod watch;
+pub mod bake_job;
+pub mod camera;
+pub mod files;
+pub mod reload;
+pub mod state;
+pub mod systems;
+pub mod ui;
+pub mod viewport;
+mod worker;
 
-use clap::{Parser, Subcommand};
-use std::process::ExitCode;
+use anyhow::{Context, Result};
+use eframe::egui_wgpu::{WgpuConfiguration, WgpuSetup, WgpuSetupCreateNew};
+use kage_engine::scene::Scene;
+use std::sync::Arc;
 
-/// kage (影): bakes and previews shadows from area and environment lights.
-#[derive(Parser)]
-#[command(name = "kage", version, about)]
-struct Cli {
-    #[command(subcommand)]
-    command: Command,
-    /// Worker threads (default: all cores).
-    #[arg(long, global = true)]
-    threads: Option<usize>,
+/// `setup` asking for the device limits kage's shaders need ([`kage_gpu::Gpu::descriptor`];
+/// egui's default asks a GL adapter for WebGL 2 limits, which bind no storage buffers).
+pub fn with_kage_limits(setup: WgpuSetupCreateNew) -> WgpuSetup {
+    WgpuSetup::CreateNew(WgpuSetupCreateNew { device_descriptor: Arc::new(kage_gpu::Gpu::descriptor), ..setup })
 }
 
-#[derive(Subcommand)]
-enum Command {
-    /// Meshes, vertices, triangles, lights, groups, cameras and content hashes of a scene.
-    Info(commands::info::Args),
-    /// Render an image and/or per-vertex radiance with a shading method (baking what it needs).
-    Render(commands::render::Args),
-    /// Plan and run the scene's bakes against the bake database (incremental, resumable).
-    Bake(commands::bake::Args),
-    /// Inspect, check or clean the bake database.
-    Db(commands::db::Args),
-    /// Write an asset pack: the scene, its baked data and an unlit preview, as glTF binary.
-    Export(commands::export::Args),
-    /// Speed against error of every method (polygonal lights, PRT, radiance cache) against the
-    /// Monte Carlo reference: report.md, report.csv and plots.
-    Report(commands::report::Args),
-    /// Open the scene editor: live preview, outliner, inspector, background bakes, hot reload.
-    Edit(edit::Args),
-}
-
-/// Writes to stdout, ignoring a closed pipe (`kage info | head` is not an error).
-pub fn emit(text: &str) {
-    use std::io::Write;
-    let _ = std::io::stdout().lock().write_all(text.as_bytes());
-}
-
-/// Runs the `kage` command line (the binary's `main`).
-pub fn main() -> ExitCode {
-    let cli = Cli::parse();
-    if let Some(n) = cli.threads
-        && let Err(e) = rayon::ThreadPoolBuilder::new().num_threads(n).build_global()
-    {
-        eprintln!("error: cannot start {n} threads: {e}");
-        return ExitCode::FAILURE;
-    }
-    let result = match cli.command {
-        Command::Info(a) => commands::info::run(&a),
-        Command::Render(a) => commands::render::run(&a),
-        Command::Report(a) => commands::report::run(&a),
-        Command::Bake(a) => commands::bake::run(&a),
-        Command::Db(a) => commands::db::run(&a),
-        Command::Export(a) => commands::export::run(&a),
-        Command::Edit(a) => edit::run(&a),
+/// Opens the editor window (eframe with the wgpu renderer) of `size` pixels on `scene`.
+pub fn run(scene: Scene, options: state::Options, size: (usize, usize)) -> Result<()> {
+    let native = eframe::NativeOptions {
+        renderer: eframe::Renderer::Wgpu,
+        viewport: eframe::egui::ViewportBuilder::default()
+            .with_inner_size([size.0 as f32, size.1 as f32])
+            .with_title(format!("kage — {}", scene.source)),
+        wgpu_options: WgpuConfiguration {
+            wgpu_setup: with_kage_limits(WgpuSetupCreateNew::without_display_handle()),
+            ..Default::default()
+        },
+        ..Default::default()
     };
-    match result {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("error: {e:#}");
-            ExitCode::FAILURE
-        }
-    }
+    eframe::run_native(
+        "kage",
+        native,
+        Box::new(move |cc| {
+            let rs = cc.wgpu_render_state.as_ref().context("eframe started without its wgpu renderer")?;
+            let gpu = kage_gpu::Gpu::from_parts(rs.device.clone(), rs.queue.clone(), rs.adapter.get_info());
+            let ctx = cc.egui_ctx.clone();
+            let editor = state::Editor::new(scene, options, gpu, Arc::new(move || ctx.request_repaint()));
+            Ok(Box::new(ui::App::new(editor)))
+        }),
+    )
+    .map_err(|e| anyhow::anyhow!("the editor window failed: {e}"))
 }

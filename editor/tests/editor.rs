@@ -9,8 +9,8 @@ use eframe::egui;
 use egui_kittest::Harness;
 use egui_kittest::kittest::Queryable;
 use glam::{Quat, Vec3};
-use kage_editor::edit::state::{Editor, Options, Selection, ShadeOn};
-use kage_editor::edit::ui::App;
+use kage_editor::state::{Editor, Options, Selection, ShadeOn};
+use kage_editor::ui::App;
 use kage_engine::scene::{default_scene, import};
 use kage_engine::shading::Method;
 use kage_engine::{bspvt, prt};
@@ -244,7 +244,7 @@ fn the_preview_refines_batch_by_batch_while_the_bakes_stream_in() {
 
 #[test]
 fn the_cached_indirect_term_lands_in_the_background_follows_edits_and_persists() {
-    use kage_editor::edit::systems::gathering;
+    use kage_editor::systems::gathering;
     let dir = scratch("indirect");
     let mut o = options(&dir, None, None);
     o.cache.rays = 64;

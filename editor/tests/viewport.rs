@@ -2,8 +2,8 @@
 //! groups are looked up at every pixel, as `kage_engine::prt::Frame::render` does on the CPU.
 
 use glam::Vec3;
-use kage_editor::edit::camera::Orbit;
-use kage_editor::edit::viewport::Viewport;
+use kage_editor::camera::Orbit;
+use kage_editor::viewport::Viewport;
 use kage_engine::output::display_srgb;
 use kage_engine::prt::{self, Shadows};
 use kage_engine::reference::Renderer;

@@ -2,8 +2,8 @@
 
 use eframe::egui;
 use egui_kittest::Harness;
-use kage_editor::edit::state::{Editor, Options};
-use kage_editor::edit::ui::App;
+use kage_editor::state::{Editor, Options};
+use kage_editor::ui::App;
 use kage_engine::scene::Scene;
 use std::sync::Arc;
 
@@ -15,7 +15,7 @@ pub fn harness(scene: Scene, options: Options) -> Harness<'static, App> {
     };
     Harness::builder()
         .with_size(egui::Vec2::new(1280.0, 800.0))
-        .wgpu_setup(kage_editor::edit::with_kage_limits(base))
+        .wgpu_setup(kage_editor::with_kage_limits(base))
         .build_eframe(move |cc| {
             let rs = cc.wgpu_render_state.as_ref().expect("kittest's wgpu renderer");
             let gpu = kage_gpu::Gpu::from_parts(rs.device.clone(), rs.queue.clone(), rs.adapter.get_info());

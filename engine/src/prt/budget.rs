@@ -32,13 +32,16 @@ const PILOT: usize = 400;
 /// Environment samples per pilot vertex.
 const PILOT_SAMPLES: usize = 1024;
 
+/// What a choice says for a scene without an environment.
+pub const NO_ENVIRONMENT: &str = "no environment light: PRT has nothing to shade";
+
 /// The chosen settings with one line per decision, each with the measured errors.
 ///
 /// Shading is measured with every albedo seen head-on ([`Frame::prepare_head_on`]): the bake serves
 /// every view, so no camera enters the plan.
 pub fn choose(scene: &Scene, flat: &FlatScene, budget: f64, base: &Settings) -> (Settings, Vec<String>) {
     let Some(env) = &flat.environment else {
-        return (*base, vec!["no environment light: PRT has nothing to shade".into()]);
+        return (*base, vec![NO_ENVIRONMENT.into()]);
     };
     let high = pilot(scene, flat, base);
     let (s, why_order) = choose_order(scene, flat, env, budget, base, &high);

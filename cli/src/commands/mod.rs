@@ -2,6 +2,7 @@
 
 pub mod bake;
 pub mod db;
+pub mod edit;
 pub mod export;
 pub mod info;
 pub mod render;

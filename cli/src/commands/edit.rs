@@ -1,0 +1,63 @@
+//! `kage edit`: opens the scene editor (`kage-editor`) on a scene.
+
+use crate::db_args::DbArgs;
+use crate::scene_args::SceneArgs;
+use anyhow::Result;
+use kage_editor::state;
+use kage_engine::{bspvt, prt};
+use std::path::PathBuf;
+
+/// Arguments of `kage edit`.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    #[command(flatten)]
+    scene: SceneArgs,
+    #[command(flatten)]
+    db: DbArgs,
+    /// Folder of WGSL shaders to load and hot-reload (default: `shaders/` in the working
+    /// folder when it exists, else the shaders built into kage).
+    #[arg(long)]
+    shaders: Option<PathBuf>,
+    /// BSPVT cube-face resolution.
+    #[arg(long, default_value_t = 64)]
+    face_res: usize,
+    /// BSPVT split threshold ε.
+    #[arg(long, default_value_t = 2.0)]
+    epsilon: f64,
+    /// Do not start baking when the editor opens.
+    #[arg(long)]
+    no_bake: bool,
+    /// Where polygonal lights shade: auto (the GPU unless it is a CPU emulation), gpu, cpu.
+    #[arg(long, value_enum, default_value = "auto")]
+    shade_on: state::ShadeOn,
+    /// Window size as WxH.
+    #[arg(long, default_value = "1280x800", value_parser = super::render::parse_size)]
+    size: (usize, usize),
+}
+
+impl Args {
+    /// The editor's options from the command line.
+    pub fn options(&self) -> Result<state::Options> {
+        let shader_dir = self.shaders.clone().or_else(|| Some(PathBuf::from("shaders")).filter(|d| d.is_dir()));
+        if let Some(d) = &shader_dir {
+            anyhow::ensure!(d.is_dir(), "{}: no such shader folder", d.display());
+        }
+        anyhow::ensure!((4..=1024).contains(&self.face_res), "--face-res must be in 4..=1024");
+        Ok(state::Options {
+            scene_path: self.scene.scene.clone(),
+            env_path: self.scene.env.clone(),
+            shader_dir,
+            db_path: self.db.path(&self.scene),
+            bspvt: bspvt::Settings { res: self.face_res, epsilon: self.epsilon },
+            prt: prt::Settings::default(),
+            cache: Default::default(),
+            bake_on_start: !self.no_bake,
+            shade_on: self.shade_on,
+        })
+    }
+}
+
+/// Opens the editor window.
+pub fn run(args: &Args) -> Result<()> {
+    kage_editor::run(args.scene.load()?, args.options()?, args.size)
+}

@@ -1,0 +1,93 @@
+//! PRT options shared by `render` and `report`: explicit parameters, or a plan from an error
+//! budget (the default).
+
+use kage_engine::prt::{self, lighting::Window};
+use kage_engine::scene::{FlatScene, Scene};
+
+/// Window choices on the command line.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum WindowArg {
+    /// No window.
+    None,
+    /// Hanning window.
+    Hanning,
+    /// Lanczos σ factors.
+    Lanczos,
+}
+
+impl From<WindowArg> for Window {
+    fn from(w: WindowArg) -> Self {
+        match w {
+            WindowArg::None => Window::None,
+            WindowArg::Hanning => Window::Hanning,
+            WindowArg::Lanczos => Window::Lanczos,
+        }
+    }
+}
+
+/// PRT parameters; without --sh-order, --regions and --sh-window they come from the plan.
+#[derive(clap::Args, Debug, Clone)]
+pub struct PrtArgs {
+    /// SH order n (n² coefficients per vertex); default: chosen from the error budget.
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=16))]
+    pub sh_order: Option<u32>,
+    /// Environment regions for shadows between groups; default: chosen from the error budget.
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=256))]
+    pub regions: Option<u32>,
+    /// Window against SH ringing; default: chosen from the error budget.
+    #[arg(long, value_enum)]
+    pub sh_window: Option<WindowArg>,
+    /// Transfer directions per vertex (stratified; rounded down to a square).
+    #[arg(long, default_value_t = 1024, value_parser = clap::value_parser!(u32).range(4..=65536))]
+    pub directions: u32,
+}
+
+/// The budget PRT chooses its parameters with when none is given.
+pub const DEFAULT_BUDGET: f64 = 0.02;
+
+impl PrtArgs {
+    fn base(&self) -> prt::Settings {
+        prt::Settings { directions: self.directions as usize, ..prt::Settings::default() }
+    }
+
+    /// The settings given on the command line, if any PRT parameter was.
+    fn explicit(&self) -> Option<prt::Settings> {
+        let base = self.base();
+        (self.sh_order.is_some() || self.regions.is_some() || self.sh_window.is_some()).then(|| prt::Settings {
+            order: self.sh_order.map_or(base.order, |n| n as usize),
+            regions: self.regions.map_or(base.regions, |q| q as usize),
+            window: self.sh_window.map_or(base.window, Window::from),
+            ..base
+        })
+    }
+
+    /// The settings to bake and shade with, printing the plan when one is made.
+    pub fn settings(&self, scene: &Scene, flat: &FlatScene, budget: Option<f64>) -> prt::Settings {
+        if let Some(s) = self.explicit() {
+            return s;
+        }
+        let (s, why) = prt::budget::choose(scene, flat, budget.unwrap_or(DEFAULT_BUDGET), &self.base());
+        for line in why {
+            crate::emit(&format!("plan: {line}\n"));
+        }
+        s
+    }
+
+    /// [`PrtArgs::settings`], with the choices kept in the bake database
+    /// ([`kage_bake_db::prt_budget`]), so that a cached scene plans fast and every command bakes
+    /// with the same parameters.
+    pub fn settings_cached(
+        &self,
+        store: &kage_bake_db::Store,
+        scene: &Scene,
+        flat: &FlatScene,
+        budget: Option<f64>,
+    ) -> anyhow::Result<prt::Settings> {
+        if let Some(s) = self.explicit() {
+            return Ok(s);
+        }
+        let budget = budget.unwrap_or(DEFAULT_BUDGET);
+        let note = &mut |line: String| crate::emit(&format!("plan: {line}\n"));
+        Ok(kage_bake_db::prt_budget::choose(store, scene, flat, budget, &self.base(), note)?)
+    }
+}
