@@ -124,7 +124,7 @@ pub fn write(path: &Path, e: &Export) -> std::io::Result<()> {
     let locals = prt::local_transforms(e.scene, e.flat);
     let scale = 2f32.powf(e.exposure);
     for (k, inst) in e.flat.instances.iter().enumerate() {
-        let mesh = &e.scene.meshes[inst.mesh as usize];
+        let mesh = e.flat.mesh(k);
         let preview: Vec<Vec3> = e.radiance[k].iter().map(|v| (*v * scale).clamp(Vec3::ZERO, Vec3::ONE)).collect();
         let (pos, nor, col) = (bin.vec3(&mesh.positions), bin.vec3(&mesh.normals), bin.vec3(&preview));
         let idx: Vec<u32> = mesh.triangles.iter().flatten().copied().collect();
@@ -391,7 +391,7 @@ pub fn read(path: &Path) -> kage_engine::Result<(Scene, Contents)> {
                 let data =
                     view(&x["bspvt"]["records"]).ok_or_else(|| bad(path, format!("mesh {k}: no BSPVT records")))?;
                 let offsets: Vec<u32> = bytemuck::pod_collect_to_vec(offsets);
-                let ok = offsets.len() == vertex_count(&scene, &flat, k) + 1
+                let ok = offsets.len() == flat.vertex_count(k) + 1
                     && offsets.last().is_some_and(|&o| o as usize == data.len())
                     && offsets.windows(2).all(|w| w[0] <= w[1]);
                 if !ok {
@@ -407,7 +407,7 @@ pub fn read(path: &Path) -> kage_engine::Result<(Scene, Contents)> {
             .collect::<kage_engine::Result<Vec<_>>>()?;
         Ok(bspvt::Bake { settings, instances, stats: bspvt::Stats::default() })
     });
-    let prt = root.get("prt").map(|p| read_prt(path, p, &exts, &view, &scene, &flat));
+    let prt = root.get("prt").map(|p| read_prt(path, p, &exts, &view, &flat));
     Ok((scene, Contents { bspvt: bspvt.transpose()?, prt: prt.transpose()? }))
 }
 
@@ -458,16 +458,11 @@ fn restore_light_radiance(scene: &mut Scene, lights: &[&Value]) -> Result<(), St
     Ok(())
 }
 
-fn vertex_count(scene: &Scene, flat: &FlatScene, k: usize) -> usize {
-    scene.meshes[flat.instances[k].mesh as usize].positions.len()
-}
-
 fn read_prt<'a>(
     path: &Path,
     p: &Value,
     exts: &[&Value],
     view: &dyn Fn(&Value) -> Option<&'a [u8]>,
-    scene: &Scene,
     flat: &FlatScene,
 ) -> kage_engine::Result<(prt::Bake, Lighting, prt::Settings)> {
     let order = p["order"].as_u64().filter(|&o| (1..=16).contains(&o)).ok_or_else(|| bad(path, "PRT order"))? as usize;
@@ -514,7 +509,7 @@ fn read_prt<'a>(
             let t: Vec<f32> = view(&x["prt"]["transfer"])
                 .map(bytemuck::pod_collect_to_vec)
                 .ok_or_else(|| bad(path, format!("mesh {k}: no PRT transfer")))?;
-            if t.len() != vertex_count(scene, flat, k) * order * order {
+            if t.len() != flat.vertex_count(k) * order * order {
                 return Err(bad(path, format!("mesh {k}: PRT transfer does not match the mesh")));
             }
             Ok(t)

@@ -20,7 +20,7 @@ pub fn pilot(store: &Store, scene: &Scene, flat: &FlatScene, base: &prt::Setting
     let keys: Vec<u8> =
         plan(store, scene, flat, None, Some(reference))?.keys().iter().flat_map(|k| *k.as_bytes()).collect();
     let name = format!("prt pilot {}", KeyHasher::new("prt pilot").bytes("keys", &keys).finish().short());
-    if let Some(bake) = store.memo(&name)?.and_then(|b| from_bytes(&b, scene, flat)) {
+    if let Some(bake) = store.memo(&name)?.and_then(|b| from_bytes(&b, flat)) {
         return Ok(bake);
     }
     let bake = prt::budget::pilot(scene, flat, base);
@@ -42,7 +42,7 @@ fn to_bytes(b: &prt::Bake) -> Vec<u8> {
 }
 
 /// The pilot in `bytes` when its hash holds and its shape fits the scene; `None` otherwise.
-fn from_bytes(bytes: &[u8], scene: &Scene, flat: &FlatScene) -> Option<prt::Bake> {
+fn from_bytes(bytes: &[u8], flat: &FlatScene) -> Option<prt::Bake> {
     let (body, hash) = bytes.split_at_checked(bytes.len().checked_sub(32)?)?;
     if blake3::hash(body).as_bytes() != hash {
         return None;
@@ -55,7 +55,7 @@ fn from_bytes(bytes: &[u8], scene: &Scene, flat: &FlatScene) -> Option<prt::Bake
         return None;
     }
     let lengths = (0..count).map(|_| word()).collect::<Option<Vec<usize>>>()?;
-    let expected = flat.instances.iter().map(|i| coeffs * scene.meshes[i.mesh as usize].positions.len());
+    let expected = flat.instances.iter().map(|i| coeffs * flat.meshes[i.mesh as usize].positions.len());
     if !lengths.iter().copied().eq(expected) {
         return None;
     }

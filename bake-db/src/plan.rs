@@ -84,12 +84,12 @@ pub struct Snapshot {
 
 impl Snapshot {
     /// The snapshot of a flattened scene.
-    pub fn of(scene: &Scene, flat: &FlatScene) -> Self {
+    pub fn of(flat: &FlatScene) -> Self {
         let occluders: Vec<Occluder> = flat
             .instances
             .iter()
             .map(|inst| {
-                let mesh = &scene.meshes[inst.mesh as usize];
+                let mesh = &flat.meshes[inst.mesh as usize];
                 let (lo, hi) = mesh.positions.iter().fold((Vec3::MAX, Vec3::MIN), |(lo, hi), p| {
                     let w = inst.world.transform_point3(*p);
                     (lo.min(w), hi.max(w))
@@ -199,7 +199,7 @@ pub fn plan(
 ) -> Result<Plan> {
     let bspvt = bspvt.filter(|_| !flat.lights.is_empty());
     let prt = prt.filter(|_| flat.environment.is_some());
-    let snapshot = Snapshot::of(scene, flat);
+    let snapshot = Snapshot::of(flat);
     let reach = bspvt::reach::Reach::of(&flat.lights);
     let mut jobs = Vec::new();
     if let Some(s) = bspvt {
@@ -209,14 +209,14 @@ pub fn plan(
                 .u64("algorithm", bspvt::ALGORITHM_VERSION as u64)
                 .u64("res", s.res as u64)
                 .f64("epsilon", s.epsilon)
-                .bytes("mesh", &scene.meshes[inst.mesh as usize].hash.0)
+                .bytes("mesh", &flat.meshes[inst.mesh as usize].hash.0)
                 .affine("world", &inst.world);
             // Lights that may go anywhere add nothing: keys baked before reaches existed stay valid.
             if reach != bspvt::reach::Reach::Anywhere {
                 base = base.bytes("reach", &reach.key_bytes());
             }
             let id = [inst.id.node, inst.id.mesh, inst.id.primitive];
-            for (c, vertices) in chunks(scene, flat, i) {
+            for (c, vertices) in chunks(flat, i) {
                 let key = base.clone().bytes("occluders", snapshot.hash.as_bytes()).u64("chunk", c as u64).finish();
                 let slot = base.clone().bytes("id", bytemuck::cast_slice(&id)).u64("slot", c as u64).finish();
                 jobs.push(Job { kind: Kind::Bspvt, instance: i, vertices, key, slot: Some(slot), cached: false });
@@ -231,10 +231,10 @@ pub fn plan(
                 .u64("version", prt::ALGORITHM_VERSION as u64)
                 .u64("order", s.order as u64)
                 .u64("directions", s.direction_side().pow(2) as u64)
-                .bytes("mesh", &scene.meshes[inst.mesh as usize].hash.0)
+                .bytes("mesh", &flat.meshes[inst.mesh as usize].hash.0)
                 .affine("local", &locals[i])
                 .bytes("group", groups[&inst.group].as_bytes());
-            for (c, vertices) in chunks(scene, flat, i) {
+            for (c, vertices) in chunks(flat, i) {
                 let key = base.clone().u64("chunk", c as u64).finish();
                 jobs.push(Job { kind: Kind::Prt, instance: i, vertices, key, slot: None, cached: false });
             }
@@ -246,8 +246,8 @@ pub fn plan(
 }
 
 /// (chunk index, vertex range) of instance `i`.
-fn chunks(scene: &Scene, flat: &FlatScene, i: usize) -> Vec<(usize, Range<usize>)> {
-    let n = scene.meshes[flat.instances[i].mesh as usize].positions.len();
+fn chunks(flat: &FlatScene, i: usize) -> Vec<(usize, Range<usize>)> {
+    let n = flat.vertex_count(i);
     (0..n.div_ceil(CHUNK)).map(|c| (c, c * CHUNK..((c + 1) * CHUNK).min(n))).collect()
 }
 

@@ -86,7 +86,7 @@ fn window_index(w: Window) -> u8 {
 /// The PRT transfer for `s` when the store holds all of it.
 fn stored_transfer(store: &Store, scene: &Scene, flat: &FlatScene, s: &prt::Settings) -> Result<Option<prt::Bake>> {
     let plan = crate::plan(store, scene, flat, None, Some(*s))?;
-    Ok(crate::load(store, scene, flat, &plan)?.and_then(|o| o.prt))
+    Ok(crate::load(store, flat, &plan)?.and_then(|o| o.prt))
 }
 
 /// A key of everything the PRT budget reads: each instance's mesh, material, group and
@@ -105,7 +105,7 @@ fn key(scene: &Scene, flat: &FlatScene, budget: f64, directions: usize, placed: 
         });
         let world = if placed { inst.world } else { glam::Affine3A { translation: glam::Vec3A::ZERO, ..inst.world } };
         h = h
-            .bytes("mesh", &scene.meshes[inst.mesh as usize].hash.0)
+            .bytes("mesh", &flat.meshes[inst.mesh as usize].hash.0)
             .u64("group", group as u64)
             .affine("local", local)
             .affine("world", &world)

@@ -15,9 +15,9 @@ use kage_engine::scene::Scene;
 pub const VERSION: u32 = 2;
 
 /// The key of the records a cache built from `src` with `s` would hold.
-pub fn key(scene: &Scene, src: &Source, s: &Settings) -> Key {
+pub fn key(src: &Source, s: &Settings) -> Key {
     let flat = &src.renderer.flat;
-    let snapshot = Snapshot::of(scene, flat);
+    let snapshot = Snapshot::of(flat);
     let materials: Vec<f32> = flat
         .instances
         .iter()
@@ -59,7 +59,7 @@ pub fn key(scene: &Scene, src: &Source, s: &Settings) -> Key {
 /// The cache from the store when its records are there, else placed now and stored; and
 /// whether it came from the store. The scene's extras gain the key (kept by `gc`).
 pub fn load_or_place(store: &Store, scene: &Scene, src: &Source, s: &Settings) -> Result<(Cache, bool)> {
-    let key = key(scene, src, s);
+    let key = key(src, s);
     add_to_scene(store, scene, src, &key)?;
     if let Some(records) = store.get::<f64>(&key)?.and_then(|d| Record::from_f64s(&d, s.order)) {
         return Ok((cache::from_records(src, s, records), true));
@@ -75,7 +75,7 @@ pub fn load_or_place(store: &Store, scene: &Scene, src: &Source, s: &Settings) -
 /// placement would gather there (record places depend on the receivers alone), so the next
 /// [`load_or_place`] under this lighting loads them. Returns the key.
 pub fn store_refreshed(store: &Store, scene: &Scene, src: &Source, cache: &Cache, seconds: f64) -> Result<Key> {
-    let key = key(scene, src, cache.settings());
+    let key = key(src, cache.settings());
     add_to_scene(store, scene, src, &key)?;
     put(store, key, cache, seconds)?;
     Ok(key)
@@ -84,7 +84,7 @@ pub fn store_refreshed(store: &Store, scene: &Scene, src: &Source, cache: &Cache
 /// Records `key` among the scene's extras for its current geometry (kept by `gc` until the
 /// geometry changes and is re-baked).
 fn add_to_scene(store: &Store, scene: &Scene, src: &Source, key: &Key) -> Result<()> {
-    store.add_extra(&scene.source, key, &Snapshot::of(scene, &src.renderer.flat).hash)
+    store.add_extra(&scene.source, key, &Snapshot::of(&src.renderer.flat).hash)
 }
 
 fn put(store: &Store, key: Key, cache: &Cache, seconds: f64) -> Result<()> {

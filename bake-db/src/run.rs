@@ -137,17 +137,17 @@ impl Chunk<'_> {
 pub fn run_cancellable(store: &Store, scene: &Scene, flat: &FlatScene, plan: &Plan, hooks: Hooks) -> Result<Outcome> {
     let start = Instant::now();
     let (stats, fresh) = bake_misses(store, scene, flat, plan, hooks)?;
-    let outcome = assemble(store, scene, flat, plan, &fresh, stats)?;
+    let outcome = assemble(store, flat, plan, &fresh, stats)?;
     Ok(Outcome { stats: RunStats { seconds: start.elapsed().as_secs_f64(), ..outcome.stats }, ..outcome })
 }
 
 /// The bakes of a fully cached `plan`, read from the store without writing anything (not even
 /// the scene's references); `None` when any chunk is missing.
-pub fn load(store: &Store, scene: &Scene, flat: &FlatScene, plan: &Plan) -> Result<Option<Outcome>> {
+pub fn load(store: &Store, flat: &FlatScene, plan: &Plan) -> Result<Option<Outcome>> {
     if plan.misses().next().is_some() {
         return Ok(None);
     }
-    assemble(store, scene, flat, plan, &HashMap::new(), RunStats::default()).map(Some)
+    assemble(store, flat, plan, &HashMap::new(), RunStats::default()).map(Some)
 }
 
 /// [`run`] without assembling the bakes: the plan's misses are baked and committed, and no
@@ -188,7 +188,6 @@ fn bake_misses(
     let tiles = bspvt.map(|s| load_tiles(store, &s)).transpose()?;
     let transfer = plan.prt.filter(|_| baking(Kind::Prt)).map(|s| prt::Baker::new(scene, flat, &s));
     let ctx = Context {
-        scene,
         flat,
         plan,
         store,
@@ -283,7 +282,6 @@ fn write_batches<'a>(
 }
 
 struct Context<'a> {
-    scene: &'a Scene,
     flat: &'a FlatScene,
     plan: &'a Plan,
     store: &'a Store,
@@ -310,7 +308,7 @@ impl Context<'_> {
                 let mut out = vec![0.0f32; job.vertices.len() * n];
                 let baker = self.transfer.expect("built for PRT misses");
                 for (k, v) in job.vertices.clone().enumerate() {
-                    baker.vertex(self.scene, self.flat, job.instance, v, &mut out[k * n..(k + 1) * n]);
+                    baker.vertex(self.flat, job.instance, v, &mut out[k * n..(k + 1) * n]);
                 }
                 (bytemuck::cast_slice(&out).to_vec(), false, job.vertices.len(), 0, 0)
             }
@@ -340,7 +338,7 @@ impl Context<'_> {
     fn bake_bspvt(&self, job: &Job) -> Result<(Vec<bspvt::VertexBake>, bool)> {
         let (occ, tiles) =
             (self.occluders.expect("built for BSPVT misses"), self.tiles.expect("loaded for BSPVT misses"));
-        let vertex = |v: usize| self.flat.vertex(&self.scene.meshes, job.instance, v);
+        let vertex = |v: usize| self.flat.vertex(job.instance, v);
         let (old, changed) = match self.lineage_of(job)? {
             Some((old, changed)) => (Some(old), changed),
             None => (None, Vec::new()),
@@ -487,7 +485,6 @@ fn decode_records(bytes: &[u8]) -> Option<Vec<Vec<u8>>> {
 /// transaction and borrowed, so each stored byte is copied once, into the bake).
 fn assemble(
     store: &Store,
-    scene: &Scene,
     flat: &FlatScene,
     plan: &Plan,
     fresh: &HashMap<Key, Vec<u8>>,
@@ -503,7 +500,7 @@ fn assemble(
                 fresh.get(&j.key).map_or_else(|| found.next().copied().flatten().unwrap_or_default(), Vec::as_slice)
             })
             .collect();
-        bakes(store, scene, flat, plan, &chunks, stats)
+        bakes(store, flat, plan, &chunks, stats)
     })
 }
 
@@ -543,14 +540,7 @@ fn part<'a>(store: &Store, job: &Job, bytes: &'a [u8], coeffs: usize) -> Result<
 
 /// The engine's bakes from every job's chunk (in plan order); each instance's buffers are sized
 /// once from its chunks' lengths.
-fn bakes(
-    store: &Store,
-    scene: &Scene,
-    flat: &FlatScene,
-    plan: &Plan,
-    chunks: &[&[u8]],
-    stats: RunStats,
-) -> Result<Outcome> {
+fn bakes(store: &Store, flat: &FlatScene, plan: &Plan, chunks: &[&[u8]], stats: RunStats) -> Result<Outcome> {
     let per_instance = |kind: Kind| {
         let mut bytes = vec![0usize; flat.instances.len()];
         plan.jobs.iter().zip(chunks).filter(|(j, _)| j.kind == kind).for_each(|(j, c)| bytes[j.instance] += c.len());
@@ -590,7 +580,7 @@ fn bakes(
             }
         }
     }
-    let vertices: usize = flat.instances.iter().map(|i| scene.meshes[i.mesh as usize].positions.len()).sum();
+    let vertices: usize = (0..flat.instances.len()).map(|i| flat.vertex_count(i)).sum();
     let bspvt = plan.bspvt.map(|settings| bspvt::Bake {
         settings,
         instances: bspvt_instances,

@@ -87,7 +87,7 @@ fn a_second_bake_does_no_work_and_matches_a_fresh_one_and_the_engine() {
     let flat = flatten(&s);
     let p = plan(&store, &s, &flat, Some(BSPVT), Some(prt_settings())).unwrap();
     let out = run(&store, &s, &flat, &p, &|_| {}).unwrap();
-    assert_eq!(out.bspvt.unwrap().instances, bspvt::bake(&s, &flat, &BSPVT, &|_| {}).instances);
+    assert_eq!(out.bspvt.unwrap().instances, bspvt::bake(&flat, &BSPVT, &|_| {}).instances);
     assert!(out.prt.unwrap().instances == prt::bake(&s, &flat, &prt_settings(), &|_| {}).instances);
 }
 
@@ -99,7 +99,7 @@ fn fresh_and_stored_chunks_assemble_alike_and_cached_runs_and_loads_write_nothin
     let edited = scene("move");
     let flat = flatten(&edited);
     let planned = || plan(&store, &edited, &flat, Some(BSPVT), Some(prt_settings())).unwrap();
-    assert!(load(&store, &edited, &flat, &planned()).unwrap().is_none(), "a plan with misses loads nothing");
+    assert!(load(&store, &flat, &planned()).unwrap().is_none(), "a plan with misses loads nothing");
     let mixed = run(&store, &edited, &flat, &planned(), &|_| {}).unwrap();
     assert!(mixed.stats.cached > 0 && mixed.stats.cold + mixed.stats.warm > 0, "{:?}", mixed.stats);
     let file = std::fs::read(&path).unwrap();
@@ -109,9 +109,9 @@ fn fresh_and_stored_chunks_assemble_alike_and_cached_runs_and_loads_write_nothin
     assert!(std::fs::read(&path).unwrap() == file, "planning and running a fully cached scene commit nothing");
     // Loading reads the same bakes and writes nothing, not even a plan of part of the scene
     // as the scene's references.
-    let loaded = load(&store, &edited, &flat, &p).unwrap().expect("all cached");
+    let loaded = load(&store, &flat, &p).unwrap().expect("all cached");
     let prt_only = plan(&store, &edited, &flat, None, Some(prt_settings())).unwrap();
-    let prt = load(&store, &edited, &flat, &prt_only).unwrap().expect("all cached").prt.unwrap();
+    let prt = load(&store, &flat, &prt_only).unwrap().expect("all cached").prt.unwrap();
     assert!(std::fs::read(&path).unwrap() == file, "loading commits nothing");
     assert_eq!(loaded.bspvt.unwrap().instances, cached.bspvt.as_ref().unwrap().instances);
     assert!(prt.instances == cached.prt.as_ref().unwrap().instances);
@@ -400,7 +400,7 @@ fn a_cancelled_run_keeps_what_it_committed_and_the_next_run_finishes_the_rest() 
     let left: usize = again.misses().map(|j| j.vertices.len()).sum();
     assert_eq!(left, total - done, "what was committed is cached");
     let out = run(&store, &s, &flat, &again, &|_| {}).unwrap();
-    assert_eq!(out.bspvt.unwrap().instances, bspvt::bake(&s, &flat, &BSPVT, &|_| {}).instances);
+    assert_eq!(out.bspvt.unwrap().instances, bspvt::bake(&flat, &BSPVT, &|_| {}).instances);
 }
 
 #[test]
@@ -482,7 +482,7 @@ fn gc_keeps_cache_records_until_the_geometry_changes() {
         let (r, d) = lit(&sc);
         let src = Source { renderer: &r, direct: &d, glossy: Glossy::PerVertex };
         load_or_place(&store, &sc, &src, &cache_settings()).unwrap();
-        keys.push(kage_bake_db::records::key(&sc, &src, &cache_settings()));
+        keys.push(kage_bake_db::records::key(&src, &cache_settings()));
     }
     let stored = |store: &Store| keys.iter().filter(|k| store.get::<u8>(k).unwrap().is_some()).count();
     bake(&store, &scene("light"));

@@ -22,12 +22,7 @@ fn write(ed: &mut Editor, path: PathBuf, with_bakes: bool) -> String {
     let radiance = if ed.radiance.len() == ed.flat.instances.len() {
         &ed.radiance
     } else {
-        zeros = ed
-            .flat
-            .instances
-            .iter()
-            .map(|i| vec![glam::Vec3::ZERO; ed.scene.meshes[i.mesh as usize].positions.len()])
-            .collect();
+        zeros = ed.flat.zeros();
         &zeros
     };
     let prt = match (&ed.bakes.prt, &ed.bakes.lighting) {

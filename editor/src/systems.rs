@@ -180,8 +180,7 @@ pub fn bake_system(ed: &mut Editor) {
 /// not fit the snapshot is replaced first by a placeholder: unshadowed records for BSPVT
 /// (vertices show LTC without shadows until their trees land), zero transfer for PRT.
 fn patch(ed: &mut Editor, instance: usize, first: usize, data: ChunkData, patched: &mut [bool; 2]) {
-    let counts: Vec<usize> =
-        ed.flat.instances.iter().map(|i| ed.scene.meshes[i.mesh as usize].positions.len()).collect();
+    let counts: Vec<usize> = (0..ed.flat.instances.len()).map(|i| ed.flat.vertex_count(i)).collect();
     let fits = |have: &[usize]| have == counts;
     match data {
         ChunkData::Trees(records) => {
@@ -486,7 +485,7 @@ impl IndirectJob {
         let start = Instant::now();
         let Self { scene, glossy, direct, eye, settings: s, store, base } = self;
         let renderer = Renderer::new(&scene);
-        let landed = glossy.with(&scene, &renderer.flat, |glossy| {
+        let landed = glossy.with(&renderer.flat, |glossy| {
             let src = Source { renderer: &renderer, direct: &direct, glossy };
             let (cache, note) = match base.and_then(|b| b.fits(&renderer, &s)) {
                 Some(b) => {
@@ -572,7 +571,7 @@ fn shade(ed: &mut Editor) -> Option<Vec<Vec<glam::Vec3>>> {
             let (sum, n) = &ed.reference;
             let scale = 1.0 / (*n).max(1) as f32;
             Some(if sum.is_empty() {
-                zeros(ed)
+                ed.flat.zeros()
             } else {
                 sum.iter().map(|v| v.iter().map(|x| *x * scale).collect()).collect()
             })
@@ -584,14 +583,7 @@ fn shade(ed: &mut Editor) -> Option<Vec<Vec<glam::Vec3>>> {
 /// since the bake leaves a stale bake that cannot shade it until the re-bake lands).
 fn fits<T>(ed: &Editor, instances: &[T], vertices: impl Fn(&T) -> usize) -> bool {
     instances.len() == ed.flat.instances.len()
-        && instances
-            .iter()
-            .zip(&ed.flat.instances)
-            .all(|(b, i)| vertices(b) == ed.scene.meshes[i.mesh as usize].positions.len())
-}
-
-fn zeros(ed: &Editor) -> Vec<Vec<Vec3>> {
-    ed.flat.instances.iter().map(|i| vec![Vec3::ZERO; ed.scene.meshes[i.mesh as usize].positions.len()]).collect()
+        && instances.iter().enumerate().all(|(k, b)| vertices(b) == ed.flat.vertex_count(k))
 }
 
 /// BSPVT or unshadowed LTC: on the GPU, or on the CPU when chosen (see
@@ -605,7 +597,7 @@ fn polygonal(ed: &mut Editor, mode: Mode, eye: Vec3) -> Vec<Vec<Vec3>> {
         }
     }
     let on_gpu = ed.bspvt_gpu.as_ref().filter(|_| ed.polygonal_on_gpu());
-    let result = on_gpu.map(|s| kage_gpu::bspvt::shade_vertices(&gpu, s, &ed.scene, &ed.flat, mode, eye));
+    let result = on_gpu.map(|s| kage_gpu::bspvt::shade_vertices(&gpu, s, &ed.flat, mode, eye));
     match result {
         Some(Ok(v)) => v,
         other => {
@@ -616,7 +608,7 @@ fn polygonal(ed: &mut Editor, mode: Mode, eye: Vec3) -> Vec<Vec<Vec3>> {
                 Some(bake) => bspvt::Shadows::Trees(bake),
                 None => bspvt::Shadows::Unshadowed,
             };
-            bspvt::shade_vertices(&ed.scene, &ed.flat, m, eye)
+            bspvt::shade_vertices(&ed.flat, m, eye)
         }
     }
 }
@@ -633,7 +625,7 @@ fn exact_vis(ed: &mut Editor, eye: Vec3) -> Option<Vec<Vec<Vec3>>> {
         ed.exact_worker = Some(Worker::spawn(
             move |_, send| {
                 let flat = flatten(&scene);
-                send(bspvt::shade_vertices(&scene, &flat, bspvt::Shadows::Exact { res: s.res }, eye));
+                send(bspvt::shade_vertices(&flat, bspvt::Shadows::Exact { res: s.res }, eye));
             },
             move || wake(),
         ));
@@ -645,19 +637,19 @@ fn exact_vis(ed: &mut Editor, eye: Vec3) -> Option<Vec<Vec<Vec3>>> {
 
 fn prt_gpu(ed: &mut Editor, eye: Vec3) -> Vec<Vec<Vec3>> {
     let (Some(bake), Some(light), Some(shader)) = (&ed.bakes.prt, &ed.bakes.lighting, &ed.prt_gpu) else {
-        return zeros(ed);
+        return ed.flat.zeros();
     };
     let n = kage_engine::math::sh::num_coeffs(bake.order);
     if !fits(ed, &bake.instances, |t| t.len() / n) {
-        return zeros(ed);
+        return ed.flat.zeros();
     }
     let shadows = ed.method.prt_shadows().unwrap_or(prt::Shadows::SelfOnly);
     let posed = prt::Posed::new(&ed.scene, &ed.flat, bake.order, light, shadows, &ed.options.prt, &mut ed.silhouettes);
     let gpu = ed.gpu.clone();
-    let values = kage_gpu::prt::shade_vertices(&gpu, shader, &ed.scene, &ed.flat, &posed, eye);
+    let values = kage_gpu::prt::shade_vertices(&gpu, shader, &ed.flat, &posed, eye);
     // The viewport shades the shadows between groups per pixel from the frame's vertex terms.
-    let frame = prt::Frame::from_posed(&ed.scene, &ed.flat, bake, posed, eye);
-    let values = values.map_err(|e| (e, frame.vertex_values(&ed.scene, &ed.flat)));
+    let frame = prt::Frame::from_posed(&ed.flat, bake, posed, eye);
+    let values = values.map_err(|e| (e, frame.vertex_values(&ed.flat)));
     if shadows == prt::Shadows::WithOthers && !ed.overlay {
         ed.per_pixel = Some(frame);
     }

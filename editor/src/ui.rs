@@ -55,12 +55,12 @@ impl App {
             ed.shader_error = Some(e);
         }
         if meshes || ed.dirty.meshes {
-            vp.upload_geometry(ed.gpu(), &ed.scene, &ed.flat);
+            vp.upload_geometry(ed.gpu(), &ed.flat);
             ed.dirty.meshes = false;
         }
         vp.upload_radiance(ed.gpu(), &ed.values);
         if ed.dirty.per_pixel {
-            vp.upload_prt(ed.gpu(), &ed.scene, &ed.flat, ed.per_pixel.as_ref());
+            vp.upload_prt(ed.gpu(), &ed.flat, ed.per_pixel.as_ref());
             ed.dirty.per_pixel = false;
         }
     }

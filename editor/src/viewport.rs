@@ -8,7 +8,7 @@ use bytemuck::{Pod, Zeroable};
 use eframe::{egui, egui_wgpu};
 use glam::Vec3;
 use kage_engine::prt;
-use kage_engine::scene::{FlatScene, Scene};
+use kage_engine::scene::FlatScene;
 use kage_gpu::buffers::{storage, uniform};
 use kage_gpu::prt::ShadowArrays;
 use kage_gpu::{Gpu, Shaders};
@@ -142,19 +142,19 @@ impl Viewport {
 
     /// Draws the receivers with PRT per pixel from `frame`'s terms (`None`, or a device that
     /// cannot: per-vertex radiance).
-    pub fn upload_prt(&mut self, gpu: &Gpu, scene: &Scene, flat: &FlatScene, frame: Option<&prt::Frame>) {
+    pub fn upload_prt(&mut self, gpu: &Gpu, flat: &FlatScene, frame: Option<&prt::Frame>) {
         self.prt = match (frame, &self.prt_layout) {
-            (Some(f), Some(layout)) => Some(prt_draw(gpu, layout, scene, flat, f)),
+            (Some(f), Some(layout)) => Some(prt_draw(gpu, layout, flat, f)),
             _ => None,
         };
     }
 
     /// Uploads every instance's world-space triangles and every light polygon.
-    pub fn upload_geometry(&mut self, gpu: &Gpu, scene: &Scene, flat: &FlatScene) {
+    pub fn upload_geometry(&mut self, gpu: &Gpu, flat: &FlatScene) {
         self.meshes = (0..flat.instances.len())
             .map(|i| {
-                let mesh = &scene.meshes[flat.instances[i].mesh as usize];
-                let p: Vec<Vec3> = (0..mesh.positions.len()).map(|v| flat.vertex(&scene.meshes, i, v).0).collect();
+                let mesh = flat.mesh(i);
+                let p: Vec<Vec3> = (0..mesh.positions.len()).map(|v| flat.vertex(i, v).0).collect();
                 let idx: Vec<u32> = mesh.triangles.iter().flatten().copied().collect();
                 mesh_buffers(gpu, &p, &vec![Vec3::ZERO; p.len()], &idx)
             })
@@ -313,17 +313,17 @@ fn read_back(gpu: &Gpu, color: &wgpu::Texture, [w, h]: [u32; 2]) -> Result<image
 
 /// The per-pixel PRT draw of every receiver: its triangles, per-vertex terms and the shadow
 /// arrays, bound to `layout`.
-fn prt_draw(gpu: &Gpu, layout: &wgpu::BindGroupLayout, scene: &Scene, flat: &FlatScene, frame: &prt::Frame) -> PrtDraw {
+fn prt_draw(gpu: &Gpu, layout: &wgpu::BindGroupLayout, flat: &FlatScene, frame: &prt::Frame) -> PrtDraw {
     let terms = frame.vertex_terms();
     let posed = frame.posed();
     let (mut vertices, mut indices) = (Vec::new(), Vec::new());
     for i in 0..flat.instances.len() {
-        let mesh = &scene.meshes[flat.instances[i].mesh as usize];
+        let mesh = flat.mesh(i);
         let base = vertices.len() as u32;
         indices.extend(mesh.triangles.iter().flatten().map(|k| base + k));
         let group = posed.group_of[i] as f32;
         vertices.extend((0..mesh.positions.len()).map(|v| {
-            let p = flat.vertex(&scene.meshes, i, v).0;
+            let p = flat.vertex(i, v).0;
             PrtVertex {
                 p: [p.x, p.y, p.z, group],
                 ls: terms.ls[i][v].extend(0.0).into(),

@@ -42,11 +42,11 @@ fn per_pixel_prt_matches_the_cpu_per_pixel_render_and_beats_per_vertex_shading()
     assert!(reference.iter().filter(|p| p.iter().any(|c| *c > 0)).count() > w * h / 3, "the scene fills the view");
 
     let mut vp = Viewport::new(&gpu, &Shaders::embedded()).unwrap();
-    vp.upload_geometry(&gpu, &scene, &flat);
-    vp.upload_prt(&gpu, &scene, &flat, Some(&frame));
+    vp.upload_geometry(&gpu, &flat);
+    vp.upload_prt(&gpu, &flat, Some(&frame));
     let per_pixel = vp.render_image(&gpu, [w as u32, h as u32], &orbit, exposure).unwrap();
-    vp.upload_prt(&gpu, &scene, &flat, None);
-    vp.upload_radiance(&gpu, &frame.vertex_values(&scene, &flat));
+    vp.upload_prt(&gpu, &flat, None);
+    vp.upload_radiance(&gpu, &frame.vertex_values(&flat));
     let per_vertex = vp.render_image(&gpu, [w as u32, h as u32], &orbit, exposure).unwrap();
     let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../target/editor-snapshots");
     std::fs::create_dir_all(&dir).unwrap();

@@ -49,10 +49,7 @@ fn measure(c: &mut Criterion, name: &str, scene: &Scene, step: usize) {
     let occ = occluder_bvh(&flat);
     let s = Settings::default();
     let eye = scene.first_camera().unwrap().eye();
-    let verts: Vec<(usize, usize)> = (0..flat.instances.len())
-        .flat_map(|i| (0..scene.meshes[flat.instances[i].mesh as usize].positions.len()).map(move |v| (i, v)))
-        .step_by(step)
-        .collect();
+    let verts: Vec<(usize, usize)> = flat.vertex_ids().step_by(step).collect();
     let mut g = c.benchmark_group(name);
     g.sample_size(10);
     // 64 vertices spread over the receivers.
@@ -67,7 +64,7 @@ fn measure(c: &mut Criterion, name: &str, scene: &Scene, step: usize) {
             bake_sample
                 .par_iter()
                 .map(|&(i, v)| {
-                    let (p, n) = flat.vertex(&scene.meshes, i, v);
+                    let (p, n) = flat.vertex(i, v);
                     bake_vertex(&occ, p, n, &tiles, &reach).record.len()
                 })
                 .sum::<usize>()
@@ -78,7 +75,7 @@ fn measure(c: &mut Criterion, name: &str, scene: &Scene, step: usize) {
     let records: Vec<Vec<u8>> = verts
         .par_iter()
         .map(|&(i, v)| {
-            let (p, n) = flat.vertex(&scene.meshes, i, v);
+            let (p, n) = flat.vertex(i, v);
             bake_vertex(&occ, p, n, &tiles, &reach).record
         })
         .collect();
@@ -88,7 +85,7 @@ fn measure(c: &mut Criterion, name: &str, scene: &Scene, step: usize) {
     let table = ltc::table();
     let shade = |v: usize, rec: &[u8]| {
         let (i, v) = verts[v];
-        let (p, n) = flat.vertex(&scene.meshes, i, v);
+        let (p, n) = flat.vertex(i, v);
         PointShader::new(&table, p, n, eye, &flat.instances[i].material)
             .shade_counted(&flat.lights, Visibility::Tree(rec))
     };

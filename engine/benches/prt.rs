@@ -34,7 +34,7 @@ fn bench(c: &mut Criterion) {
     let mut scene = eight_groups();
     let s = prt::Settings { order: 4, directions: 1024, regions: 32, ..prt::Settings::default() };
     let flat = flatten(&scene);
-    let vertices: usize = flat.instances.iter().map(|i| scene.meshes[i.mesh as usize].positions.len()).sum();
+    let vertices: usize = (0..flat.instances.len()).map(|i| flat.vertex_count(i)).sum();
     let mut g = c.benchmark_group("prt_eight_groups");
     g.sample_size(10);
     g.throughput(Throughput::Elements(vertices as u64));

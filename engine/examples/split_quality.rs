@@ -51,11 +51,9 @@ fn corpus(scene: &Scene) -> SubtreeMemo {
     let flat = flatten(scene);
     let occluders = occluder_bvh(&flat);
     let (tiles, reach) = (SubtreeMemo::new(&Settings::default()), Reach::of(&flat.lights));
-    let vertices: Vec<(usize, usize)> = (0..flat.instances.len())
-        .flat_map(|i| (0..scene.meshes[flat.instances[i].mesh as usize].positions.len()).map(move |v| (i, v)))
-        .collect();
+    let vertices: Vec<(usize, usize)> = flat.vertex_ids().collect();
     vertices.par_iter().for_each(|&(i, v)| {
-        let (p, n) = flat.vertex(&scene.meshes, i, v);
+        let (p, n) = flat.vertex(i, v);
         bake_vertex(&occluders, p, n, &tiles, &reach);
     });
     tiles

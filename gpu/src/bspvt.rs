@@ -6,7 +6,7 @@ use glam::{DMat3, Vec3};
 use kage_engine::bspvt::shade::PointShader;
 use kage_engine::bspvt::{Bake, layout};
 use kage_engine::math::ltc;
-use kage_engine::scene::{FlatLight, FlatScene, Scene};
+use kage_engine::scene::{FlatLight, FlatScene};
 
 /// Most corners a light polygon may have on the GPU.
 pub const MAX_LIGHT_POINTS: usize = 8;
@@ -194,18 +194,18 @@ fn gpu_light(l: &FlatLight) -> Result<GpuLight, GpuError> {
 }
 
 /// The CPU's per-vertex LTC setup for every vertex of every instance, seen from `eye`.
-pub fn point_shaders(scene: &Scene, flat: &FlatScene, eye: Vec3) -> Vec<PointShader> {
+pub fn point_shaders(flat: &FlatScene, eye: Vec3) -> Vec<PointShader> {
     use rayon::prelude::*;
     let table = ltc::table();
     (0..flat.instances.len())
         .flat_map(|i| {
-            let n = scene.meshes[flat.instances[i].mesh as usize].positions.len();
+            let n = flat.vertex_count(i);
             let material = flat.instances[i].material;
             let table = &table;
             (0..n)
                 .into_par_iter()
                 .map(move |v| {
-                    let (p, normal) = flat.vertex(&scene.meshes, i, v);
+                    let (p, normal) = flat.vertex(i, v);
                     PointShader::new(table, p, normal, eye, &material)
                 })
                 .collect::<Vec<_>>()
@@ -217,11 +217,10 @@ pub fn point_shaders(scene: &Scene, flat: &FlatScene, eye: Vec3) -> Vec<PointSha
 pub fn shade_vertices(
     gpu: &Gpu,
     shader: &BspvtShader,
-    scene: &Scene,
     flat: &FlatScene,
     mode: Mode,
     eye: Vec3,
 ) -> Result<Vec<Vec<Vec3>>, GpuError> {
-    let values = shader.shade(gpu, &point_shaders(scene, flat, eye), &flat.lights, mode)?;
-    Ok(crate::per_instance(scene, flat, values))
+    let values = shader.shade(gpu, &point_shaders(flat, eye), &flat.lights, mode)?;
+    Ok(crate::per_instance(flat, values))
 }

@@ -40,11 +40,7 @@ pub enum GpuError {
 }
 
 /// Splits values over all vertices (instance order) into one list per instance.
-fn per_instance(
-    scene: &kage_engine::scene::Scene,
-    flat: &kage_engine::scene::FlatScene,
-    values: Vec<glam::Vec3>,
-) -> Vec<Vec<glam::Vec3>> {
+fn per_instance(flat: &kage_engine::scene::FlatScene, values: Vec<glam::Vec3>) -> Vec<Vec<glam::Vec3>> {
     let mut rest = values.into_iter();
-    flat.instances.iter().map(|i| rest.by_ref().take(scene.meshes[i.mesh as usize].positions.len()).collect()).collect()
+    flat.instances.iter().map(|i| rest.by_ref().take(flat.meshes[i.mesh as usize].positions.len()).collect()).collect()
 }

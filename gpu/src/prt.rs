@@ -5,7 +5,7 @@ use crate::{Gpu, GpuError, Shaders};
 use glam::Vec3;
 use kage_engine::math::sh;
 use kage_engine::prt::{Bake, Posed};
-use kage_engine::scene::{FlatScene, Scene};
+use kage_engine::scene::FlatScene;
 
 #[repr(C)]
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
@@ -168,18 +168,17 @@ impl ShadowArrays {
 pub fn shade_vertices(
     gpu: &Gpu,
     shader: &PrtShader,
-    scene: &Scene,
     flat: &FlatScene,
     posed: &Posed,
     eye: Vec3,
 ) -> Result<Vec<Vec<Vec3>>, GpuError> {
     let positions: Vec<Vec3> = (0..flat.instances.len())
         .flat_map(|i| {
-            let n = scene.meshes[flat.instances[i].mesh as usize].positions.len();
-            (0..n).map(move |v| flat.vertex(&scene.meshes, i, v).0)
+            let n = flat.vertex_count(i);
+            (0..n).map(move |v| flat.vertex(i, v).0)
         })
         .collect();
-    let albedo: Vec<Vec3> = kage_engine::prt::vertex_albedo(scene, flat, eye).concat();
+    let albedo: Vec<Vec3> = kage_engine::prt::vertex_albedo(flat, eye).concat();
     let values = shader.shade(gpu, posed, &positions, &albedo)?;
-    Ok(crate::per_instance(scene, flat, values))
+    Ok(crate::per_instance(flat, values))
 }

@@ -60,9 +60,9 @@ fn cube_on_plane_umbra_is_black_and_matches_the_reference() {
     // The default configuration: 64² faces, default ε.
     let s = Settings::default();
     let eye = scene.first_camera().unwrap().eye();
-    let bake = bspvt::bake(&scene, &r.flat, &s, &|_| {});
-    let values = bspvt::shade_vertices(&scene, &r.flat, bspvt::Shadows::Trees(&bake), eye);
-    let exact = bspvt::shade_vertices(&scene, &r.flat, bspvt::Shadows::Exact { res: s.res }, eye);
+    let bake = bspvt::bake(&r.flat, &s, &|_| {});
+    let values = bspvt::shade_vertices(&r.flat, bspvt::Shadows::Trees(&bake), eye);
+    let exact = bspvt::shade_vertices(&r.flat, bspvt::Shadows::Exact { res: s.res }, eye);
     let ground = r.flat.instances.iter().position(|i| i.material.base_color == Vec3::splat(0.8)).unwrap();
     let mut umbra = 0;
     for (v, value) in values[ground].iter().enumerate() {
@@ -204,8 +204,8 @@ fn the_error_budget_picks_the_cheapest_resolution_and_epsilon_within_it() {
     let scene = import(&asset("scenes/cube_on_plane.gltf"), ImportOptions::default()).unwrap();
     let flat = flatten(&scene);
     let eye = scene.first_camera().unwrap().eye();
-    let (loose, why_loose) = bspvt::budget::choose(&scene, &flat, 0.2, eye);
-    let (tight, why_tight) = bspvt::budget::choose(&scene, &flat, 0.01, eye);
+    let (loose, why_loose) = bspvt::budget::choose(&flat, 0.2, eye);
+    let (tight, why_tight) = bspvt::budget::choose(&flat, 0.01, eye);
     eprintln!("{why_loose}\n{why_tight}");
     assert!(loose.res < tight.res, "{why_loose} / {why_tight}");
     assert!(why_tight.contains("pilot on") && why_tight.contains("64²") && why_tight.contains("ε"));
@@ -213,8 +213,8 @@ fn the_error_budget_picks_the_cheapest_resolution_and_epsilon_within_it() {
     let mut dark = Scene::new("test:dark");
     dark.add_object("ground", shapes::grid(2.0, 2), Material::lambertian(Vec3::ONE), Affine3A::IDENTITY);
     let flat = flatten(&dark);
-    assert!(bspvt::budget::choose(&dark, &flat, 0.01, Vec3::Y).1.contains("nothing to bake"));
-    let bake = bspvt::bake(&dark, &flat, &Settings::default(), &|_| {});
+    assert!(bspvt::budget::choose(&flat, 0.01, Vec3::Y).1.contains("nothing to bake"));
+    let bake = bspvt::bake(&flat, &Settings::default(), &|_| {});
     assert_eq!((bake.stats.leaves, bake.stats.bytes), (0, 9 * 12), "six empty face lengths per vertex");
 }
 
@@ -315,7 +315,7 @@ fn a_declared_light_reach_bakes_less_and_shades_the_same() {
     let roaming = import(&asset("scenes/cube_on_plane.gltf"), ImportOptions::default()).unwrap();
     let s = Settings { res: 32, epsilon: 2.0 };
     let (rb, rf) = (Renderer::new(&bounded), Renderer::new(&roaming));
-    let (with, without) = (bspvt::bake(&bounded, &rb.flat, &s, &|_| {}), bspvt::bake(&roaming, &rf.flat, &s, &|_| {}));
+    let (with, without) = (bspvt::bake(&rb.flat, &s, &|_| {}), bspvt::bake(&rf.flat, &s, &|_| {}));
     eprintln!(
         "light reach: {} bytes, {} leaves; roaming: {} bytes, {} leaves",
         with.stats.bytes, with.stats.leaves, without.stats.bytes, without.stats.leaves
@@ -331,8 +331,8 @@ fn a_declared_light_reach_bakes_less_and_shades_the_same() {
     for offset in [Vec3::ZERO, Vec3::new(1.0, -0.9, 0.7), Vec3::new(-0.9, 0.9, -1.0)] {
         let mut moved = rb.flat.clone();
         moved.lights.iter_mut().flat_map(|l| l.points.iter_mut()).for_each(|p| *p += offset);
-        let a = bspvt::shade_vertices(&bounded, &moved, bspvt::Shadows::Trees(&with), eye).concat();
-        let b = bspvt::shade_vertices(&roaming, &moved, bspvt::Shadows::Trees(&without), eye).concat();
+        let a = bspvt::shade_vertices(&moved, bspvt::Shadows::Trees(&with), eye).concat();
+        let b = bspvt::shade_vertices(&moved, bspvt::Shadows::Trees(&without), eye).concat();
         let worst = a
             .iter()
             .zip(&b)

@@ -260,10 +260,10 @@ fn glossy_hits_are_lit_toward_the_record_by_the_direct_method() {
     let scene = room(metal);
     let r = Renderer::new(&scene);
     let s = bspvt::Settings { res: 32, epsilon: 2.0 };
-    let bake = bspvt::bake(&scene, &r.flat, &s, &|_| {});
-    let direct = bspvt::shade_vertices(&scene, &r.flat, bspvt::Shadows::Trees(&bake), EYE);
+    let bake = bspvt::bake(&r.flat, &s, &|_| {});
+    let direct = bspvt::shade_vertices(&r.flat, bspvt::Shadows::Trees(&bake), EYE);
     let toward = |i: usize, corners: [usize; 3], bary: [f32; 3], p: Vec3| {
-        bspvt::shade_point(&scene, &r.flat, Some(&bake), i, corners, bary, p)
+        bspvt::shade_point(&r.flat, Some(&bake), i, corners, bary, p)
     };
     let one_bounce = RefSettings { spp: 1024, seed: 5, max_bounces: 1, min_bounces: 1 };
     let truth: Vec<Vec3> = r.render_vertices(EYE, &one_bounce, &|_| {})[1].iter().map(|e| e.mean).collect();

@@ -27,14 +27,14 @@ fn bspvt_agrees(scene: &Scene, eye: Vec3) {
     let gpu = device();
     let flat = flatten(scene);
     let s = bspvt::Settings { res: 32, epsilon: 2.0 };
-    let bake = bspvt::bake(scene, &flat, &s, &|_| {});
+    let bake = bspvt::bake(&flat, &s, &|_| {});
     let shader = gpu_bspvt::BspvtShader::new(&gpu, &Shaders::embedded(), Some(&bake)).unwrap();
     for (mode, method) in [
         (gpu_bspvt::Mode::Trees, bspvt::Shadows::Trees(&bake)),
         (gpu_bspvt::Mode::Unshadowed, bspvt::Shadows::Unshadowed),
     ] {
-        let cpu = bspvt::shade_vertices(scene, &flat, method, eye);
-        let on_gpu = gpu_bspvt::shade_vertices(&gpu, &shader, scene, &flat, mode, eye).unwrap();
+        let cpu = bspvt::shade_vertices(&flat, method, eye);
+        let on_gpu = gpu_bspvt::shade_vertices(&gpu, &shader, &flat, mode, eye).unwrap();
         let w = worst(&on_gpu, &cpu);
         let lit = cpu.iter().flatten().filter(|c| c.max_element() > 0.0).count();
         assert!(lit > 100, "{}: the test must shade lit vertices ({lit})", scene.source);
@@ -67,12 +67,11 @@ fn prt_with_moving_groups_on_the_gpu_matches_the_cpu() {
     let eye = Vec3::new(0.0, 4.0, 6.0);
     let compare = |scene: &Scene| {
         let flat = flatten(scene);
-        let cpu =
-            prt::Frame::prepare(scene, &flat, &bake, &light, Shadows::WithOthers, &s, eye).vertex_values(scene, &flat);
+        let cpu = prt::Frame::prepare(scene, &flat, &bake, &light, Shadows::WithOthers, &s, eye).vertex_values(&flat);
         let posed =
             prt::Posed::new(scene, &flat, bake.order, &light, Shadows::WithOthers, &s, &mut SilhouetteMemo::default());
         assert!(posed.silhouettes.len() > 1, "the scene has several groups");
-        let on_gpu = gpu_prt::shade_vertices(&gpu, &shader, scene, &flat, &posed, eye).unwrap();
+        let on_gpu = gpu_prt::shade_vertices(&gpu, &shader, &flat, &posed, eye).unwrap();
         let w = worst(&on_gpu, &cpu);
         assert!(w <= 1.0, "worst error {w} × tolerance on {}", gpu.describe());
     };
@@ -95,7 +94,7 @@ fn a_light_with_too_many_corners_is_refused_not_truncated() {
     l.points = (0..12)
         .map(|k| c + Quat::from_axis_angle(l.normal, k as f32 * std::f32::consts::FRAC_PI_6) * (l.points[0] - c))
         .collect();
-    let shaders = gpu_bspvt::point_shaders(&scene, &flat, Vec3::new(0.0, 3.0, 6.0));
+    let shaders = gpu_bspvt::point_shaders(&flat, Vec3::new(0.0, 3.0, 6.0));
     let e = shader.shade(&gpu, &shaders, &lights, gpu_bspvt::Mode::Unshadowed).unwrap_err();
     assert!(e.to_string().contains("12 corners"), "{e}");
 }

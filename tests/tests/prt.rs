@@ -14,7 +14,7 @@ fn shade(scene: &Scene, s: &prt::Settings, shadows: Shadows) -> Vec<Vec<Vec3>> {
     let flat = flatten(scene);
     let bake = prt::bake(scene, &flat, s, &|_| {});
     let light = prt::Lighting::new(scene, s).expect("the scene has an environment");
-    prt::Frame::prepare(scene, &flat, &bake, &light, shadows, s, EYE).vertex_values(scene, &flat)
+    prt::Frame::prepare(scene, &flat, &bake, &light, shadows, s, EYE).vertex_values(&flat)
 }
 
 /// Per-vertex reference (direct light only), per instance.
@@ -92,7 +92,7 @@ fn a_single_small_region_gives_the_direct_light_result() {
     let occluder = kage_engine::accel::SceneBvh::new(&flat.triangles[flat.instances[1].first_triangle as usize..]);
     let want: Vec<Vec3> = (0..got.len())
         .map(|v| {
-            let (p, n) = flat.vertex(&scene.meshes, 0, v);
+            let (p, n) = flat.vertex(0, v);
             let lit = !occluder.occluded(p + n * 1e-4, sun, f32::INFINITY);
             Vec3::splat(0.8 * power as f32 * sun.dot(n).max(0.0) / std::f32::consts::PI * f32::from(u8::from(lit)))
         })
@@ -204,7 +204,7 @@ fn a_direction_blocked_by_both_groups_is_not_subtracted_twice() {
     let want = reference(&scene, 512);
     let flat = flatten(&scene);
     let ground = flat.instances.iter().position(|i| i.id.node == 0).unwrap();
-    let centre = (0..got[ground].len()).find(|&v| flat.vertex(&scene.meshes, ground, v).0.length() < 1e-4).unwrap();
+    let centre = (0..got[ground].len()).find(|&v| flat.vertex(ground, v).0.length() < 1e-4).unwrap();
     // Under both roofs only skylight arrives; subtracting the sun twice would clamp it to 0.
     // Measured: 0.263 vs reference 0.273.
     let (g, w) = (got[ground][centre].x, want[ground][centre].x);

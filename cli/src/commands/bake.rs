@@ -112,7 +112,7 @@ pub fn print_plan(store: &Store, scene: &Scene, flat: &FlatScene, plan: &Plan, p
         r.1 += usize::from(j.cached);
         if !j.cached {
             r.2 += j.vertices.len();
-            r.3 += work(scene, flat, plan, j);
+            r.3 += work(flat, plan, j);
         }
     }
     // Seconds per vertex on one worker: measured by earlier bakes with the same parameters in
@@ -169,14 +169,14 @@ pub fn print_plan(store: &Store, scene: &Scene, flat: &FlatScene, plan: &Plan, p
 
 /// The work of a job in full-vertex units: a BSPVT vertex casts only the share of its tiles
 /// the lights can reach.
-fn work(scene: &Scene, flat: &FlatScene, plan: &Plan, job: &Job) -> f64 {
+fn work(flat: &FlatScene, plan: &Plan, job: &Job) -> f64 {
     match (job.kind, plan.bspvt, &plan.reach) {
         (Kind::Bspvt, Some(s), reach @ bspvt::reach::Reach::Within(_)) => job
             .vertices
             .clone()
             .into_par_iter()
             .map(|v| {
-                let (p, n) = flat.vertex(&scene.meshes, job.instance, v);
+                let (p, n) = flat.vertex(job.instance, v);
                 reach.share(p, n, s.res)
             })
             .sum(),

@@ -41,17 +41,16 @@ pub fn run(args: &Args) -> Result<()> {
     let total = plan.misses().map(|j| j.vertices.len()).sum();
     let out = with_bar(total, "baking", |p| kage_bake_db::run(&store, &scene, &flat, &plan, p))?;
     let eye = scene.first_camera().map_or(Vec3::new(0.0, 4.0, 8.0), |c| c.eye());
-    let mut radiance: Vec<Vec<Vec3>> =
-        flat.instances.iter().map(|i| vec![Vec3::ZERO; scene.meshes[i.mesh as usize].positions.len()]).collect();
+    let mut radiance: Vec<Vec<Vec3>> = flat.zeros();
     let mut add = |values: Vec<Vec<Vec3>>| {
         radiance.iter_mut().flatten().zip(values.into_iter().flatten()).for_each(|(r, v)| *r += v);
     };
     if let Some(b) = &out.bspvt {
-        add(bspvt::shade_vertices(&scene, &flat, bspvt::Shadows::Trees(b), eye));
+        add(bspvt::shade_vertices(&flat, bspvt::Shadows::Trees(b), eye));
     }
     let lighting = plan.prt.and_then(|s| prt::Lighting::new(&scene, &s).map(|l| (l, s)));
     if let (Some(b), Some((light, s))) = (&out.prt, &lighting) {
-        add(prt::Frame::prepare(&scene, &flat, b, light, prt::Shadows::WithOthers, s, eye).vertex_values(&scene, &flat));
+        add(prt::Frame::prepare(&scene, &flat, b, light, prt::Shadows::WithOthers, s, eye).vertex_values(&flat));
     }
     let export = Export {
         scene: &scene,

@@ -260,7 +260,7 @@ fn per_vertex(
 ) -> Result<Outputs> {
     let mut settings = bspvt::Settings { res: args.face_res, epsilon: args.epsilon };
     if let (Method::Bspvt, Some(budget)) = (method, args.error_budget) {
-        let (chosen, why) = bspvt::budget::choose(scene, &renderer.flat, budget, camera.eye());
+        let (chosen, why) = bspvt::budget::choose(&renderer.flat, budget, camera.eye());
         crate::emit(&format!("plan: {why}\n"));
         settings = chosen;
     }
@@ -272,7 +272,7 @@ fn per_vertex(
     } else if let Some(store) = &store {
         from_database(store, scene, &renderer.flat, Some(settings), None)?.bspvt
     } else {
-        (method == Method::Bspvt).then(|| in_memory_bspvt(scene, renderer, &settings))
+        (method == Method::Bspvt).then(|| in_memory_bspvt(renderer, &settings))
     };
     // No bake means no polygonal light (a database plans no BSPVT then): nothing to shadow.
     let kind = match (method, &bake) {
@@ -291,9 +291,9 @@ fn per_vertex(
         } else {
             kage_gpu::bspvt::Mode::Unshadowed
         };
-        kage_gpu::bspvt::shade_vertices(&gpu, &shader, scene, &renderer.flat, mode, camera.eye())?
+        kage_gpu::bspvt::shade_vertices(&gpu, &shader, &renderer.flat, mode, camera.eye())?
     } else {
-        bspvt::shade_vertices(scene, &renderer.flat, kind, camera.eye())
+        bspvt::shade_vertices(&renderer.flat, kind, camera.eye())
     };
     let evals = renderer.vertex_count() * renderer.flat.lights.len();
     let secs = start.elapsed().as_secs_f64();
@@ -309,8 +309,8 @@ fn per_vertex(
 }
 
 /// Bakes BSPVT without a database, printing the bake statistics.
-fn in_memory_bspvt(scene: &Scene, renderer: &Renderer, settings: &bspvt::Settings) -> bspvt::Bake {
-    let b = with_bar(renderer.vertex_count(), "baking", |p| bspvt::bake(scene, &renderer.flat, settings, p));
+fn in_memory_bspvt(renderer: &Renderer, settings: &bspvt::Settings) -> bspvt::Bake {
+    let b = with_bar(renderer.vertex_count(), "baking", |p| bspvt::bake(&renderer.flat, settings, p));
     let st = b.stats;
     crate::emit(&format!(
         "bake: {} vertices in {:.2} s ({:.0} vertices/s), {:.1} leaves and {:.1} nodes per vertex, {:.0} bytes per vertex ({:.2} MB)\n",
@@ -393,7 +393,7 @@ fn prt_shade(
     }
     let start = Instant::now();
     let frame = prt::Frame::prepare(scene, &renderer.flat, bake, lighting, shadows, settings, camera.eye());
-    let values = frame.vertex_values(scene, &renderer.flat);
+    let values = frame.vertex_values(&renderer.flat);
     crate::emit(&format!("shade: {} vertices in {:.3} s\n", renderer.vertex_count(), start.elapsed().as_secs_f64()));
     let image = want_image.then(|| {
         let (w, h) = args.size;
@@ -421,7 +421,7 @@ fn prt_gpu(
     let posed = prt::Posed::new(scene, flat, bake.order, lighting, shadows, settings, &mut memo);
     let shader = kage_gpu::prt::PrtShader::new(&gpu, &kage_gpu::Shaders::embedded(), bake, posed.order)?;
     let start = Instant::now();
-    let values = kage_gpu::prt::shade_vertices(&gpu, &shader, scene, flat, &posed, camera.eye())?;
+    let values = kage_gpu::prt::shade_vertices(&gpu, &shader, flat, &posed, camera.eye())?;
     crate::emit(&format!("shade: {} vertices in {:.3} s\n", renderer.vertex_count(), start.elapsed().as_secs_f64()));
     let image =
         want_image.then(|| raster::vertex_image(renderer, camera, args.size.0, args.size.1, args.spp.min(16), &values));
@@ -486,7 +486,7 @@ fn indirect(
         },
         ..Default::default()
     };
-    let (values, what) = glossy.with(scene, &renderer.flat, |glossy| -> Result<_> {
+    let (values, what) = glossy.with(&renderer.flat, |glossy| -> Result<_> {
         let src = Source { renderer, direct, glossy };
         Ok(match args.indirect {
             Indirect::Cache => {

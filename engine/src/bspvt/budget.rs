@@ -7,7 +7,7 @@ use super::memo::SubtreeMemo;
 use super::shade::{PointShader, Visibility};
 use super::{Settings, bake_vertex, occluder_bvh, visibility};
 use crate::math::{ltc, relative_rmse};
-use crate::scene::{FlatScene, Scene};
+use crate::scene::FlatScene;
 use glam::Vec3;
 use rayon::prelude::*;
 
@@ -19,10 +19,8 @@ const CANDIDATES: [(usize, f64); 6] = [(16, 2.0), (32, 4.0), (32, 2.0), (64, 4.0
 const PILOT: usize = 192;
 
 /// The chosen settings and a one-line reason with the measured pilot errors.
-pub fn choose(scene: &Scene, flat: &FlatScene, budget: f64, eye: Vec3) -> (Settings, String) {
-    let all: Vec<(usize, usize)> = (0..flat.instances.len())
-        .flat_map(|i| (0..scene.meshes[flat.instances[i].mesh as usize].positions.len()).map(move |v| (i, v)))
-        .collect();
+pub fn choose(flat: &FlatScene, budget: f64, eye: Vec3) -> (Settings, String) {
+    let all: Vec<(usize, usize)> = flat.vertex_ids().collect();
     if all.is_empty() || flat.lights.is_empty() {
         return (Settings::default(), "no polygonal light or no receiver: nothing to bake".into());
     }
@@ -37,7 +35,7 @@ pub fn choose(scene: &Scene, flat: &FlatScene, budget: f64, eye: Vec3) -> (Setti
         sample
             .par_iter()
             .map(|&(i, v)| {
-                let (p, n) = flat.vertex(&scene.meshes, i, v);
+                let (p, n) = flat.vertex(i, v);
                 let shader = PointShader::new(&table, p, n, eye, &flat.instances[i].material);
                 if exact {
                     shader.shade(&flat.lights, Visibility::Exact(&visibility::cast(&occ, p, n, s.res)))

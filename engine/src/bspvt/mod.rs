@@ -35,7 +35,7 @@ pub mod tree;
 pub mod visibility;
 
 use crate::accel::Occluders;
-use crate::scene::{FlatScene, NO_LIGHT, Scene};
+use crate::scene::{FlatScene, NO_LIGHT};
 use memo::SubtreeMemo;
 use rayon::prelude::*;
 use reach::Reach;
@@ -186,7 +186,7 @@ pub fn tiles_per_side(res: usize) -> usize {
 
 /// Bakes every receiver vertex, in parallel; `progress` gets the number of vertices done.
 /// With no polygonal light in the scene nothing can be reached: every record is empty.
-pub fn bake(scene: &Scene, flat: &FlatScene, s: &Settings, progress: &(dyn Fn(usize) + Sync)) -> Bake {
+pub fn bake(flat: &FlatScene, s: &Settings, progress: &(dyn Fn(usize) + Sync)) -> Bake {
     let start = Instant::now();
     let occluders = occluder_bvh(flat);
     let tiles = SubtreeMemo::new(s);
@@ -195,11 +195,11 @@ pub fn bake(scene: &Scene, flat: &FlatScene, s: &Settings, progress: &(dyn Fn(us
     let mut stats = Stats::default();
     let instances = (0..flat.instances.len())
         .map(|i| {
-            let n = scene.meshes[flat.instances[i].mesh as usize].positions.len();
+            let n = flat.vertex_count(i);
             let records: Vec<Vec<u8>> = (0..n)
                 .into_par_iter()
                 .map(|v| {
-                    let (p, normal) = flat.vertex(&scene.meshes, i, v);
+                    let (p, normal) = flat.vertex(i, v);
                     let r = if flat.lights.is_empty() {
                         layout::encode_vertex(&Default::default())
                     } else {
@@ -244,7 +244,7 @@ pub enum Shadows<'a> {
 
 /// Outgoing radiance toward `eye` from the polygonal lights at every receiver vertex, per
 /// instance in [`FlatScene::instances`] order.
-pub fn shade_vertices(scene: &Scene, flat: &FlatScene, shadows: Shadows, eye: glam::Vec3) -> Vec<Vec<glam::Vec3>> {
+pub fn shade_vertices(flat: &FlatScene, shadows: Shadows, eye: glam::Vec3) -> Vec<Vec<glam::Vec3>> {
     let exact = match shadows {
         Shadows::Exact { res } => Some((occluder_bvh(flat), res)),
         _ => None,
@@ -255,18 +255,18 @@ pub fn shade_vertices(scene: &Scene, flat: &FlatScene, shadows: Shadows, eye: gl
     };
     (0..flat.instances.len())
         .map(|i| {
-            let n = scene.meshes[flat.instances[i].mesh as usize].positions.len();
+            let n = flat.vertex_count(i);
             (0..n)
                 .into_par_iter()
                 .map(|v| match &exact {
                     Some((occluders, res)) => {
-                        let (p, normal) = flat.vertex(&scene.meshes, i, v);
+                        let (p, normal) = flat.vertex(i, v);
                         let cube = visibility::cast(occluders, p, normal, *res);
                         let table = crate::math::ltc::table();
                         shade::PointShader::new(&table, p, normal, eye, &flat.instances[i].material)
                             .shade(&flat.lights, shade::Visibility::Exact(&cube))
                     }
-                    None => shade_vertex(scene, flat, trees, i, v, eye),
+                    None => shade_vertex(flat, trees, i, v, eye),
                 })
                 .collect()
         })
@@ -280,7 +280,6 @@ pub fn shade_vertices(scene: &Scene, flat: &FlatScene, shadows: Shadows, eye: gl
 /// varies more slowly, is the nearest vertex's (as accurate as weighting all three corners' on
 /// the test scene, in half the time).
 pub fn shade_point(
-    scene: &Scene,
     flat: &FlatScene,
     bake: Option<&Bake>,
     i: usize,
@@ -290,7 +289,7 @@ pub fn shade_point(
 ) -> glam::Vec3 {
     let (mut p, mut n) = (glam::Vec3::ZERO, glam::Vec3::ZERO);
     for (&v, &b) in corners.iter().zip(&bary) {
-        let (pv, nv) = flat.vertex(&scene.meshes, i, v);
+        let (pv, nv) = flat.vertex(i, v);
         p += b * pv;
         n += b * nv;
     }
@@ -300,15 +299,8 @@ pub fn shade_point(
 
 /// Outgoing radiance toward `eye` from the polygonal lights at vertex `v` of instance `i`,
 /// shadowed by `bake`'s trees (`None`: unshadowed LTC).
-pub fn shade_vertex(
-    scene: &Scene,
-    flat: &FlatScene,
-    bake: Option<&Bake>,
-    i: usize,
-    v: usize,
-    eye: glam::Vec3,
-) -> glam::Vec3 {
-    let (p, n) = flat.vertex(&scene.meshes, i, v);
+pub fn shade_vertex(flat: &FlatScene, bake: Option<&Bake>, i: usize, v: usize, eye: glam::Vec3) -> glam::Vec3 {
+    let (p, n) = flat.vertex(i, v);
     shade_at(flat, bake.map(|b| b.instances[i].record(v)), i, p, n, eye)
 }
 
@@ -357,13 +349,11 @@ mod tests {
         let scene = crate::scene::default_scene();
         let flat = crate::scene::flatten(&scene);
         let s = Settings { res: 8, epsilon: 2.0 };
-        let instances = (0..flat.instances.len())
-            .map(|i| BakedInstance::unshadowed(scene.meshes[flat.instances[i].mesh as usize].positions.len()))
-            .collect();
+        let instances = (0..flat.instances.len()).map(|i| BakedInstance::unshadowed(flat.vertex_count(i))).collect();
         let bake = Bake { settings: s, instances, stats: Stats::default() };
         let eye = glam::Vec3::new(0.0, 2.0, 5.0);
-        let placeholder = shade_vertices(&scene, &flat, Shadows::Trees(&bake), eye);
-        let open = shade_vertices(&scene, &flat, Shadows::Unshadowed, eye);
+        let placeholder = shade_vertices(&flat, Shadows::Trees(&bake), eye);
+        let open = shade_vertices(&flat, Shadows::Unshadowed, eye);
         for (a, b) in placeholder.iter().flatten().zip(open.iter().flatten()) {
             assert!((*a - *b).abs().max_element() <= 1e-4 * b.max_element().max(1.0), "{a} vs {b}");
         }

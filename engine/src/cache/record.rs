@@ -69,15 +69,10 @@ pub enum GlossyDirect {
 
 impl GlossyDirect {
     /// Runs `f` with the [`Glossy`] this stands for in `scene` (snapshot `flat`).
-    pub fn with<R>(
-        &self,
-        scene: &crate::scene::Scene,
-        flat: &crate::scene::FlatScene,
-        f: impl FnOnce(Glossy) -> R,
-    ) -> R {
+    pub fn with<R>(&self, flat: &crate::scene::FlatScene, f: impl FnOnce(Glossy) -> R) -> R {
         let bake = if let Self::Ltc(b) = self { b.as_deref() } else { None };
         let toward = |i: usize, corners: [usize; 3], bary: [f32; 3], point: Vec3| {
-            crate::bspvt::shade_point(scene, flat, bake, i, corners, bary, point)
+            crate::bspvt::shade_point(flat, bake, i, corners, bary, point)
         };
         f(match self {
             Self::Reference => Glossy::Reference(GLOSSY_SPP),

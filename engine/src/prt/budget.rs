@@ -51,7 +51,7 @@ pub fn choose(scene: &Scene, flat: &FlatScene, budget: f64, base: &Settings) -> 
 
 /// Shading of `b` under `l`, with head-on albedos.
 fn shade(scene: &Scene, flat: &FlatScene, b: &Bake, l: &Lighting, m: Shadows, s: &Settings) -> Vec<Vec<Vec3>> {
-    Frame::prepare_head_on(scene, flat, b, l, m, s).vertex_values(scene, flat)
+    Frame::prepare_head_on(scene, flat, b, l, m, s).vertex_values(flat)
 }
 
 /// `env` at [`REFERENCE_ORDER`] with no regions, under `window`.
@@ -116,8 +116,8 @@ pub fn choose_regions(
         return (*s, "one rigid group: no shadows between groups to compute".into());
     }
     let coeffs = lighting::project(env, REFERENCE_ORDER);
-    let sample = pilot_vertices(scene, flat);
-    let exact = exact_other_term(scene, flat, env, &sample);
+    let sample = pilot_vertices(flat);
+    let exact = exact_other_term(flat, env, &sample);
     let pick = |v: &[Vec<Vec3>]| sample.iter().map(|&(i, k)| v[i][k]).collect::<Vec<_>>();
     // Self-shadowed shading does not depend on the regions.
     let light = unshadowed(&coeffs, s.window);
@@ -145,16 +145,14 @@ pub fn choose_regions(
 }
 
 /// An even sample of receiver vertices (instance, vertex).
-fn pilot_vertices(scene: &Scene, flat: &FlatScene) -> Vec<(usize, usize)> {
-    let all: Vec<(usize, usize)> = (0..flat.instances.len())
-        .flat_map(|i| (0..scene.meshes[flat.instances[i].mesh as usize].positions.len()).map(move |v| (i, v)))
-        .collect();
+fn pilot_vertices(flat: &FlatScene) -> Vec<(usize, usize)> {
+    let all: Vec<(usize, usize)> = flat.vertex_ids().collect();
     let step = (all.len() / PILOT).max(1);
     all.into_iter().step_by(step).collect()
 }
 
 /// Monte Carlo of `ρ/π ∫ L cos V_self (1 − V_others) dω` at each sample vertex.
-fn exact_other_term(scene: &Scene, flat: &FlatScene, env: &EnvironmentLight, sample: &[(usize, usize)]) -> Vec<Vec3> {
+fn exact_other_term(flat: &FlatScene, env: &EnvironmentLight, sample: &[(usize, usize)]) -> Vec<Vec3> {
     let mut groups: Vec<hecs::Entity> = flat.instances.iter().map(|i| i.group).collect();
     groups.sort();
     groups.dedup();
@@ -176,7 +174,7 @@ fn exact_other_term(scene: &Scene, flat: &FlatScene, env: &EnvironmentLight, sam
         .par_iter()
         .enumerate()
         .map(|(k, &(i, v))| {
-            let (p, n) = flat.vertex(&scene.meshes, i, v);
+            let (p, n) = flat.vertex(i, v);
             let own = groups.iter().position(|g| *g == flat.instances[i].group).expect("listed");
             let albedo = albedos[i];
             let mut r = rng::stream(0xE0, k as u64);

@@ -139,9 +139,9 @@ impl Baker {
     }
 
     /// The transfer of vertex `v` of instance `i` into `out` (n² values).
-    pub fn vertex(&self, scene: &Scene, flat: &FlatScene, i: usize, v: usize, out: &mut [f32]) {
+    pub fn vertex(&self, flat: &FlatScene, i: usize, v: usize, out: &mut [f32]) {
         let inst = &flat.instances[i];
-        let (local, mesh) = (&self.locals[i], &scene.meshes[inst.mesh as usize]);
+        let (local, mesh) = (&self.locals[i], &flat.meshes[inst.mesh as usize]);
         let p = local.transform_point3(mesh.positions[v]);
         let normal_matrix = local.matrix3.inverse().transpose();
         let normal = Vec3::from(normal_matrix * glam::Vec3A::from(mesh.normals[v])).normalize_or(Vec3::Y);
@@ -158,10 +158,10 @@ pub fn bake(scene: &Scene, flat: &FlatScene, s: &Settings, progress: &(dyn Fn(us
     let mut stats = Stats::default();
     let instances: Vec<Vec<f32>> = (0..flat.instances.len())
         .map(|i| {
-            let count = scene.meshes[flat.instances[i].mesh as usize].positions.len();
+            let count = flat.vertex_count(i);
             let mut out = vec![0.0f32; count * n];
             out.par_chunks_mut(n).enumerate().for_each(|(v, t)| {
-                baker.vertex(scene, flat, i, v, t);
+                baker.vertex(flat, i, v, t);
                 progress(done.fetch_add(1, Ordering::Relaxed) + 1);
             });
             stats.vertices += count;
@@ -269,11 +269,11 @@ impl Posed {
 
 /// Per instance and vertex: the diffuse albedo seen from `eye` (the BSDF's, view-dependent
 /// through the specular layer's energy).
-pub fn vertex_albedo(scene: &Scene, flat: &FlatScene, eye: Vec3) -> Vec<Vec<Vec3>> {
+pub fn vertex_albedo(flat: &FlatScene, eye: Vec3) -> Vec<Vec<Vec3>> {
     (0..flat.instances.len())
         .map(|i| {
-            let count = scene.meshes[flat.instances[i].mesh as usize].positions.len();
-            (0..count).into_par_iter().map(|v| albedo_at(scene, flat, i, v, eye)).collect()
+            let count = flat.vertex_count(i);
+            (0..count).into_par_iter().map(|v| albedo_at(flat, i, v, eye)).collect()
         })
         .collect()
 }
@@ -284,8 +284,8 @@ pub(crate) fn head_on_albedos(flat: &FlatScene) -> Vec<Vec3> {
     flat.instances.iter().map(|i| Bsdf::new(&i.material, Vec3::Z).diffuse_albedo()).collect()
 }
 
-fn albedo_at(scene: &Scene, flat: &FlatScene, i: usize, v: usize, eye: Vec3) -> Vec3 {
-    let (p, normal) = flat.vertex(&scene.meshes, i, v);
+fn albedo_at(flat: &FlatScene, i: usize, v: usize, eye: Vec3) -> Vec3 {
+    let (p, normal) = flat.vertex(i, v);
     let wo = ShadingFrame::from_normal(normal).to_local((eye - p).normalize_or(normal));
     Bsdf::new(&flat.instances[i].material, wo).diffuse_albedo()
 }
@@ -359,7 +359,7 @@ impl Frame {
         memo: &mut SilhouetteMemo,
     ) -> Self {
         let posed = Posed::new(scene, flat, bake.order, light, shadows, s, memo);
-        Self::from_posed(scene, flat, bake, posed, eye)
+        Self::from_posed(flat, bake, posed, eye)
     }
 
     /// [`Frame::prepare`] with every albedo seen head-on instead of from an eye: shading that
@@ -374,17 +374,16 @@ impl Frame {
     ) -> Self {
         let posed = Posed::new(scene, flat, bake.order, light, shadows, s, &mut SilhouetteMemo::default());
         let albedo = head_on_albedos(flat);
-        Self::from_posed_with(scene, flat, bake, posed, &|i, _| albedo[i])
+        Self::from_posed_with(flat, bake, posed, &|i, _| albedo[i])
     }
 
     /// Reconstructs `Ls` and `T(v, w_i)` per vertex from `bake` under lighting already posed.
-    pub fn from_posed(scene: &Scene, flat: &FlatScene, bake: &Bake, posed: Posed, eye: Vec3) -> Self {
-        Self::from_posed_with(scene, flat, bake, posed, &|i, v| albedo_at(scene, flat, i, v, eye))
+    pub fn from_posed(flat: &FlatScene, bake: &Bake, posed: Posed, eye: Vec3) -> Self {
+        Self::from_posed_with(flat, bake, posed, &|i, v| albedo_at(flat, i, v, eye))
     }
 
     /// [`Frame::from_posed`] with `albedo(instance, vertex)`.
     fn from_posed_with(
-        scene: &Scene,
         flat: &FlatScene,
         bake: &Bake,
         posed: Posed,
@@ -394,7 +393,7 @@ impl Frame {
         let (mut ls, mut albedo, mut shadow_t) = (Vec::new(), Vec::new(), Vec::new());
         for i in 0..flat.instances.len() {
             let (lw, yh) = (&posed.lighting[posed.group_of[i]], &posed.region_basis[posed.group_of[i]]);
-            let count = scene.meshes[flat.instances[i].mesh as usize].positions.len();
+            let count = flat.vertex_count(i);
             let rows: Vec<(Vec3, Vec3, Vec<f32>)> = (0..count)
                 .into_par_iter()
                 .map(|v| {
@@ -477,7 +476,7 @@ impl Frame {
     }
 
     /// Per-vertex radiance toward the eye, per instance.
-    pub fn vertex_values(&self, scene: &Scene, flat: &FlatScene) -> Vec<Vec<Vec3>> {
+    pub fn vertex_values(&self, flat: &FlatScene) -> Vec<Vec<Vec3>> {
         let q = self.posed.regions.len();
         let pairs = self.all_pairs();
         (0..flat.instances.len())
@@ -486,7 +485,7 @@ impl Frame {
                 (0..self.ls[i].len())
                     .into_par_iter()
                     .map(|v| {
-                        let (p, _) = flat.vertex(&scene.meshes, i, v);
+                        let (p, _) = flat.vertex(i, v);
                         let t = &self.shadow_t[i][v * q..(v + 1) * q];
                         self.radiance(own, self.ls[i][v], self.albedo[i][v], |r| t[r], p, &pairs)
                     })

@@ -10,7 +10,6 @@ use crate::shading::Bsdf;
 use glam::{Vec2, Vec3};
 use rand::Rng;
 use rayon::prelude::*;
-use std::sync::Arc;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// A shading point: position, normals facing the viewer, and material.
@@ -32,7 +31,6 @@ pub struct Renderer {
     pub flat: FlatScene,
     /// BVH over `flat.triangles`.
     pub bvh: SceneBvh,
-    meshes: Vec<Arc<Mesh>>,
     /// Light choice by power.
     light_pick: Option<Distribution1D>,
     /// Per light: fan-triangle choice by area.
@@ -64,7 +62,7 @@ impl Renderer {
                 Distribution1D::new(&areas)
             })
             .collect();
-        Self { flat, bvh, meshes: scene.meshes.clone(), light_pick, fan_pick }
+        Self { flat, bvh, light_pick, fan_pick }
     }
 
     /// Radiance estimates for a `width × height` image seen through `camera` (row 0 at the top).
@@ -112,13 +110,13 @@ impl Renderer {
             .enumerate()
             .map(|(i, inst)| {
                 let b = base;
-                base += self.meshes[inst.mesh as usize].positions.len() as u64;
+                base += self.flat.meshes[inst.mesh as usize].positions.len() as u64;
                 (i, b)
             })
             .collect();
         jobs.iter()
             .map(|&(i, first)| {
-                let n = self.meshes[self.flat.instances[i].mesh as usize].positions.len();
+                let n = self.flat.vertex_count(i);
                 let out = (0..n)
                     .into_par_iter()
                     .map(|v| {
@@ -146,17 +144,17 @@ impl Renderer {
 
     /// World position and shading normal of vertex `v` of instance `i`.
     pub fn vertex(&self, i: usize, v: usize) -> (Vec3, Vec3) {
-        self.flat.vertex(&self.meshes, i, v)
+        self.flat.vertex(i, v)
     }
 
     /// The mesh of instance `i`.
     pub fn mesh(&self, i: usize) -> &Mesh {
-        &self.meshes[self.flat.instances[i].mesh as usize]
+        self.flat.mesh(i)
     }
 
     /// Number of receiver vertices.
     pub fn vertex_count(&self) -> usize {
-        self.flat.instances.iter().map(|i| self.meshes[i.mesh as usize].positions.len()).sum()
+        (0..self.flat.instances.len()).map(|i| self.flat.vertex_count(i)).sum()
     }
 
     /// Radiance along a camera ray: emitters and the environment are seen directly.
@@ -300,7 +298,7 @@ impl Renderer {
     /// (normals facing the ray's origin).
     pub fn surface_at(&self, hit: Hit, inst: usize, local_tri: usize, d: Vec3) -> SurfacePoint {
         let instance = &self.flat.instances[inst];
-        let mesh = &self.meshes[instance.mesh as usize];
+        let mesh = self.flat.mesh(inst);
         let t = self.flat.triangles[hit.triangle as usize];
         let p = t[0] * (1.0 - hit.bary.x - hit.bary.y) + t[1] * hit.bary.x + t[2] * hit.bary.y;
         let mut ng = (t[1] - t[0]).cross(t[2] - t[0]).normalize_or(Vec3::Y);

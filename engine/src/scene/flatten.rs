@@ -3,7 +3,7 @@
 
 use super::import::polygon_normal_area;
 use crate::scene::{
-    Camera, EnvironmentLight, InGroup, Material, MeshRef, PolygonLight, PrimitiveId, Scene, Texture, Transform,
+    Camera, EnvironmentLight, InGroup, Material, Mesh, MeshRef, PolygonLight, PrimitiveId, Scene, Texture, Transform,
 };
 use glam::{Affine3A, Mat3A, Vec2, Vec3};
 use std::sync::Arc;
@@ -14,7 +14,7 @@ pub const NO_LIGHT: u32 = u32::MAX;
 /// A mesh instance in world space.
 #[derive(Clone, Debug)]
 pub struct Instance {
-    /// Index into [`Scene::meshes`].
+    /// Index into [`FlatScene::meshes`] (and [`Scene::meshes`]).
     pub mesh: u32,
     /// World-from-local.
     pub world: Affine3A,
@@ -90,7 +90,12 @@ pub struct FlatScene {
     pub environment: Option<EnvironmentLight>,
     /// The scene's first camera, if any.
     pub camera: Option<Camera>,
+    /// The scene's meshes (shared, not copied), indexed by [`Instance::mesh`].
+    pub meshes: Vec<Arc<Mesh>>,
 }
+
+/// Per-instance, per-vertex values (radiance, usually), in [`FlatScene::instances`] order.
+pub type VertexValues = Vec<Vec<Vec3>>;
 
 /// Builds the snapshot from the ECS world (transforms must be propagated).
 pub fn flatten(scene: &Scene) -> FlatScene {
@@ -101,6 +106,7 @@ pub fn flatten(scene: &Scene) -> FlatScene {
         lights: Vec::new(),
         environment: scene.world.query::<&EnvironmentLight>().iter().next().cloned(),
         camera: scene.first_camera(),
+        meshes: scene.meshes.clone(),
     };
     // Sorted by glTF origin so that triangle order (and hence every seeded estimate) does not
     // depend on entity allocation order.
@@ -200,10 +206,30 @@ pub fn group_triangles(scene: &Scene, group: hecs::Entity) -> Vec<[Vec3; 3]> {
 }
 
 impl FlatScene {
+    /// The mesh of instance `inst`.
+    pub fn mesh(&self, inst: usize) -> &Mesh {
+        &self.meshes[self.instances[inst].mesh as usize]
+    }
+
+    /// Vertices of instance `inst`.
+    pub fn vertex_count(&self, inst: usize) -> usize {
+        self.mesh(inst).positions.len()
+    }
+
+    /// Every (instance, vertex) pair, instance-major.
+    pub fn vertex_ids(&self) -> impl Iterator<Item = (usize, usize)> + '_ {
+        (0..self.instances.len()).flat_map(move |i| (0..self.vertex_count(i)).map(move |v| (i, v)))
+    }
+
+    /// Zero for every vertex of every instance.
+    pub fn zeros(&self) -> VertexValues {
+        (0..self.instances.len()).map(|i| vec![Vec3::ZERO; self.vertex_count(i)]).collect()
+    }
+
     /// World position and unit shading normal of vertex `v` of instance `inst`.
-    pub fn vertex(&self, meshes: &[Arc<crate::scene::Mesh>], inst: usize, v: usize) -> (Vec3, Vec3) {
+    pub fn vertex(&self, inst: usize, v: usize) -> (Vec3, Vec3) {
         let i = &self.instances[inst];
-        let mesh = &meshes[i.mesh as usize];
+        let mesh = &self.meshes[i.mesh as usize];
         let p = i.world.transform_point3(mesh.positions[v]);
         let n = (i.normal_matrix * glam::Vec3A::from(mesh.normals[v])).normalize_or_zero();
         (p, n.into())

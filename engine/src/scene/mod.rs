@@ -25,7 +25,7 @@ pub mod texture;
 pub use builtin::default_scene;
 pub use components::*;
 pub use environment::{EnvMap, EnvironmentLight};
-pub use flatten::{FlatLight, FlatScene, Instance, NO_LIGHT, TriangleRef, flatten, group_triangles};
+pub use flatten::{FlatLight, FlatScene, Instance, NO_LIGHT, TriangleRef, VertexValues, flatten, group_triangles};
 pub use mesh::{Mesh, MeshHash};
 pub use texture::Texture;
 

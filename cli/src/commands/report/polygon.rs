@@ -23,14 +23,14 @@ pub fn run(args: &Args, eye: Vec3, rows: &mut Vec<Row>) -> Result<String> {
     };
     let exact_s = bspvt::Settings::default();
     let t = Instant::now();
-    let exact = bspvt::shade_vertices(&scene, &renderer.flat, bspvt::Shadows::Exact { res: exact_s.res }, eye);
+    let exact = bspvt::shade_vertices(&renderer.flat, bspvt::Shadows::Exact { res: exact_s.res }, eye);
     push(truth.row("ltc-exact-vis", "64² faces (cast per frame)".into(), t.elapsed().as_secs_f64(), &exact));
     let exact_flat: Vec<Vec3> = exact.iter().flatten().copied().collect();
     for (res, eps) in [(16, 2.0), (32, 2.0), (64, 2.0), (64, 0.5)] {
         let s = bspvt::Settings { res, epsilon: eps };
-        let b = bspvt::bake(&scene, &renderer.flat, &s, &|_| {});
+        let b = bspvt::bake(&renderer.flat, &s, &|_| {});
         let t = Instant::now();
-        let v = bspvt::shade_vertices(&scene, &renderer.flat, bspvt::Shadows::Trees(&b), eye);
+        let v = bspvt::shade_vertices(&renderer.flat, bspvt::Shadows::Trees(&b), eye);
         let st = b.stats;
         // Against exact visibility at the tree's own face resolution (64² above).
         let tree = (res == exact_s.res).then(|| rel(v.iter().flatten().copied(), &exact_flat).1);
@@ -43,7 +43,7 @@ pub fn run(args: &Args, eye: Vec3, rows: &mut Vec<Row>) -> Result<String> {
         });
     }
     let t = Instant::now();
-    let v = bspvt::shade_vertices(&scene, &renderer.flat, bspvt::Shadows::Unshadowed, eye);
+    let v = bspvt::shade_vertices(&renderer.flat, bspvt::Shadows::Unshadowed, eye);
     push(truth.row("ltc-unshadowed", String::new(), t.elapsed().as_secs_f64(), &v));
     for spp in [1u32, 4, 16, 64] {
         let t = Instant::now();

@@ -112,7 +112,7 @@ impl Bench<'_> {
         let (w, h) = self.size;
         let image = frame.render(self.renderer, self.camera, w, h, 4);
         let shade_s = t.elapsed().as_secs_f64();
-        let values = frame.vertex_values(self.scene, &self.renderer.flat);
+        let values = frame.vertex_values(&self.renderer.flat);
         let pick =
             |v: &[Vec3]| -> Vec<Vec3> { v.iter().zip(&self.mask).filter(|(_, m)| **m).map(|(p, _)| *p).collect() };
         Row {
