@@ -4,6 +4,7 @@
 
 use super::state::Editor;
 use kage_bake_db::pack::{self, Export};
+use kage_engine::scene::VertexValues;
 use std::path::{Path, PathBuf};
 
 /// `SCENE_DIR/<stem><suffix>`, or `kage-default<suffix>` in the working folder.
@@ -18,7 +19,7 @@ fn beside_scene(ed: &Editor, suffix: &str) -> PathBuf {
 }
 
 fn write(ed: &mut Editor, path: PathBuf, with_bakes: bool) -> String {
-    let zeros: Vec<Vec<glam::Vec3>>;
+    let zeros: VertexValues;
     let radiance = if ed.radiance.len() == ed.flat.instances.len() {
         &ed.radiance
     } else {

@@ -8,6 +8,7 @@ use super::reload::Watcher;
 use super::worker::Worker;
 use glam::{Affine3A, Quat, Vec3};
 use kage_bake_db::Store;
+use kage_engine::scene::VertexValues;
 use kage_engine::scene::import::reach::contains;
 use kage_engine::scene::{
     Camera, EnvironmentLight, FlatScene, InGroup, Material, Name, PolygonLight, PrimitiveId, RigidGroup, Scene,
@@ -21,6 +22,33 @@ use kage_gpu::{Gpu, Shaders};
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Instant;
+
+/// The reference refined in the background: the sum of its passes' per-vertex estimates.
+#[derive(Default)]
+pub struct ReferenceSum {
+    /// Sum over the passes (empty before the first).
+    pub sum: VertexValues,
+    /// Passes summed.
+    pub passes: u32,
+}
+
+impl ReferenceSum {
+    /// Adds one pass.
+    pub fn add(&mut self, pass: VertexValues) {
+        if self.sum.is_empty() {
+            self.sum = pass;
+        } else {
+            self.sum.iter_mut().flatten().zip(pass.iter().flatten()).for_each(|(s, p)| *s += *p);
+        }
+        self.passes += 1;
+    }
+
+    /// The mean of the passes, or `None` before the first.
+    pub fn mean(&self) -> Option<VertexValues> {
+        let scale = 1.0 / self.passes.max(1) as f32;
+        (!self.sum.is_empty()).then(|| self.sum.iter().map(|v| v.iter().map(|x| *x * scale).collect()).collect())
+    }
+}
 
 /// What is selected in the outliner.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -149,17 +177,17 @@ pub struct Editor {
     /// The outliner's selection.
     pub selection: Selection,
     /// Per instance and vertex: the displayed radiance (or the error overlay's colours).
-    pub values: Vec<Vec<Vec3>>,
+    pub values: VertexValues,
     /// Per instance and vertex: the method's radiance, plus the cached indirect term when on
     /// (what the overlay compares).
-    pub radiance: Vec<Vec<Vec3>>,
+    pub radiance: VertexValues,
     /// Per instance and vertex: the method's direct radiance alone.
-    pub direct: Vec<Vec<Vec3>>,
+    pub direct: VertexValues,
     /// Add one bounce of indirect light from the HSH radiance cache.
     pub indirect: bool,
     /// Per instance and vertex: the last indirect term (lit by an earlier direct result while a
     /// new one is gathered).
-    pub indirect_values: Vec<Vec<Vec3>>,
+    pub indirect_values: VertexValues,
     /// Show the error against the progressive reference as a heat map.
     pub overlay: bool,
     /// Display exposure in stops.
@@ -181,7 +209,7 @@ pub struct Editor {
     /// What changed since the last frame.
     pub dirty: Dirty,
     /// The progressive reference: running sums and passes.
-    pub reference: (Vec<Vec<Vec3>>, u32),
+    pub reference: ReferenceSum,
     /// PRT's per-vertex terms when the viewport shades PRT per pixel (method `prt`, no overlay).
     pub per_pixel: Option<prt::Frame>,
     pub(super) gpu: Gpu,
@@ -190,8 +218,8 @@ pub struct Editor {
     pub(super) prt_gpu: Option<PrtShader>,
     pub(super) silhouettes: prt::SilhouetteMemo,
     pub(super) watcher: Option<Watcher>,
-    pub(super) reference_worker: Option<Worker<Vec<Vec<Vec3>>>>,
-    pub(super) exact_worker: Option<Worker<Vec<Vec<Vec3>>>>,
+    pub(super) reference_worker: Option<Worker<VertexValues>>,
+    pub(super) exact_worker: Option<Worker<VertexValues>>,
     pub(super) indirect_worker: Option<Worker<super::systems::Indirect>>,
     /// The last indirect cache with what it was lit by, for the next refresh.
     pub(super) indirect_base: Option<Box<super::systems::IndirectBase>>,
@@ -231,7 +259,7 @@ impl Editor {
             shader_error: None,
             shader_generation: 0,
             dirty: Dirty { shade: true, environment: true, meshes: true, ..Dirty::default() },
-            reference: (Vec::new(), 0),
+            reference: ReferenceSum::default(),
             per_pixel: None,
             gpu,
             shaders,
@@ -489,7 +517,7 @@ impl Editor {
     pub(super) fn restart_reference(&mut self) {
         self.reference_worker = None;
         self.exact_worker = None;
-        self.reference = (Vec::new(), 0);
+        self.reference = ReferenceSum::default();
     }
 
     fn group_pose_of(&self, member: hecs::Entity) -> Affine3A {

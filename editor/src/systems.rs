@@ -14,6 +14,7 @@ use kage_engine::cache::{
     record::{GlossyDirect, Source},
 };
 use kage_engine::reference::{Renderer, Settings};
+use kage_engine::scene::VertexValues;
 use kage_engine::scene::{EnvMap, EnvironmentLight, Scene, flatten, import};
 use kage_engine::shading::Method;
 use kage_engine::{bspvt, prt};
@@ -297,27 +298,21 @@ pub fn reference_system(ed: &mut Editor) {
         ed.reference_worker = None;
         return;
     }
-    if ed.reference_worker.is_none() && ed.reference.1 < REFERENCE_PASSES {
+    if ed.reference_worker.is_none() && ed.reference.passes < REFERENCE_PASSES {
         ed.reference_worker = Some(spawn_reference(ed));
     }
     let passes = ed.reference_worker.as_ref().map(|w| w.results()).unwrap_or_default();
     for pass in passes {
-        let (sum, n) = &mut ed.reference;
-        if sum.is_empty() {
-            *sum = pass;
-        } else {
-            sum.iter_mut().flatten().zip(pass.iter().flatten()).for_each(|(s, p)| *s += *p);
-        }
-        *n += 1;
+        ed.reference.add(pass);
         ed.dirty.shade = true;
     }
 }
 
 /// The reference for the current method's lights, with one bounce when the indirect term is on.
-fn spawn_reference(ed: &Editor) -> Worker<Vec<Vec<Vec3>>> {
+fn spawn_reference(ed: &Editor) -> Worker<VertexValues> {
     let scene = ed.method.lit(&ed.scene);
     let bounces = u32::from(ed.indirect && ed.method.direct());
-    let (eye, first) = (ed.orbit.eye(), ed.reference.1);
+    let (eye, first) = (ed.orbit.eye(), ed.reference.passes);
     let wake = ed.wake.clone();
     Worker::spawn(
         move |stop, send| {
@@ -402,7 +397,7 @@ pub fn indirect_system(ed: &mut Editor) {
 /// A landed indirect term.
 pub struct Indirect {
     /// Per instance and vertex.
-    values: Vec<Vec<Vec3>>,
+    values: VertexValues,
     /// For the log.
     what: String,
     /// The cache and what lit it; `None` for a refresh's intermediate landing.
@@ -414,7 +409,7 @@ pub struct Indirect {
 pub struct IndirectBase {
     cache: cache::Cache,
     settings: cache::Settings,
-    direct: Vec<Vec<Vec3>>,
+    direct: VertexValues,
     lights: Vec<kage_engine::scene::FlatLight>,
     receivers: Vec<(u32, glam::Affine3A, bool)>,
 }
@@ -470,7 +465,7 @@ const REFRESH_BATCH: usize = 64;
 struct IndirectJob {
     scene: Scene,
     glossy: GlossyDirect,
-    direct: Vec<Vec<Vec3>>,
+    direct: VertexValues,
     eye: Vec3,
     settings: cache::Settings,
     store: Option<Arc<kage_bake_db::Store>>,
@@ -557,7 +552,7 @@ fn refreshed(
 }
 
 /// The method's per-vertex radiance, or `None` while a background result is pending.
-fn shade(ed: &mut Editor) -> Option<Vec<Vec<glam::Vec3>>> {
+fn shade(ed: &mut Editor) -> Option<VertexValues> {
     let eye = ed.orbit.eye();
     match ed.method {
         Method::Bspvt | Method::LtcUnshadowed => {
@@ -567,15 +562,7 @@ fn shade(ed: &mut Editor) -> Option<Vec<Vec<glam::Vec3>>> {
         }
         Method::LtcExactVis => exact_vis(ed, eye),
         Method::Prt | Method::PrtSelf => Some(prt_gpu(ed, eye)),
-        Method::Reference => {
-            let (sum, n) = &ed.reference;
-            let scale = 1.0 / (*n).max(1) as f32;
-            Some(if sum.is_empty() {
-                ed.flat.zeros()
-            } else {
-                sum.iter().map(|v| v.iter().map(|x| *x * scale).collect()).collect()
-            })
-        }
+        Method::Reference => Some(ed.reference.mean().unwrap_or_else(|| ed.flat.zeros())),
     }
 }
 
@@ -588,7 +575,7 @@ fn fits<T>(ed: &Editor, instances: &[T], vertices: impl Fn(&T) -> usize) -> bool
 
 /// BSPVT or unshadowed LTC: on the GPU, or on the CPU when chosen (see
 /// [`super::state::ShadeOn`]) or when the GPU path refuses the scene.
-fn polygonal(ed: &mut Editor, mode: Mode, eye: Vec3) -> Vec<Vec<Vec3>> {
+fn polygonal(ed: &mut Editor, mode: Mode, eye: Vec3) -> VertexValues {
     let gpu = ed.gpu.clone();
     if ed.bspvt_gpu.is_none() && ed.polygonal_on_gpu() {
         match BspvtShader::new(&gpu, &ed.shaders, None) {
@@ -614,7 +601,7 @@ fn polygonal(ed: &mut Editor, mode: Mode, eye: Vec3) -> Vec<Vec<Vec3>> {
 }
 
 /// The exact-visibility comparison casts cube maps per vertex: in the background.
-fn exact_vis(ed: &mut Editor, eye: Vec3) -> Option<Vec<Vec<Vec3>>> {
+fn exact_vis(ed: &mut Editor, eye: Vec3) -> Option<VertexValues> {
     if let Some(v) = ed.exact_worker.as_ref().and_then(|w| w.results().pop()) {
         return Some(v);
     }
@@ -635,7 +622,7 @@ fn exact_vis(ed: &mut Editor, eye: Vec3) -> Option<Vec<Vec<Vec3>>> {
     None
 }
 
-fn prt_gpu(ed: &mut Editor, eye: Vec3) -> Vec<Vec<Vec3>> {
+fn prt_gpu(ed: &mut Editor, eye: Vec3) -> VertexValues {
     let (Some(bake), Some(light), Some(shader)) = (&ed.bakes.prt, &ed.bakes.lighting, &ed.prt_gpu) else {
         return ed.flat.zeros();
     };
@@ -662,25 +649,17 @@ fn prt_gpu(ed: &mut Editor, eye: Vec3) -> Vec<Vec<Vec3>> {
 /// Relative error against the reference as a heat map (blue 0 → red ≥ 50 %). Errors are
 /// relative to the reference, floored at a tenth of its mean so that shadows (where a small
 /// absolute error is a large relative one) do not drown the map.
-fn overlay(ed: &Editor) -> Vec<Vec<Vec3>> {
-    let (sum, n) = &ed.reference;
-    if sum.is_empty() || sum.len() != ed.radiance.len() {
+fn overlay(ed: &Editor) -> VertexValues {
+    let Some(reference) = ed.reference.mean().filter(|r| r.len() == ed.radiance.len()) else {
         return ed.radiance.iter().map(|v| vec![Vec3::splat(0.05); v.len()]).collect();
-    }
-    let scale = 1.0 / *n as f32;
-    let count = sum.iter().map(Vec::len).sum::<usize>().max(1) as f32;
-    let floor = 0.1 * sum.iter().flatten().map(|r| (*r * scale).length()).sum::<f32>() / count;
+    };
+    let count = reference.iter().map(Vec::len).sum::<usize>().max(1) as f32;
+    let floor = 0.1 * reference.iter().flatten().map(|r| r.length()).sum::<f32>() / count;
     ed.radiance
         .iter()
-        .zip(sum)
+        .zip(&reference)
         .map(|(m, r)| {
-            m.iter()
-                .zip(r)
-                .map(|(m, r)| {
-                    let r = *r * scale;
-                    heat((*m - r).length() / r.length().max(floor).max(1e-6))
-                })
-                .collect()
+            m.iter().zip(r).map(|(m, r)| heat((*m - *r).length() / r.length().max(floor).max(1e-6))).collect()
         })
         .collect()
 }

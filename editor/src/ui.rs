@@ -190,7 +190,7 @@ fn methods(ui: &mut egui::Ui, ed: &mut Editor) {
         });
     }
     if ed.overlay || ed.method == Method::Reference {
-        ui.label(format!("reference: {} samples per vertex", ed.reference.1 * 4));
+        ui.label(format!("reference: {} samples per vertex", ed.reference.passes * 4));
     }
     ui.add(egui::Slider::new(&mut ed.exposure, -6.0..=6.0).text("exposure (stops)"));
 }

@@ -124,7 +124,7 @@ fn the_default_scene_bakes_in_the_background_and_every_method_shades() {
     // The error overlay refines against the progressive reference.
     h.get_by_label("bspvt").click();
     h.get_by_label("Error overlay (vs progressive reference)").click();
-    step_until(&mut h, "reference passes", |ed| ed.overlay && ed.reference.1 >= 2 && !ed.dirty.shade);
+    step_until(&mut h, "reference passes", |ed| ed.overlay && ed.reference.passes >= 2 && !ed.dirty.shade);
     let img = snapshot(&mut h, "default-overlay");
     assert!(viewport_colours(&img) > 20);
     let ed = &h.state().editor;

@@ -6,6 +6,7 @@ use glam::{DMat3, Vec3};
 use kage_engine::bspvt::shade::PointShader;
 use kage_engine::bspvt::{Bake, layout};
 use kage_engine::math::ltc;
+use kage_engine::scene::VertexValues;
 use kage_engine::scene::{FlatLight, FlatScene};
 
 /// Most corners a light polygon may have on the GPU.
@@ -220,7 +221,7 @@ pub fn shade_vertices(
     flat: &FlatScene,
     mode: Mode,
     eye: Vec3,
-) -> Result<Vec<Vec<Vec3>>, GpuError> {
+) -> Result<VertexValues, GpuError> {
     let values = shader.shade(gpu, &point_shaders(flat, eye), &flat.lights, mode)?;
     Ok(crate::per_instance(flat, values))
 }

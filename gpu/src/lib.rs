@@ -20,6 +20,7 @@ pub mod prt;
 pub mod shader;
 
 pub use context::Gpu;
+use kage_engine::scene::VertexValues;
 pub use shader::{ShaderError, Shaders};
 
 /// What can go wrong on the GPU side.
@@ -40,7 +41,7 @@ pub enum GpuError {
 }
 
 /// Splits values over all vertices (instance order) into one list per instance.
-fn per_instance(flat: &kage_engine::scene::FlatScene, values: Vec<glam::Vec3>) -> Vec<Vec<glam::Vec3>> {
+fn per_instance(flat: &kage_engine::scene::FlatScene, values: Vec<glam::Vec3>) -> VertexValues {
     let mut rest = values.into_iter();
     flat.instances.iter().map(|i| rest.by_ref().take(flat.meshes[i.mesh as usize].positions.len()).collect()).collect()
 }

@@ -6,6 +6,7 @@ use glam::Vec3;
 use kage_engine::math::sh;
 use kage_engine::prt::{Bake, Posed};
 use kage_engine::scene::FlatScene;
+use kage_engine::scene::VertexValues;
 
 #[repr(C)]
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
@@ -171,7 +172,7 @@ pub fn shade_vertices(
     flat: &FlatScene,
     posed: &Posed,
     eye: Vec3,
-) -> Result<Vec<Vec<Vec3>>, GpuError> {
+) -> Result<VertexValues, GpuError> {
     let positions: Vec<Vec3> = (0..flat.instances.len())
         .flat_map(|i| {
             let n = flat.vertex_count(i);

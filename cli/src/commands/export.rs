@@ -8,6 +8,7 @@ use crate::scene_args::SceneArgs;
 use anyhow::{Context, Result};
 use glam::Vec3;
 use kage_bake_db::pack::{self, Export};
+use kage_engine::scene::VertexValues;
 use kage_engine::scene::flatten;
 use kage_engine::{bspvt, prt};
 use std::path::PathBuf;
@@ -41,8 +42,8 @@ pub fn run(args: &Args) -> Result<()> {
     let total = plan.misses().map(|j| j.vertices.len()).sum();
     let out = with_bar(total, "baking", |p| kage_bake_db::run(&store, &scene, &flat, &plan, p))?;
     let eye = scene.first_camera().map_or(Vec3::new(0.0, 4.0, 8.0), |c| c.eye());
-    let mut radiance: Vec<Vec<Vec3>> = flat.zeros();
-    let mut add = |values: Vec<Vec<Vec3>>| {
+    let mut radiance: VertexValues = flat.zeros();
+    let mut add = |values: VertexValues| {
         radiance.iter_mut().flatten().zip(values.into_iter().flatten()).for_each(|(r, v)| *r += v);
     };
     if let Some(b) = &out.bspvt {

@@ -12,6 +12,7 @@ use kage_engine::cache::Blend;
 use kage_engine::cache::record::{GlossyDirect, GradientForm, Source};
 use kage_engine::output::{VertexRow, write_image, write_vertex_csv};
 use kage_engine::reference::{Estimate, Renderer, Settings};
+use kage_engine::scene::VertexValues;
 use kage_engine::scene::{Camera, Scene};
 use kage_engine::shading::Method;
 use kage_engine::{bspvt, prt, raster};
@@ -220,7 +221,7 @@ pub fn run(args: &Args) -> Result<()> {
 /// glossy hits are lit consistently with this direct term.
 struct Outputs {
     image: Option<Vec<Vec3>>,
-    vertices: Option<Vec<Vec<Vec3>>>,
+    vertices: Option<VertexValues>,
     glossy: GlossyDirect,
 }
 
@@ -469,7 +470,7 @@ fn indirect(
     direct: &[Vec<Vec3>],
     glossy: &GlossyDirect,
     eye: Vec3,
-) -> Result<Vec<Vec<Vec3>>> {
+) -> Result<VertexValues> {
     let start = Instant::now();
     let s = kage_engine::cache::Settings {
         order: args.hsh_order as usize,

@@ -35,6 +35,7 @@ pub mod tree;
 pub mod visibility;
 
 use crate::accel::Occluders;
+use crate::scene::VertexValues;
 use crate::scene::{FlatScene, NO_LIGHT};
 use memo::SubtreeMemo;
 use rayon::prelude::*;
@@ -244,7 +245,7 @@ pub enum Shadows<'a> {
 
 /// Outgoing radiance toward `eye` from the polygonal lights at every receiver vertex, per
 /// instance in [`FlatScene::instances`] order.
-pub fn shade_vertices(flat: &FlatScene, shadows: Shadows, eye: glam::Vec3) -> Vec<Vec<glam::Vec3>> {
+pub fn shade_vertices(flat: &FlatScene, shadows: Shadows, eye: glam::Vec3) -> VertexValues {
     let exact = match shadows {
         Shadows::Exact { res } => Some((occluder_bvh(flat), res)),
         _ => None,

@@ -17,6 +17,7 @@ pub mod record;
 
 use crate::accel::Hit;
 use crate::math::hsh;
+use crate::scene::VertexValues;
 use glam::{DMat3, DVec3, Vec3};
 use record::{Change, Record, Source};
 use std::collections::HashMap;
@@ -446,7 +447,7 @@ pub fn from_records(src: &Source, s: &Settings, records: Vec<Record>) -> Cache {
 
 /// One bounce of indirect light toward `eye` at every receiver vertex from `cache`, or by a
 /// direct BSDF-sampled gather for glossy receivers smoother than [`Settings::glossy_fallback`].
-pub fn shade_vertices(src: &Source, cache: &Cache, eye: Vec3) -> Vec<Vec<Vec3>> {
+pub fn shade_vertices(src: &Source, cache: &Cache, eye: Vec3) -> VertexValues {
     use rayon::prelude::*;
     let s = &cache.settings;
     let values: Vec<Vec3> = vertices(src)
@@ -466,14 +467,14 @@ pub fn shade_vertices(src: &Source, cache: &Cache, eye: Vec3) -> Vec<Vec<Vec3>> 
 }
 
 /// [`place_at_vertices`] then [`shade_vertices`]: per instance, and the cache.
-pub fn indirect_vertices(src: &Source, s: &Settings, eye: Vec3) -> (Vec<Vec<Vec3>>, Cache) {
+pub fn indirect_vertices(src: &Source, s: &Settings, eye: Vec3) -> (VertexValues, Cache) {
     let cache = place_at_vertices(src, s);
     (shade_vertices(src, &cache, eye), cache)
 }
 
 /// Brute-force gathering: `rays` BSDF-sampled rays at every vertex toward `eye`, no cache (the
 /// baseline the cache is measured against), per instance.
-pub fn gather_vertices(src: &Source, rays: usize, eye: Vec3) -> Vec<Vec<Vec3>> {
+pub fn gather_vertices(src: &Source, rays: usize, eye: Vec3) -> VertexValues {
     use rayon::prelude::*;
     let side = ((rays as f64).sqrt() as usize).max(1);
     let values: Vec<Vec3> = vertices(src)
@@ -489,7 +490,7 @@ pub fn gather_vertices(src: &Source, rays: usize, eye: Vec3) -> Vec<Vec<Vec3>> {
 }
 
 /// Per-instance vectors from a flat list in vertex order.
-fn split(src: &Source, mut values: Vec<Vec3>) -> Vec<Vec<Vec3>> {
+fn split(src: &Source, mut values: Vec<Vec3>) -> VertexValues {
     let r = src.renderer;
     let mut out = Vec::new();
     for i in 0..r.flat.instances.len() {

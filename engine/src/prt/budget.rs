@@ -16,6 +16,7 @@ use super::lighting::{self, Window};
 use super::{Bake, Frame, Lighting, Settings, Shadows, bake, regions};
 use crate::accel::{SceneBvh, offset_ray_origin};
 use crate::math::{relative_rmse, rng};
+use crate::scene::VertexValues;
 use crate::scene::{EnvironmentLight, FlatScene, NO_LIGHT, Scene};
 use glam::{Vec2, Vec3};
 use rand::Rng;
@@ -50,7 +51,7 @@ pub fn choose(scene: &Scene, flat: &FlatScene, budget: f64, base: &Settings) -> 
 }
 
 /// Shading of `b` under `l`, with head-on albedos.
-fn shade(scene: &Scene, flat: &FlatScene, b: &Bake, l: &Lighting, m: Shadows, s: &Settings) -> Vec<Vec<Vec3>> {
+fn shade(scene: &Scene, flat: &FlatScene, b: &Bake, l: &Lighting, m: Shadows, s: &Settings) -> VertexValues {
     Frame::prepare_head_on(scene, flat, b, l, m, s).vertex_values(flat)
 }
 

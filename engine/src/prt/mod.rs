@@ -25,6 +25,7 @@ use crate::accel::SceneBvh;
 use crate::math::frame::Frame as ShadingFrame;
 use crate::math::sh;
 use crate::raster::{self, Primary, SurfaceHit};
+use crate::scene::VertexValues;
 use crate::scene::{FlatScene, InGroup, PrimitiveId, RigidGroup, Scene, Transform, group_triangles};
 use crate::shading::Bsdf;
 use glam::{Affine3A, DMat3, DVec3, Vec3};
@@ -269,7 +270,7 @@ impl Posed {
 
 /// Per instance and vertex: the diffuse albedo seen from `eye` (the BSDF's, view-dependent
 /// through the specular layer's energy).
-pub fn vertex_albedo(flat: &FlatScene, eye: Vec3) -> Vec<Vec<Vec3>> {
+pub fn vertex_albedo(flat: &FlatScene, eye: Vec3) -> VertexValues {
     (0..flat.instances.len())
         .map(|i| {
             let count = flat.vertex_count(i);
@@ -303,9 +304,9 @@ pub struct VertexTerms<'a> {
 /// Everything one frame's shading needs, after groups, lights and the camera are posed.
 pub struct Frame {
     /// Per instance and vertex: unclamped `Ls` (RGB, albedo not applied).
-    ls: Vec<Vec<Vec3>>,
+    ls: VertexValues,
     /// Per instance and vertex: diffuse albedo toward the eye.
-    albedo: Vec<Vec<Vec3>>,
+    albedo: VertexValues,
     /// Per instance: `T(v, w_i)` for every vertex, vertex-major (q per vertex).
     shadow_t: Vec<Vec<f32>>,
     posed: Posed,
@@ -476,7 +477,7 @@ impl Frame {
     }
 
     /// Per-vertex radiance toward the eye, per instance.
-    pub fn vertex_values(&self, flat: &FlatScene) -> Vec<Vec<Vec3>> {
+    pub fn vertex_values(&self, flat: &FlatScene) -> VertexValues {
         let q = self.posed.regions.len();
         let pairs = self.all_pairs();
         (0..flat.instances.len())

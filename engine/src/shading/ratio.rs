@@ -8,6 +8,7 @@ use crate::bspvt::shade::{PointShader, Visibility};
 use crate::math::frame::Frame;
 use crate::math::{ltc, rng, sampling};
 use crate::reference::Renderer;
+use crate::scene::VertexValues;
 use crate::shading::Bsdf;
 use glam::{DVec3, Vec2, Vec3};
 use rand::Rng;
@@ -16,7 +17,7 @@ use rayon::prelude::*;
 /// Per-vertex estimates toward `eye` with `n` shadow rays per light, seeded by `seed`. Points
 /// are drawn uniformly over each fan triangle; the same samples (and weights) enter both sums,
 /// so the sampling density cancels in the ratio.
-pub fn shade_vertices(r: &Renderer, n: u32, seed: u64, eye: Vec3) -> Vec<Vec<Vec3>> {
+pub fn shade_vertices(r: &Renderer, n: u32, seed: u64, eye: Vec3) -> VertexValues {
     let table = ltc::table();
     let mut first = 0u64;
     (0..r.flat.instances.len())

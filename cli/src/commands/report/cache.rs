@@ -14,6 +14,7 @@ use glam::Vec3;
 use kage_engine::cache::record::{GLOSSY_SPP, Glossy, Source};
 use kage_engine::cache::{Blend, Settings as CacheSettings, gather_vertices, indirect_vertices};
 use kage_engine::reference::{Renderer, Settings};
+use kage_engine::scene::VertexValues;
 use std::time::Instant;
 
 /// Measures the section into `rows`; returns its header line.
@@ -23,7 +24,7 @@ pub fn run(args: &Args, eye: Vec3, rows: &mut Vec<Row>) -> Result<String> {
     let keep: Vec<bool> =
         renderer.flat.instances.iter().map(|i| i.material.metallic == 0.0 && i.material.specular == 0.0).collect();
     let direct_spp = (args.reference_spp / 4).max(16);
-    let direct: Vec<Vec<Vec3>> = renderer
+    let direct: VertexValues = renderer
         .render_vertices(eye, &Settings { spp: direct_spp, seed: 0xD1, ..Settings::default() }, &|_| {})
         .iter()
         .map(|v| v.iter().map(|e| e.mean).collect())

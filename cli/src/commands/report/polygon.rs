@@ -7,6 +7,7 @@ use anyhow::Result;
 use glam::Vec3;
 use kage_engine::bspvt;
 use kage_engine::reference::{Renderer, Settings};
+use kage_engine::scene::VertexValues;
 use kage_engine::shading::ratio;
 use std::time::Instant;
 
@@ -48,7 +49,7 @@ pub fn run(args: &Args, eye: Vec3, rows: &mut Vec<Row>) -> Result<String> {
     for spp in [1u32, 4, 16, 64] {
         let t = Instant::now();
         let est = renderer.render_vertices(eye, &Settings { spp, seed: 7, max_bounces: 0, min_bounces: 0 }, &|_| {});
-        let v: Vec<Vec<Vec3>> = est.iter().map(|e| e.iter().map(|x| x.mean).collect()).collect();
+        let v: VertexValues = est.iter().map(|e| e.iter().map(|x| x.mean).collect()).collect();
         push(truth.row("monte-carlo", format!("{spp} spp"), t.elapsed().as_secs_f64(), &v));
     }
     for rays in [1u32, 4, 16] {
