@@ -51,6 +51,7 @@ fn teapot_editor() -> Harness<'static, App> {
         bspvt: bspvt::Settings::default(),
         prt: prt::Settings::default(),
         cache: Default::default(),
+        prt_budget: None,
         bake_on_start: true,
         shade_on: shade_on(),
     };

@@ -138,8 +138,12 @@ pub struct Options {
     pub db_path: PathBuf,
     /// BSPVT parameters.
     pub bspvt: bspvt::Settings,
-    /// PRT parameters.
+    /// PRT parameters (directions and defaults, when `prt_budget` chooses the rest).
     pub prt: prt::Settings,
+    /// Choose PRT's order, window and region count from this relative error budget, kept in
+    /// the bake database, as `kage bake` does (so both bake the same artefacts); `None` uses
+    /// `prt` as given.
+    pub prt_budget: Option<f64>,
     /// Radiance-cache parameters (the indirect term).
     pub cache: kage_engine::cache::Settings,
     /// Start baking at once.
@@ -280,6 +284,7 @@ impl Editor {
         let where_ = if ed.polygonal_on_gpu() { "GPU" } else { "CPU" };
         ed.info(format!("{}: GPU {}; polygonal lights shade on the {where_}", ed.scene.source, ed.gpu.describe()));
         ed.open_store();
+        ed.choose_prt();
         ed.start_watching();
         if ed.options.bake_on_start {
             ed.dirty.geometry = true;
@@ -295,6 +300,28 @@ impl Editor {
         match Store::open(&path) {
             Ok(s) => self.store = Some(Arc::new(s)),
             Err(e) => self.error(format!("bake database: {e}")),
+        }
+    }
+
+    /// PRT's parameters from the error budget, as `kage bake` chooses them (from the database
+    /// when it holds the choice; measured and stored otherwise).
+    fn choose_prt(&mut self) {
+        let (Some(budget), Some(store)) = (self.options.prt_budget, self.store.clone()) else {
+            return;
+        };
+        let mut notes = Vec::new();
+        let chosen = kage_bake_db::prt_budget::choose(
+            &store,
+            &self.scene,
+            &self.flat,
+            budget,
+            &self.options.prt,
+            &mut |n| notes.push(n),
+        );
+        notes.into_iter().for_each(|n| self.info(format!("PRT: {n}")));
+        match chosen {
+            Ok(s) => self.options.prt = s,
+            Err(e) => self.error(format!("PRT parameters: {e}")),
         }
     }
 

@@ -40,6 +40,7 @@ fn options(dir: &Path, scene_path: Option<PathBuf>, shader_dir: Option<PathBuf>)
         bspvt: bspvt::Settings { res: 16, epsilon: 2.0 },
         prt: prt::Settings { order: 4, directions: 256, regions: 16, ..prt::Settings::default() },
         cache: Default::default(),
+        prt_budget: None,
         bake_on_start: true,
         shade_on: SHADE_ON,
     }
@@ -408,4 +409,30 @@ fn touching_the_scene_file_reimports_it_and_rebakes_only_what_changed() {
     step_until(&mut h, "the re-bake after the mesh edit", |ed| settled(ed) && !ed.bakes.bspvt_stale);
     let edit = h.state().editor.stats.runs[0].unwrap();
     assert!(edit.cold > 0 && edit.warm > 0, "the new mesh bakes cold, the ground warm: {edit:?}");
+}
+
+/// The editor bakes PRT with the parameters `kage bake` chose for the scene: it reads the
+/// choice the bake database keeps instead of measuring its own.
+#[test]
+fn the_editor_takes_prt_parameters_from_the_budget_kage_bake_chose() {
+    let d = scratch("prt-budget");
+    let mut scene = import::import(&asset("scenes/bunny_two_groups.gltf"), Default::default()).unwrap();
+    let env = kage_engine::scene::EnvMap::load(&asset("envmaps/city.hdr")).unwrap();
+    scene.set_environment(kage_engine::scene::EnvironmentLight::new(env));
+    let base = prt::Settings { directions: 256, ..prt::Settings::default() };
+    let mut o = options(&d, None, None);
+    o.prt = base;
+    o.prt_budget = Some(0.05);
+    o.bake_on_start = false;
+    // What `kage bake` chooses (the same function, the same database), before the editor opens.
+    let store = kage_bake_db::Store::open(&o.db_path).unwrap();
+    let flat = kage_engine::scene::flatten(&scene);
+    let chosen = kage_bake_db::prt_budget::choose(&store, &scene, &flat, 0.05, &base, &mut |_| {}).unwrap();
+    drop(store);
+    assert_ne!(chosen, base, "the budget chose something other than the defaults");
+    let h = harness(scene, o);
+    let ed = &h.state().editor;
+    assert_eq!(ed.options.prt, chosen);
+    let cached = ed.log.iter().filter(|l| l.text.starts_with("PRT:") && l.text.contains("cached plan")).count();
+    assert_eq!(cached, 2, "order and regions both read from the database: {:#?}", ed.log);
 }

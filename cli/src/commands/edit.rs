@@ -51,6 +51,7 @@ impl Args {
             bspvt: bspvt::Settings { res: self.face_res, epsilon: self.epsilon },
             prt: prt::Settings::default(),
             cache: Default::default(),
+            prt_budget: Some(crate::prt_args::DEFAULT_BUDGET),
             bake_on_start: !self.no_bake,
             shade_on: self.shade_on,
         })
