@@ -23,6 +23,10 @@ pub struct SceneArgs {
     /// Drop zero-area triangles with a warning instead of rejecting the file.
     #[arg(long)]
     pub drop_degenerate: bool,
+    /// Let the scene's buffer and image URIs read files under DIR, not only under the scene
+    /// file's own folder (for scenes that share textures with a sibling folder).
+    #[arg(long, value_name = "DIR")]
+    pub allow_root: Option<PathBuf>,
     /// Move a rigid group (top-level node name or group index) by x,y,z, e.g.
     /// `--move group_bunny=0.5,0,0`; repeatable.
     #[arg(long = "move", value_name = "NODE=x,y,z", value_parser = parse_move)]
@@ -74,7 +78,10 @@ impl SceneArgs {
     /// Loads the scene and applies the environment options.
     pub fn load(&self) -> Result<Scene> {
         let mut scene = match &self.scene {
-            Some(path) => scene::import::import(path, ImportOptions { drop_degenerate: self.drop_degenerate })?,
+            Some(path) => scene::import::import(
+                path,
+                ImportOptions { drop_degenerate: self.drop_degenerate, allow_root: self.allow_root.clone() },
+            )?,
             None => scene::default_scene(),
         };
         for w in &scene.warnings {

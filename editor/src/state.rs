@@ -310,14 +310,10 @@ impl Editor {
             return;
         };
         let mut notes = Vec::new();
-        let chosen = kage_bake_db::prt_budget::choose(
-            &store,
-            &self.scene,
-            &self.flat,
-            budget,
-            &self.options.prt,
-            &mut |n| notes.push(n),
-        );
+        let chosen =
+            kage_bake_db::prt_budget::choose(&store, &self.scene, &self.flat, budget, &self.options.prt, &mut |n| {
+                notes.push(n)
+            });
         notes.into_iter().for_each(|n| self.info(format!("PRT: {n}")));
         match chosen {
             Ok(s) => self.options.prt = s,

@@ -112,7 +112,10 @@ fn synthetic_files_are_rejected_clearly() {
     });
     expect_error(&emitter, "degenerate");
     // Dropping degenerate triangles leaves the emitter with none: still an error.
-    let err = import(&emitter, ImportOptions { drop_degenerate: true }).err().expect("zero-area emitter").to_string();
+    let err = import(&emitter, ImportOptions { drop_degenerate: true, ..Default::default() })
+        .err()
+        .expect("zero-area emitter")
+        .to_string();
     assert!(err.contains("zero_area_light.gltf") && err.contains("no triangles"), "{err}");
     let p = write_gltf(&dir, "points", &TRI, &[0, 1, 2], |d| d["meshes"][0]["primitives"][0]["mode"] = json!(0));
     expect_error(&p, "only triangles are supported");
@@ -227,10 +230,49 @@ fn edge_case_corpus_never_panics() {
     eprintln!("corpus: {} files, {ok} imported, {failed} rejected with an error", files.len());
 }
 
+/// A scene reads only regular files inside its own folder, never more than it declares; the
+/// error names the URI and the rule. A wider root the user allows reads what it covers.
+fn uris_stay_inside_the_scene_folder() {
+    let dir = scratch("confinement");
+    let scene_dir = dir.join("scene");
+    std::fs::create_dir_all(&scene_dir).unwrap();
+    let ok = write_gltf(&scene_dir, "inside", &TRI, &[0, 1, 2], |_| {});
+    import(&ok, ImportOptions::default()).expect("a buffer beside the scene is read");
+    std::fs::copy(scene_dir.join("inside.bin"), dir.join("outside.bin")).unwrap();
+    let outside = dir.join("outside.bin").display().to_string();
+    std::os::unix::fs::symlink(dir.join("outside.bin"), scene_dir.join("link.bin")).unwrap();
+    for (name, uri, rule) in [
+        ("dotdot", "../outside.bin".to_string(), "leads outside"),
+        ("encoded", "%2E%2E%2Foutside.bin".to_string(), "leads outside"),
+        ("symlink", "link.bin".to_string(), "leads outside"),
+        ("absolute", outside.clone(), "absolute paths are not read"),
+        ("file_scheme", format!("file://{outside}"), "only data: URIs and relative paths"),
+        ("device", "/dev/zero".to_string(), "absolute paths are not read"),
+    ] {
+        let p = write_gltf(&scene_dir, name, &TRI, &[0, 1, 2], |d| d["buffers"][0]["uri"] = json!(uri));
+        expect_error(&p, rule);
+        let err = import(&p, ImportOptions::default()).err().unwrap().to_string();
+        assert!(err.contains(&uri) && err.contains("buffers[0]"), "the error names the buffer and its URI: {err}");
+    }
+    let escape =
+        write_gltf(&scene_dir, "escape", &TRI, &[0, 1, 2], |d| d["buffers"][0]["uri"] = json!("../outside.bin"));
+    let wider = ImportOptions { allow_root: Some(dir.clone()), ..Default::default() };
+    import(&escape, wider).expect("--allow-root covers the parent folder");
+    // A file longer than declared is read up to byteLength only; a shorter one is an error.
+    let long = write_gltf(&scene_dir, "long", &TRI, &[0, 1, 2], |_| {});
+    let mut bytes = std::fs::read(scene_dir.join("long.bin")).unwrap();
+    bytes.extend([0u8; 1 << 20]);
+    std::fs::write(scene_dir.join("long.bin"), &bytes).unwrap();
+    import(&long, ImportOptions::default()).expect("trailing bytes are not read");
+    let short = write_gltf(&scene_dir, "short", &TRI, &[0, 1, 2], |d| d["buffers"][0]["byteLength"] = json!(1000));
+    expect_error(&short, "bytes where 1000 are declared");
+}
+
 #[test]
 fn bad_input_never_panics() {
     count_panics();
     synthetic_files_are_rejected_clearly();
+    uris_stay_inside_the_scene_folder();
     bad_environment_maps_are_rejected_clearly();
     edge_case_corpus_never_panics();
     let _ = std::panic::take_hook();

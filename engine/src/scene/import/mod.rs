@@ -6,6 +6,7 @@
 //! Every error names the file and the glTF element at fault.
 
 mod checks;
+pub mod files;
 mod light;
 pub mod reach;
 
@@ -26,10 +27,13 @@ use std::sync::Arc;
 pub const SUPPORTED_EXTENSIONS: &[&str] = &["KHR_materials_emissive_strength", "KHR_materials_specular"];
 
 /// Options for [`import`].
-#[derive(Clone, Copy, Debug, Default)]
+#[derive(Clone, Debug, Default)]
 pub struct ImportOptions {
     /// Drop zero-area triangles (with a warning) instead of rejecting the file.
     pub drop_degenerate: bool,
+    /// A folder wider than the scene file's own that its buffer and image URIs may read from
+    /// (see [`files`]); `None`: the scene's folder only.
+    pub allow_root: Option<std::path::PathBuf>,
 }
 
 /// Imports a `.gltf` or `.glb` file.
@@ -51,6 +55,7 @@ pub fn import(path: &Path, options: ImportOptions) -> Result<Scene> {
 
 struct Importer<'a> {
     path: &'a Path,
+    root: files::Root,
     doc: gltf::Document,
     buffers: Vec<gltf::buffer::Data>,
     options: ImportOptions,
@@ -77,9 +82,9 @@ impl<'a> Importer<'a> {
         if let Some(ext) = doc.extensions_required().find(|e| !SUPPORTED_EXTENSIONS.contains(e)) {
             return Err(err(format!("requires extension {ext}, which kage does not support")));
         }
-        let base = path.parent().unwrap_or(Path::new("."));
-        let buffers =
-            gltf::import_buffers(&doc, Some(base), blob).map_err(|e| err(format!("cannot load buffer data: {e}")))?;
+        let root = files::Root::for_scene(path, options.allow_root.as_deref()).map_err(err)?;
+        let buffers = load_buffers(&doc, base_dir(path), &root, blob)
+            .map_err(|e| err(format!("cannot load buffer data: {e}")))?;
         checks::byte_ranges(&doc, &buffers).map_err(err)?;
         let scene = Scene {
             world: hecs::World::new(),
@@ -90,6 +95,7 @@ impl<'a> Importer<'a> {
         };
         let mut imp = Importer {
             path,
+            root,
             doc,
             buffers,
             options,
@@ -103,6 +109,24 @@ impl<'a> Importer<'a> {
         imp.import_nodes()?;
         propagate_transforms(&mut imp.scene.world);
         Ok(imp.scene)
+    }
+
+    /// The image `source` names: from a buffer view, or a URI through the scene's root.
+    fn image(&self, source: gltf::image::Source) -> std::result::Result<image::RgbImage, String> {
+        match source {
+            gltf::image::Source::View { view, .. } => {
+                let data = &self.buffers[view.buffer().index()];
+                let bytes = view
+                    .offset()
+                    .checked_add(view.length())
+                    .and_then(|end| data.get(view.offset()..end))
+                    .ok_or_else(|| format!("bufferViews[{}] extends past the end of its buffer", view.index()))?;
+                decode_image(bytes)
+            }
+            gltf::image::Source::Uri { uri, .. } => {
+                decode_image(&self.root.read(base_dir(self.path), uri, files::MAX_IMAGE_BYTES)?)
+            }
+        }
     }
 
     fn error(&self, message: String) -> Error {
@@ -307,11 +331,14 @@ impl<'a> Importer<'a> {
         if let Some(&i) = self.texture_cache.get(&tex.index()) {
             return Ok(i);
         }
-        let base = self.path.parent().unwrap_or(Path::new("."));
-        let data = gltf::image::Data::from_source(tex.source().source(), Some(base), &self.buffers)
-            .map_err(|e| self.error(format!("{where_}: emissive texture {}: cannot decode image: {e}", tex.index())))?;
-        let texels = decode_texels(&data)
-            .ok_or_else(|| self.error(format!("{where_}: unsupported emissive texture format {:?}", data.format)))?;
+        let image = self
+            .image(tex.source().source())
+            .map_err(|e| self.error(format!("{where_}: emissive texture {}: {e}", tex.index())))?;
+        let (width, height) = image.dimensions();
+        let texels: Vec<Vec3> = image
+            .pixels()
+            .map(|p| Vec3::from(p.0.map(|c| crate::math::color::srgb_to_linear(c as f32 / 255.0))))
+            .collect();
         let wrap = |m: gltf::texture::WrappingMode| match m {
             gltf::texture::WrappingMode::ClampToEdge => Wrap::Clamp,
             gltf::texture::WrappingMode::MirroredRepeat => Wrap::Mirror,
@@ -319,7 +346,7 @@ impl<'a> Importer<'a> {
         };
         let sampler = tex.sampler();
         let wraps = [wrap(sampler.wrap_s()), wrap(sampler.wrap_t())];
-        let t = Texture::new(data.width as usize, data.height as usize, texels, wraps);
+        let t = Texture::new(width as usize, height as usize, texels, wraps);
         let i = self.scene.textures.len() as u32;
         self.scene.textures.push(Arc::new(t));
         self.texture_cache.insert(tex.index(), i);
@@ -327,21 +354,47 @@ impl<'a> Importer<'a> {
     }
 }
 
-/// sRGB-encoded 8-bit images → linear RGB (alpha ignored: lights are opaque).
-fn decode_texels(data: &gltf::image::Data) -> Option<Vec<Vec3>> {
-    use gltf::image::Format;
-    let channels = match data.format {
-        Format::R8 => 1,
-        Format::R8G8 => 2,
-        Format::R8G8B8 => 3,
-        Format::R8G8B8A8 => 4,
-        _ => return None,
-    };
-    let px = data.pixels.chunks_exact(channels).map(|p| {
-        let c = |k: usize| crate::math::color::srgb_to_linear(p[k.min(channels - 1)] as f32 / 255.0);
-        if channels < 3 { Vec3::splat(c(0)) } else { Vec3::new(c(0), c(1), c(2)) }
-    });
-    Some(px.collect())
+/// The folder relative URIs in the scene file at `path` start from.
+fn base_dir(path: &Path) -> &Path {
+    path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."))
+}
+
+/// Every buffer's bytes: from its URI through `root` (exactly `byteLength` of them), or the
+/// GLB binary chunk; padded to a multiple of 4 as the gltf crate pads them.
+fn load_buffers(
+    doc: &gltf::Document,
+    base: &Path,
+    root: &files::Root,
+    mut blob: Option<Vec<u8>>,
+) -> std::result::Result<Vec<gltf::buffer::Data>, String> {
+    doc.buffers()
+        .map(|b| {
+            let at = |e: String| format!("buffers[{}]: {e}", b.index());
+            let mut data = match b.source() {
+                gltf::buffer::Source::Uri(uri) => root.read_exact(base, uri, b.length() as u64).map_err(at)?,
+                gltf::buffer::Source::Bin => blob.take().ok_or_else(|| at("no URI and no GLB binary chunk".into()))?,
+            };
+            if data.len() < b.length() {
+                return Err(at(format!("{} bytes where byteLength declares {}", data.len(), b.length())));
+            }
+            data.resize(data.len().next_multiple_of(4), 0);
+            Ok(gltf::buffer::Data(data))
+        })
+        .collect()
+}
+
+/// An image file's bytes decoded as 8-bit RGB (alpha ignored: lights are opaque), with the
+/// decoder's size limits set so that a small file cannot ask for a huge allocation.
+fn decode_image(bytes: &[u8]) -> std::result::Result<image::RgbImage, String> {
+    let mut reader = image::ImageReader::new(std::io::Cursor::new(bytes))
+        .with_guessed_format()
+        .map_err(|e| format!("cannot read image: {e}"))?;
+    let mut limits = image::Limits::default();
+    limits.max_image_width = Some(16_384);
+    limits.max_image_height = Some(16_384);
+    limits.max_alloc = Some(1 << 30);
+    reader.limits(limits);
+    Ok(reader.decode().map_err(|e| format!("cannot decode image: {e}"))?.to_rgb8())
 }
 
 fn node_matrix(node: &gltf::Node) -> Option<Affine3A> {
