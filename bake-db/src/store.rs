@@ -96,8 +96,35 @@ pub struct Info {
 
 /// An open bake database.
 pub struct Store {
-    db: Database,
+    db: Handle,
     path: PathBuf,
+}
+
+/// The redb handle, closed inside a panic guard: redb commits its allocator state when a
+/// database is dropped, and asserts on some damaged pages there.
+struct Handle(Option<Database>);
+
+impl std::ops::Deref for Handle {
+    type Target = Database;
+
+    fn deref(&self) -> &Database {
+        self.0.as_ref().expect("open until dropped")
+    }
+}
+
+impl std::ops::DerefMut for Handle {
+    fn deref_mut(&mut self) -> &mut Database {
+        self.0.as_mut().expect("open until dropped")
+    }
+}
+
+impl Drop for Handle {
+    fn drop(&mut self) {
+        if let Some(db) = self.0.take() {
+            // Nothing more to report: every result was committed, or its error returned, earlier.
+            let _ = std::panic::catch_unwind(std::panic::AssertUnwindSafe(move || drop(db)));
+        }
+    }
 }
 
 /// The result of [`Store::check`].
@@ -111,6 +138,18 @@ pub struct CheckReport {
     pub clean: bool,
 }
 
+/// Runs `f` on the database at `path`, turning a panic inside the storage library (it asserts
+/// on some damaged pages) into an error that names the file: damaged bytes never crash kage.
+fn contained<T>(path: &Path, f: impl FnOnce() -> Result<T>) -> Result<T> {
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(f)).unwrap_or_else(|panic| {
+        let what = kage_engine::error::panic_message(&*panic);
+        Err(DbError::Corrupted {
+            path: path.to_path_buf(),
+            detail: format!("a damaged page ({what}); run `kage db check`"),
+        })
+    })
+}
+
 impl Store {
     /// Opens (creating if needed, with its parent folder) the database at `path`.
     ///
@@ -122,11 +161,13 @@ impl Store {
         if !path.exists() {
             Self::create(path, dir)?;
         }
-        let db = Database::create(path).map_err(|e| match e {
-            redb::DatabaseError::DatabaseAlreadyOpen => DbError::Locked(path.to_path_buf()),
-            other => DbError::Corrupted { path: path.to_path_buf(), detail: other.to_string() },
+        let db = contained(path, || {
+            Database::create(path).map_err(|e| match e {
+                redb::DatabaseError::DatabaseAlreadyOpen => DbError::Locked(path.to_path_buf()),
+                other => DbError::Corrupted { path: path.to_path_buf(), detail: other.to_string() },
+            })
         })?;
-        let store = Self { db, path: path.to_path_buf() };
+        let store = Self { db: Handle(Some(db)), path: path.to_path_buf() };
         store.init()?;
         sweep_partials(path, dir);
         Ok(store)
@@ -141,7 +182,7 @@ impl Store {
         let redb = |e: redb::DatabaseError| storage(path, redb::Error::from(e));
         let backend = redb::backends::FileBackend::new(partial.reopen().map_err(io)?).map_err(redb)?;
         let db = Database::builder().create_with_backend(backend).map_err(redb)?;
-        Self { db, path: path.to_path_buf() }.init()?;
+        Self { db: Handle(Some(db)), path: path.to_path_buf() }.init()?;
         match partial.persist_noclobber(path) {
             Ok(_) => Ok(()),
             Err(e) if e.error.kind() == std::io::ErrorKind::AlreadyExists => Ok(()),
@@ -177,14 +218,22 @@ impl Store {
     }
 
     fn read<T>(&self, f: impl FnOnce(&redb::ReadTransaction) -> std::result::Result<T, redb::Error>) -> Result<T> {
-        let t = self.db.begin_read().map_err(|e| storage(&self.path, e))?;
-        f(&t).map_err(|e| storage(&self.path, e))
+        self.contained(|| {
+            let t = self.db.begin_read().map_err(|e| storage(&self.path, e))?;
+            f(&t).map_err(|e| storage(&self.path, e))
+        })
     }
 
     fn write(&self, f: impl FnOnce(&redb::WriteTransaction) -> std::result::Result<(), redb::Error>) -> Result<()> {
-        let t = self.db.begin_write().map_err(|e| storage(&self.path, e))?;
-        f(&t).map_err(|e| storage(&self.path, e))?;
-        t.commit().map_err(|e| storage(&self.path, e))
+        self.contained(|| {
+            let t = self.db.begin_write().map_err(|e| storage(&self.path, e))?;
+            f(&t).map_err(|e| storage(&self.path, e))?;
+            t.commit().map_err(|e| storage(&self.path, e))
+        })
+    }
+
+    fn contained<T>(&self, f: impl FnOnce() -> Result<T>) -> Result<T> {
+        contained(&self.path, f)
     }
 
     /// Which of `keys` have an artefact.
@@ -204,15 +253,17 @@ impl Store {
     /// transaction and borrowed from the database's pages: loading copies each byte once, into
     /// whatever `f` builds.
     pub fn with_artefacts<R>(&self, keys: &[Key], f: impl FnOnce(&[Option<&[u8]>]) -> Result<R>) -> Result<R> {
-        let t = self.db.begin_read().map_err(|e| storage(&self.path, e))?;
-        let table = t.open_table(ARTEFACTS).map_err(|e| storage(&self.path, e))?;
-        let guards = keys
-            .iter()
-            .map(|k| table.get(k.as_bytes().as_slice()))
-            .collect::<std::result::Result<Vec<_>, _>>()
-            .map_err(|e| storage(&self.path, e))?;
-        let found: Vec<Option<&[u8]>> = guards.iter().map(|g| g.as_ref().map(|g| g.value())).collect();
-        f(&found)
+        self.contained(|| {
+            let t = self.db.begin_read().map_err(|e| storage(&self.path, e))?;
+            let table = t.open_table(ARTEFACTS).map_err(|e| storage(&self.path, e))?;
+            let guards = keys
+                .iter()
+                .map(|k| table.get(k.as_bytes().as_slice()))
+                .collect::<std::result::Result<Vec<_>, _>>()
+                .map_err(|e| storage(&self.path, e))?;
+            let found: Vec<Option<&[u8]>> = guards.iter().map(|g| g.as_ref().map(|g| g.value())).collect();
+            f(&found)
+        })
     }
 
     /// Writes a batch of artefacts (with metadata) and lineage entries in one transaction.

@@ -53,3 +53,13 @@ impl Error {
         Self::Io { path: path.into(), source }
     }
 }
+
+/// The message a caught panic carried (empty when it was not a string): for turning a panic
+/// inside a third-party library into an error that says what happened.
+pub fn panic_message(panic: &(dyn std::any::Any + Send)) -> String {
+    panic
+        .downcast_ref::<String>()
+        .cloned()
+        .or_else(|| panic.downcast_ref::<&str>().map(|s| s.to_string()))
+        .unwrap_or_default()
+}

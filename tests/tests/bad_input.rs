@@ -117,6 +117,10 @@ fn synthetic_files_are_rejected_clearly() {
         .expect("zero-area emitter")
         .to_string();
     assert!(err.contains("zero_area_light.gltf") && err.contains("no triangles"), "{err}");
+    let p = write_gltf(&dir, "huge_scale", &TRI, &[0, 1, 2], |d| d["nodes"][0]["scale"] = json!([1e20, 1e20, 1e20]));
+    expect_error(&p, "beyond kage's limit of ±1e12 m");
+    let p = write_gltf(&dir, "large_scale", &TRI, &[0, 1, 2], |d| d["nodes"][0]["scale"] = json!([1e9, 1e9, 1e9]));
+    import(&p, ImportOptions::default()).expect("a million-kilometre triangle is still a scene");
     let p = write_gltf(&dir, "points", &TRI, &[0, 1, 2], |d| d["meshes"][0]["primitives"][0]["mode"] = json!(0));
     expect_error(&p, "only triangles are supported");
     let p = write_gltf(&dir, "draco", &TRI, &[0, 1, 2], |d| {

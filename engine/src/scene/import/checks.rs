@@ -138,3 +138,31 @@ pub fn attribute_formats(prim: &gltf::Primitive) -> Result<(), String> {
     }
     Ok(())
 }
+
+/// Largest world-space coordinate kage accepts (metres): far beyond any level, and small
+/// enough that squared extents (BVH surface areas) stay finite in f32.
+pub const MAX_WORLD_COORDINATE: f32 = 1e12;
+
+/// Every instance's and light's world-space points are finite and within
+/// [`MAX_WORLD_COORDINATE`] (a node scaled by 1e20 would overflow the BVH build).
+pub fn world_extent(scene: &crate::scene::Scene) -> Result<(), String> {
+    use crate::scene::{MeshRef, NodeId, PolygonLight, PrimitiveId, Transform};
+    let check = |node: u32, world: &glam::Affine3A, points: &[glam::Vec3]| {
+        let far = points
+            .iter()
+            .map(|p| world.transform_point3(*p))
+            .find(|p| !p.is_finite() || p.abs().max_element() > MAX_WORLD_COORDINATE);
+        far.map_or(Ok(()), |p| {
+            Err(format!(
+                "nodes[{node}]: a world-space point at {p} lies beyond kage's limit of ±{MAX_WORLD_COORDINATE:e} m (check its scale)"
+            ))
+        })
+    };
+    for (id, t, m) in scene.world.query::<(&PrimitiveId, &Transform, &MeshRef)>().iter() {
+        check(id.node, &t.world, &scene.meshes[m.index as usize].positions)?;
+    }
+    for (node, t, l) in scene.world.query::<(&NodeId, &Transform, &PolygonLight)>().iter() {
+        check(node.0, &t.world, &l.points)?;
+    }
+    Ok(())
+}

@@ -43,11 +43,7 @@ pub fn import(path: &Path, options: ImportOptions) -> Result<Scene> {
     match std::panic::catch_unwind(|| Importer::run(path, &bytes, options)) {
         Ok(result) => result,
         Err(panic) => {
-            let what = panic
-                .downcast_ref::<String>()
-                .cloned()
-                .or_else(|| panic.downcast_ref::<&str>().map(|s| s.to_string()))
-                .unwrap_or_default();
+            let what = crate::error::panic_message(&*panic);
             Err(Error::gltf(path, format!("malformed glTF (the parser failed: {what})")))
         }
     }
@@ -108,6 +104,7 @@ impl<'a> Importer<'a> {
         };
         imp.import_nodes()?;
         propagate_transforms(&mut imp.scene.world);
+        checks::world_extent(&imp.scene).map_err(err)?;
         Ok(imp.scene)
     }
 
