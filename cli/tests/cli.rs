@@ -666,3 +666,23 @@ fn indirect_light_adds_to_per_vertex_methods() {
     assert!(a.iter().zip(&b).all(|(x, y)| x.radiance == y.radiance));
     std::fs::remove_dir_all(d).unwrap();
 }
+
+/// The help says what kage and each command do today, and lists every method with what it
+/// computes.
+#[test]
+fn help_describes_the_commands_and_every_method() {
+    let o = kage(&["--help"]);
+    let text = String::from_utf8(o.stdout).unwrap();
+    assert!(text.contains("bakes and previews shadows"), "{text}");
+    for command in ["info", "render", "bake", "db", "export", "report", "edit"] {
+        assert!(text.lines().any(|l| l.trim_start().starts_with(command)), "{command} missing:\n{text}");
+    }
+    assert!(!text.contains("later"), "{text}");
+    let o = kage(&["render", "--help"]);
+    let text = String::from_utf8(o.stdout).unwrap();
+    for m in kage_engine::shading::Method::ALL {
+        assert!(text.contains(&format!("{}:", m.name())) && text.contains(m.about()), "{} missing:\n{text}", m.name());
+    }
+    let o = kage(&["render", "--method", "baked-look"]);
+    assert!(!o.status.success() && stderr(&o).contains("ltc-exact-vis"), "{}", stderr(&o));
+}

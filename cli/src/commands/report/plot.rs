@@ -97,7 +97,16 @@ fn bounds(series: &[Series]) -> ((f64, f64), (f64, f64)) {
         let (lo, hi) = v.iter().fold((f64::MAX, f64::MIN), |(a, b), x| (a.min(*x), b.max(*x)));
         (lo / 1.6, hi * 1.6)
     };
-    (span(all().map(|p| p.0).collect()), span(all().map(|p| p.1).collect()))
+    let (x, y) = (span(all().map(|p| p.0).collect()), span(all().map(|p| p.1).collect()));
+    // Room on the right for the last point's configuration label.
+    ((x.0, x.1 * 4.0), y)
+}
+
+/// A tick value with three significant digits and no trailing zeros (0.3, 0.0125, 120000).
+fn tick(v: &f64) -> String {
+    let decimals = (2 - v.abs().max(1e-12).log10().floor() as i32).max(0) as usize;
+    let text = format!("{v:.decimals$}");
+    if text.contains('.') { text.trim_end_matches('0').trim_end_matches('.').to_string() } else { text }
 }
 
 fn draw<DB: DrawingBackend>(root: DrawingArea<DB, Shift>, title: &str, series: &[Series], axis: &Axis) -> Result<()>
@@ -118,6 +127,8 @@ where
         .configure_mesh()
         .x_desc(axis.label)
         .y_desc("relative RMSE against the reference")
+        .x_label_formatter(&tick)
+        .y_label_formatter(&tick)
         .label_style(("sans-serif", 14))
         .axis_desc_style(("sans-serif", 16))
         .draw()
@@ -147,4 +158,13 @@ where
         .draw()
         .map_err(e)?;
     root.present().map_err(e)
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn ticks_have_three_significant_digits_and_no_trailing_zeros() {
+        let ticks: Vec<String> = [0.3, 0.30000000000000004, 0.0125, 1.0, 120_000.0, 0.001].iter().map(super::tick).collect();
+        assert_eq!(ticks, ["0.3", "0.3", "0.0125", "1", "120000", "0.001"]);
+    }
 }
