@@ -164,7 +164,8 @@ where
 mod tests {
     #[test]
     fn ticks_have_three_significant_digits_and_no_trailing_zeros() {
-        let ticks: Vec<String> = [0.3, 0.30000000000000004, 0.0125, 1.0, 120_000.0, 0.001].iter().map(super::tick).collect();
+        let ticks: Vec<String> =
+            [0.3, 0.30000000000000004, 0.0125, 1.0, 120_000.0, 0.001].iter().map(super::tick).collect();
         assert_eq!(ticks, ["0.3", "0.3", "0.0125", "1", "120000", "0.001"]);
     }
 }
