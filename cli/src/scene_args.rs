@@ -75,13 +75,15 @@ fn parse_rotate(s: &str) -> Result<(String, Quat), String> {
 }
 
 impl SceneArgs {
+    /// How the scene file (and, in the editor, its re-imports) is read.
+    pub fn import_options(&self) -> ImportOptions {
+        ImportOptions { drop_degenerate: self.drop_degenerate, allow_root: self.allow_root.clone() }
+    }
+
     /// Loads the scene and applies the environment options.
     pub fn load(&self) -> Result<Scene> {
         let mut scene = match &self.scene {
-            Some(path) => scene::import::import(
-                path,
-                ImportOptions { drop_degenerate: self.drop_degenerate, allow_root: self.allow_root.clone() },
-            )?,
+            Some(path) => scene::import::import(path, self.import_options())?,
             None => scene::default_scene(),
         };
         for w in &scene.warnings {

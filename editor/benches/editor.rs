@@ -46,6 +46,7 @@ fn teapot_editor() -> Harness<'static, App> {
     let options = Options {
         scene_path: None,
         env_path: None,
+        import: Default::default(),
         shader_dir: Some(shaders),
         db_path: work.join("bake.redb"),
         bspvt: bspvt::Settings::default(),

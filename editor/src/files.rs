@@ -65,8 +65,7 @@ pub fn export_pack(ed: &mut Editor) -> String {
 /// Replaces `instance`'s mesh by the first mesh of the glTF file at `path` (in its own frame: the
 /// instance keeps its transform); a geometry edit, so the affected bakes re-run.
 pub fn replace_mesh_from(ed: &mut Editor, instance: hecs::Entity, path: &Path) -> String {
-    let options = kage_engine::scene::import::ImportOptions::default();
-    let imported = kage_engine::scene::import::import(path, options).map_err(|e| e.to_string());
+    let imported = kage_engine::scene::import::import(path, ed.options.import.clone()).map_err(|e| e.to_string());
     let mesh = imported.and_then(|s| {
         s.meshes.first().map(|m| (**m).clone()).ok_or_else(|| format!("{}: the file has no mesh", path.display()))
     });

@@ -132,6 +132,8 @@ pub struct Options {
     pub scene_path: Option<PathBuf>,
     /// The environment map file, when given.
     pub env_path: Option<PathBuf>,
+    /// How the scene file is read when it changes on disk (and meshes the user loads).
+    pub import: kage_engine::scene::import::ImportOptions,
     /// Where WGSL is read from (`None`: the embedded shaders, no hot reload).
     pub shader_dir: Option<PathBuf>,
     /// The bake database.

@@ -98,7 +98,7 @@ fn plain_frames(report: &str) -> String {
 
 fn reimport_scene(ed: &mut Editor) {
     let Some(path) = ed.options.scene_path.clone() else { return };
-    match import::import(&path, Default::default()) {
+    match import::import(&path, ed.options.import.clone()) {
         Ok(mut scene) => {
             if let Some(env) = ed.scene.world.query::<&EnvironmentLight>().iter().next().cloned() {
                 scene.set_environment(env);

@@ -35,6 +35,7 @@ fn options(dir: &Path, scene_path: Option<PathBuf>, shader_dir: Option<PathBuf>)
     Options {
         scene_path,
         env_path: None,
+        import: Default::default(),
         shader_dir,
         db_path: dir.join("bake.redb"),
         bspvt: bspvt::Settings { res: 16, epsilon: 2.0 },

@@ -46,6 +46,7 @@ impl Args {
         Ok(state::Options {
             scene_path: self.scene.scene.clone(),
             env_path: self.scene.env.clone(),
+            import: self.scene.import_options(),
             shader_dir,
             db_path: self.db.path(&self.scene),
             bspvt: bspvt::Settings { res: self.face_res, epsilon: self.epsilon },
