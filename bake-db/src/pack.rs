@@ -13,7 +13,8 @@ use kage_engine::math::color::linear_to_srgb;
 use kage_engine::prt::{self, Lighting, lighting::Window, regions::Region};
 use kage_engine::scene::texture::Wrap;
 use kage_engine::scene::{
-    Camera, FlatScene, InGroup, Material, Name, NodeId, PolygonLight, Projection, RigidGroup, Scene, Texture, Transform,
+    Camera, EnvMap, EnvironmentLight, FlatScene, InGroup, Material, Name, NodeId, PolygonLight, Projection, RigidGroup,
+    Scene, Texture, Transform,
 };
 use kage_engine::{bspvt, scene::import::ImportOptions};
 use serde_json::{Value, json};
@@ -198,7 +199,13 @@ pub fn write(path: &Path, e: &Export) -> std::io::Result<()> {
         roots.push(all.len());
         all.push(node(json!({"name": "camera", "camera": 0}), &cam.world));
     }
-    let root = root_extension(e);
+    let mut root = root_extension(e);
+    if let Some(env) = e.scene.world.query::<&EnvironmentLight>().iter().next() {
+        // Exact texels (f32 RGB, row 0 = +Y): the specular term prefilters them on load.
+        let texels = bin.view(bytemuck::cast_slice(&env.map.texels), None);
+        root["environment"] = json!({"width": env.map.width, "height": env.map.height, "texels": texels,
+            "intensity": env.intensity, "rotation": env.rotation});
+    }
     let mut doc = json!({
         "asset": {"version": "2.0", "generator": concat!("kage ", env!("CARGO_PKG_VERSION"))},
         "extensionsUsed": ["KHR_materials_unlit", "KHR_materials_emissive_strength", EXTENSION],
@@ -408,7 +415,31 @@ pub fn read(path: &Path) -> kage_engine::Result<(Scene, Contents)> {
         Ok(bspvt::Bake { settings, instances, stats: bspvt::Stats::default() })
     });
     let prt = root.get("prt").map(|p| read_prt(path, p, &exts, &view, &flat));
+    if let Some(env) = root.get("environment") {
+        scene.set_environment(read_environment(path, env, &view)?);
+    }
     Ok((scene, Contents { bspvt: bspvt.transpose()?, prt: prt.transpose()? }))
+}
+
+/// The environment light a pack carries: its exact texels, intensity and rotation.
+fn read_environment<'a>(
+    path: &Path,
+    env: &Value,
+    view: &dyn Fn(&Value) -> Option<&'a [u8]>,
+) -> kage_engine::Result<EnvironmentLight> {
+    let (w, h) = (env["width"].as_u64().unwrap_or(0) as usize, env["height"].as_u64().unwrap_or(0) as usize);
+    let bytes = view(&env["texels"]).ok_or_else(|| bad(path, "environment: no texels"))?;
+    if w.checked_mul(h).and_then(|n| n.checked_mul(12)) != Some(bytes.len()) {
+        return Err(bad(path, format!("environment: {} bytes of texels for {w}×{h}", bytes.len())));
+    }
+    let texels: Vec<f32> = bytemuck::pod_collect_to_vec(bytes);
+    let texels = texels.chunks_exact(3).map(|c| Vec3::new(c[0], c[1], c[2])).collect();
+    let map = EnvMap::new(w, h, texels, format!("{}#environment", path.display()))
+        .map_err(|e| bad(path, format!("environment: {e}")))?;
+    let f = |key: &str, default: f64| env[key].as_f64().unwrap_or(default) as f32;
+    let mut light = EnvironmentLight::new(map);
+    (light.intensity, light.rotation) = (f("intensity", 1.0), f("rotation", 0.0));
+    Ok(light)
 }
 
 /// Puts back each light's exact radiance and polygon (lights re-import in the order they were

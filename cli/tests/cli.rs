@@ -39,8 +39,10 @@ fn info_describes_the_default_scene() {
 fn render_writes_png_exr_and_vertex_csv() {
     let d = scratch("render");
     let (png, exr, csv) = (d.join("a.png"), d.join("a.exr"), d.join("v.csv"));
+    let db = d.join("bake.redb");
     for (out, extra) in [(&png, vec![]), (&exr, vec!["--vertices-out", csv.to_str().unwrap()])] {
-        let mut args = vec!["render", "--spp", "2", "--size", "40x24", "-o", out.to_str().unwrap()];
+        let mut args =
+            vec!["render", "--spp", "2", "--size", "40x24", "-o", out.to_str().unwrap(), "--db", db.to_str().unwrap()];
         args.extend(extra);
         let o = kage(&args);
         assert!(o.status.success(), "{}", stderr(&o));
@@ -59,9 +61,12 @@ fn render_writes_png_exr_and_vertex_csv() {
 fn vertices_are_identical_on_one_and_two_threads() {
     let d = scratch("threads");
     let scene = asset("scenes/cube_on_plane.gltf");
+    // The default method (baked) bakes into a database of each run's own: both bake cold.
     let run = |threads: &str, name: &str| {
-        let csv = d.join(name);
-        let o = kage(&["render", &scene, "--threads", threads, "--spp", "4", "--vertices-out", csv.to_str().unwrap()]);
+        let (csv, db) = (d.join(name), d.join(format!("{name}.redb")));
+        let (csv_arg, db_arg) = (csv.to_str().unwrap(), db.to_str().unwrap());
+        let o =
+            kage(&["render", &scene, "--threads", threads, "--spp", "4", "--vertices-out", csv_arg, "--db", db_arg]);
         assert!(o.status.success(), "{}", stderr(&o));
         std::fs::read(csv).unwrap()
     };
@@ -132,6 +137,8 @@ fn env_and_camera_overrides_apply() {
         "32x32",
         "-o",
         out.to_str().unwrap(),
+        "--db",
+        d.join("bake.redb").to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(out.exists());
@@ -211,6 +218,7 @@ fn report_writes_markdown_csv_and_plot() {
     assert!(o.status.success(), "{}", stderr(&o));
     let md = std::fs::read_to_string(out.join("report.md")).unwrap();
     for method in [
+        "| baked-polygonal | trees 64², ε 2, LTC per pixel |",
         "| bspvt | 64² faces, ε 2 |",
         "| ltc-exact-vis |",
         "| ltc-unshadowed |",
@@ -225,8 +233,9 @@ fn report_writes_markdown_csv_and_plot() {
         assert!(md.contains(method), "{method} missing:\n{md}");
     }
     let csv = std::fs::read_to_string(out.join("report.csv")).unwrap();
-    // 13 polygonal-light rows, then 3 gathers and 19 cache configurations.
-    assert_eq!(csv.lines().count(), 1 + 13 + 3 + 19);
+    // The baked look's polygonal part (no environment), 13 polygonal-light rows, then 3
+    // gathers and 19 cache configurations.
+    assert_eq!(csv.lines().count(), 1 + 1 + 13 + 3 + 19);
     let column = |prefix: &str, k: usize| {
         let line = csv.lines().find(|l| l.starts_with(prefix)).unwrap();
         line.rsplit(',').nth(k).unwrap().to_string()
@@ -514,6 +523,7 @@ fn export_writes_valid_packs_that_render_like_the_database() {
     for (file, method, extra) in [
         ("scenes/textured_light", "bspvt", vec!["--face-res", "16"]),
         ("scenes/bunny_two_groups", "prt", vec!["--sh-order", "4", "--regions", "8"]),
+        ("scenes/textured_light", "baked", vec!["--face-res", "16", "--sh-order", "3", "--regions", "8"]),
     ] {
         let name = Path::new(file).file_name().unwrap().to_str().unwrap();
         for ext in ["gltf", "bin"] {
@@ -655,7 +665,7 @@ fn indirect_light_adds_to_per_vertex_methods() {
         assert!(with.iter().zip(&direct).all(|(a, b)| a.radiance.cmpge(b.radiance).all()), "{mode} only adds light");
         assert!(with.iter().zip(&direct).any(|(a, b)| a.radiance != b.radiance), "{mode} adds something");
     }
-    let o = kage(&["render", &scene, "--indirect", "cache"]);
+    let o = kage(&["render", &scene, "--method", "reference", "--indirect", "cache"]);
     assert!(!o.status.success() && stderr(&o).contains("--bounces"), "{}", stderr(&o));
     // With a bake database the records persist: the second run reads them and shades the same.
     let db = d.join("bake.redb");
@@ -664,6 +674,55 @@ fn indirect_light_adds_to_per_vertex_methods() {
     let (second, b) = run(&cached);
     assert!(!first.contains("from the bake database") && second.contains("from the bake database"), "{first}{second}");
     assert!(a.iter().zip(&b).all(|(x, y)| x.radiance == y.radiance));
+    std::fs::remove_dir_all(d).unwrap();
+}
+
+/// `kage render` with no method renders the baked look: it plans and bakes into the database
+/// on the first run (cached on the second), shades metal under the environment (the built-in
+/// scene's gold torus is lit), and shows the environment where no geometry is.
+#[test]
+fn baked_is_the_default_and_shades_every_light() {
+    let d = scratch("baked");
+    let (exr, csv, db) = (d.join("a.exr"), d.join("v.csv"), d.join("bake.redb"));
+    let run = || {
+        let o = kage(&[
+            "render",
+            "--size",
+            "64x36",
+            "--spp",
+            "1",
+            "-o",
+            exr.to_str().unwrap(),
+            "--vertices-out",
+            csv.to_str().unwrap(),
+            "--db",
+            db.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        String::from_utf8_lossy(&o.stdout).into_owned()
+    };
+    let first = run();
+    assert!(first.contains("plan for builtin:default") && first.contains("40 to bake"), "{first}");
+    assert!(first.contains("indirect (Cache)"), "{first}");
+    let second = run();
+    assert!(second.contains("40 of 40 chunks cached"), "{second}");
+    let rows = read_vertex_csv(&csv).unwrap();
+    let scene = kage_engine::scene::default_scene();
+    let flat = kage_engine::scene::flatten(&scene);
+    let k = flat.instances.iter().position(|i| i.material.metallic == 1.0).expect("the torus is metal");
+    let eye = scene.first_camera().unwrap().eye();
+    // A metal reflects only toward the side it faces: count the vertices facing the camera.
+    let facing = |r: &&kage_engine::output::VertexRow| {
+        r.node == flat.instances[k].id.node && {
+            let (p, n) = flat.vertex(k, r.vertex as usize);
+            n.dot((eye - p).normalize()) > 0.1
+        }
+    };
+    let all = rows.iter().filter(facing).count();
+    let lit = rows.iter().filter(facing).filter(|r| r.radiance.max_element() > 0.05).count();
+    assert!(all > 500 && lit * 20 > all * 19, "the metal torus is lit: {lit} of {all} vertices facing the camera");
+    let img = image::open(&exr).unwrap().into_rgb32f();
+    assert!(img.get_pixel(0, 0).0.iter().all(|c| *c > 0.0), "the environment shows behind the geometry");
     std::fs::remove_dir_all(d).unwrap();
 }
 

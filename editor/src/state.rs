@@ -223,6 +223,8 @@ pub struct Editor {
     pub(super) bspvt_gpu: Option<BspvtShader>,
     pub(super) prt_gpu: Option<PrtShader>,
     pub(super) silhouettes: prt::SilhouetteMemo,
+    /// The environment prefiltered for the specular term (method `baked`), kept while its map is.
+    pub(super) prefiltered: Option<prt::prefilter::Prefiltered>,
     pub(super) watcher: Option<Watcher>,
     pub(super) reference_worker: Option<Worker<VertexValues>>,
     pub(super) exact_worker: Option<Worker<VertexValues>>,
@@ -246,7 +248,7 @@ impl Editor {
         let mut ed = Self {
             scene,
             flat,
-            method: Method::Bspvt,
+            method: Method::Baked,
             orbit,
             cameras,
             selection: Selection::None,
@@ -272,6 +274,7 @@ impl Editor {
             bspvt_gpu: None,
             prt_gpu: None,
             silhouettes: prt::SilhouetteMemo::default(),
+            prefiltered: None,
             watcher: None,
             reference_worker: None,
             exact_worker: None,

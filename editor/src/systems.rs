@@ -13,10 +13,12 @@ use kage_engine::cache::{
     self,
     record::{GlossyDirect, Source},
 };
+use kage_engine::prt::prefilter::Prefiltered;
 use kage_engine::reference::{Renderer, Settings};
 use kage_engine::scene::VertexValues;
 use kage_engine::scene::{EnvMap, EnvironmentLight, Scene, flatten, import};
 use kage_engine::shading::Method;
+use kage_engine::shading::baked::{Environment, Look, Polygonal};
 use kage_engine::{bspvt, prt};
 use kage_gpu::bspvt::{BspvtShader, Mode};
 use kage_gpu::prt::PrtShader;
@@ -435,7 +437,9 @@ pub fn gathering(ed: &Editor) -> bool {
 /// What the current method offers to light glossy hits toward the cache's records.
 fn glossy_direct(ed: &Editor) -> GlossyDirect {
     match ed.method {
-        Method::Bspvt => {
+        // Baked: glossy hits reflect the polygonal lights toward the records (the environment's
+        // part of them is left out of the bounce here; `kage render` includes it).
+        Method::Bspvt | Method::Baked => {
             GlossyDirect::Ltc(ed.bakes.bspvt.clone().filter(|b| fits(ed, &b.instances, |i| i.offsets.len() - 1)))
         }
         Method::LtcUnshadowed => GlossyDirect::Ltc(None),
@@ -562,6 +566,7 @@ fn shade(ed: &mut Editor) -> Option<VertexValues> {
         }
         Method::LtcExactVis => exact_vis(ed, eye),
         Method::Prt | Method::PrtSelf => Some(prt_gpu(ed, eye)),
+        Method::Baked => Some(baked(ed, eye)),
         Method::Reference => Some(ed.reference.mean().unwrap_or_else(|| ed.flat.zeros())),
     }
 }
@@ -598,6 +603,30 @@ fn polygonal(ed: &mut Editor, mode: Mode, eye: Vec3) -> VertexValues {
             bspvt::shade_vertices(&ed.flat, m, eye)
         }
     }
+}
+
+/// The complete look per vertex: the polygonal lights (on the GPU when it can), the
+/// environment's diffuse (PRT, with other groups' shadows) and specular terms on the CPU.
+fn baked(ed: &mut Editor, eye: Vec3) -> VertexValues {
+    let trees = ed.bakes.bspvt.as_deref().is_some_and(|b| fits(ed, &b.instances, |i| i.offsets.len() - 1));
+    let values =
+        (!ed.flat.lights.is_empty()).then(|| polygonal(ed, if trees { Mode::Trees } else { Mode::Unshadowed }, eye));
+    let bake = ed.bakes.bspvt.as_deref().filter(|_| trees);
+    let polygonal = values.map(|values| Polygonal { bake, values, lobes: None });
+    let env = ed.flat.environment.clone();
+    ed.prefiltered =
+        env.as_ref().map(|e| ed.prefiltered.as_ref().map_or_else(|| Prefiltered::new(e), |p| p.for_light(e)));
+    let (Some(bake), Some(light), Some(pre)) = (&ed.bakes.prt, &ed.bakes.lighting, &ed.prefiltered) else {
+        return Look::new(&ed.flat, eye, polygonal, None).direct_vertices();
+    };
+    let n = kage_engine::math::sh::num_coeffs(bake.order);
+    if !fits(ed, &bake.instances, |t| t.len() / n) {
+        return Look::new(&ed.flat, eye, polygonal, None).direct_vertices();
+    }
+    let shadows = prt::Shadows::WithOthers;
+    let posed = prt::Posed::new(&ed.scene, &ed.flat, bake.order, light, shadows, &ed.options.prt, &mut ed.silhouettes);
+    let frame = prt::Frame::from_posed(&ed.flat, bake, posed, eye);
+    Look::new(&ed.flat, eye, polygonal, Some(Environment::new(frame, bake, light, Some(pre)))).direct_vertices()
 }
 
 /// The exact-visibility comparison casts cube maps per vertex: in the background.

@@ -107,14 +107,19 @@ fn the_default_scene_bakes_in_the_background_and_every_method_shades() {
     let ed = &h.state().editor;
     assert!(ed.bakes.prt.is_some() && ed.bakes.lighting.is_some(), "{:?}", ed.log);
     assert!(errors(ed).is_empty(), "{:?}", errors(ed));
-    let bspvt = values(&h);
-    assert!(bspvt.iter().any(|v| v.max_element() > 0.01) && bspvt.iter().all(|v| v.is_finite()));
-    let img = snapshot(&mut h, "default-bspvt");
+    // The editor opens on the complete baked look.
+    assert_eq!(ed.method, Method::Baked);
+    let baked = values(&h);
+    assert!(baked.iter().any(|v| v.max_element() > 0.01) && baked.iter().all(|v| v.is_finite()));
+    let img = snapshot(&mut h, "default-baked");
     assert!(viewport_colours(&img) > 200, "the viewport shows the scene ({} colours)", viewport_colours(&img));
-    let mut seen = vec![bspvt];
-    for (label, method) in
-        [("prt", Method::Prt), ("prt-self", Method::PrtSelf), ("ltc-unshadowed", Method::LtcUnshadowed)]
-    {
+    let mut seen = vec![baked];
+    for (label, method) in [
+        ("bspvt", Method::Bspvt),
+        ("prt", Method::Prt),
+        ("prt-self", Method::PrtSelf),
+        ("ltc-unshadowed", Method::LtcUnshadowed),
+    ] {
         h.get_by_label(label).click();
         step_until(&mut h, label, |ed| ed.method == method && !ed.dirty.shade);
         let v = values(&h);

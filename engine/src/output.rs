@@ -11,25 +11,42 @@ pub fn display_srgb(c: f32) -> f32 {
     color::linear_to_srgb(if c.is_nan() { 0.0 } else { c.clamp(0.0, 1.0) })
 }
 
+/// The image formats [`write_image`] writes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ImageFormat {
+    /// OpenEXR, linear radiance.
+    Exr,
+    /// PNG, exposed and sRGB-encoded.
+    Png,
+}
+
+impl ImageFormat {
+    /// The format `path`'s extension names, or an error naming the file (checked before any
+    /// work, so that a long render does not end in a refusal).
+    pub fn of(path: &Path) -> Result<Self> {
+        match path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
+            Some("exr") => Ok(Self::Exr),
+            Some("png") => Ok(Self::Png),
+            _ => Err(Error::image(path, "output images must be .exr (linear) or .png (tonemapped sRGB)")),
+        }
+    }
+}
+
 /// Writes an image by extension: `.exr` keeps linear radiance; `.png` applies `2^exposure`,
 /// clamps and encodes sRGB.
 pub fn write_image(path: &Path, width: usize, height: usize, pixels: &[Vec3], exposure: f32) -> Result<()> {
-    let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
-    let result = match ext.as_deref() {
-        Some("exr") => {
+    let result = match ImageFormat::of(path)? {
+        ImageFormat::Exr => {
             let data: Vec<f32> = pixels.iter().flat_map(|p| p.to_array()).collect();
             image::Rgb32FImage::from_raw(width as u32, height as u32, data).expect("size matches").save(path)
         }
-        Some("png") => {
+        ImageFormat::Png => {
             let scale = exposure.exp2();
             let data: Vec<u8> = pixels
                 .iter()
                 .flat_map(|p| (*p * scale).to_array().map(|c| (display_srgb(c) * 255.0 + 0.5) as u8))
                 .collect();
             image::RgbImage::from_raw(width as u32, height as u32, data).expect("size matches").save(path)
-        }
-        _ => {
-            return Err(Error::image(path, "output images must be .exr (linear) or .png (tonemapped sRGB)"));
         }
     };
     result.map_err(|e| Error::image(path, format!("cannot write: {e}")))

@@ -1,8 +1,8 @@
 //! Images from per-vertex results: each pixel's primary ray hits a triangle and a shading
 //! function sees the hit (instance, corner vertices, barycentrics, position) — for per-vertex
 //! methods it interpolates the three vertex values (as a GPU would with per-vertex colours);
-//! per-pixel methods add their own terms. Lights seen directly show their radiance; misses are
-//! black.
+//! per-pixel methods add their own terms. Lights seen directly show their radiance; misses
+//! show the snapshot's environment (black without one).
 
 use crate::reference::Renderer;
 use crate::scene::{Camera, NO_LIGHT};
@@ -47,8 +47,8 @@ pub fn vertex_image(
 /// What a primary ray saw.
 #[derive(Clone, Copy, Debug)]
 pub enum Primary {
-    /// Nothing (black).
-    Miss,
+    /// No geometry: the environment's radiance along the ray (zero without one).
+    Miss(Vec3),
     /// A light's emitting side, with its radiance.
     Emitter(Vec3),
     /// A receiver triangle.
@@ -105,8 +105,7 @@ pub fn shade_image(
     let values: Vec<Vec3> = grid
         .par_iter()
         .map(|p| match p {
-            Primary::Miss => Vec3::ZERO,
-            Primary::Emitter(l) => *l,
+            Primary::Miss(l) | Primary::Emitter(l) => *l,
             Primary::Surface(hit) => shade(hit),
         })
         .collect();
@@ -114,14 +113,16 @@ pub fn shade_image(
 }
 
 fn primary(r: &Renderer, o: Vec3, d: Vec3) -> Primary {
-    let Some(hit) = r.bvh.closest_hit(o, d, f32::INFINITY) else { return Primary::Miss };
+    let Some(hit) = r.bvh.closest_hit(o, d, f32::INFINITY) else {
+        return Primary::Miss(r.flat.environment.as_ref().map_or(Vec3::ZERO, |e| e.radiance(d)));
+    };
     let tref = r.flat.refs[hit.triangle as usize];
     if tref.light != NO_LIGHT {
         let light = &r.flat.lights[tref.light as usize];
         return if d.dot(light.normal) < 0.0 {
             Primary::Emitter(light.radiance_at(tref.local as usize, hit.bary))
         } else {
-            Primary::Miss
+            Primary::Miss(Vec3::ZERO) // a one-sided light's dark back hides what is behind it
         };
     }
     let instance = tref.owner as usize;

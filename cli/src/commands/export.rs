@@ -1,5 +1,6 @@
 //! `kage export`: bake through the database (misses only) and write an asset pack — the scene,
-//! its baked data under `KAGE_baked_shadows`, and an unlit `COLOR_0` preview.
+//! its baked data under `KAGE_baked_shadows`, and an unlit `COLOR_0` preview of the baked look
+//! (`--method baked` per vertex, one bounce included).
 
 use crate::commands::bake::{BakeOptions, print_plan};
 use crate::db_args::DbArgs;
@@ -10,7 +11,8 @@ use glam::Vec3;
 use kage_bake_db::pack::{self, Export};
 use kage_engine::scene::VertexValues;
 use kage_engine::scene::flatten;
-use kage_engine::{bspvt, prt};
+use kage_engine::shading::baked::{Bakes, Look};
+use kage_engine::{bspvt, cache, prt};
 use std::path::PathBuf;
 
 /// Arguments of `kage export`.
@@ -42,17 +44,8 @@ pub fn run(args: &Args) -> Result<()> {
     let total = plan.misses().map(|j| j.vertices.len()).sum();
     let out = with_bar(total, "baking", |p| kage_bake_db::run(&store, &scene, &flat, &plan, p))?;
     let eye = scene.first_camera().map_or(Vec3::new(0.0, 4.0, 8.0), |c| c.eye());
-    let mut radiance: VertexValues = flat.zeros();
-    let mut add = |values: VertexValues| {
-        radiance.iter_mut().flatten().zip(values.into_iter().flatten()).for_each(|(r, v)| *r += v);
-    };
-    if let Some(b) = &out.bspvt {
-        add(bspvt::shade_vertices(&flat, bspvt::Shadows::Trees(b), eye));
-    }
     let lighting = plan.prt.and_then(|s| prt::Lighting::new(&scene, &s).map(|l| (l, s)));
-    if let (Some(b), Some((light, s))) = (&out.prt, &lighting) {
-        add(prt::Frame::prepare(&scene, &flat, b, light, prt::Shadows::WithOthers, s, eye).vertex_values(&flat));
-    }
+    let radiance = preview(&scene, out.bspvt.as_ref(), out.prt.as_ref().zip(lighting.as_ref()), eye);
     let export = Export {
         scene: &scene,
         flat: &flat,
@@ -65,4 +58,20 @@ pub fn run(args: &Args) -> Result<()> {
     let size = std::fs::metadata(&args.output).map(|m| m.len()).unwrap_or(0);
     crate::emit(&format!("wrote {} ({:.2} MB)\n", args.output.display(), size as f64 / 1e6));
     Ok(())
+}
+
+/// The preview: the baked look toward `eye`, with the radiance cache's bounce.
+fn preview(
+    scene: &kage_engine::scene::Scene,
+    trees: Option<&bspvt::Bake>,
+    prt: Option<(&prt::Bake, &(prt::Lighting, prt::Settings))>,
+    eye: Vec3,
+) -> VertexValues {
+    let renderer = kage_engine::reference::Renderer::new(scene);
+    let flat = &renderer.flat;
+    let prefiltered = flat.environment.as_ref().map(prt::prefilter::Prefiltered::new);
+    let bakes = Bakes { bspvt: trees, prt: prt.map(|(b, (l, s))| (b, l, s)), prefiltered: prefiltered.as_ref() };
+    let look = Look::prepare(scene, flat, bakes, eye, &mut prt::SilhouetteMemo::default());
+    let bounce = crate::commands::render::baked::bounce(&look, &renderer, &cache::Settings::default(), eye);
+    look.with_indirect(bounce).vertex_values()
 }

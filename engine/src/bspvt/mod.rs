@@ -26,6 +26,7 @@ pub mod grid;
 pub mod layout;
 pub mod memo;
 pub mod node;
+pub mod pixel;
 pub mod reach;
 pub mod rebake;
 pub mod shade;

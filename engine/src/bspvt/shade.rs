@@ -58,21 +58,24 @@ impl PointShader {
     }
 
     /// Adds `weight` × the outgoing radiance per unit light radiance from a polygon piece
-    /// (points relative to p) to `sum`.
+    /// (points relative to p) to `sum`, per lobe.
     fn piece(&self, piece: &[DVec3], tex: Option<&TexturedLight>, weight: f64, sum: &mut Sum) {
-        let lobe = |m: &DMat3, space: usize| -> DVec3 {
+        let lobe = |m: &DMat3, space: usize| -> (f64, DVec3) {
             let t: Vec<DVec3> = piece.iter().map(|q| *m * *q).collect();
             let scalar = ltc::integrate(&t);
             match tex {
-                Some(tex) if scalar != 0.0 => scalar * tex.colour(space, &t).as_dvec3(),
-                _ => DVec3::splat(scalar),
+                Some(tex) if scalar != 0.0 => (scalar, scalar * tex.colour(space, &t).as_dvec3()),
+                _ => (scalar, DVec3::splat(scalar)),
             }
         };
-        let mut out = self.diffuse * lobe(&self.frame, 0);
+        let (d, colour) = lobe(&self.frame, 0);
+        sum.lobes[0] += weight * d;
+        sum.radiance[0] += weight * self.diffuse * colour;
         if self.spec != DVec3::ZERO {
-            out += self.spec * lobe(&self.spec_inv, 1);
+            let (s, colour) = lobe(&self.spec_inv, 1);
+            sum.lobes[1] += weight * s;
+            sum.radiance[1] += weight * self.spec * colour;
         }
-        sum.radiance += weight * out;
         sum.pieces += 1;
     }
 
@@ -86,33 +89,58 @@ impl PointShader {
         let mut total = DVec3::ZERO;
         let mut pieces = 0;
         for light in lights {
-            let rel: Vec<DVec3> = light.points.iter().map(|q| q.as_dvec3() - self.p).collect();
-            // One-sided lights, and lights entirely below the horizon, contribute nothing.
-            if light.normal.as_dvec3().dot(-rel[0]) <= 0.0 || rel.iter().all(|q| q.dot(self.n) <= 0.0) {
-                continue;
-            }
-            let tex = TexturedLight::new(light, &rel, [&self.frame, &self.spec_inv]);
-            let tex = tex.as_ref();
-            let mut sum = Sum::default();
-            let tiles = tex.map(|t| t.tiles(&rel));
-            for part in tiles.as_deref().unwrap_or(std::slice::from_ref(&rel)) {
-                // No light arrives from below the receiver's horizon, but the specular LTC
-                // clips at its own transformed horizon and would gather some: clip here, so
-                // that the texels there (never cast, "don't care" to the trees) cannot matter.
-                let part = polygon::clip(part, self.n);
-                if part.len() < 3 {
-                    continue;
-                }
-                match vis {
-                    Visibility::Unshadowed => self.piece(&part, tex, 1.0, &mut sum),
-                    Visibility::Tree(record) => self.through_trees(record, &part, tex, &mut sum),
-                    Visibility::Exact(cube) => self.through_texels(cube, &part, tex, &mut sum),
-                }
-            }
-            total += light.radiance.as_dvec3() * sum.radiance;
+            let sum = self.light(light, vis);
+            total += light.radiance.as_dvec3() * (sum.radiance[0] + sum.radiance[1]);
             pieces += sum.pieces;
         }
         (total.as_vec3(), pieces)
+    }
+
+    /// Per light: the diffuse and specular lobes' integrals over the light (cosine-space form
+    /// factors, no colour) with the given visibility — what per-pixel shading carries from the
+    /// vertices as shadowed/unshadowed pairs.
+    pub fn lobe_integrals(&self, lights: &[FlatLight], vis: Visibility) -> Vec<[f64; 2]> {
+        lights.iter().map(|l| self.light(l, vis).lobes).collect()
+    }
+
+    /// Outgoing radiance per unit light radiance from all of `light`, with its lobes' integrals.
+    fn light(&self, light: &FlatLight, vis: Visibility) -> Sum {
+        let mut sum = Sum::default();
+        let rel: Vec<DVec3> = light.points.iter().map(|q| q.as_dvec3() - self.p).collect();
+        // One-sided lights, and lights entirely below the horizon, contribute nothing.
+        if light.normal.as_dvec3().dot(-rel[0]) <= 0.0 || rel.iter().all(|q| q.dot(self.n) <= 0.0) {
+            return sum;
+        }
+        let tex = TexturedLight::new(light, &rel, [&self.frame, &self.spec_inv]);
+        let tex = tex.as_ref();
+        let tiles = tex.map(|t| t.tiles(&rel));
+        for part in tiles.as_deref().unwrap_or(std::slice::from_ref(&rel)) {
+            // No light arrives from below the receiver's horizon, but the specular LTC
+            // clips at its own transformed horizon and would gather some: clip here, so
+            // that the texels there (never cast, "don't care" to the trees) cannot matter.
+            let part = polygon::clip(part, self.n);
+            if part.len() < 3 {
+                continue;
+            }
+            match vis {
+                Visibility::Unshadowed => self.piece(&part, tex, 1.0, &mut sum),
+                Visibility::Tree(record) => self.through_trees(record, &part, tex, &mut sum),
+                Visibility::Exact(cube) => self.through_texels(cube, &part, tex, &mut sum),
+            }
+        }
+        sum
+    }
+
+    /// Unshadowed radiance from all `lights`, each light's diffuse and specular lobes scaled
+    /// by `ratios(light index)` (visible fractions carried from elsewhere).
+    pub fn shade_scaled(&self, lights: &[FlatLight], ratios: impl Fn(usize) -> [f64; 2]) -> Vec3 {
+        let mut total = DVec3::ZERO;
+        for (k, light) in lights.iter().enumerate() {
+            let sum = self.light(light, Visibility::Unshadowed);
+            let [d, s] = ratios(k);
+            total += light.radiance.as_dvec3() * (d * sum.radiance[0] + s * sum.radiance[1]);
+        }
+        total.as_vec3()
     }
 
     fn through_trees(&self, record: &[u8], rel: &[DVec3], tex: Option<&TexturedLight>, acc: &mut Sum) {
@@ -194,10 +222,13 @@ impl PointShader {
     }
 }
 
-/// Weighted radiance of the pieces integrated so far, and their count.
+/// What the pieces integrated so far add up to, and their count.
 #[derive(Default)]
 struct Sum {
-    radiance: DVec3,
+    /// Weighted radiance of the diffuse and the specular lobe.
+    radiance: [DVec3; 2],
+    /// The diffuse and specular lobes' integrals (no colour).
+    lobes: [f64; 2],
     pieces: usize,
 }
 

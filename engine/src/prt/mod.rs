@@ -16,7 +16,9 @@
 //! `1 − Π_o (1 − V_o)`. Images evaluate `V_o` per pixel; `--vertices-out` per vertex.
 
 pub mod budget;
+pub mod glossy;
 pub mod lighting;
+pub mod prefilter;
 pub mod regions;
 pub mod silhouette;
 pub mod transfer;
@@ -224,6 +226,8 @@ pub struct Posed {
     pub widths: Vec<f32>,
     /// Per group index: one silhouette per region.
     pub silhouettes: Vec<Arc<Vec<Silhouette>>>,
+    /// Per group index: the world-from-group rotation (scale removed) and mirror flag.
+    pub frames: Vec<(DMat3, bool)>,
 }
 
 impl Posed {
@@ -264,7 +268,7 @@ impl Posed {
         let silhouettes =
             if others { memo.silhouettes(flat, &group_of, groups.len(), &regions, s) } else { Vec::new() };
         let widths = regions.iter().map(|r| r.spread.sqrt() as f32).collect();
-        Self { order, lighting, region_basis, group_of, regions, widths, silhouettes }
+        Self { order, lighting, region_basis, group_of, regions, widths, silhouettes, frames: poses }
     }
 }
 
@@ -429,7 +433,8 @@ impl Frame {
 
     /// `ρ · max(0, Ls − Σ_i B_i T_i V_o)` at `p` from interpolated `ls`, `albedo` and `t`, with
     /// `V_o = 1 − Π (1 − V_g)` over the (region, group) `pairs` (sorted by region) that are not
-    /// in group `own`.
+    /// in group `own`; and the fraction of `Ls` (by luminance) the other groups leave, which
+    /// the specular term ([`glossy`]) is dimmed by.
     fn radiance(
         &self,
         own: usize,
@@ -438,7 +443,7 @@ impl Frame {
         t: impl Fn(usize) -> f32,
         p: Vec3,
         pairs: &[(u16, u16)],
-    ) -> Vec3 {
+    ) -> (Vec3, f32) {
         let mut l = ls.as_dvec3();
         for run in pairs.chunk_by(|a, b| a.0 == b.0) {
             let r = run[0].0 as usize;
@@ -456,7 +461,10 @@ impl Frame {
                 l -= self.posed.regions[r].power * (tr * (1.0 - open)) as f64;
             }
         }
-        albedo * l.max(DVec3::ZERO).as_vec3()
+        let l = l.max(DVec3::ZERO).as_vec3();
+        let lit = crate::math::luminance(ls.max(Vec3::ZERO));
+        let open = if lit > 0.0 { (crate::math::luminance(l) / lit).clamp(0.0, 1.0) } else { 1.0 };
+        (albedo * l, open)
     }
 
     /// Every (region, group) pair, sorted by region.
@@ -478,6 +486,17 @@ impl Frame {
 
     /// Per-vertex radiance toward the eye, per instance.
     pub fn vertex_values(&self, flat: &FlatScene) -> VertexValues {
+        self.per_vertex(flat, |(radiance, _)| radiance)
+    }
+
+    /// Per instance and vertex: the radiance toward the eye and the fraction of the diffuse
+    /// environment light the other groups' shadows leave (1 where none falls).
+    pub fn vertex_values_open(&self, flat: &FlatScene) -> Vec<Vec<(Vec3, f32)>> {
+        self.per_vertex(flat, |x| x)
+    }
+
+    /// [`Frame::radiance`] at every vertex, mapped by `pick`.
+    fn per_vertex<T: Send>(&self, flat: &FlatScene, pick: impl Fn((Vec3, f32)) -> T + Sync) -> Vec<Vec<T>> {
         let q = self.posed.regions.len();
         let pairs = self.all_pairs();
         (0..flat.instances.len())
@@ -488,7 +507,7 @@ impl Frame {
                     .map(|v| {
                         let (p, _) = flat.vertex(i, v);
                         let t = &self.shadow_t[i][v * q..(v + 1) * q];
-                        self.radiance(own, self.ls[i][v], self.albedo[i][v], |r| t[r], p, &pairs)
+                        pick(self.radiance(own, self.ls[i][v], self.albedo[i][v], |r| t[r], p, &pairs))
                     })
                     .collect()
             })
@@ -497,10 +516,11 @@ impl Frame {
 
     /// Radiance at one primary-ray hit, with the other groups' shadows evaluated there.
     pub fn shade_hit(&self, hit: &SurfaceHit) -> Vec3 {
-        self.shade_hit_with(hit, &self.all_pairs())
+        self.shade_hit_with(hit, &self.all_pairs()).0
     }
 
-    fn shade_hit_with(&self, hit: &SurfaceHit, pairs: &[(u16, u16)]) -> Vec3 {
+    /// Diffuse radiance at `hit` and the open fraction (see [`Frame::radiance`]).
+    fn shade_hit_with(&self, hit: &SurfaceHit, pairs: &[(u16, u16)]) -> (Vec3, f32) {
         let i = hit.instance;
         let q = self.posed.regions.len();
         let t = |r: usize| (0..3).map(|c| self.shadow_t[i][hit.corners[c] * q + r] * hit.weights[c]).sum::<f32>();
@@ -510,7 +530,7 @@ impl Frame {
     }
 
     /// A `width × height` image with `spp` samples per pixel, the other groups' shadows
-    /// evaluated per sample (see [`Frame::shade_grid`]).
+    /// evaluated per sample (see [`Frame::shade_grid`]); misses show the environment.
     pub fn render(
         &self,
         r: &crate::reference::Renderer,
@@ -520,13 +540,18 @@ impl Frame {
         spp: u32,
     ) -> Vec<Vec3> {
         let (grid, side) = raster::primary_grid(r, camera, width, height, spp);
-        raster::downsample(&self.shade_grid(&grid, width * side), width, height, side)
+        raster::downsample(&self.shade_grid(&grid, width * side, &|_, _| Vec3::ZERO), width, height, side)
     }
 
     /// Shades a grid of primary hits (`grid_width` columns, row-major): per sample the same
-    /// result as [`Frame::shade_hit`], but 8×8-sample tiles skip the (region, group) pairs whose
-    /// shadow cannot reach them.
-    pub fn shade_grid(&self, grid: &[Primary], grid_width: usize) -> Vec<Vec3> {
+    /// result as [`Frame::shade_hit`] plus `extra(hit, open fraction)`, but 8×8-sample tiles
+    /// skip the (region, group) pairs whose shadow cannot reach them.
+    pub fn shade_grid(
+        &self,
+        grid: &[Primary],
+        grid_width: usize,
+        extra: &(dyn Fn(&SurfaceHit, f32) -> Vec3 + Sync),
+    ) -> Vec<Vec3> {
         const TILE: usize = 8;
         let (gw, gh) = (grid_width, grid.len() / grid_width.max(1));
         let (tx, ty) = (gw.div_ceil(TILE), gh.div_ceil(TILE));
@@ -552,9 +577,11 @@ impl Frame {
                     .iter()
                     .map(|&k| {
                         let v = match &grid[k] {
-                            Primary::Miss => Vec3::ZERO,
-                            Primary::Emitter(l) => *l,
-                            Primary::Surface(h) => self.shade_hit_with(h, &pairs),
+                            Primary::Miss(l) | Primary::Emitter(l) => *l,
+                            Primary::Surface(h) => {
+                                let (diffuse, open) = self.shade_hit_with(h, &pairs);
+                                diffuse + extra(h, open)
+                            }
                         };
                         (k, v)
                     })

@@ -10,6 +10,9 @@ use std::str::FromStr;
 /// How radiance is computed.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Method {
+    /// Everything the scene has, each through its technique: polygonal lights (BSPVT), the
+    /// environment (PRT, glossy and metal included), one bounce (radiance cache).
+    Baked,
     /// Monte Carlo ground truth (path tracing with MIS).
     Reference,
     /// Polygonal lights with BSP visibility trees and LTC (per vertex).
@@ -37,12 +40,20 @@ pub enum Lights {
 
 impl Method {
     /// Every method, in menu order.
-    pub const ALL: [Method; 6] =
-        [Method::Bspvt, Method::LtcUnshadowed, Method::LtcExactVis, Method::Prt, Method::PrtSelf, Method::Reference];
+    pub const ALL: [Method; 7] = [
+        Method::Baked,
+        Method::Bspvt,
+        Method::LtcUnshadowed,
+        Method::LtcExactVis,
+        Method::Prt,
+        Method::PrtSelf,
+        Method::Reference,
+    ];
 
     /// The name on the command line and in menus.
     pub fn name(self) -> &'static str {
         match self {
+            Method::Baked => "baked",
             Method::Reference => "reference",
             Method::Bspvt => "bspvt",
             Method::LtcUnshadowed => "ltc-unshadowed",
@@ -55,6 +66,9 @@ impl Method {
     /// One line on what it computes (the CLI's help).
     pub fn about(self) -> &'static str {
         match self {
+            Method::Baked => {
+                "the whole look: polygonal lights (BSPVT + LTC), the environment (PRT, glossy and metal too), one bounce (radiance cache)"
+            }
             Method::Reference => "Monte Carlo ground truth (path tracing with MIS)",
             Method::Bspvt => "polygonal lights: BSP visibility trees + LTC (GGX), per vertex",
             Method::LtcUnshadowed => "polygonal lights: LTC without shadows, per vertex",
@@ -67,7 +81,7 @@ impl Method {
     /// The lights it shades.
     pub fn lights(self) -> Lights {
         match self {
-            Method::Reference => Lights::All,
+            Method::Reference | Method::Baked => Lights::All,
             Method::Bspvt | Method::LtcUnshadowed | Method::LtcExactVis => Lights::Polygonal,
             Method::Prt | Method::PrtSelf => Lights::Environment,
         }
@@ -87,7 +101,7 @@ impl Method {
     /// The PRT shadows it computes, for the PRT methods.
     pub fn prt_shadows(self) -> Option<crate::prt::Shadows> {
         match self {
-            Method::Prt => Some(crate::prt::Shadows::WithOthers),
+            Method::Prt | Method::Baked => Some(crate::prt::Shadows::WithOthers),
             Method::PrtSelf => Some(crate::prt::Shadows::SelfOnly),
             _ => None,
         }
@@ -147,6 +161,7 @@ mod tests {
         };
         assert_eq!(count(&scene), (true, true), "the built-in scene has both kinds");
         assert_eq!(count(&Method::Reference.lit(&scene)), (true, true));
+        assert_eq!(count(&Method::Baked.lit(&scene)), (true, true));
         assert_eq!(count(&Method::Bspvt.lit(&scene)), (true, false));
         assert_eq!(count(&Method::PrtSelf.lit(&scene)), (false, true));
     }

@@ -1,6 +1,8 @@
-//! What every shading method shares: the methods' names ([`Method`]), the material BSDF, and
-//! the ratio estimator that `kage report` measures BSPVT against.
+//! What every shading method shares: the methods' names ([`Method`]), the material BSDF, the
+//! ratio estimator that `kage report` measures BSPVT against, and the complete baked look
+//! ([`baked`]) that sums the techniques.
 
+pub mod baked;
 mod bsdf;
 mod method;
 pub mod ratio;

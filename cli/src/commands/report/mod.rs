@@ -4,11 +4,13 @@
 //! labelled with their configuration) into `--out`, plus `report-rays.png`/`.svg` (error
 //! against rays cast) when the cache section ran.
 //!
-//! Sections run when the scene has what they shade: [`polygon`] (polygonal lights, the
+//! Sections run when the scene has what they shade: [`baked`] (the complete look against the
+//! full reference, and each light's part alone), [`polygon`] (polygonal lights, the
 //! environment dropped), [`prt`] (the environment, polygonal lights removed) and [`cache`] (one
 //! bounce of indirect light from all of them). Errors are per vertex toward the scene camera,
-//! and for PRT also per pixel.
+//! and for the baked look and PRT also per pixel.
 
+mod baked;
 mod cache;
 mod plot;
 mod polygon;
@@ -34,10 +36,10 @@ pub struct Args {
     /// Samples per vertex of the reference.
     #[arg(long, default_value_t = 1024)]
     reference_spp: u32,
-    /// Size of the per-pixel comparison images (PRT), WxH.
+    /// Size of the per-pixel comparison images (baked look and PRT), WxH.
     #[arg(long, default_value = "320x180", value_parser = super::render::parse_size)]
     image_size: (usize, usize),
-    /// Samples per pixel of the reference image (PRT).
+    /// Samples per pixel of the reference images (baked look and PRT).
     #[arg(long, default_value_t = 256)]
     reference_image_spp: u32,
     /// PRT transfer directions per vertex.
@@ -51,6 +53,8 @@ pub struct Args {
 /// A part of the report.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 enum Section {
+    /// The complete baked look (`--method baked`) and its parts.
+    Baked,
     /// Polygonal lights: BSPVT and its competitors.
     Polygon,
     /// The environment: PRT.
@@ -152,6 +156,9 @@ pub fn run(args: &Args) -> Result<()> {
         "{}: no polygonal light and no environment: nothing to report",
         scene.source
     );
+    if args.wants(Section::Baked) {
+        header.push(baked::run(args, eye, &mut rows)?);
+    }
     if has_lights && args.wants(Section::Polygon) {
         header.push(polygon::run(args, eye, &mut rows)?);
     }

@@ -1,4 +1,7 @@
-//! `kage render`: images and per-vertex radiance with a chosen method.
+//! `kage render`: images and per-vertex radiance with a chosen method (by default the complete
+//! baked look, [`baked`]).
+
+pub(crate) mod baked;
 
 use crate::db_args::DbArgs;
 use crate::progress::{bar, with_bar};
@@ -9,7 +12,7 @@ use clap::builder::TypedValueParser as _;
 use glam::Vec3;
 use kage_bake_db::pack::Contents;
 use kage_engine::cache::Blend;
-use kage_engine::cache::record::{GlossyDirect, GradientForm, Source};
+use kage_engine::cache::record::{Glossy, GlossyDirect, GradientForm, Source};
 use kage_engine::output::{VertexRow, write_image, write_vertex_csv};
 use kage_engine::reference::{Estimate, Renderer, Settings};
 use kage_engine::scene::VertexValues;
@@ -57,7 +60,7 @@ pub struct Args {
     #[command(flatten)]
     scene: SceneArgs,
     /// Shading method.
-    #[arg(long, default_value = "reference", value_parser = method_parser())]
+    #[arg(long, default_value = "baked", value_parser = method_parser())]
     method: Method,
     /// Samples per pixel / per vertex.
     #[arg(long, default_value_t = 64)]
@@ -107,8 +110,9 @@ pub struct Args {
     db: DbArgs,
     /// One bounce of indirect light added to a per-vertex method (its per-vertex direct result
     /// lights Lambertian hits; glossy hits reflect direct light toward the gathering point).
-    #[arg(long, value_enum, default_value = "none")]
-    indirect: Indirect,
+    /// Default: cache for baked, none for the others.
+    #[arg(long, value_enum)]
+    indirect: Option<Indirect>,
     /// HSH order of the radiance cache.
     #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..=8))]
     hsh_order: u32,
@@ -138,6 +142,13 @@ pub struct Args {
     /// use this to compare the reference with them).
     #[arg(long)]
     no_env: bool,
+}
+
+impl Args {
+    /// Where the bounce comes from: `--indirect`, else the method's default.
+    fn indirect(&self) -> Indirect {
+        self.indirect.unwrap_or(if self.method == Method::Baked { Indirect::Cache } else { Indirect::None })
+    }
 }
 
 /// Parses `--method` from the engine's method names, listing each with its description.
@@ -186,19 +197,24 @@ pub fn run(args: &Args) -> Result<()> {
     let camera = camera(args, scene.first_camera())?;
     let renderer = Renderer::new(&scene);
     let output = args.output.clone().or_else(|| args.vertices_out.is_none().then(|| PathBuf::from("render.png")));
+    if let Some(path) = &output {
+        kage_engine::output::ImageFormat::of(path)?;
+    }
     if args.gpu && !args.method.on_gpu() {
         bail!("--gpu shades bspvt, ltc-unshadowed, prt and prt-self; {} runs on the CPU only", args.method);
     }
-    if args.method == Method::Reference && args.indirect != Indirect::None {
+    if args.method == Method::Reference && args.indirect.is_some_and(|i| i != Indirect::None) {
         bail!("--indirect is for the per-vertex methods; the reference takes --bounces N");
     }
     let Outputs { mut image, mut vertices, glossy } = match args.method {
         Method::Reference => reference(args, &renderer, &camera, output.is_some())?,
+        Method::Baked => baked::run(args, &scene, &renderer, &camera, output.is_some(), pack.as_ref())?,
         Method::Prt | Method::PrtSelf => prt(args, &scene, &renderer, &camera, output.is_some(), pack.as_ref())?,
         m => per_vertex(args, m, &scene, &renderer, &camera, output.is_some(), pack.as_ref())?,
     };
-    if let Some(direct) = vertices.as_mut().filter(|_| args.indirect != Indirect::None) {
-        let extra = indirect(args, &scene, &renderer, direct, &glossy, camera.eye())?;
+    let later = args.method != Method::Baked && args.indirect() != Indirect::None;
+    if let Some(direct) = vertices.as_mut().filter(|_| later) {
+        let extra = glossy.with(&renderer.flat, |g| indirect(args, &scene, &renderer, direct, g, camera.eye()))?;
         if let Some(pixels) = image.as_mut() {
             let more = raster::vertex_image(&renderer, &camera, args.size.0, args.size.1, args.spp.min(16), &extra);
             pixels.iter_mut().zip(more).for_each(|(p, m)| *p += m);
@@ -445,8 +461,19 @@ fn from_database(
     prt: Option<prt::Settings>,
 ) -> Result<kage_bake_db::Outcome> {
     let plan = kage_bake_db::plan(store, scene, flat, bspvt, prt)?;
+    run_plan(store, scene, flat, &plan)
+}
+
+/// Bakes a plan's misses (progress bar) and assembles its bakes, printing what was cached and
+/// what baked.
+fn run_plan(
+    store: &kage_bake_db::Store,
+    scene: &Scene,
+    flat: &kage_engine::scene::FlatScene,
+    plan: &kage_bake_db::plan::Plan,
+) -> Result<kage_bake_db::Outcome> {
     let total = plan.misses().map(|j| j.vertices.len()).sum();
-    let out = with_bar(total, "baking", |p| kage_bake_db::run(store, scene, flat, &plan, p))?;
+    let out = with_bar(total, "baking", |p| kage_bake_db::run(store, scene, flat, plan, p))?;
     let s = out.stats;
     crate::emit(&format!(
         "bake: {}: {} chunks cached, {} baked cold, {} warm ({} vertices) in {:.2} s\n",
@@ -468,7 +495,7 @@ fn indirect(
     scene: &Scene,
     renderer: &Renderer,
     direct: &[Vec<Vec3>],
-    glossy: &GlossyDirect,
+    glossy: Glossy<'_>,
     eye: Vec3,
 ) -> Result<VertexValues> {
     let start = Instant::now();
@@ -487,32 +514,30 @@ fn indirect(
         },
         ..Default::default()
     };
-    let (values, what) = glossy.with(&renderer.flat, |glossy| -> Result<_> {
-        let src = Source { renderer, direct, glossy };
-        Ok(match args.indirect {
-            Indirect::Cache => {
-                let store = if args.pack.is_none() { args.db.open_if_used(&args.scene)? } else { None };
-                let (cache, stored) = match &store {
-                    Some(store) => kage_bake_db::records::load_or_place(store, scene, &src, &s)?,
-                    None => (kage_engine::cache::place_at_vertices(&src, &s), false),
-                };
-                let v = kage_engine::cache::shade_vertices(&src, &cache, eye);
-                let from = if stored { " from the bake database" } else { "" };
-                (v, format!("{} records{from}, {} rays", cache.records.len(), cache.rays()))
-            }
-            Indirect::Gather => {
-                let v = kage_engine::cache::gather_vertices(&src, s.rays, eye);
-                (v, format!("{} rays", renderer.vertex_count() * s.side().pow(2)))
-            }
-            _ => {
-                let settings = Settings { spp: args.spp, seed: args.seed, max_bounces: 1, min_bounces: 1 };
-                let est = renderer.render_vertices(eye, &settings, &|_| {});
-                let v = est.iter().map(|e| e.iter().map(|x| x.mean).collect()).collect();
-                (v, format!("{} paths per vertex", args.spp))
-            }
-        })
-    })?;
-    crate::emit(&format!("indirect ({:?}): {what} in {:.2} s\n", args.indirect, start.elapsed().as_secs_f64()));
+    let src = Source { renderer, direct, glossy };
+    let (values, what) = match args.indirect() {
+        Indirect::Cache => {
+            let store = if args.pack.is_none() { args.db.open_if_used(&args.scene)? } else { None };
+            let (cache, stored) = match &store {
+                Some(store) => kage_bake_db::records::load_or_place(store, scene, &src, &s)?,
+                None => (kage_engine::cache::place_at_vertices(&src, &s), false),
+            };
+            let v = kage_engine::cache::shade_vertices(&src, &cache, eye);
+            let from = if stored { " from the bake database" } else { "" };
+            (v, format!("{} records{from}, {} rays", cache.records.len(), cache.rays()))
+        }
+        Indirect::Gather => {
+            let v = kage_engine::cache::gather_vertices(&src, s.rays, eye);
+            (v, format!("{} rays", renderer.vertex_count() * s.side().pow(2)))
+        }
+        _ => {
+            let settings = Settings { spp: args.spp, seed: args.seed, max_bounces: 1, min_bounces: 1 };
+            let est = renderer.render_vertices(eye, &settings, &|_| {});
+            let v = est.iter().map(|e| e.iter().map(|x| x.mean).collect()).collect();
+            (v, format!("{} paths per vertex", args.spp))
+        }
+    };
+    crate::emit(&format!("indirect ({:?}): {what} in {:.2} s\n", args.indirect(), start.elapsed().as_secs_f64()));
     Ok(values)
 }
 

@@ -1,0 +1,96 @@
+//! `--method baked`: plans and bakes what the scene needs into its database (or reads a pack),
+//! then shades the complete look ([`kage_engine::shading::baked`]).
+
+use super::{Args, Outputs, indirect, run_plan};
+use crate::commands::bake::print_plan;
+use anyhow::{Context, Result};
+use kage_bake_db::pack::Contents;
+use kage_engine::bspvt;
+use kage_engine::cache;
+use kage_engine::cache::record::{Glossy, GlossyDirect, Source};
+use kage_engine::prt::{self, prefilter::Prefiltered};
+use kage_engine::reference::Renderer;
+use kage_engine::scene::VertexValues;
+use kage_engine::scene::{Camera, Scene};
+use kage_engine::shading::baked::{Bakes, Look};
+use std::time::Instant;
+
+/// The bakes the look shades from, read from a pack or the database.
+struct Loaded {
+    bspvt: Option<bspvt::Bake>,
+    prt: Option<(prt::Bake, prt::Lighting, prt::Settings)>,
+}
+
+/// Bakes (or reads) and shades; the indirect term is part of the look.
+pub(super) fn run(
+    args: &Args,
+    scene: &Scene,
+    renderer: &Renderer,
+    camera: &Camera,
+    want_image: bool,
+    pack: Option<&Contents>,
+) -> Result<Outputs> {
+    let bakes = match pack {
+        Some(p) => Loaded { bspvt: p.bspvt.clone(), prt: p.prt.clone() },
+        None => bake(args, scene, renderer)?,
+    };
+    let (flat, eye) = (&renderer.flat, camera.eye());
+    let start = Instant::now();
+    let prefiltered = flat.environment.as_ref().map(Prefiltered::new);
+    let parts = Bakes {
+        bspvt: bakes.bspvt.as_ref(),
+        prt: bakes.prt.as_ref().map(|(b, l, s)| (b, l, s)),
+        prefiltered: prefiltered.as_ref(),
+    };
+    let mut look = Look::prepare(scene, flat, parts, eye, &mut prt::SilhouetteMemo::default());
+    crate::emit(&format!("shade: {} vertices in {:.3} s\n", renderer.vertex_count(), start.elapsed().as_secs_f64()));
+    if args.indirect() != super::Indirect::None {
+        let direct = look.direct_vertices();
+        let toward = |i, corners, bary, to| look.toward(i, corners, bary, to);
+        let extra = indirect(args, scene, renderer, &direct, Glossy::Toward(&toward), eye)?;
+        look = look.with_indirect(extra);
+    }
+    let image = want_image.then(|| {
+        let start = Instant::now();
+        let (w, h) = args.size;
+        let image = look.render(renderer, camera, w, h, args.spp.min(16));
+        crate::emit(&format!("image: {w}×{h} in {:.2} s\n", start.elapsed().as_secs_f64()));
+        image
+    });
+    Ok(Outputs { image, vertices: Some(look.vertex_values()), glossy: GlossyDirect::PerVertex })
+}
+
+/// Plans the scene's bakes against its database (created on first use), prints the plan and
+/// its estimate, and bakes the misses. The database is closed again before shading (the
+/// radiance cache opens it for its records).
+fn bake(args: &Args, scene: &Scene, renderer: &Renderer) -> Result<Loaded> {
+    let flat = &renderer.flat;
+    let store = args.db.open(&args.scene)?;
+    let start = Instant::now();
+    let bspvt_settings = bspvt::Settings { res: args.face_res, epsilon: args.epsilon };
+    let prt_settings = flat
+        .environment
+        .is_some()
+        .then(|| args.prt.settings_cached(&store, scene, flat, args.error_budget))
+        .transpose()?;
+    let plan = kage_bake_db::plan(&store, scene, flat, Some(bspvt_settings), prt_settings)?;
+    print_plan(&store, scene, flat, &plan, start.elapsed().as_secs_f64())?;
+    let out = run_plan(&store, scene, flat, &plan)?;
+    let prt = match (out.prt, prt_settings) {
+        (Some(b), Some(s)) => {
+            let light = prt::Lighting::new(scene, &s).context("PRT was planned, so the scene has an environment")?;
+            Some((b, light, s))
+        }
+        _ => None,
+    };
+    Ok(Loaded { bspvt: out.bspvt, prt })
+}
+
+/// One bounce per vertex from an in-memory radiance cache with `settings`, lit by `look`'s
+/// direct light (glossy hits reflect it toward the records).
+pub(crate) fn bounce(look: &Look, renderer: &Renderer, settings: &cache::Settings, eye: glam::Vec3) -> VertexValues {
+    let direct = look.direct_vertices();
+    let toward = |i, corners, bary, to| look.toward(i, corners, bary, to);
+    let src = Source { renderer, direct: &direct, glossy: Glossy::Toward(&toward) };
+    cache::indirect_vertices(&src, settings, eye).0
+}

@@ -1,0 +1,205 @@
+//! The complete baked look (`--method baked`): every light a scene has, each through its
+//! technique, summed —
+//!
+//! - polygonal lights: BSPVT trees and LTC (GGX): LTC per pixel in images, the trees'
+//!   visibility carried from the vertices ([`bspvt::pixel`]);
+//! - the environment: PRT's diffuse transfer with self- and other-group shadows (other groups
+//!   evaluated per pixel in images), plus its specular term on glossy and metal surfaces
+//!   ([`crate::prt::glossy`]) per pixel;
+//! - one bounce of indirect light from the HSH radiance cache, per vertex, lit by the sum.
+//!
+//! Each part is present only where the scene has its light. Images show the environment
+//! behind the geometry.
+
+use crate::bspvt;
+use crate::prt::{self, glossy::Lobe, glossy::Specular, prefilter::Prefiltered};
+use crate::raster::{self, SurfaceHit};
+use crate::reference::Renderer;
+use crate::scene::{Camera, FlatScene, VertexValues};
+use glam::Vec3;
+use rayon::prelude::*;
+
+/// The polygonal lights' part: per-vertex radiance toward the eye and the trees it came from.
+pub struct Polygonal<'a> {
+    /// The trees (`None`: the scene's lights are unshadowed).
+    pub bake: Option<&'a bspvt::Bake>,
+    /// Per instance and vertex: LTC radiance toward the eye.
+    pub values: VertexValues,
+    /// The lobes' visible fractions for per-pixel shading (`None`: images interpolate `values`).
+    pub lobes: Option<bspvt::pixel::Lobes>,
+}
+
+/// The environment's part: PRT's posed frame and what its specular term reads.
+pub struct Environment<'a> {
+    frame: prt::Frame,
+    bake: &'a prt::Bake,
+    /// `None`: no map to reflect (a pack written before packs carried it): diffuse only.
+    prefiltered: Option<&'a Prefiltered>,
+    lobe: Lobe,
+}
+
+impl<'a> Environment<'a> {
+    /// The environment's part from a posed `frame` of the transfer `bake` under `lighting`,
+    /// with the environment `prefiltered`.
+    pub fn new(
+        frame: prt::Frame,
+        bake: &'a prt::Bake,
+        lighting: &prt::Lighting,
+        prefiltered: Option<&'a Prefiltered>,
+    ) -> Self {
+        let lobe = Lobe::new(frame.posed().order, lighting.window);
+        Self { frame, bake, prefiltered, lobe }
+    }
+
+    fn specular<'s>(&'s self, flat: &'s FlatScene) -> Option<Specular<'s>> {
+        Some(Specular::new(self.prefiltered?, self.bake, self.frame.posed(), &self.lobe, flat))
+    }
+}
+
+/// One frame of the baked look, seen from `eye`.
+pub struct Look<'a> {
+    flat: &'a FlatScene,
+    eye: Vec3,
+    polygonal: Option<Polygonal<'a>>,
+    environment: Option<Environment<'a>>,
+    /// Per instance and vertex: the environment's diffuse radiance and open fraction.
+    environment_vertices: Option<(VertexValues, Vec<Vec<f32>>)>,
+    indirect: Option<VertexValues>,
+}
+
+/// What the look is shaded from: each part's bake, where the scene has its light.
+#[derive(Clone, Copy, Default)]
+pub struct Bakes<'a> {
+    /// BSPVT trees (the scene has polygonal lights).
+    pub bspvt: Option<&'a bspvt::Bake>,
+    /// PRT transfer with its lighting and settings (the scene has an environment).
+    pub prt: Option<(&'a prt::Bake, &'a prt::Lighting, &'a prt::Settings)>,
+    /// The environment prefiltered for the specular term (`None`: diffuse only).
+    pub prefiltered: Option<&'a Prefiltered>,
+}
+
+impl<'a> Look<'a> {
+    /// Shades the direct parts on the CPU from `bakes` (posed from `scene`, reusing
+    /// silhouettes from `memo`).
+    pub fn prepare(
+        scene: &crate::scene::Scene,
+        flat: &'a FlatScene,
+        bakes: Bakes<'a>,
+        eye: Vec3,
+        memo: &mut prt::SilhouetteMemo,
+    ) -> Self {
+        let polygonal = bakes.bspvt.map(|b| Polygonal {
+            bake: Some(b),
+            values: bspvt::shade_vertices(flat, bspvt::Shadows::Trees(b), eye),
+            lobes: Some(bspvt::pixel::Lobes::at_vertices(flat, bspvt::Shadows::Trees(b), eye)),
+        });
+        let environment = bakes.prt.map(|(bake, light, s)| {
+            let shadows = prt::Shadows::WithOthers;
+            let frame = prt::Frame::prepare_cached(scene, flat, bake, light, shadows, s, eye, memo);
+            Environment::new(frame, bake, light, bakes.prefiltered)
+        });
+        Self::new(flat, eye, polygonal, environment)
+    }
+
+    /// The direct parts of one frame (add the bounce with [`Look::with_indirect`]).
+    pub fn new(
+        flat: &'a FlatScene,
+        eye: Vec3,
+        polygonal: Option<Polygonal<'a>>,
+        environment: Option<Environment<'a>>,
+    ) -> Self {
+        let environment_vertices = environment.as_ref().map(|e| {
+            let both = e.frame.vertex_values_open(flat);
+            let radiance = both.iter().map(|v| v.iter().map(|x| x.0).collect()).collect();
+            (radiance, both.iter().map(|v| v.iter().map(|x| x.1).collect()).collect())
+        });
+        Self { flat, eye, polygonal, environment, environment_vertices, indirect: None }
+    }
+
+    /// Adds one bounce of indirect light per vertex.
+    pub fn with_indirect(mut self, indirect: VertexValues) -> Self {
+        self.indirect = Some(indirect);
+        self
+    }
+
+    /// Per instance and vertex: the direct radiance toward the eye (what the indirect term is
+    /// lit by, for Lambertian hits).
+    pub fn direct_vertices(&self) -> VertexValues {
+        (0..self.flat.instances.len())
+            .map(|i| {
+                (0..self.flat.vertex_count(i))
+                    .into_par_iter()
+                    .map(|v| {
+                        let (p, _) = self.flat.vertex(i, v);
+                        let poly = self.polygonal.as_ref().map_or(Vec3::ZERO, |poly| poly.values[i][v]);
+                        poly + self.environment_at(i, [v; 3], [1.0, 0.0, 0.0], p, self.eye)
+                    })
+                    .collect()
+            })
+            .collect()
+    }
+
+    /// Per instance and vertex: direct plus indirect radiance toward the eye.
+    pub fn vertex_values(&self) -> VertexValues {
+        let mut values = self.direct_vertices();
+        if let Some(indirect) = &self.indirect {
+            values.iter_mut().flatten().zip(indirect.iter().flatten()).for_each(|(d, e)| *d += *e);
+        }
+        values
+    }
+
+    /// Direct radiance leaving a point of one of instance `i`'s triangles (`corners`,
+    /// barycentrics `bary`) toward `to`, the view-dependent lobes evaluated at the point: what a
+    /// gather ray's glossy hit sends back to a cache record.
+    pub fn toward(&self, i: usize, corners: [usize; 3], bary: [f32; 3], to: Vec3) -> Vec3 {
+        let p = (0..3).map(|c| self.flat.vertex(i, corners[c]).0 * bary[c]).sum();
+        let poly = self
+            .polygonal
+            .as_ref()
+            .map_or(Vec3::ZERO, |poly| bspvt::shade_point(self.flat, poly.bake, i, corners, bary, to));
+        poly + self.environment_at(i, corners, bary, p, to)
+    }
+
+    /// The environment's diffuse term (interpolated) and specular term (at `p`, toward `to`).
+    fn environment_at(&self, i: usize, corners: [usize; 3], bary: [f32; 3], p: Vec3, to: Vec3) -> Vec3 {
+        let (Some(env), Some((diffuse, open))) = (&self.environment, &self.environment_vertices) else {
+            return Vec3::ZERO;
+        };
+        let o = (0..3).map(|c| open[i][corners[c]] * bary[c]).sum::<f32>();
+        let d = (0..3).map(|c| diffuse[i][corners[c]] * bary[c]).sum::<Vec3>();
+        d + env.specular(self.flat).map_or(Vec3::ZERO, |s| s.at(i, corners, bary, p, to, o))
+    }
+
+    /// A `width × height` image with `spp` samples per pixel through `camera`: polygonal and
+    /// indirect terms interpolated from the vertices, the environment's shadows between groups
+    /// and its specular term per sample, the environment behind the geometry.
+    pub fn render(&self, r: &Renderer, camera: &Camera, width: usize, height: usize, spp: u32) -> Vec<Vec3> {
+        let (grid, side) = raster::primary_grid(r, camera, width, height, spp);
+        let interpolated = |hit: &SurfaceHit| {
+            let poly = self.polygonal.as_ref().map_or(Vec3::ZERO, |p| match &p.lobes {
+                Some(lobes) => lobes.shade(self.flat, hit, self.eye),
+                None => hit.interpolate(&p.values[hit.instance]),
+            });
+            poly + self.indirect.as_ref().map_or(Vec3::ZERO, |v| hit.interpolate(&v[hit.instance]))
+        };
+        let values = match &self.environment {
+            Some(env) => {
+                let specular = env.specular(self.flat);
+                env.frame.shade_grid(&grid, width * side, &|hit, open| {
+                    let s = specular.as_ref().map_or(Vec3::ZERO, |s| {
+                        s.at(hit.instance, hit.corners, hit.weights, hit.position, self.eye, open)
+                    });
+                    interpolated(hit) + s
+                })
+            }
+            None => grid
+                .par_iter()
+                .map(|p| match p {
+                    raster::Primary::Miss(l) | raster::Primary::Emitter(l) => *l,
+                    raster::Primary::Surface(hit) => interpolated(hit),
+                })
+                .collect(),
+        };
+        raster::downsample(&values, width, height, side)
+    }
+}
