@@ -4,6 +4,7 @@
 //! - `relight_vertices`: the light moved — per-vertex BSPVT shading, the lobes' visibility
 //!   pairs for per-pixel highlights, the PRT frame (lighting posed, other groups' silhouettes
 //!   reused) and the look's per-vertex values with the environment's specular term;
+//! - `polygonal_part`, `environment_part`: the same for each light alone;
 //! - `resolve_640x360`: the per-pixel resolve of one frame at 640×360, 1 sample per pixel
 //!   (primary rays included).
 //!
@@ -54,6 +55,20 @@ fn bench(c: &mut Criterion) {
             nudge_light(&mut scene, step);
             let flat = flatten(&scene);
             let bakes = Bakes { bspvt: Some(&trees), prt: Some((&transfer, &light, &s)), prefiltered: Some(&pre) };
+            Look::prepare(&scene, &flat, bakes, camera.eye(), &mut memo).vertex_values().len()
+        })
+    });
+    // The two parts alone (after the light move above).
+    let flat = flatten(&scene);
+    g.bench_function("polygonal_part", |b| {
+        b.iter(|| {
+            let bakes = Bakes { bspvt: Some(&trees), prt: None, prefiltered: None };
+            Look::prepare(&scene, &flat, bakes, camera.eye(), &mut memo).vertex_values().len()
+        })
+    });
+    g.bench_function("environment_part", |b| {
+        b.iter(|| {
+            let bakes = Bakes { bspvt: None, prt: Some((&transfer, &light, &s)), prefiltered: Some(&pre) };
             Look::prepare(&scene, &flat, bakes, camera.eye(), &mut memo).vertex_values().len()
         })
     });
