@@ -7,11 +7,11 @@
 //! visible fraction seen from the surface) stands in; where that is undefined too (the light
 //! under every corner's horizon), the light is taken as unshadowed, never as black.
 
+use super::Bake;
 use super::shade::{PointShader, Visibility};
-use super::{Bake, Shadows};
 use crate::math::ltc;
 use crate::raster::SurfaceHit;
-use crate::scene::FlatScene;
+use crate::scene::{FlatScene, VertexValues};
 use glam::Vec3;
 use rayon::prelude::*;
 
@@ -27,31 +27,39 @@ pub struct Lobes {
 }
 
 impl Lobes {
-    /// The integrals at every vertex toward `eye`, shadowed as `shadows` says.
-    pub fn at_vertices(flat: &FlatScene, shadows: Shadows, eye: Vec3) -> Self {
+    /// The integrals at every vertex toward `eye` with the trees of `bake` (`None`:
+    /// unshadowed), and the vertices' radiance (as [`super::shade_vertices`] gives it) from the
+    /// same pass.
+    pub fn at_vertices(flat: &FlatScene, bake: Option<&Bake>, eye: Vec3) -> (Self, VertexValues) {
         let table = ltc::table();
-        let integrals = (0..flat.instances.len())
+        let lights = flat.lights.len();
+        let (integrals, values) = (0..flat.instances.len())
             .map(|i| {
                 let material = flat.instances[i].material;
-                (0..flat.vertex_count(i))
+                let rows: Vec<(Vec3, Vec<[[f32; 2]; 2]>)> = (0..flat.vertex_count(i))
                     .into_par_iter()
-                    .flat_map_iter(|v| {
+                    .map(|v| {
                         let (p, n) = flat.vertex(i, v);
                         let shader = PointShader::new(&table, p, n, eye, &material);
-                        let open = shader.lobe_integrals(&flat.lights, Visibility::Unshadowed);
-                        let shut = match shadows {
-                            Shadows::Trees(b) => shader.lobe_integrals(&flat.lights, vis(b, i, v)),
-                            _ => open.clone(),
+                        let vis = bake.map_or(Visibility::Unshadowed, |b| Visibility::Tree(b.instances[i].record(v)));
+                        let (radiance, shut) = shader.shade_with_lobes(&flat.lights, vis);
+                        let open = match bake {
+                            Some(_) => shader.lobe_integrals(&flat.lights, Visibility::Unshadowed),
+                            None => shut.clone(),
                         };
-                        shut.into_iter()
+                        let pairs = shut
+                            .into_iter()
                             .zip(open)
                             .map(|(s, o)| [[s[0] as f32, o[0] as f32], [s[1] as f32, o[1] as f32]])
-                            .collect::<Vec<_>>()
+                            .collect();
+                        (radiance, pairs)
                     })
-                    .collect()
+                    .collect();
+                let values: Vec<Vec3> = rows.iter().map(|r| r.0).collect();
+                (rows.into_iter().flat_map(|r| r.1).collect::<Vec<_>>(), values)
             })
-            .collect();
-        Self { lights: flat.lights.len(), integrals }
+            .unzip();
+        (Self { lights, integrals }, values)
     }
 
     /// Radiance toward `eye` from the polygonal lights at a primary-ray `hit`.
@@ -75,6 +83,29 @@ impl Lobes {
     }
 }
 
-fn vis(bake: &Bake, i: usize, v: usize) -> Visibility<'_> {
-    Visibility::Tree(bake.instances[i].record(v))
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bspvt::{Settings, Shadows, shade_vertices};
+    use crate::scene::{default_scene, flatten};
+
+    /// The pass's values are `shade_vertices`' bit for bit, and a pixel on a vertex shades like
+    /// the vertex (its lobes' fractions are the vertex's own).
+    #[test]
+    fn vertices_match_and_pixels_on_vertices_shade_like_them() {
+        let flat = flatten(&default_scene());
+        let bake = crate::bspvt::bake(&flat, &Settings { res: 8, epsilon: 2.0 }, &|_| {});
+        let eye = Vec3::new(0.0, 2.0, 5.0);
+        let (lobes, values) = Lobes::at_vertices(&flat, Some(&bake), eye);
+        assert_eq!(values, shade_vertices(&flat, Shadows::Trees(&bake), eye));
+        for (i, v) in flat.vertex_ids().step_by(37) {
+            let (position, _) = flat.vertex(i, v);
+            let hit = SurfaceHit { instance: i, corners: [v, v, v], weights: [1.0, 0.0, 0.0], position };
+            let (pixel, vertex) = (lobes.shade(&flat, &hit, eye), values[i][v]);
+            assert!(
+                (pixel - vertex).abs().max_element() <= 1e-4 * vertex.max_element().max(1e-2),
+                "{pixel} vs {vertex}"
+            );
+        }
+    }
 }

@@ -86,21 +86,35 @@ impl PointShader {
 
     /// [`Self::shade`], and how many light pieces were integrated with LTC.
     pub fn shade_counted(&self, lights: &[FlatLight], vis: Visibility) -> (Vec3, usize) {
+        let (total, pieces, _) = self.shade_all(lights, vis);
+        (total, pieces)
+    }
+
+    /// [`Self::shade`], and per light the diffuse and specular lobes' integrals over the light
+    /// (cosine-space form factors, no colour) with the given visibility — what per-pixel
+    /// shading carries from the vertices as shadowed/unshadowed pairs.
+    pub fn shade_with_lobes(&self, lights: &[FlatLight], vis: Visibility) -> (Vec3, Vec<[f64; 2]>) {
+        let (total, _, lobes) = self.shade_all(lights, vis);
+        (total, lobes)
+    }
+
+    /// The lobes' integrals alone (see [`Self::shade_with_lobes`]).
+    pub fn lobe_integrals(&self, lights: &[FlatLight], vis: Visibility) -> Vec<[f64; 2]> {
+        self.shade_all(lights, vis).2
+    }
+
+    /// Radiance, LTC pieces integrated, and per light the lobes' integrals.
+    fn shade_all(&self, lights: &[FlatLight], vis: Visibility) -> (Vec3, usize, Vec<[f64; 2]>) {
         let mut total = DVec3::ZERO;
         let mut pieces = 0;
+        let mut lobes = Vec::with_capacity(lights.len());
         for light in lights {
             let sum = self.light(light, vis);
             total += light.radiance.as_dvec3() * (sum.radiance[0] + sum.radiance[1]);
             pieces += sum.pieces;
+            lobes.push(sum.lobes);
         }
-        (total.as_vec3(), pieces)
-    }
-
-    /// Per light: the diffuse and specular lobes' integrals over the light (cosine-space form
-    /// factors, no colour) with the given visibility — what per-pixel shading carries from the
-    /// vertices as shadowed/unshadowed pairs.
-    pub fn lobe_integrals(&self, lights: &[FlatLight], vis: Visibility) -> Vec<[f64; 2]> {
-        lights.iter().map(|l| self.light(l, vis).lobes).collect()
+        (total.as_vec3(), pieces, lobes)
     }
 
     /// Outgoing radiance per unit light radiance from all of `light`, with its lobes' integrals.

@@ -88,10 +88,9 @@ impl<'a> Look<'a> {
         eye: Vec3,
         memo: &mut prt::SilhouetteMemo,
     ) -> Self {
-        let polygonal = bakes.bspvt.map(|b| Polygonal {
-            bake: Some(b),
-            values: bspvt::shade_vertices(flat, bspvt::Shadows::Trees(b), eye),
-            lobes: Some(bspvt::pixel::Lobes::at_vertices(flat, bspvt::Shadows::Trees(b), eye)),
+        let polygonal = bakes.bspvt.map(|b| {
+            let (lobes, values) = bspvt::pixel::Lobes::at_vertices(flat, Some(b), eye);
+            Polygonal { bake: Some(b), values, lobes: Some(lobes) }
         });
         let environment = bakes.prt.map(|(bake, light, s)| {
             let shadows = prt::Shadows::WithOthers;
