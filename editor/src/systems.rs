@@ -617,16 +617,16 @@ fn baked(ed: &mut Editor, eye: Vec3) -> VertexValues {
     ed.prefiltered =
         env.as_ref().map(|e| ed.prefiltered.as_ref().map_or_else(|| Prefiltered::new(e), |p| p.for_light(e)));
     let (Some(bake), Some(light), Some(pre)) = (&ed.bakes.prt, &ed.bakes.lighting, &ed.prefiltered) else {
-        return Look::new(&ed.flat, eye, polygonal, None).direct_vertices();
+        return Look::new(&ed.flat, eye, polygonal, None).into_direct();
     };
     let n = kage_engine::math::sh::num_coeffs(bake.order);
     if !fits(ed, &bake.instances, |t| t.len() / n) {
-        return Look::new(&ed.flat, eye, polygonal, None).direct_vertices();
+        return Look::new(&ed.flat, eye, polygonal, None).into_direct();
     }
     let shadows = prt::Shadows::WithOthers;
     let posed = prt::Posed::new(&ed.scene, &ed.flat, bake.order, light, shadows, &ed.options.prt, &mut ed.silhouettes);
     let frame = prt::Frame::from_posed(&ed.flat, bake, posed, eye);
-    Look::new(&ed.flat, eye, polygonal, Some(Environment::new(frame, bake, light, Some(pre)))).direct_vertices()
+    Look::new(&ed.flat, eye, polygonal, Some(Environment::new(frame, bake, light, Some(pre)))).into_direct()
 }
 
 /// The exact-visibility comparison casts cube maps per vertex: in the background.

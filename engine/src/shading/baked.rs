@@ -64,6 +64,8 @@ pub struct Look<'a> {
     environment: Option<Environment<'a>>,
     /// Per instance and vertex: the environment's diffuse radiance and open fraction.
     environment_vertices: Option<(VertexValues, Vec<Vec<f32>>)>,
+    /// Per instance and vertex: the direct radiance toward the eye (computed once per frame).
+    direct: VertexValues,
     indirect: Option<VertexValues>,
 }
 
@@ -112,7 +114,10 @@ impl<'a> Look<'a> {
             let radiance = both.iter().map(|v| v.iter().map(|x| x.0).collect()).collect();
             (radiance, both.iter().map(|v| v.iter().map(|x| x.1).collect()).collect())
         });
-        Self { flat, eye, polygonal, environment, environment_vertices, indirect: None }
+        let mut look =
+            Self { flat, eye, polygonal, environment, environment_vertices, direct: Vec::new(), indirect: None };
+        look.direct = look.shade_direct();
+        look
     }
 
     /// Adds one bounce of indirect light per vertex.
@@ -123,7 +128,16 @@ impl<'a> Look<'a> {
 
     /// Per instance and vertex: the direct radiance toward the eye (what the indirect term is
     /// lit by, for Lambertian hits).
-    pub fn direct_vertices(&self) -> VertexValues {
+    pub fn direct_vertices(&self) -> &VertexValues {
+        &self.direct
+    }
+
+    /// The direct radiance per vertex, the look consumed (the editor's per-vertex preview).
+    pub fn into_direct(self) -> VertexValues {
+        self.direct
+    }
+
+    fn shade_direct(&self) -> VertexValues {
         (0..self.flat.instances.len())
             .map(|i| {
                 (0..self.flat.vertex_count(i))
@@ -140,7 +154,7 @@ impl<'a> Look<'a> {
 
     /// Per instance and vertex: direct plus indirect radiance toward the eye.
     pub fn vertex_values(&self) -> VertexValues {
-        let mut values = self.direct_vertices();
+        let mut values = self.direct.clone();
         if let Some(indirect) = &self.indirect {
             values.iter_mut().flatten().zip(indirect.iter().flatten()).for_each(|(d, e)| *d += *e);
         }

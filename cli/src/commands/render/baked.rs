@@ -47,7 +47,7 @@ pub(super) fn run(
     if args.indirect() != super::Indirect::None {
         let direct = look.direct_vertices();
         let toward = |i, corners, bary, to| look.toward(i, corners, bary, to);
-        let extra = indirect(args, scene, renderer, &direct, Glossy::Toward(&toward), eye)?;
+        let extra = indirect(args, scene, renderer, direct, Glossy::Toward(&toward), eye)?;
         look = look.with_indirect(extra);
     }
     let image = want_image.then(|| {
@@ -89,8 +89,7 @@ fn bake(args: &Args, scene: &Scene, renderer: &Renderer) -> Result<Loaded> {
 /// One bounce per vertex from an in-memory radiance cache with `settings`, lit by `look`'s
 /// direct light (glossy hits reflect it toward the records).
 pub(crate) fn bounce(look: &Look, renderer: &Renderer, settings: &cache::Settings, eye: glam::Vec3) -> VertexValues {
-    let direct = look.direct_vertices();
     let toward = |i, corners, bary, to| look.toward(i, corners, bary, to);
-    let src = Source { renderer, direct: &direct, glossy: Glossy::Toward(&toward) };
+    let src = Source { renderer, direct: look.direct_vertices(), glossy: Glossy::Toward(&toward) };
     cache::indirect_vertices(&src, settings, eye).0
 }
