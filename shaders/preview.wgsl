@@ -1,6 +1,7 @@
-// The editor's viewport: meshes drawn with per-vertex radiance (the shading methods' results),
-// exposed and clamped like `kage render`'s PNGs (vs_main, fs_main); and PRT with the shadows
-// between groups evaluated per pixel (vs_prt, fs_prt), as `kage render` images do.
+// The editor's viewport: meshes drawn with per-vertex radiance (the shading methods' results)
+// and the base-colour texture's detail per pixel (editor/src/detail.rs), exposed and clamped
+// like `kage render`'s PNGs (vs_main, fs_main); and PRT with the shadows between groups
+// evaluated per pixel (vs_prt, fs_prt), as `kage render` images do.
 
 struct View {
     view_proj: mat4x4<f32>,
@@ -10,14 +11,23 @@ struct View {
 
 @group(0) @binding(0) var<uniform> view: View;
 
+// The base-colour texture (one white texel for untextured meshes).
+@group(1) @binding(0) var base_color: texture_2d<f32>;
+@group(1) @binding(1) var base_sampler: sampler;
+
 struct VertexIn {
     @location(0) position: vec3<f32>,
     @location(1) radiance: vec3<f32>,
+    // The base-colour UV (its texture transform applied) and the texture's value there.
+    @location(2) uv: vec2<f32>,
+    @location(3) at_vertex: vec3<f32>,
 }
 
 struct VertexOut {
     @builtin(position) clip: vec4<f32>,
     @location(0) radiance: vec3<f32>,
+    @location(1) uv: vec2<f32>,
+    @location(2) at_vertex: vec3<f32>,
 }
 
 @vertex
@@ -25,6 +35,8 @@ fn vs_main(v: VertexIn) -> VertexOut {
     var out: VertexOut;
     out.clip = view.view_proj * vec4<f32>(v.position, 1.0);
     out.radiance = v.radiance;
+    out.uv = v.uv;
+    out.at_vertex = v.at_vertex;
     return out;
 }
 
@@ -41,9 +53,17 @@ fn display(radiance: vec3<f32>) -> vec4<f32> {
     return vec4<f32>(srgb(clamp(radiance * view.exposure.x, vec3<f32>(0.0), vec3<f32>(1.0))), 1.0);
 }
 
+// Lighting from the vertices, texture from the pixel: the radiance times the texture here over
+// its value interpolated from the vertices (a channel black at the vertices stays black).
 @fragment
 fn fs_main(v: VertexOut) -> @location(0) vec4<f32> {
-    return display(v.radiance);
+    if (view.exposure.y > 0.5) {
+        return display(v.radiance); // the overlay's colours, as they are
+    }
+    let here = textureSample(base_color, base_sampler, v.uv).rgb;
+    let lit = v.at_vertex > vec3<f32>(1e-6);
+    let ratio = select(vec3<f32>(0.0), here / max(v.at_vertex, vec3<f32>(1e-6)), lit);
+    return display(v.radiance * ratio);
 }
 
 // Per-pixel PRT (engine/src/prt/mod.rs, Frame::shade_hit):

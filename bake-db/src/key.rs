@@ -64,6 +64,31 @@ impl KeyHasher {
         self.bytes(tag, bytemuck::cast_slice(&a.to_cols_array()))
     }
 
+    /// Adds where the instances' materials vary — each texture slot's texels, UV set and
+    /// transform, and each mesh's vertex colours — for the instances that have any, so keys of
+    /// scenes with plain materials stay what they were.
+    pub fn material_variation(mut self, flat: &kage_engine::scene::FlatScene) -> Self {
+        for (i, inst) in flat.instances.iter().enumerate().filter(|(i, _)| flat.varies(*i)) {
+            self = self
+                .u64("varying instance", i as u64)
+                .bytes("vertex colours", bytemuck::cast_slice(&flat.mesh(i).colors));
+            for slot in [inst.maps.base_color, inst.maps.metallic_roughness] {
+                self = match slot {
+                    Some(s) => {
+                        let t = &flat.textures[s.texture as usize];
+                        self.u64("texture size", (t.width as u64) << 32 | t.height as u64)
+                            .bytes("texels", bytemuck::cast_slice(&t.texels))
+                            .bytes("wrap", &t.wrap.map(|w| w as u8))
+                            .u64("texcoord", s.texcoord as u64)
+                            .bytes("uv transform", bytemuck::cast_slice(&s.transform.to_cols_array()))
+                    }
+                    None => self.u64("no texture", 0),
+                };
+            }
+        }
+        self
+    }
+
     /// The key.
     pub fn finish(self) -> Key {
         Key(*self.0.finalize().as_bytes())

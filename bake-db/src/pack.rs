@@ -9,14 +9,15 @@
 //! extension restores what the preview material replaced (the real materials) and the bakes.
 
 use glam::{DVec3, Vec3};
+use kage_engine::bspvt;
 use kage_engine::math::color::linear_to_srgb;
 use kage_engine::prt::{self, Lighting, lighting::Window, regions::Region};
+use kage_engine::scene::import::{self, ImportOptions};
 use kage_engine::scene::texture::Wrap;
 use kage_engine::scene::{
-    Camera, EnvMap, EnvironmentLight, FlatScene, InGroup, Material, Name, NodeId, PolygonLight, Projection, RigidGroup,
-    Scene, Texture, Transform,
+    Camera, EnvMap, EnvironmentLight, FlatScene, InGroup, Instance, Material, MaterialMaps, Name, NodeId, PolygonLight,
+    Projection, RigidGroup, Scene, Texture, TextureSlot, Transform,
 };
-use kage_engine::{bspvt, scene::import::ImportOptions};
 use serde_json::{Value, json};
 use std::path::Path;
 
@@ -104,8 +105,23 @@ fn node(mut n: Value, a: &glam::Affine3A) -> Value {
     n
 }
 
-fn material_json(m: &Material) -> Value {
-    json!({"baseColor": m.base_color.to_array(), "metallic": m.metallic, "roughness": m.roughness, "specular": m.specular})
+/// The extension's record of an instance's material: its factors and texture slots (each naming
+/// a glTF texture written into the pack).
+fn material_json(inst: &Instance, scene: &Scene, textures: &mut Textures, bin: &mut Bin) -> Value {
+    let m = &inst.material;
+    let mut out = json!({"baseColor": m.base_color.to_array(), "metallic": m.metallic, "roughness": m.roughness,
+        "specular": m.specular});
+    let slots = [
+        ("baseColorTexture", inst.maps.base_color, true),
+        ("metallicRoughnessTexture", inst.maps.metallic_roughness, false),
+    ];
+    for (key, slot, srgb) in slots {
+        if let Some(s) = slot {
+            let index = textures.add(bin, s.texture, &scene.textures[s.texture as usize], srgb);
+            out[key] = json!({"index": index, "texCoord": s.texcoord, "transform": s.transform.to_cols_array()});
+        }
+    }
+    out
 }
 
 /// Writes the pack.
@@ -124,14 +140,15 @@ pub fn write(path: &Path, e: &Export) -> std::io::Result<()> {
     let group_of = |g: hecs::Entity| groups.iter().position(|x| x.1 == g).expect("every member's group is listed");
     let locals = prt::local_transforms(e.scene, e.flat);
     let scale = 2f32.powf(e.exposure);
+    let mut textures = Textures::default();
     for (k, inst) in e.flat.instances.iter().enumerate() {
         let mesh = e.flat.mesh(k);
         let preview: Vec<Vec3> = e.radiance[k].iter().map(|v| (*v * scale).clamp(Vec3::ZERO, Vec3::ONE)).collect();
         let (pos, nor, col) = (bin.vec3(&mesh.positions), bin.vec3(&mesh.normals), bin.vec3(&preview));
         let idx: Vec<u32> = mesh.triangles.iter().flatten().copied().collect();
         let ind = bin.indices(&idx);
-        let mut ext = json!({"instance": k, "material": material_json(&inst.material),
-            "radiance": bin.view(bytemuck::cast_slice(&e.radiance[k]), None)});
+        let material = material_json(inst, e.scene, &mut textures, &mut bin);
+        let mut ext = json!({"instance": k, "material": material, "radiance": bin.view(bytemuck::cast_slice(&e.radiance[k]), None)});
         if let Some(b) = e.bspvt {
             let rec = &b.instances[k];
             ext["bspvt"] = json!({"offsets": bin.view(bytemuck::cast_slice(&rec.offsets), None), "records": bin.view(&rec.data, None)});
@@ -141,10 +158,18 @@ pub fn write(path: &Path, e: &Export) -> std::io::Result<()> {
         }
         materials.push(json!({"name": format!("preview {k}"), "pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0], "metallicFactor": 0.0, "roughnessFactor": 1.0},
             "extensions": {"KHR_materials_unlit": {}}}));
-        meshes.push(
-            json!({"primitives": [{"attributes": {"POSITION": pos, "NORMAL": nor, "COLOR_0": col}, "indices": ind,
-            "material": materials.len() - 1, "extensions": {EXTENSION: ext}}]}),
-        );
+        // COLOR_0 is the preview; the source's own vertex colours go to COLOR_1.
+        let mut attributes = json!({"POSITION": pos, "NORMAL": nor, "COLOR_0": col});
+        for (key, uvs) in [("TEXCOORD_0", &mesh.uvs), ("TEXCOORD_1", &mesh.uvs1)] {
+            if !uvs.is_empty() {
+                attributes[key] = json!(bin.vec2(uvs));
+            }
+        }
+        if !mesh.colors.is_empty() {
+            attributes["COLOR_1"] = json!(bin.vec3(&mesh.colors));
+        }
+        meshes.push(json!({"primitives": [{"attributes": attributes, "indices": ind, "material": materials.len() - 1,
+            "extensions": {EXTENSION: ext}}]}));
         children[group_of(inst.group)].push(nodes.len() + groups.len());
         nodes.push(node(json!({"name": format!("instance {k}"), "mesh": meshes.len() - 1}), &locals[k]));
     }
@@ -156,7 +181,6 @@ pub fn write(path: &Path, e: &Export) -> std::io::Result<()> {
         .map(|(l, g, n)| (n.0, l.clone(), *g))
         .collect();
     lights.sort_by(|a, b| a.0.cmp(&b.0).then_with(|| a.1.points.len().cmp(&b.1.points.len())));
-    let mut textures = Textures::default();
     for (_, light, member) in &lights {
         let pos = bin.vec3(&light.points);
         let fan: Vec<u32> = (1..light.points.len() as u32 - 1).flat_map(|i| [0, i, i + 1]).collect();
@@ -174,7 +198,7 @@ pub fn write(path: &Path, e: &Export) -> std::io::Result<()> {
         let mut attributes = json!({"POSITION": pos});
         let textured = light.texture.filter(|_| light.uvs.len() == light.points.len());
         if let Some(t) = textured {
-            let index = textures.add(&mut bin, t, &e.scene.textures[t as usize]);
+            let index = textures.add(&mut bin, t, &e.scene.textures[t as usize], true);
             material["emissiveTexture"] = json!({"index": index});
             attributes["TEXCOORD_0"] = json!(bin.vec2(&light.uvs));
             ext["lightUvs"] = json!(light.uvs.iter().flat_map(|uv| uv.to_array()).collect::<Vec<f32>>());
@@ -226,7 +250,7 @@ pub fn write(path: &Path, e: &Export) -> std::io::Result<()> {
     std::fs::write(path, glb(&doc.to_string(), bin.bytes))
 }
 
-/// The lights' emissive textures as 8-bit sRGB PNGs, each written once.
+/// The scene's textures as 8-bit PNGs (sRGB-encoded colours, linear data), each written once.
 #[derive(Default)]
 struct Textures {
     /// Scene texture index → glTF texture index.
@@ -237,12 +261,12 @@ struct Textures {
 }
 
 impl Textures {
-    /// The glTF texture for scene texture `index`, written on first use.
-    fn add(&mut self, bin: &mut Bin, index: u32, t: &Texture) -> usize {
+    /// The glTF texture for scene texture `index` (colours when `srgb`), written on first use.
+    fn add(&mut self, bin: &mut Bin, index: u32, t: &Texture, srgb: bool) -> usize {
         if let Some(&k) = self.written.get(&index) {
             return k;
         }
-        let view = bin.view(&png(t), None);
+        let view = bin.view(&png(t, srgb), None);
         self.images.push(json!({"bufferView": view, "mimeType": "image/png"}));
         let wrap = |w: Wrap| match w {
             Wrap::Clamp => 33071,
@@ -257,10 +281,14 @@ impl Textures {
     }
 }
 
-/// `t` as an sRGB PNG. Textures imported from 8-bit images come back bit for bit (every byte
-/// round-trips through [`linear_to_srgb`]; tested beside it); others round to the nearest byte.
-fn png(t: &Texture) -> Vec<u8> {
-    let encode = |x: f32| (linear_to_srgb(x.clamp(0.0, 1.0)) * 255.0).round() as u8;
+/// `t` as a PNG, sRGB-encoded when `srgb`. Textures imported from 8-bit images come back bit
+/// for bit (every byte round-trips through [`linear_to_srgb`]; tested beside it); others round
+/// to the nearest byte.
+fn png(t: &Texture, srgb: bool) -> Vec<u8> {
+    let encode = |x: f32| {
+        let x = x.clamp(0.0, 1.0);
+        (if srgb { linear_to_srgb(x) } else { x } * 255.0).round() as u8
+    };
     let rgb: Vec<u8> = t.texels.iter().flat_map(|c| c.to_array().map(encode)).collect();
     let image = image::RgbImage::from_raw(t.width as u32, t.height as u32, rgb).expect("texel count matches");
     let mut out = std::io::Cursor::new(Vec::new());
@@ -331,7 +359,7 @@ fn bad(path: &Path, what: impl std::fmt::Display) -> kage_engine::Error {
 
 /// Reads a pack: the scene (materials restored from the extension) and its bakes.
 pub fn read(path: &Path) -> kage_engine::Result<(Scene, Contents)> {
-    let mut scene = kage_engine::scene::import::import(path, ImportOptions::default())?;
+    let mut scene = kage_engine::scene::import::import(path, ImportOptions { color_set: 1, ..Default::default() })?;
     let bytes = std::fs::read(path).map_err(|e| kage_engine::Error::io(path, e))?;
     let (doc, bin) = split_glb(&bytes).ok_or_else(|| bad(path, "not a GLB with a JSON and a BIN chunk"))?;
     let doc: Value = serde_json::from_slice(doc).map_err(|e| bad(path, e))?;
@@ -362,6 +390,7 @@ pub fn read(path: &Path) -> kage_engine::Result<(Scene, Contents)> {
         .iter()
         .map(|(e, id)| (*id, e))
         .collect();
+    let mut decoded = std::collections::HashMap::new();
     for (k, inst) in flat.instances.iter().enumerate() {
         let m = &exts[k]["material"];
         let f = |key: &str| m[key].as_f64().map(|v| v as f32);
@@ -379,9 +408,26 @@ pub fn read(path: &Path) -> kage_engine::Result<(Scene, Contents)> {
             roughness: f("roughness").unwrap_or(1.0),
             specular: f("specular").unwrap_or(1.0),
         };
+        let maps = MaterialMaps {
+            base_color: texture_slot(&doc, m, "baseColorTexture", true, &view, &mut scene, &mut decoded)
+                .map_err(|what| bad(path, format!("mesh {k}: {what}")))?,
+            metallic_roughness: texture_slot(
+                &doc,
+                m,
+                "metallicRoughnessTexture",
+                false,
+                &view,
+                &mut scene,
+                &mut decoded,
+            )
+            .map_err(|what| bad(path, format!("mesh {k}: {what}")))?,
+        };
         let entity =
             entities.iter().find(|(id, _)| *id == inst.id).map(|(_, e)| *e).expect("flattened from this world");
         let _ = scene.world.insert_one(entity, material);
+        if !maps.is_empty() {
+            let _ = scene.world.insert_one(entity, maps);
+        }
     }
     let flat = kage_engine::scene::flatten(&scene);
     let bspvt = root.get("bspvt").map(|b| -> kage_engine::Result<bspvt::Bake> {
@@ -419,6 +465,57 @@ pub fn read(path: &Path) -> kage_engine::Result<(Scene, Contents)> {
         scene.set_environment(read_environment(path, env, &view)?);
     }
     Ok((scene, Contents { bspvt: bspvt.transpose()?, prt: prt.transpose()? }))
+}
+
+/// The texture slot `key` of an extension material record `m`: its glTF texture decoded
+/// (once per texture and colour space, into the scene's textures), UV set and transform.
+fn texture_slot<'a>(
+    doc: &Value,
+    m: &Value,
+    key: &str,
+    srgb: bool,
+    view: &dyn Fn(&Value) -> Option<&'a [u8]>,
+    scene: &mut Scene,
+    decoded: &mut std::collections::HashMap<(u64, bool), u32>,
+) -> Result<Option<TextureSlot>, String> {
+    let Some(slot) = m.get(key) else { return Ok(None) };
+    let index = slot["index"].as_u64().ok_or_else(|| format!("{key} has no texture index"))?;
+    let texture = match decoded.get(&(index, srgb)) {
+        Some(&t) => t,
+        None => {
+            let gltf_texture = &doc["textures"][index as usize];
+            let image = &doc["images"][gltf_texture["source"].as_u64().unwrap_or(u64::MAX) as usize];
+            let bytes =
+                view(&image["bufferView"]).ok_or_else(|| format!("{key}: texture {index} has no image data"))?;
+            let sampler = &doc["samplers"][gltf_texture["sampler"].as_u64().unwrap_or(u64::MAX) as usize];
+            let wrap = |k: &str| match sampler[k].as_u64() {
+                Some(33071) => Wrap::Clamp,
+                Some(33648) => Wrap::Mirror,
+                _ => Wrap::Repeat,
+            };
+            let t = import::decode_texture(bytes, srgb, [wrap("wrapS"), wrap("wrapT")])
+                .map_err(|e| format!("{key}: texture {index}: {e}"))?;
+            scene.textures.push(std::sync::Arc::new(t));
+            let t = scene.textures.len() as u32 - 1;
+            decoded.insert((index, srgb), t);
+            t
+        }
+    };
+    let transform: Vec<f32> =
+        slot["transform"].as_array().into_iter().flatten().filter_map(|v| v.as_f64()).map(|v| v as f32).collect();
+    let transform = match transform[..] {
+        [] if slot.get("transform").is_none() => glam::Affine2::IDENTITY,
+        [a, b, c, d, e, f] if transform.iter().all(|x| x.is_finite()) => {
+            glam::Affine2::from_cols_array(&[a, b, c, d, e, f])
+        }
+        _ => return Err(format!("{key}: the UV transform is not 6 finite numbers")),
+    };
+    let texcoord = match slot["texCoord"].as_u64() {
+        None => 0,
+        Some(n @ 0..=1) => n as u32,
+        Some(n) => return Err(format!("{key}: TEXCOORD_{n} is not a set kage reads")),
+    };
+    Ok(Some(TextureSlot { texture, texcoord, transform }))
 }
 
 /// The environment light a pack carries: its exact texels, intensity and rotation.
@@ -563,4 +660,39 @@ fn split_glb(b: &[u8]) -> Option<(&[u8], &[u8])> {
     let bin_len = u32_at(at)?;
     (b.get(at + 4..at + 8)? == b"BIN\0").then_some(())?;
     Some((json, b.get(at + 8..at + 8 + bin_len)?))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Vec2;
+
+    /// Textured materials, both UV sets and the source's vertex colours survive a pack: the
+    /// material at every vertex and at points inside triangles is the same after reading.
+    #[test]
+    fn textured_materials_survive_a_pack() {
+        let asset = Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/scenes/textured_materials.gltf");
+        let scene = import::import(&asset, ImportOptions::default()).unwrap();
+        let flat = kage_engine::scene::flatten(&scene);
+        let path = std::env::temp_dir().join(format!("kage-pack-materials-{}.glb", std::process::id()));
+        let radiance = flat.zeros();
+        let export = Export { scene: &scene, flat: &flat, bspvt: None, prt: None, radiance: &radiance, exposure: 0.0 };
+        write(&path, &export).unwrap();
+        let (back, _) = read(&path).unwrap();
+        std::fs::remove_file(&path).unwrap();
+        let again = kage_engine::scene::flatten(&back);
+        for i in 0..flat.instances.len() {
+            let (a, b) = (flat.mesh(i), again.mesh(i));
+            assert_eq!((&a.uvs, &a.uvs1, &a.colors), (&b.uvs, &b.uvs1, &b.colors), "instance {i}");
+            assert_eq!(flat.instances[i].maps.is_empty(), again.instances[i].maps.is_empty());
+            for (k, tri) in a.triangles.iter().enumerate().step_by(7) {
+                let corners = tri.map(|v| v as usize);
+                let bary = [0.2, 0.3, 0.5];
+                let (m, n) = (flat.material_at(i, corners, bary), again.material_at(i, corners, bary));
+                assert_eq!(m, n, "instance {i}, triangle {k}");
+            }
+        }
+        let poster = again.instances.iter().find_map(|i| i.maps.base_color.filter(|s| s.texcoord == 1)).unwrap();
+        assert_eq!(poster.uv(Vec2::ZERO, Vec2::ZERO), Vec2::new(0.5, 0.0));
+    }
 }

@@ -53,6 +53,7 @@ pub fn key(src: &Source, s: &Settings) -> Key {
         .bytes("lights", bytemuck::cast_slice(&lights))
         .bytes("materials", bytemuck::cast_slice(&materials))
         .bytes("direct", bytemuck::cast_slice(&direct))
+        .material_variation(flat)
         .finish()
 }
 

@@ -77,7 +77,11 @@ fn parse_rotate(s: &str) -> Result<(String, Quat), String> {
 impl SceneArgs {
     /// How the scene file (and, in the editor, its re-imports) is read.
     pub fn import_options(&self) -> ImportOptions {
-        ImportOptions { drop_degenerate: self.drop_degenerate, allow_root: self.allow_root.clone() }
+        ImportOptions {
+            drop_degenerate: self.drop_degenerate,
+            allow_root: self.allow_root.clone(),
+            ..Default::default()
+        }
     }
 
     /// Loads the scene and applies the environment options.

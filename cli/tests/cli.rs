@@ -84,10 +84,6 @@ fn bad_input_exits_non_zero_with_a_message() {
         (vec!["info".into(), d.join("nope.glb").display().to_string()], "nope.glb"),
         (vec!["info".into(), "--env".into(), d.join("sky.hdr").display().to_string()], "sky.hdr"),
         (
-            vec!["render".into(), asset("models/bunny.glb"), "-o".into(), d.join("x.png").display().to_string()],
-            "no camera",
-        ),
-        (
             vec![
                 "render".into(),
                 "-o".into(),
@@ -524,12 +520,16 @@ fn export_writes_valid_packs_that_render_like_the_database() {
         ("scenes/textured_light", "bspvt", vec!["--face-res", "16"]),
         ("scenes/bunny_two_groups", "prt", vec!["--sh-order", "4", "--regions", "8"]),
         ("scenes/textured_light", "baked", vec!["--face-res", "16", "--sh-order", "3", "--regions", "8"]),
+        // Base-colour and metallic-roughness textures, TEXCOORD_1, a UV transform, vertex colours.
+        ("scenes/textured_materials", "baked", vec!["--face-res", "16", "--sh-order", "3", "--regions", "8"]),
     ] {
         let name = Path::new(file).file_name().unwrap().to_str().unwrap();
         for ext in ["gltf", "bin"] {
             std::fs::copy(asset(&format!("{file}.{ext}")), d.join(format!("{name}.{ext}"))).unwrap();
         }
-        std::fs::copy(asset("scenes/stained_glass.png"), d.join("stained_glass.png")).unwrap();
+        for png in ["stained_glass.png", "checker.png", "metal_rough.png", "poster.png"] {
+            std::fs::copy(asset(&format!("scenes/{png}")), d.join(png)).unwrap();
+        }
         let scene = d.join(format!("{name}.gltf")).to_str().unwrap().to_string();
         if method == "bspvt" {
             // A light that stays put: the pack carries its reach.
@@ -744,4 +744,29 @@ fn help_describes_the_commands_and_every_method() {
     }
     let o = kage(&["render", "--method", "baked-look"]);
     assert!(!o.status.success() && stderr(&o).contains("ltc-exact-vis"), "{}", stderr(&o));
+}
+
+/// A model without a camera (most single-asset glTF files) is framed, not refused.
+#[test]
+fn a_scene_without_a_camera_is_framed() {
+    let d = scratch("framed");
+    let mut doc: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(asset("scenes/cube_on_plane.gltf")).unwrap()).unwrap();
+    for node in doc["nodes"].as_array_mut().unwrap() {
+        node.as_object_mut().unwrap().remove("camera");
+    }
+    doc.as_object_mut().unwrap().remove("cameras");
+    let scene = d.join("no_camera.gltf");
+    std::fs::write(&scene, serde_json::to_vec(&doc).unwrap()).unwrap();
+    let png = d.join("framed.png");
+    let (scene, out) = (scene.to_str().unwrap(), png.to_str().unwrap());
+    let o = kage(&["render", scene, "--method", "ltc-unshadowed", "--size", "32x24", "--spp", "1", "-o", out]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(String::from_utf8_lossy(&o.stdout).contains("camera: the scene has none; framing it"));
+    let img = image::open(&png).unwrap().to_rgb8();
+    // The lit ground fills much of the frame; its bounding sphere stays inside the corners.
+    let lit = img.pixels().filter(|p| p.0.iter().any(|c| *c > 0)).count();
+    let corners = [(0, 0), (31, 0), (0, 23), (31, 23)].map(|(x, y)| img.get_pixel(x, y).0);
+    assert!(lit > 32 * 24 / 10 && corners.iter().all(|c| *c == [0, 0, 0]), "{lit} lit pixels, corners {corners:?}");
+    std::fs::remove_dir_all(d).unwrap();
 }

@@ -54,6 +54,7 @@ fn teapot_editor() -> Harness<'static, App> {
         cache: Default::default(),
         prt_budget: None,
         bake_on_start: true,
+        indirect: false,
         shade_on: shade_on(),
     };
     let mut h = harness(scene, options);

@@ -13,6 +13,7 @@
 
 pub mod bake_job;
 pub mod camera;
+pub mod detail;
 pub mod files;
 pub mod reload;
 pub mod state;

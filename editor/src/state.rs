@@ -150,6 +150,8 @@ pub struct Options {
     pub cache: kage_engine::cache::Settings,
     /// Start baking at once.
     pub bake_on_start: bool,
+    /// Start with the indirect term on (the baked look's one bounce).
+    pub indirect: bool,
     /// Where polygonal-light shading (BSPVT, LTC) runs.
     pub shade_on: ShadeOn,
 }
@@ -255,7 +257,7 @@ impl Editor {
             values: Vec::new(),
             radiance: Vec::new(),
             direct: Vec::new(),
-            indirect: false,
+            indirect: options.indirect,
             indirect_values: Vec::new(),
             overlay: false,
             exposure: 0.0,
@@ -592,10 +594,7 @@ fn cameras(scene: &Scene) -> Vec<Camera> {
 
 /// The first scene camera, or a view of the whole scene from the front and above.
 fn initial_orbit(flat: &FlatScene, camera: Option<&Camera>) -> Orbit {
-    let (lo, hi) = flat.triangles.iter().flatten().fold((Vec3::MAX, Vec3::MIN), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
-    let (centre, radius) = if lo.x <= hi.x { (0.5 * (lo + hi), 0.5 * (hi - lo).length()) } else { (Vec3::ZERO, 1.0) };
-    match camera {
-        Some(c) => Orbit::from_camera(c, c.eye().distance(centre).max(1e-3)),
-        None => Orbit { target: centre, distance: 2.5 * radius.max(1e-3), yaw: 0.0, pitch: 0.45, yfov: 0.8 },
-    }
+    let (centre, _) = flat.bounding_sphere();
+    let c = camera.cloned().unwrap_or_else(|| flat.framing_camera());
+    Orbit::from_camera(&c, c.eye().distance(centre).max(1e-3))
 }

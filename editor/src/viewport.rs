@@ -1,9 +1,11 @@
 //! The 3D view: the scene's meshes (and light polygons) drawn with per-vertex radiance by
-//! `shaders/preview.wgsl` into an offscreen texture that egui shows as an image. PRT is drawn
-//! per pixel instead when a frame's terms are given ([`Viewport::upload_prt`]): the shadows
-//! between groups are looked up at every pixel, not interpolated between vertices.
+//! `shaders/preview.wgsl` into an offscreen texture that egui shows as an image, the base-colour
+//! texture's detail added per pixel ([`crate::detail`]). PRT is drawn per pixel instead when a
+//! frame's terms are given ([`Viewport::upload_prt`]): the shadows between groups are looked up
+//! at every pixel, not interpolated between vertices.
 
 use super::camera::Orbit;
+use super::detail::{self, Detail};
 use bytemuck::{Pod, Zeroable};
 use eframe::{egui, egui_wgpu};
 use glam::Vec3;
@@ -24,11 +26,14 @@ struct View {
     exposure: [f32; 4],
 }
 
-/// One drawable: world positions, radiance per vertex, triangle indices.
+/// One drawable: world positions, radiance and texture detail per vertex, triangle indices,
+/// the base-colour texture.
 struct Mesh {
     positions: wgpu::Buffer,
     radiance: wgpu::Buffer,
+    detail: wgpu::Buffer,
     indices: wgpu::Buffer,
+    texture: wgpu::BindGroup,
     count: u32,
     vertices: usize,
 }
@@ -75,6 +80,7 @@ pub struct Viewport {
     bind: wgpu::BindGroup,
     layout: wgpu::BindGroupLayout,
     prt_layout: Option<wgpu::BindGroupLayout>,
+    detail_layout: wgpu::BindGroupLayout,
     meshes: Vec<Mesh>,
     prt: Option<PrtDraw>,
     /// Flat-coloured light polygons.
@@ -112,7 +118,9 @@ impl Viewport {
             entries: &[wgpu::BindGroupEntry { binding: 0, resource: uniform.as_entire_binding() }],
         });
         let prt_layout = prt_layout(gpu);
-        let (pipeline, prt_pipeline) = build_pipelines(gpu, shaders, &layout, prt_layout.as_ref())?;
+        let detail_layout = detail::layout(gpu);
+        let layouts = Layouts { view: &layout, detail: &detail_layout, prt: prt_layout.as_ref() };
+        let (pipeline, prt_pipeline) = build_pipelines(gpu, shaders, layouts)?;
         Ok(Self {
             pipeline,
             prt_pipeline,
@@ -120,6 +128,7 @@ impl Viewport {
             bind,
             layout,
             prt_layout,
+            detail_layout,
             meshes: Vec::new(),
             prt: None,
             lights: Vec::new(),
@@ -131,7 +140,8 @@ impl Viewport {
     /// Rebuilds the pipeline (hot reload); on error the previous one stays.
     pub fn reload(&mut self, gpu: &Gpu, shaders: &Shaders, generation: u64) -> Result<(), kage_gpu::ShaderError> {
         self.generation = generation;
-        (self.pipeline, self.prt_pipeline) = build_pipelines(gpu, shaders, &self.layout, self.prt_layout.as_ref())?;
+        let layouts = Layouts { view: &self.layout, detail: &self.detail_layout, prt: self.prt_layout.as_ref() };
+        (self.pipeline, self.prt_pipeline) = build_pipelines(gpu, shaders, layouts)?;
         Ok(())
     }
 
@@ -149,14 +159,23 @@ impl Viewport {
         };
     }
 
-    /// Uploads every instance's world-space triangles and every light polygon.
+    /// Uploads every instance's world-space triangles with its base-colour texture, and every
+    /// light polygon.
     pub fn upload_geometry(&mut self, gpu: &Gpu, flat: &FlatScene) {
+        let plain = detail::bind_group(gpu, &self.detail_layout, None);
+        let mut textures = std::collections::HashMap::new();
         self.meshes = (0..flat.instances.len())
             .map(|i| {
                 let mesh = flat.mesh(i);
                 let p: Vec<Vec3> = (0..mesh.positions.len()).map(|v| flat.vertex(i, v).0).collect();
                 let idx: Vec<u32> = mesh.triangles.iter().flatten().copied().collect();
-                mesh_buffers(gpu, &p, &vec![Vec3::ZERO; p.len()], &idx)
+                let texture = detail::slot(flat, i).map_or(plain.clone(), |s| {
+                    let texture = &flat.textures[s.texture as usize];
+                    let layout = &self.detail_layout;
+                    textures.entry(s.texture).or_insert_with(|| detail::bind_group(gpu, layout, Some(texture))).clone()
+                });
+                let look = Look { radiance: &vec![Vec3::ZERO; p.len()], detail: &detail::vertices(flat, i), texture };
+                mesh_buffers(gpu, &p, look, &idx)
             })
             .collect();
         self.lights = flat
@@ -164,7 +183,10 @@ impl Viewport {
             .iter()
             .map(|l| {
                 let idx: Vec<u32> = (1..l.points.len() as u32 - 1).flat_map(|k| [0, k, k + 1]).collect();
-                mesh_buffers(gpu, &l.points, &vec![l.radiance; l.points.len()], &idx)
+                let n = l.points.len();
+                let look =
+                    Look { radiance: &vec![l.radiance; n], detail: &vec![detail::PLAIN; n], texture: plain.clone() };
+                mesh_buffers(gpu, &l.points, look, &idx)
             })
             .collect();
     }
@@ -264,8 +286,10 @@ impl Viewport {
             };
             pass.set_pipeline(&self.pipeline);
             for m in per_vertex.iter().chain(&self.lights) {
+                pass.set_bind_group(1, &m.texture, &[]);
                 pass.set_vertex_buffer(0, m.positions.slice(..));
                 pass.set_vertex_buffer(1, m.radiance.slice(..));
+                pass.set_vertex_buffer(2, m.detail.slice(..));
                 pass.set_index_buffer(m.indices.slice(..), wgpu::IndexFormat::Uint32);
                 pass.draw_indexed(0..m.count, 0, 0..1);
             }
@@ -389,25 +413,42 @@ fn prt_layout(gpu: &Gpu) -> Option<wgpu::BindGroupLayout> {
     )
 }
 
+/// The bind group layouts the pipelines use: the view (group 0), then the base-colour texture
+/// (per-vertex pipeline) or the PRT arrays (per-pixel PRT) as group 1.
+#[derive(Clone, Copy)]
+struct Layouts<'a> {
+    view: &'a wgpu::BindGroupLayout,
+    detail: &'a wgpu::BindGroupLayout,
+    prt: Option<&'a wgpu::BindGroupLayout>,
+}
+
 /// The per-vertex pipeline and the per-pixel PRT pipeline, both from preview.wgsl.
 fn build_pipelines(
     gpu: &Gpu,
     shaders: &Shaders,
-    layout: &wgpu::BindGroupLayout,
-    prt_layout: Option<&wgpu::BindGroupLayout>,
+    layouts: Layouts,
 ) -> Result<(wgpu::RenderPipeline, Option<wgpu::RenderPipeline>), kage_gpu::ShaderError> {
     let module = shaders.module(&gpu.device, "preview.wgsl")?;
-    let attributes = [0, 1].map(|location| {
-        [wgpu::VertexAttribute { format: wgpu::VertexFormat::Float32x3, offset: 0, shader_location: location }]
+    let attribute = |location, format, offset| wgpu::VertexAttribute { format, offset, shader_location: location };
+    let vec3 = wgpu::VertexFormat::Float32x3;
+    let attributes = [
+        vec![attribute(0, vec3, 0)],
+        vec![attribute(1, vec3, 0)],
+        vec![attribute(2, wgpu::VertexFormat::Float32x2, 0), attribute(3, vec3, 8)],
+    ];
+    let strides = [12, 12, std::mem::size_of::<Detail>() as u64];
+    let per_vertex = [0, 1, 2].map(|k| {
+        Some(wgpu::VertexBufferLayout {
+            array_stride: strides[k],
+            step_mode: wgpu::VertexStepMode::Vertex,
+            attributes: &attributes[k],
+        })
     });
-    let layout_of =
-        |a| wgpu::VertexBufferLayout { array_stride: 12, step_mode: wgpu::VertexStepMode::Vertex, attributes: a };
-    let per_vertex = [Some(layout_of(&attributes[0])), Some(layout_of(&attributes[1]))];
+    let view = Some(layouts.view);
     // The device may still refuse what naga accepted (e.g. storage buffers in the vertex stage).
     kage_gpu::buffers::checked(gpu, "preview pipelines", || {
-        let main = render_pipeline(gpu, &module, &[Some(layout)], ("vs_main", "fs_main"), &per_vertex);
-        let prt =
-            prt_layout.map(|prt| render_pipeline(gpu, &module, &[Some(layout), Some(prt)], ("vs_prt", "fs_prt"), &[]));
+        let main = render_pipeline(gpu, &module, &[view, Some(layouts.detail)], ("vs_main", "fs_main"), &per_vertex);
+        let prt = layouts.prt.map(|prt| render_pipeline(gpu, &module, &[view, Some(prt)], ("vs_prt", "fs_prt"), &[]));
         (main, prt)
     })
     .map_err(|e| kage_gpu::ShaderError {
@@ -454,15 +495,24 @@ fn render_pipeline(
     })
 }
 
-fn mesh_buffers(gpu: &Gpu, positions: &[Vec3], radiance: &[Vec3], indices: &[u32]) -> Mesh {
+/// What a drawable shows: radiance and texture detail per vertex, and the texture.
+struct Look<'a> {
+    radiance: &'a [Vec3],
+    detail: &'a [Detail],
+    texture: wgpu::BindGroup,
+}
+
+fn mesh_buffers(gpu: &Gpu, positions: &[Vec3], look: Look, indices: &[u32]) -> Mesh {
     let init = |label, contents: &[u8], usage| {
         gpu.device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents, usage })
     };
     let v = wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::COPY_DST;
     Mesh {
         positions: init("positions", bytemuck::cast_slice(positions), v),
-        radiance: init("radiance", bytemuck::cast_slice(radiance), v),
+        radiance: init("radiance", bytemuck::cast_slice(look.radiance), v),
+        detail: init("detail", bytemuck::cast_slice(look.detail), wgpu::BufferUsages::VERTEX),
         indices: init("indices", bytemuck::cast_slice(indices), wgpu::BufferUsages::INDEX),
+        texture: look.texture,
         count: indices.len() as u32,
         vertices: positions.len(),
     }

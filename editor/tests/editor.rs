@@ -43,6 +43,8 @@ fn options(dir: &Path, scene_path: Option<PathBuf>, shader_dir: Option<PathBuf>)
         cache: Default::default(),
         prt_budget: None,
         bake_on_start: true,
+        // Tests that need the bounce turn it on as a user would (the toggle).
+        indirect: false,
         shade_on: SHADE_ON,
     }
 }

@@ -1,5 +1,6 @@
-//! The viewport's per-pixel PRT on the device (lavapipe in CI): the shadows cast between rigid
-//! groups are looked up at every pixel, as `kage_engine::prt::Frame::render` does on the CPU.
+//! The viewport on the device (lavapipe in CI): per-pixel PRT — the shadows cast between rigid
+//! groups looked up at every pixel, as `kage_engine::prt::Frame::render` does on the CPU — and
+//! the base-colour texture's detail per pixel over per-vertex lighting.
 
 use glam::Vec3;
 use kage_editor::camera::Orbit;
@@ -65,4 +66,54 @@ fn per_pixel_prt_matches_the_cpu_per_pixel_render_and_beats_per_vertex_shading()
         100.0 * vertex,
         100.0 * pixel
     );
+}
+
+/// The viewport's texture detail matches its CPU statement (`kage_editor::detail`): per-vertex
+/// radiance times the base-colour texture at the pixel over its value interpolated from the
+/// vertices. The textured scene's poster has 4 vertices and its floor 121, so the detail is
+/// what shows the textures at all.
+#[test]
+fn texture_detail_is_drawn_per_pixel_over_per_vertex_lighting() {
+    use kage_engine::raster::{SurfaceHit, shade_image};
+    let gpu = Gpu::new().expect("a wgpu device (lavapipe without a GPU)");
+    let scene = import::import(&asset("scenes/textured_materials.gltf"), Default::default()).unwrap();
+    let flat = flatten(&scene);
+    let orbit = Orbit { target: Vec3::new(0.0, 0.5, -0.4), distance: 4.5, yaw: 0.5, pitch: 0.5, yfov: 0.8 };
+    let (w, h) = (240, 160);
+    // Per-vertex "radiance": the diffuse albedo at each vertex under a white sky.
+    let values: Vec<Vec<Vec3>> = (0..flat.instances.len())
+        .map(|i| (0..flat.vertex_count(i)).map(|v| flat.vertex_material(i, v).base_color * 0.8).collect())
+        .collect();
+    let renderer = Renderer::new(&scene);
+    let camera = Camera::look_at(orbit.eye(), orbit.target, orbit.yfov);
+    let textured = |hit: &SurfaceHit| -> Vec3 {
+        let i = hit.instance;
+        let lit = hit.interpolate(&values[i]);
+        let Some(slot) = flat.instances[i].maps.base_color else { return lit };
+        let (mesh, t) = (flat.mesh(i), &flat.textures[slot.texture as usize]);
+        let uv = |v: usize| {
+            slot.uv(mesh.uvs.get(v).copied().unwrap_or_default(), mesh.uvs1.get(v).copied().unwrap_or_default())
+        };
+        let at_vertices: Vec3 = (0..3).map(|k| t.sample(uv(hit.corners[k])) * hit.weights[k]).sum();
+        let here = t.sample((0..3).map(|k| uv(hit.corners[k]) * hit.weights[k]).sum());
+        lit * Vec3::select(at_vertices.cmpgt(Vec3::splat(1e-6)), here / at_vertices.max(Vec3::splat(1e-6)), Vec3::ZERO)
+    };
+    let srgb = |img: Vec<Vec3>| -> Vec<[u8; 3]> {
+        img.iter().map(|p| p.to_array().map(|c| (display_srgb(c) * 255.0 + 0.5) as u8)).collect()
+    };
+    let expected = srgb(shade_image(&renderer, &camera, w, h, 1, &textured));
+    let plain = srgb(shade_image(&renderer, &camera, w, h, 1, &|hit| hit.interpolate(&values[hit.instance])));
+
+    let mut vp = Viewport::new(&gpu, &Shaders::embedded()).unwrap();
+    vp.upload_geometry(&gpu, &flat);
+    vp.upload_radiance(&gpu, &values);
+    let drawn = vp.render_image(&gpu, [w as u32, h as u32], &orbit, 0.0).unwrap();
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../target/editor-snapshots");
+    std::fs::create_dir_all(&dir).unwrap();
+    drawn.save(dir.join("texture-detail.png")).unwrap();
+
+    // Edges and 8-bit filtering on the device differ by a pixel or a level.
+    let (detail, without) = (within(&drawn, &expected, 3), within(&drawn, &plain, 3));
+    assert!(detail >= 0.97, "the detail matches its CPU statement on {:.1} % of pixels", 100.0 * detail);
+    assert!(without < detail - 0.1, "without detail {:.1} %, with {:.1} %", 100.0 * without, 100.0 * detail);
 }

@@ -64,7 +64,7 @@ fn bench(c: &mut Criterion) {
             let flat = flatten(&scene);
             let eye = camera.eye();
             let frame = Frame::prepare_cached(&scene, &flat, &bake, &light, Shadows::WithOthers, &s, eye, &mut cache);
-            frame.shade_grid(&grid, 512, &|_, _| glam::Vec3::ZERO).len()
+            frame.shade_grid(&grid, 512, &|_, l, _| l).len()
         })
     });
     g.bench_function("primary_rays_512", |b| {

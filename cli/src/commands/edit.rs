@@ -27,6 +27,10 @@ pub struct Args {
     /// Do not start baking when the editor opens.
     #[arg(long)]
     no_bake: bool,
+    /// Start without the indirect term (the baked look's one bounce from the radiance cache;
+    /// the view's "Indirect light" toggle turns it on).
+    #[arg(long)]
+    no_indirect: bool,
     /// Where polygonal lights shade: auto (the GPU unless it is a CPU emulation), gpu, cpu.
     #[arg(long, value_enum, default_value = "auto")]
     shade_on: state::ShadeOn,
@@ -54,6 +58,7 @@ impl Args {
             cache: Default::default(),
             prt_budget: Some(crate::prt_args::DEFAULT_BUDGET),
             bake_on_start: !self.no_bake,
+            indirect: !self.no_indirect,
             shade_on: self.shade_on,
         })
     }
@@ -62,4 +67,24 @@ impl Args {
 /// Opens the editor window.
 pub fn run(args: &Args) -> Result<()> {
     kage_editor::run(args.scene.load()?, args.options()?, args.size)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::Parser;
+
+    #[derive(Parser)]
+    struct Edit {
+        #[command(flatten)]
+        args: Args,
+    }
+
+    /// The editor opens on the baked look with its bounce, unless told otherwise.
+    #[test]
+    fn the_editor_starts_with_the_indirect_term() {
+        let options = |argv: &[&str]| Edit::try_parse_from(argv).unwrap().args.options().unwrap();
+        assert!(options(&["edit"]).indirect);
+        assert!(!options(&["edit", "--no-indirect"]).indirect);
+    }
 }

@@ -36,7 +36,7 @@ pub fn choose(flat: &FlatScene, budget: f64, eye: Vec3) -> (Settings, String) {
             .par_iter()
             .map(|&(i, v)| {
                 let (p, n) = flat.vertex(i, v);
-                let shader = PointShader::new(&table, p, n, eye, &flat.instances[i].material);
+                let shader = PointShader::new(&table, p, n, eye, &flat.vertex_material(i, v));
                 if exact {
                     shader.shade(&flat.lights, Visibility::Exact(&visibility::cast(&occ, p, n, s.res)))
                 } else {

@@ -265,7 +265,7 @@ pub fn shade_vertices(flat: &FlatScene, shadows: Shadows, eye: glam::Vec3) -> Ve
                         let (p, normal) = flat.vertex(i, v);
                         let cube = visibility::cast(occluders, p, normal, *res);
                         let table = crate::math::ltc::table();
-                        shade::PointShader::new(&table, p, normal, eye, &flat.instances[i].material)
+                        shade::PointShader::new(&table, p, normal, eye, &flat.vertex_material(i, v))
                             .shade(&flat.lights, shade::Visibility::Exact(&cube))
                     }
                     None => shade_vertex(flat, trees, i, v, eye),
@@ -296,27 +296,28 @@ pub fn shade_point(
         n += b * nv;
     }
     let nearest = corners[(0..3).max_by(|&x, &y| bary[x].total_cmp(&bary[y])).unwrap_or(0)];
-    shade_at(flat, bake.map(|b| b.instances[i].record(nearest)), i, p, n, eye)
+    let material = flat.material_at(i, corners, bary);
+    shade_at(flat, bake.map(|b| b.instances[i].record(nearest)), &material, p, n, eye)
 }
 
 /// Outgoing radiance toward `eye` from the polygonal lights at vertex `v` of instance `i`,
 /// shadowed by `bake`'s trees (`None`: unshadowed LTC).
 pub fn shade_vertex(flat: &FlatScene, bake: Option<&Bake>, i: usize, v: usize, eye: glam::Vec3) -> glam::Vec3 {
     let (p, n) = flat.vertex(i, v);
-    shade_at(flat, bake.map(|b| b.instances[i].record(v)), i, p, n, eye)
+    shade_at(flat, bake.map(|b| b.instances[i].record(v)), &flat.vertex_material(i, v), p, n, eye)
 }
 
-/// LTC shading of instance `i`'s material at `p` (normal `n`) toward `eye`, shadowed by a
-/// vertex record's trees (`None`: unshadowed).
+/// LTC shading of `material` at `p` (normal `n`) toward `eye`, shadowed by a vertex record's
+/// trees (`None`: unshadowed).
 fn shade_at(
     flat: &FlatScene,
     record: Option<&[u8]>,
-    i: usize,
+    material: &crate::scene::Material,
     p: glam::Vec3,
     n: glam::Vec3,
     eye: glam::Vec3,
 ) -> glam::Vec3 {
-    let shader = shade::PointShader::new(&crate::math::ltc::table(), p, n, eye, &flat.instances[i].material);
+    let shader = shade::PointShader::new(&crate::math::ltc::table(), p, n, eye, material);
     let vis = record.map_or(shade::Visibility::Unshadowed, shade::Visibility::Tree);
     shader.shade(&flat.lights, vis)
 }

@@ -35,12 +35,11 @@ impl Lobes {
         let lights = flat.lights.len();
         let (integrals, values) = (0..flat.instances.len())
             .map(|i| {
-                let material = flat.instances[i].material;
                 let rows: Vec<(Vec3, Vec<[[f32; 2]; 2]>)> = (0..flat.vertex_count(i))
                     .into_par_iter()
                     .map(|v| {
                         let (p, n) = flat.vertex(i, v);
-                        let shader = PointShader::new(&table, p, n, eye, &material);
+                        let shader = PointShader::new(&table, p, n, eye, &flat.vertex_material(i, v));
                         let vis = bake.map_or(Visibility::Unshadowed, |b| Visibility::Tree(b.instances[i].record(v)));
                         let (radiance, shut) = shader.shade_with_lobes(&flat.lights, vis);
                         let open = match bake {
@@ -66,7 +65,8 @@ impl Lobes {
     pub fn shade(&self, flat: &FlatScene, hit: &SurfaceHit, eye: Vec3) -> Vec3 {
         let i = hit.instance;
         let n = (0..3).map(|c| flat.vertex(i, hit.corners[c]).1 * hit.weights[c]).sum::<Vec3>().normalize_or_zero();
-        let shader = PointShader::new(&ltc::table(), hit.position, n, eye, &flat.instances[i].material);
+        let material = flat.material_at(i, hit.corners, hit.weights);
+        let shader = PointShader::new(&ltc::table(), hit.position, n, eye, &material);
         shader.shade_scaled(&flat.lights, |l| {
             let lobe = |k: usize| {
                 let (mut shut, mut open) = (0.0f64, 0.0f64);

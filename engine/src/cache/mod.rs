@@ -453,10 +453,10 @@ pub fn shade_vertices(src: &Source, cache: &Cache, eye: Vec3) -> VertexValues {
     let values: Vec<Vec3> = vertices(src)
         .par_iter()
         .enumerate()
-        .map(|(k, &(i, _, p, n))| {
+        .map(|(k, &(i, v, p, n))| {
             let frame = crate::math::frame::Frame::from_normal(n);
             let wo = frame.to_local((eye - p).normalize_or(n));
-            let bsdf = crate::shading::Bsdf::new(&src.renderer.flat.instances[i].material, wo);
+            let bsdf = crate::shading::Bsdf::new(&src.renderer.flat.vertex_material(i, v), wo);
             if falls_back(src.renderer, s, i) {
                 return record::gather_bsdf(src, p, n, &bsdf, wo, s.side(), k as u64);
             }
@@ -480,9 +480,9 @@ pub fn gather_vertices(src: &Source, rays: usize, eye: Vec3) -> VertexValues {
     let values: Vec<Vec3> = vertices(src)
         .par_iter()
         .enumerate()
-        .map(|(k, &(i, _, p, n))| {
+        .map(|(k, &(i, v, p, n))| {
             let wo = crate::math::frame::Frame::from_normal(n).to_local((eye - p).normalize_or(n));
-            let bsdf = crate::shading::Bsdf::new(&src.renderer.flat.instances[i].material, wo);
+            let bsdf = crate::shading::Bsdf::new(&src.renderer.flat.vertex_material(i, v), wo);
             record::gather_bsdf(src, p, n, &bsdf, wo, side, k as u64)
         })
         .collect();

@@ -109,7 +109,7 @@ impl Source<'_> {
             return Sample { radiance: Vec3::ZERO, t: hit.t, normal };
         }
         let inst = tref.owner as usize;
-        let m = r.flat.instances[inst].material;
+        let m = r.flat.material_at(inst, self.corner_indices(hit), barycentrics(hit));
         let glossy = m.metallic > 0.0 || m.specular > 0.0;
         let radiance = match self.glossy {
             Glossy::Reference(spp) if glossy => {

@@ -96,7 +96,7 @@ impl<'a> Specular<'a> {
         let n = (0..3).map(|c| self.flat.vertex(i, corners[c]).1 * weights[c]).sum::<Vec3>().normalize_or_zero();
         let wo = (toward - p).normalize_or_zero();
         let mu = n.dot(wo);
-        let m = &self.flat.instances[i].material;
+        let m = &self.flat.material_at(i, corners, weights);
         let bsdf = Bsdf::new(m, Vec3::new(0.0, 0.0, mu));
         if mu <= 0.0 || !bsdf.has_specular() {
             return Vec3::ZERO;

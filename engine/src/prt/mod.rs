@@ -292,7 +292,7 @@ pub(crate) fn head_on_albedos(flat: &FlatScene) -> Vec<Vec3> {
 fn albedo_at(flat: &FlatScene, i: usize, v: usize, eye: Vec3) -> Vec3 {
     let (p, normal) = flat.vertex(i, v);
     let wo = ShadingFrame::from_normal(normal).to_local((eye - p).normalize_or(normal));
-    Bsdf::new(&flat.instances[i].material, wo).diffuse_albedo()
+    Bsdf::new(&flat.vertex_material(i, v), wo).diffuse_albedo()
 }
 
 /// Per instance and vertex, the terms per-pixel PRT shading interpolates (see [`Frame::vertex_terms`]).
@@ -431,19 +431,11 @@ impl Frame {
         VertexTerms { ls: &self.ls, albedo: &self.albedo, shadow_t: &self.shadow_t }
     }
 
-    /// `ρ · max(0, Ls − Σ_i B_i T_i V_o)` at `p` from interpolated `ls`, `albedo` and `t`, with
-    /// `V_o = 1 − Π (1 − V_g)` over the (region, group) `pairs` (sorted by region) that are not
-    /// in group `own`; and the fraction of `Ls` (by luminance) the other groups leave, which
-    /// the specular term ([`glossy`]) is dimmed by.
-    fn radiance(
-        &self,
-        own: usize,
-        ls: Vec3,
-        albedo: Vec3,
-        t: impl Fn(usize) -> f32,
-        p: Vec3,
-        pairs: &[(u16, u16)],
-    ) -> (Vec3, f32) {
+    /// `max(0, Ls − Σ_i B_i T_i V_o)` (the albedo multiplies it) at `p` from interpolated `ls`
+    /// and `t`, with `V_o = 1 − Π (1 − V_g)` over the (region, group) `pairs` (sorted by
+    /// region) that are not in group `own`; and the fraction of `Ls` (by luminance) the other
+    /// groups leave, which the specular term ([`glossy`]) is dimmed by.
+    fn radiance(&self, own: usize, ls: Vec3, t: impl Fn(usize) -> f32, p: Vec3, pairs: &[(u16, u16)]) -> (Vec3, f32) {
         let mut l = ls.as_dvec3();
         for run in pairs.chunk_by(|a, b| a.0 == b.0) {
             let r = run[0].0 as usize;
@@ -464,7 +456,7 @@ impl Frame {
         let l = l.max(DVec3::ZERO).as_vec3();
         let lit = crate::math::luminance(ls.max(Vec3::ZERO));
         let open = if lit > 0.0 { (crate::math::luminance(l) / lit).clamp(0.0, 1.0) } else { 1.0 };
-        (albedo * l, open)
+        (l, open)
     }
 
     /// Every (region, group) pair, sorted by region.
@@ -507,7 +499,8 @@ impl Frame {
                     .map(|v| {
                         let (p, _) = flat.vertex(i, v);
                         let t = &self.shadow_t[i][v * q..(v + 1) * q];
-                        pick(self.radiance(own, self.ls[i][v], self.albedo[i][v], |r| t[r], p, &pairs))
+                        let (l, open) = self.radiance(own, self.ls[i][v], |r| t[r], p, &pairs);
+                        pick((self.albedo[i][v] * l, open))
                     })
                     .collect()
             })
@@ -516,17 +509,16 @@ impl Frame {
 
     /// Radiance at one primary-ray hit, with the other groups' shadows evaluated there.
     pub fn shade_hit(&self, hit: &SurfaceHit) -> Vec3 {
-        self.shade_hit_with(hit, &self.all_pairs()).0
+        hit.interpolate(&self.albedo[hit.instance]) * self.shade_hit_with(hit, &self.all_pairs()).0
     }
 
-    /// Diffuse radiance at `hit` and the open fraction (see [`Frame::radiance`]).
+    /// Diffuse light at `hit` (albedo not applied) and the open fraction (see
+    /// [`Frame::radiance`]).
     fn shade_hit_with(&self, hit: &SurfaceHit, pairs: &[(u16, u16)]) -> (Vec3, f32) {
         let i = hit.instance;
         let q = self.posed.regions.len();
         let t = |r: usize| (0..3).map(|c| self.shadow_t[i][hit.corners[c] * q + r] * hit.weights[c]).sum::<f32>();
-        let ls = hit.interpolate(&self.ls[i]);
-        let albedo = hit.interpolate(&self.albedo[i]);
-        self.radiance(self.posed.group_of[i], ls, albedo, t, hit.position, pairs)
+        self.radiance(self.posed.group_of[i], hit.interpolate(&self.ls[i]), t, hit.position, pairs)
     }
 
     /// A `width × height` image with `spp` samples per pixel, the other groups' shadows
@@ -540,17 +532,19 @@ impl Frame {
         spp: u32,
     ) -> Vec<Vec3> {
         let (grid, side) = raster::primary_grid(r, camera, width, height, spp);
-        raster::downsample(&self.shade_grid(&grid, width * side, &|_, _| Vec3::ZERO), width, height, side)
+        let albedo = |h: &SurfaceHit| h.interpolate(&self.albedo[h.instance]);
+        raster::downsample(&self.shade_grid(&grid, width * side, &|h, l, _| albedo(h) * l), width, height, side)
     }
 
-    /// Shades a grid of primary hits (`grid_width` columns, row-major): per sample the same
-    /// result as [`Frame::shade_hit`] plus `extra(hit, open fraction)`, but 8×8-sample tiles
-    /// skip the (region, group) pairs whose shadow cannot reach them.
+    /// Shades a grid of primary hits (`grid_width` columns, row-major): per sample,
+    /// `shade(hit, diffuse light, open fraction)` with the light and fraction
+    /// [`Frame::shade_hit`] reads (the albedo not applied: `shade` applies the one it has), but
+    /// 8×8-sample tiles skip the (region, group) pairs whose shadow cannot reach them.
     pub fn shade_grid(
         &self,
         grid: &[Primary],
         grid_width: usize,
-        extra: &(dyn Fn(&SurfaceHit, f32) -> Vec3 + Sync),
+        shade: &(dyn Fn(&SurfaceHit, Vec3, f32) -> Vec3 + Sync),
     ) -> Vec<Vec3> {
         const TILE: usize = 8;
         let (gw, gh) = (grid_width, grid.len() / grid_width.max(1));
@@ -579,8 +573,8 @@ impl Frame {
                         let v = match &grid[k] {
                             Primary::Miss(l) | Primary::Emitter(l) => *l,
                             Primary::Surface(h) => {
-                                let (diffuse, open) = self.shade_hit_with(h, &pairs);
-                                diffuse + extra(h, open)
+                                let (light, open) = self.shade_hit_with(h, &pairs);
+                                shade(h, light, open)
                             }
                         };
                         (k, v)

@@ -121,7 +121,7 @@ impl Renderer {
                     .into_par_iter()
                     .map(|v| {
                         let (p, normal) = self.vertex(i, v);
-                        let material = self.flat.instances[i].material;
+                        let material = self.flat.vertex_material(i, v);
                         let sp = SurfacePoint { p, ng: normal, frame: Frame::from_normal(normal), material };
                         self.estimate_point(&sp, (eye - p).normalize_or(normal), s, first + v as u64)
                     })
@@ -315,6 +315,8 @@ impl Renderer {
         if ns.dot(ng) < 0.0 {
             ns = -ns;
         }
-        SurfacePoint { p, ng, frame: Frame::from_normal(ns), material: instance.material }
+        let corners = [idx[0] as usize, i1 as usize, i2 as usize];
+        let material = self.flat.material_at(inst, corners, [1.0 - hit.bary.x - hit.bary.y, hit.bary.x, hit.bary.y]);
+        SurfacePoint { p, ng, frame: Frame::from_normal(ns), material }
     }
 }

@@ -1,6 +1,6 @@
 //! Plain-data ECS components (conventions: `docs/conventions.md`).
 
-use glam::{Affine3A, Mat3, Quat, Vec2, Vec3};
+use glam::{Affine2, Affine3A, Mat3, Quat, Vec2, Vec3};
 
 /// A human-readable name (glTF node name, or a generated one).
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -166,6 +166,43 @@ impl Material {
     /// A Lambertian material (dielectric with specularFactor 0).
     pub fn lambertian(albedo: Vec3) -> Self {
         Self { base_color: albedo, metallic: 0.0, roughness: 1.0, specular: 0.0 }
+    }
+}
+
+/// A material texture as a glTF `textureInfo` names it: the texture, the UV set it reads and
+/// its `KHR_texture_transform`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TextureSlot {
+    /// Index into [`crate::scene::Scene::textures`].
+    pub texture: u32,
+    /// The UV set (0: `TEXCOORD_0`, 1: `TEXCOORD_1`).
+    pub texcoord: u32,
+    /// Texture-from-mesh UV transform (identity without `KHR_texture_transform`).
+    pub transform: Affine2,
+}
+
+impl TextureSlot {
+    /// The texture coordinate this slot reads from a mesh's `uv0` and `uv1` at a point.
+    pub fn uv(&self, uv0: Vec2, uv1: Vec2) -> Vec2 {
+        self.transform.transform_point2(if self.texcoord == 1 { uv1 } else { uv0 })
+    }
+}
+
+/// Where a material's factors vary over a surface: glTF's base-colour texture (sRGB, decoded to
+/// linear) and metallic-roughness texture (linear; roughness in G, metalness in B). Vertex
+/// colours live in the mesh ([`crate::scene::Mesh::colors`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct MaterialMaps {
+    /// Multiplies [`Material::base_color`].
+    pub base_color: Option<TextureSlot>,
+    /// Multiplies [`Material::roughness`] (G) and [`Material::metallic`] (B).
+    pub metallic_roughness: Option<TextureSlot>,
+}
+
+impl MaterialMaps {
+    /// True when nothing varies (the factors alone are the material).
+    pub fn is_empty(&self) -> bool {
+        self.base_color.is_none() && self.metallic_roughness.is_none()
     }
 }
 

@@ -3,7 +3,8 @@
 
 use super::import::polygon_normal_area;
 use crate::scene::{
-    Camera, EnvironmentLight, InGroup, Material, Mesh, MeshRef, PolygonLight, PrimitiveId, Scene, Texture, Transform,
+    Camera, EnvironmentLight, InGroup, Material, MaterialMaps, Mesh, MeshRef, PolygonLight, PrimitiveId, Scene,
+    Texture, Transform,
 };
 use glam::{Affine3A, Mat3A, Vec2, Vec3};
 use std::sync::Arc;
@@ -22,8 +23,10 @@ pub struct Instance {
     pub normal_matrix: Mat3A,
     /// True when the transform mirrors, so winding is reversed.
     pub mirrored: bool,
-    /// Material.
+    /// Material factors (see [`FlatScene::material_at`] for the material at a point).
     pub material: Material,
+    /// Where the material varies over the surface.
+    pub maps: MaterialMaps,
     /// glTF origin.
     pub id: PrimitiveId,
     /// Group entity.
@@ -92,6 +95,8 @@ pub struct FlatScene {
     pub camera: Option<Camera>,
     /// The scene's meshes (shared, not copied), indexed by [`Instance::mesh`].
     pub meshes: Vec<Arc<Mesh>>,
+    /// The scene's textures (shared), indexed by [`crate::scene::TextureSlot::texture`].
+    pub textures: Vec<Arc<Texture>>,
 }
 
 /// Per-instance, per-vertex values (radiance, usually), in [`FlatScene::instances`] order.
@@ -107,17 +112,18 @@ pub fn flatten(scene: &Scene) -> FlatScene {
         environment: scene.world.query::<&EnvironmentLight>().iter().next().cloned(),
         camera: scene.first_camera(),
         meshes: scene.meshes.clone(),
+        textures: scene.textures.clone(),
     };
     // Sorted by glTF origin so that triangle order (and hence every seeded estimate) does not
     // depend on entity allocation order.
-    let mut items: Vec<(PrimitiveId, MeshRef, Material, Transform, hecs::Entity)> = scene
+    let mut items: Vec<(PrimitiveId, MeshRef, Material, MaterialMaps, Transform, hecs::Entity)> = scene
         .world
-        .query::<(&PrimitiveId, &MeshRef, &Material, &Transform, &InGroup)>()
+        .query::<(&PrimitiveId, &MeshRef, &Material, Option<&MaterialMaps>, &Transform, &InGroup)>()
         .iter()
-        .map(|(id, m, mat, t, g)| (*id, *m, *mat, *t, g.group))
+        .map(|(id, m, mat, maps, t, g)| (*id, *m, *mat, maps.copied().unwrap_or_default(), *t, g.group))
         .collect();
     items.sort_by_key(|(id, ..)| (id.node, id.mesh, id.primitive));
-    for (id, mref, material, t, group) in items {
+    for (id, mref, material, maps, t, group) in items {
         let mesh = &scene.meshes[mref.index as usize];
         let mirrored = t.is_mirrored();
         let owner = flat.instances.len() as u32;
@@ -127,6 +133,7 @@ pub fn flatten(scene: &Scene) -> FlatScene {
             normal_matrix: t.world.matrix3.inverse().transpose(),
             mirrored,
             material,
+            maps,
             id,
             group,
             first_triangle: flat.triangles.len() as u32,
@@ -233,6 +240,60 @@ impl FlatScene {
         let p = i.world.transform_point3(mesh.positions[v]);
         let n = (i.normal_matrix * glam::Vec3A::from(mesh.normals[v])).normalize_or_zero();
         (p, n.into())
+    }
+
+    /// The material at barycentrics `bary` of instance `inst`'s triangle `corners`: the factors
+    /// times the vertex colour and the textures at the point's UVs.
+    pub fn material_at(&self, inst: usize, corners: [usize; 3], bary: [f32; 3]) -> Material {
+        let (i, mesh) = (&self.instances[inst], self.mesh(inst));
+        let mut m = i.material;
+        if !mesh.colors.is_empty() {
+            m.base_color *= (0..3).map(|k| mesh.colors[corners[k]] * bary[k]).sum::<Vec3>();
+        }
+        if i.maps.is_empty() {
+            return m;
+        }
+        let lerp = |a: &[Vec2]| if a.is_empty() { Vec2::ZERO } else { (0..3).map(|k| a[corners[k]] * bary[k]).sum() };
+        let (uv0, uv1) = (lerp(&mesh.uvs), lerp(&mesh.uvs1));
+        let sample = |s: &crate::scene::TextureSlot| self.textures[s.texture as usize].sample(s.uv(uv0, uv1));
+        if let Some(s) = &i.maps.base_color {
+            m.base_color *= sample(s);
+        }
+        if let Some(s) = &i.maps.metallic_roughness {
+            let t = sample(s);
+            (m.roughness, m.metallic) = (m.roughness * t.y, m.metallic * t.z);
+        }
+        m
+    }
+
+    /// True when instance `inst`'s material varies over its surface (textures or vertex
+    /// colours).
+    pub fn varies(&self, inst: usize) -> bool {
+        !self.instances[inst].maps.is_empty() || !self.mesh(inst).colors.is_empty()
+    }
+
+    /// The material at vertex `v` of instance `inst`.
+    pub fn vertex_material(&self, inst: usize, v: usize) -> Material {
+        self.material_at(inst, [v; 3], [1.0, 0.0, 0.0])
+    }
+
+    /// The centre and radius of the sphere around every triangle (lights included); the unit
+    /// sphere for an empty scene.
+    pub fn bounding_sphere(&self) -> (Vec3, f32) {
+        let (lo, hi) =
+            self.triangles.iter().flatten().fold((Vec3::MAX, Vec3::MIN), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
+        if lo.x <= hi.x { (0.5 * (lo + hi), (0.5 * (hi - lo).length()).max(1e-3)) } else { (Vec3::ZERO, 1.0) }
+    }
+
+    /// A camera for a scene that has none: looking at the bounding sphere's centre from the
+    /// front (+Z) and 26° above, far enough back to see all of it.
+    pub fn framing_camera(&self) -> Camera {
+        const YFOV: f32 = 0.8;
+        const PITCH: f32 = 0.45;
+        let (centre, radius) = self.bounding_sphere();
+        let distance = 1.1 * radius / (0.5 * YFOV).sin();
+        let eye = centre + distance * Vec3::new(0.0, PITCH.sin(), PITCH.cos());
+        Camera::look_at(eye, centre, YFOV)
     }
 
     /// Total emitted power proxy of light `l` (mean radiance × area), for light selection.

@@ -33,8 +33,12 @@ pub struct Mesh {
     pub positions: Vec<Vec3>,
     /// Unit vertex normals (same length as `positions`).
     pub normals: Vec<Vec3>,
-    /// Texture coordinates (empty, or same length as `positions`).
+    /// Texture coordinates, set 0 (empty, or same length as `positions`).
     pub uvs: Vec<Vec2>,
+    /// Texture coordinates, set 1 (empty, or same length as `positions`).
+    pub uvs1: Vec<Vec2>,
+    /// Linear vertex colours `COLOR_0` (RGB; empty, or same length as `positions`).
+    pub colors: Vec<Vec3>,
     /// Counter-clockwise triangles.
     pub triangles: Vec<[u32; 3]>,
     /// Content hash, see [`Mesh::compute_hash`].
@@ -141,13 +145,33 @@ impl Mesh {
         };
         let uvs = if uvs.len() == positions.len() { uvs } else { Vec::new() };
         let dropped = total - kept.len();
-        let mut mesh = Self { positions, normals, uvs, triangles: kept, hash: MeshHash([0; 32]) };
+        let mut mesh = Self {
+            positions,
+            normals,
+            uvs,
+            uvs1: Vec::new(),
+            colors: Vec::new(),
+            triangles: kept,
+            hash: MeshHash([0; 32]),
+        };
         mesh.hash = mesh.compute_hash();
         Ok((mesh, dropped))
     }
 
+    /// The mesh with a second UV set and vertex colours (each kept only when it has one entry
+    /// per vertex), its hash updated.
+    pub fn with_attributes(mut self, uvs1: Vec<Vec2>, colors: Vec<Vec3>) -> Self {
+        let n = self.positions.len();
+        self.uvs1 = if uvs1.len() == n { uvs1 } else { Vec::new() };
+        self.colors = if colors.len() == n { colors } else { Vec::new() };
+        self.hash = self.compute_hash();
+        self
+    }
+
     /// blake3 over a canonical little-endian layout: version, counts, positions, normals, uvs,
-    /// triangles. `-0.0` is written as `0.0` so equal geometry hashes equally everywhere.
+    /// triangles, then — only when present, so meshes without them keep their hashes — the
+    /// second UV set and the vertex colours, each tagged. `-0.0` is written as `0.0` so equal
+    /// geometry hashes equally everywhere.
     pub fn compute_hash(&self) -> MeshHash {
         let mut h = blake3::Hasher::new();
         h.update(b"kage.mesh");
@@ -169,6 +193,16 @@ impl Mesh {
         for t in &self.triangles {
             for i in t {
                 h.update(&i.to_le_bytes());
+            }
+        }
+        let extra: [(&[u8], Vec<f32>); 2] = [
+            (b"uvs1", self.uvs1.iter().flat_map(|v| v.to_array()).collect()),
+            (b"colors", self.colors.iter().flat_map(|v| v.to_array()).collect()),
+        ];
+        for (tag, values) in extra.iter().filter(|(_, v)| !v.is_empty()) {
+            h.update(tag);
+            for &x in values {
+                h.update(&canon(x));
             }
         }
         MeshHash(*h.finalize().as_bytes())
@@ -237,6 +271,19 @@ mod tests {
     }
 
     const PINNED_QUAD_HASH: &str = "473c367e15f4cd90";
+
+    #[test]
+    fn colours_and_a_second_uv_set_join_the_hash_only_when_present() {
+        let (p, t) = quad();
+        let (a, _) = Mesh::new(p, None, vec![], t, false).unwrap();
+        let same = a.clone().with_attributes(vec![], vec![Vec3::ONE; 3]);
+        assert_eq!(same.hash, a.hash, "a colour per vertex or none: 3 of 4 is dropped");
+        assert!(same.colors.is_empty());
+        let red = a.clone().with_attributes(vec![], vec![Vec3::X; 4]);
+        let uv1 = a.clone().with_attributes(vec![Vec2::ZERO; 4], vec![]);
+        assert!(red.hash != a.hash && uv1.hash != a.hash && red.hash != uv1.hash);
+        assert_eq!(red.hash, red.compute_hash());
+    }
 
     #[test]
     fn bad_data_is_reported() {

@@ -28,6 +28,8 @@ struct Refiner {
     positions: Vec<Vec3>,
     normals: Vec<Vec3>,
     uvs: Vec<glam::Vec2>,
+    uvs1: Vec<glam::Vec2>,
+    colors: Vec<Vec3>,
     triangles: Vec<[u32; 3]>,
     users: HashMap<Edge, Vec<u32>>,
     /// (squared length bits, reversed pair): the longest first, then the smallest pair.
@@ -40,6 +42,8 @@ impl Refiner {
             positions: mesh.positions.clone(),
             normals: mesh.normals.clone(),
             uvs: mesh.uvs.clone(),
+            uvs1: mesh.uvs1.clone(),
+            colors: mesh.colors.clone(),
             triangles: Vec::with_capacity(mesh.triangles.len()),
             users: HashMap::new(),
             queue: BinaryHeap::new(),
@@ -86,8 +90,12 @@ impl Refiner {
         self.positions.push(self.midpoint(a, b, first));
         let face = self.face_normal(first);
         self.normals.push((self.normals[a as usize] + self.normals[b as usize]).normalize_or(face));
-        if !self.uvs.is_empty() {
-            self.uvs.push(0.5 * (self.uvs[a as usize] + self.uvs[b as usize]));
+        let (a_, b_) = (a as usize, b as usize);
+        for uvs in [&mut self.uvs, &mut self.uvs1].into_iter().filter(|u| !u.is_empty()) {
+            uvs.push(0.5 * (uvs[a_] + uvs[b_]));
+        }
+        if !self.colors.is_empty() {
+            self.colors.push(0.5 * (self.colors[a_] + self.colors[b_]));
         }
         for &t in users {
             let tri = self.triangles[t as usize];
@@ -131,7 +139,8 @@ pub fn refine(mesh: &Mesh, target_vertices: usize) -> Result<Mesh, MeshProblem> 
     }
     let mut r = Refiner::new(mesh);
     while r.positions.len() < target_vertices && r.split_longest() {}
-    Mesh::new(r.positions, Some(r.normals), r.uvs, r.triangles, false).map(|(m, _)| m)
+    let (m, _) = Mesh::new(r.positions, Some(r.normals), r.uvs, r.triangles, false)?;
+    Ok(m.with_attributes(r.uvs1, r.colors))
 }
 
 #[cfg(test)]
@@ -177,6 +186,37 @@ mod tests {
         // Euler characteristic of a sphere: V − E + F = 2.
         let (v, e, f) = (fine.positions.len(), edge_users(&fine).len(), fine.triangles.len());
         assert_eq!(v as i64 - e as i64 + f as i64, 2);
+    }
+
+    #[test]
+    fn colours_and_both_uv_sets_are_interpolated() {
+        let sphere = icosahedron();
+        let n = sphere.positions.len();
+        let tint = |p: &Vec3| *p * 0.5 + Vec3::splat(0.5);
+        let colours: Vec<Vec3> = sphere.positions.iter().map(tint).collect();
+        let uv = |p: &Vec3| glam::Vec2::new(p.x, p.y);
+        let uvs: Vec<glam::Vec2> = sphere.positions.iter().map(uv).collect();
+        let (m, _) = Mesh::new(
+            sphere.positions.clone(),
+            Some(sphere.normals.clone()),
+            uvs.clone(),
+            sphere.triangles.clone(),
+            false,
+        )
+        .unwrap();
+        let fine = refine(&m.with_attributes(uvs, colours), 42).unwrap();
+        assert_eq!((fine.colors.len(), fine.uvs.len(), fine.uvs1.len()), (42, 42, 42));
+        // Midpoints of first-generation splits: each is the mean of its edge's two ends.
+        let midpoint_of_some_edge = |k: usize| {
+            (0..n).any(|a| {
+                (0..n).any(|b| {
+                    a != b
+                        && (fine.colors[k] - 0.5 * (fine.colors[a] + fine.colors[b])).length() < 1e-6
+                        && (fine.uvs1[k] - 0.5 * (fine.uvs1[a] + fine.uvs1[b])).length() < 1e-6
+                })
+            })
+        };
+        assert!((n..42).all(midpoint_of_some_edge));
     }
 
     #[test]

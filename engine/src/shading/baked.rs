@@ -183,36 +183,63 @@ impl<'a> Look<'a> {
         d + env.specular(self.flat).map_or(Vec3::ZERO, |s| s.at(i, corners, bary, p, to, o))
     }
 
-    /// A `width × height` image with `spp` samples per pixel through `camera`: polygonal and
-    /// indirect terms interpolated from the vertices, the environment's shadows between groups
-    /// and its specular term per sample, the environment behind the geometry.
+    /// A `width × height` image with `spp` samples per pixel through `camera`: the material per
+    /// sample (textures, vertex colours), the polygonal lights' LTC, the environment's shadows
+    /// between groups and its specular term per sample, the lights' visibility and the
+    /// environment's diffuse light carried from the vertices, the indirect term interpolated
+    /// (scaled by the sample's diffuse albedo over the vertices' where the material varies), the
+    /// environment behind the geometry.
     pub fn render(&self, r: &Renderer, camera: &Camera, width: usize, height: usize, spp: u32) -> Vec<Vec3> {
         let (grid, side) = raster::primary_grid(r, camera, width, height, spp);
-        let interpolated = |hit: &SurfaceHit| {
+        let vertex_albedo = self.indirect.as_ref().map(|_| prt::vertex_albedo(self.flat, self.eye));
+        let interpolated = |hit: &SurfaceHit, albedo: Vec3| {
             let poly = self.polygonal.as_ref().map_or(Vec3::ZERO, |p| match &p.lobes {
                 Some(lobes) => lobes.shade(self.flat, hit, self.eye),
                 None => hit.interpolate(&p.values[hit.instance]),
             });
-            poly + self.indirect.as_ref().map_or(Vec3::ZERO, |v| hit.interpolate(&v[hit.instance]))
+            let indirect = self.indirect.as_ref().zip(vertex_albedo.as_ref()).map_or(Vec3::ZERO, |(v, a)| {
+                let i = hit.instance;
+                hit.interpolate(&v[i]) * albedo_ratio(albedo, hit.interpolate(&a[i]), self.flat.varies(i))
+            });
+            poly + indirect
         };
         let values = match &self.environment {
             Some(env) => {
                 let specular = env.specular(self.flat);
-                env.frame.shade_grid(&grid, width * side, &|hit, open| {
+                env.frame.shade_grid(&grid, width * side, &|hit, light, open| {
                     let s = specular.as_ref().map_or(Vec3::ZERO, |s| {
                         s.at(hit.instance, hit.corners, hit.weights, hit.position, self.eye, open)
                     });
-                    interpolated(hit) + s
+                    let albedo = self.albedo(hit);
+                    albedo * light + interpolated(hit, albedo) + s
                 })
             }
             None => grid
                 .par_iter()
                 .map(|p| match p {
                     raster::Primary::Miss(l) | raster::Primary::Emitter(l) => *l,
-                    raster::Primary::Surface(hit) => interpolated(hit),
+                    raster::Primary::Surface(hit) => interpolated(hit, self.albedo(hit)),
                 })
                 .collect(),
         };
         raster::downsample(&values, width, height, side)
     }
+
+    /// The diffuse albedo of the material at `hit`, seen from the eye.
+    fn albedo(&self, hit: &SurfaceHit) -> Vec3 {
+        let n = (0..3).map(|c| self.flat.vertex(hit.instance, hit.corners[c]).1 * hit.weights[c]).sum::<Vec3>();
+        let mu = n.normalize_or_zero().dot((self.eye - hit.position).normalize_or_zero());
+        let material = self.flat.material_at(hit.instance, hit.corners, hit.weights);
+        crate::shading::Bsdf::new(&material, Vec3::new(0.0, 0.0, mu)).diffuse_albedo()
+    }
+}
+
+/// What scales light carried from the vertices to a sample whose diffuse albedo is `at` where
+/// the vertices' interpolate to `vertices`: their ratio where the material `varies` (a channel
+/// black at the vertices stays black), else one.
+fn albedo_ratio(at: Vec3, vertices: Vec3, varies: bool) -> Vec3 {
+    if !varies {
+        return Vec3::ONE;
+    }
+    Vec3::select(vertices.cmpgt(Vec3::splat(1e-6)), at / vertices.max(Vec3::splat(1e-6)), Vec3::ZERO)
 }

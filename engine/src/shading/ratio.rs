@@ -29,7 +29,7 @@ pub fn shade_vertices(r: &Renderer, n: u32, seed: u64, eye: Vec3) -> VertexValue
                 .into_par_iter()
                 .map(|v| {
                     let (p, normal) = r.vertex(i, v);
-                    let material = r.flat.instances[i].material;
+                    let material = r.flat.vertex_material(i, v);
                     let unshadowed = PointShader::new(&table, p, normal, eye, &material)
                         .shade(&r.flat.lights, Visibility::Unshadowed);
                     let frame = Frame::from_normal(normal);

@@ -194,8 +194,8 @@ pub fn run(args: &Args) -> Result<()> {
     if args.no_env {
         scene.clear_environment();
     }
-    let camera = camera(args, scene.first_camera())?;
     let renderer = Renderer::new(&scene);
+    let camera = camera(args, scene.first_camera(), &renderer.flat)?;
     let output = args.output.clone().or_else(|| args.vertices_out.is_none().then(|| PathBuf::from("render.png")));
     if let Some(path) = &output {
         kage_engine::output::ImageFormat::of(path)?;
@@ -541,11 +541,19 @@ fn indirect(
     Ok(values)
 }
 
-fn camera(args: &Args, scene_camera: Option<Camera>) -> Result<Camera> {
+fn camera(args: &Args, scene_camera: Option<Camera>, flat: &kage_engine::scene::FlatScene) -> Result<Camera> {
     let mut cam = match (args.eye, args.target, scene_camera) {
         (Some(eye), Some(target), _) => Camera::look_at(eye, target, 45f32.to_radians()),
         (_, _, Some(c)) => c,
-        _ => bail!("the scene has no camera: pass --eye x,y,z --target x,y,z"),
+        _ => {
+            let c = flat.framing_camera();
+            let e = c.eye();
+            crate::emit(&format!(
+                "camera: the scene has none; framing it from {:.3},{:.3},{:.3} (--eye and --target choose)\n",
+                e.x, e.y, e.z
+            ));
+            c
+        }
     };
     if let Some(fov) = args.fov {
         if !(fov > 0.0 && fov < 180.0) {

@@ -13,18 +13,19 @@ pub mod reach;
 pub use light::polygon_normal_area;
 
 use crate::scene::{
-    Camera, InGroup, Material, Mesh, MeshRef, Name, NodeId, PolygonLight, PrimitiveId, Projection, RigidGroup, Scene,
-    Texture, Transform, propagate_transforms, texture::Wrap,
+    Camera, InGroup, Material, MaterialMaps, Mesh, MeshRef, Name, NodeId, PolygonLight, PrimitiveId, Projection,
+    RigidGroup, Scene, Texture, TextureSlot, Transform, propagate_transforms, texture::Wrap,
 };
 use crate::{Error, Result};
-use glam::{Affine3A, Mat4, Vec2, Vec3};
+use glam::{Affine2, Affine3A, Mat4, Vec2, Vec3};
 use gltf::mesh::Mode;
 use std::collections::HashMap;
 use std::path::Path;
 use std::sync::Arc;
 
 /// Extensions whose data kage reads; any other *required* extension is refused.
-pub const SUPPORTED_EXTENSIONS: &[&str] = &["KHR_materials_emissive_strength", "KHR_materials_specular"];
+pub const SUPPORTED_EXTENSIONS: &[&str] =
+    &["KHR_materials_emissive_strength", "KHR_materials_specular", "KHR_texture_transform"];
 
 /// Options for [`import`].
 #[derive(Clone, Debug, Default)]
@@ -34,6 +35,9 @@ pub struct ImportOptions {
     /// A folder wider than the scene file's own that its buffer and image URIs may read from
     /// (see [`files`]); `None`: the scene's folder only.
     pub allow_root: Option<std::path::PathBuf>,
+    /// The `COLOR_n` set read as vertex colours (0; packs keep the source's in 1, as their
+    /// `COLOR_0` is the baked preview).
+    pub color_set: u32,
 }
 
 /// Imports a `.gltf` or `.glb` file.
@@ -59,7 +63,8 @@ struct Importer<'a> {
     /// (glTF mesh, primitive) → imported mesh index, so instanced meshes are read once.
     mesh_cache: HashMap<(usize, usize), u32>,
     by_hash: HashMap<crate::scene::MeshHash, u32>,
-    texture_cache: HashMap<usize, u32>,
+    /// (glTF texture, decoded as sRGB) → imported texture index.
+    texture_cache: HashMap<(usize, bool), u32>,
     group_count: u32,
     /// Instances and lights spawned into the current group.
     members: usize,
@@ -212,7 +217,7 @@ impl<'a> Importer<'a> {
             let transform = Transform { world: pose * local };
             if emissive.max_element() > 0.0 {
                 let texture = match mat.emissive_texture() {
-                    Some(info) => Some(self.texture(&info.texture(), &where_)?),
+                    Some(info) => Some(self.texture(&info.texture(), true, &where_)?),
                     None => None,
                 };
                 let m = self.scene.meshes[mesh_index as usize].clone();
@@ -246,10 +251,18 @@ impl<'a> Importer<'a> {
                     roughness: pbr.roughness_factor().clamp(0.0, 1.0),
                     specular: mat.specular().map(|s| s.specular_factor()).unwrap_or(1.0).max(0.0),
                 };
+                let maps = MaterialMaps {
+                    base_color: self.slot(pbr.base_color_texture(), true, &where_)?,
+                    metallic_roughness: self.slot(pbr.metallic_roughness_texture(), false, &where_)?,
+                };
                 let hash = self.scene.meshes[mesh_index as usize].hash;
                 let id = PrimitiveId { node: node_id, mesh: mesh.index() as u32, primitive: prim.index() as u32 };
                 let name = Name(node.name().map(str::to_string).unwrap_or_else(|| format!("node{node_id}")));
-                self.scene.world.spawn((MeshRef { index: mesh_index, hash }, material, member, transform, id, name));
+                let entity = (MeshRef { index: mesh_index, hash }, material, member, transform, id, name);
+                let e = self.scene.world.spawn(entity);
+                if !maps.is_empty() {
+                    self.scene.world.insert_one(e, maps).expect("the entity was just spawned");
+                }
                 self.members += 1;
             }
         }
@@ -280,7 +293,12 @@ impl<'a> Importer<'a> {
             .collect();
         let normals = reader.read_normals().map(|n| n.map(Vec3::from_array).collect::<Vec<_>>());
         let normals = normals.filter(|n| n.len() == positions.len());
-        let uvs = reader.read_tex_coords(0).map(|t| t.into_f32().map(Vec2::from_array).collect()).unwrap_or_default();
+        let uv_set = |set| reader.read_tex_coords(set).map(|t| t.into_f32().map(Vec2::from_array).collect());
+        let (uvs, uvs1) = (uv_set(0).unwrap_or_default(), uv_set(1).unwrap_or_default());
+        let colors = reader
+            .read_colors(self.options.color_set)
+            .map(|c| c.into_rgb_f32().map(Vec3::from_array).collect())
+            .unwrap_or_default();
         let indices: Vec<u32> = match reader.read_indices() {
             Some(i) => i.into_u32().collect(),
             None => (0..positions.len() as u32).collect(),
@@ -305,6 +323,7 @@ impl<'a> Importer<'a> {
         };
         let (m, dropped) = Mesh::new(positions, normals, uvs, triangles, self.options.drop_degenerate)
             .map_err(|p| self.error(format!("{where_}: {p}")))?;
+        let m = m.with_attributes(uvs1, colors);
         if dropped > 0 {
             self.scene
                 .warnings
@@ -323,32 +342,62 @@ impl<'a> Importer<'a> {
         Ok(index)
     }
 
-    /// Decodes (or reuses) an emissive texture as linear RGB.
-    fn texture(&mut self, tex: &gltf::Texture, where_: &str) -> Result<u32> {
-        if let Some(&i) = self.texture_cache.get(&tex.index()) {
+    /// A material texture's slot: texture (decoded as sRGB colour or as linear data), UV set
+    /// and `KHR_texture_transform`.
+    fn slot(&mut self, info: Option<gltf::texture::Info>, srgb: bool, where_: &str) -> Result<Option<TextureSlot>> {
+        let Some(info) = info else { return Ok(None) };
+        let texture = self.texture(&info.texture(), srgb, where_)?;
+        let t = info.texture_transform();
+        let texcoord = t.as_ref().and_then(|t| t.tex_coord()).unwrap_or(info.tex_coord());
+        if texcoord > 1 {
+            return Err(self.error(format!("{where_}: a texture reads TEXCOORD_{texcoord}; kage reads sets 0 and 1")));
+        }
+        let transform = t.map_or(Affine2::IDENTITY, |t| {
+            texture_transform(Vec2::from(t.offset()), t.rotation(), Vec2::from(t.scale()))
+        });
+        Ok(Some(TextureSlot { texture, texcoord, transform }))
+    }
+
+    /// Decodes (or reuses) a texture as linear RGB: from sRGB for colours, as is for data.
+    fn texture(&mut self, tex: &gltf::Texture, srgb: bool, where_: &str) -> Result<u32> {
+        if let Some(&i) = self.texture_cache.get(&(tex.index(), srgb)) {
             return Ok(i);
         }
         let image = self
             .image(tex.source().source())
-            .map_err(|e| self.error(format!("{where_}: emissive texture {}: {e}", tex.index())))?;
-        let (width, height) = image.dimensions();
-        let texels: Vec<Vec3> = image
-            .pixels()
-            .map(|p| Vec3::from(p.0.map(|c| crate::math::color::srgb_to_linear(c as f32 / 255.0))))
-            .collect();
+            .map_err(|e| self.error(format!("{where_}: texture {}: {e}", tex.index())))?;
         let wrap = |m: gltf::texture::WrappingMode| match m {
             gltf::texture::WrappingMode::ClampToEdge => Wrap::Clamp,
             gltf::texture::WrappingMode::MirroredRepeat => Wrap::Mirror,
             gltf::texture::WrappingMode::Repeat => Wrap::Repeat,
         };
         let sampler = tex.sampler();
-        let wraps = [wrap(sampler.wrap_s()), wrap(sampler.wrap_t())];
-        let t = Texture::new(width as usize, height as usize, texels, wraps);
+        let t = texture_from_image(&image, srgb, [wrap(sampler.wrap_s()), wrap(sampler.wrap_t())]);
         let i = self.scene.textures.len() as u32;
         self.scene.textures.push(Arc::new(t));
-        self.texture_cache.insert(tex.index(), i);
+        self.texture_cache.insert((tex.index(), srgb), i);
         Ok(i)
     }
+}
+
+/// An 8-bit image as a linear texture: decoded from sRGB (`srgb`: colours) or as is (data).
+fn texture_from_image(image: &image::RgbImage, srgb: bool, wrap: [Wrap; 2]) -> Texture {
+    let decode = |c: u8| if srgb { crate::math::color::srgb_to_linear(c as f32 / 255.0) } else { c as f32 / 255.0 };
+    let texels: Vec<Vec3> = image.pixels().map(|p| Vec3::from(p.0.map(decode))).collect();
+    Texture::new(image.width() as usize, image.height() as usize, texels, wrap)
+}
+
+/// A PNG or JPEG file's bytes as a linear texture (see [`texture_from_image`]), with the
+/// importer's size limits.
+pub fn decode_texture(bytes: &[u8], srgb: bool, wrap: [Wrap; 2]) -> std::result::Result<Texture, String> {
+    Ok(texture_from_image(&decode_image(bytes)?, srgb, wrap))
+}
+
+/// `KHR_texture_transform`'s `T · R · S` (rotation counter-clockwise in UV space, as the
+/// extension's own example — the lower-left quadrant turned clockwise — reads).
+pub fn texture_transform(offset: Vec2, rotation: f32, scale: Vec2) -> Affine2 {
+    let (s, c) = rotation.sin_cos();
+    Affine2::from_cols(Vec2::new(c, -s) * scale.x, Vec2::new(s, c) * scale.y, offset)
 }
 
 /// The folder relative URIs in the scene file at `path` start from.
@@ -414,5 +463,24 @@ fn describe(e: &gltf::Error) -> String {
             list.iter().map(|(path, err)| format!("{path}: {err}")).collect::<Vec<_>>().join("; ")
         }
         other => other.to_string(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The extension's own example: offset (0, 1), rotation 90°, scale ½ reads the lower-left
+    /// quadrant of the image (v down) turned clockwise.
+    #[test]
+    fn texture_transform_reads_the_specs_example() {
+        let t = texture_transform(Vec2::new(0.0, 1.0), std::f32::consts::FRAC_PI_2, Vec2::splat(0.5));
+        let corners = [Vec2::ZERO, Vec2::X, Vec2::ONE, Vec2::Y].map(|uv| t.transform_point2(uv));
+        for c in corners {
+            assert!((-1e-6..=0.5 + 1e-6).contains(&c.x) && (0.5 - 1e-6..=1.0 + 1e-6).contains(&c.y), "{c}");
+        }
+        assert!((corners[1] - Vec2::new(0.0, 0.5)).length() < 1e-6, "u turns toward the top: {}", corners[1]);
+        let plain = texture_transform(Vec2::ZERO, 0.0, Vec2::ONE);
+        assert_eq!(plain, Affine2::IDENTITY);
     }
 }
