@@ -69,17 +69,38 @@ pub fn eval(wo: Vec3, wi: Vec3, alpha: f32, f0: Vec3, f90: Vec3) -> Vec3 {
 
 /// Samples a visible normal for `wo` (Heitz 2018, "Sampling the GGX Distribution of Visible Normals").
 pub fn sample_visible_normal(wo: Vec3, alpha: f32, u: Vec2) -> Vec3 {
-    let vh = Vec3::new(alpha * wo.x, alpha * wo.y, wo.z).normalize();
-    let lensq = vh.x * vh.x + vh.y * vh.y;
-    let t1 = if lensq > 0.0 { Vec3::new(-vh.y, vh.x, 0.0) / lensq.sqrt() } else { Vec3::X };
-    let t2 = vh.cross(t1);
-    let r = u.x.sqrt();
     let phi = 2.0 * PI * u.y;
-    let p1 = r * phi.cos();
-    let s = 0.5 * (1.0 + vh.z);
-    let p2 = (1.0 - s) * (1.0 - p1 * p1).max(0.0).sqrt() + s * r * phi.sin();
-    let nh = t1 * p1 + t2 * p2 + vh * (1.0 - p1 * p1 - p2 * p2).max(0.0).sqrt();
-    Vec3::new(alpha * nh.x, alpha * nh.y, nh.z.max(1e-7)).normalize()
+    VisibleNormals::new(wo, alpha).sample(u.x.sqrt(), phi.cos(), phi.sin())
+}
+
+/// [`sample_visible_normal`] for one view and roughness, its frame built once for many samples.
+#[derive(Clone, Copy, Debug)]
+pub struct VisibleNormals {
+    vh: Vec3,
+    t1: Vec3,
+    t2: Vec3,
+    alpha: f32,
+}
+
+impl VisibleNormals {
+    /// The visible normals of roughness `alpha` seen from local `wo`.
+    pub fn new(wo: Vec3, alpha: f32) -> Self {
+        let vh = Vec3::new(alpha * wo.x, alpha * wo.y, wo.z).normalize();
+        let lensq = vh.x * vh.x + vh.y * vh.y;
+        let t1 = if lensq > 0.0 { Vec3::new(-vh.y, vh.x, 0.0) / lensq.sqrt() } else { Vec3::X };
+        Self { vh, t1, t2: vh.cross(t1), alpha }
+    }
+
+    /// The normal of the disk point at radius `r` and angle φ (`cos φ`, `sin φ`): for `u` in
+    /// [0, 1)², `r = √u.x`, `φ = 2π u.y`.
+    pub fn sample(&self, r: f32, cos: f32, sin: f32) -> Vec3 {
+        let (vh, alpha) = (self.vh, self.alpha);
+        let p1 = r * cos;
+        let s = 0.5 * (1.0 + vh.z);
+        let p2 = (1.0 - s) * (1.0 - p1 * p1).max(0.0).sqrt() + s * r * sin;
+        let nh = self.t1 * p1 + self.t2 * p2 + vh * (1.0 - p1 * p1 - p2 * p2).max(0.0).sqrt();
+        Vec3::new(alpha * nh.x, alpha * nh.y, nh.z.max(1e-7)).normalize()
+    }
 }
 
 /// Samples ωi by reflecting `wo` about a visible normal; `None` when it falls below the horizon.

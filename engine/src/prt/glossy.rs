@@ -29,6 +29,13 @@ use glam::{DVec3, Vec3};
 /// too small to divide by: the diffuse visible fraction serves instead.
 const MIN_DENOMINATOR: f64 = 0.05;
 
+/// The most bands a lobe's visible fraction reads (the CLI's and packs' largest order); a
+/// higher-order transfer contributes its first bands, which the lobe kernel weighs most.
+const MAX_BANDS: usize = 16;
+
+/// Coefficients in [`MAX_BANDS`] bands: the stack buffers' size (no allocation per point).
+const MAX_COEFFS: usize = MAX_BANDS * MAX_BANDS;
+
 /// Shades the environment's specular term of one frame's posed lighting.
 pub struct Specular<'a> {
     env: &'a Prefiltered,
@@ -53,15 +60,24 @@ impl Lobe {
     pub fn new(order: usize, window: super::lighting::Window) -> Self {
         use std::f64::consts::PI;
         let zonal = sh::clamped_cosine_zonal(order);
-        let cosine = zonal.iter().enumerate().map(|(l, k)| (4.0 * PI / (2 * l + 1) as f64).sqrt() * k / PI).collect();
-        Self { window: (0..order).map(|l| window.factor(l, order)).collect(), cosine }
+        let cosine: Vec<f64> =
+            zonal.iter().enumerate().map(|(l, k)| (4.0 * PI / (2 * l + 1) as f64).sqrt() * k / PI).collect();
+        let bands = order.min(MAX_BANDS);
+        Self { window: (0..bands).map(|l| window.factor(l, order)).collect(), cosine: cosine[..bands].to_vec() }
+    }
+
+    /// The coefficients the lobe reads.
+    fn coeffs(&self) -> usize {
+        sh::num_coeffs(self.window.len())
     }
 
     /// The visible fraction of a lobe of width `alpha` around `d` at a point with transfer `t`
     /// and normal `n` (all in the transfer's frame), in [0, 1].
     pub fn visible_fraction(&self, t: &[f64], n: DVec3, d: DVec3, alpha: f32) -> f32 {
         let order = self.window.len();
-        let (yd, yn) = (sh::eval(order, d), sh::eval(order, n));
+        let (mut yd, mut yn) = ([0.0; MAX_COEFFS], [0.0; MAX_COEFFS]);
+        sh::eval_into(order, d, &mut yd);
+        sh::eval_into(order, n, &mut yn);
         let a2 = (alpha * alpha) as f64;
         let (mut num, mut den) = (0.0, 0.0);
         for l in 0..order {
@@ -103,8 +119,9 @@ impl<'a> Specular<'a> {
         }
         let alpha = ggx::alpha_from_roughness(m.roughness);
         let d = dominant_direction(n, 2.0 * mu * n - wo, alpha);
-        let nc = sh::num_coeffs(self.posed.order);
-        let mut t = vec![0.0f64; nc];
+        let nc = self.lobe.coeffs();
+        let mut buffer = [0.0f64; MAX_COEFFS];
+        let t = &mut buffer[..nc];
         for c in 0..3 {
             for (t, v) in t.iter_mut().zip(&self.bake.vertex(i, corners[c])[..nc]) {
                 *t += (*v * weights[c]) as f64;
@@ -115,7 +132,7 @@ impl<'a> Specular<'a> {
             let g = rot.transpose() * w.as_dvec3();
             if mirrored { DVec3::new(g.x, g.y, -g.z) } else { g }
         };
-        let vis = self.lobe.visible_fraction(&t, local(n), local(d), alpha);
+        let vis = self.lobe.visible_fraction(t, local(n), local(d), alpha);
         self.env.reflect(n, wo, alpha, bsdf.f0(), bsdf.f90()) * (vis * open)
     }
 }

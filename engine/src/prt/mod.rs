@@ -399,23 +399,26 @@ impl Frame {
         for i in 0..flat.instances.len() {
             let (lw, yh) = (&posed.lighting[posed.group_of[i]], &posed.region_basis[posed.group_of[i]]);
             let count = flat.vertex_count(i);
-            let rows: Vec<(Vec3, Vec3, Vec<f32>)> = (0..count)
+            let transfer = |v: usize| &bake.vertex(i, v)[..sh::num_coeffs(order)];
+            let rows: Vec<(Vec3, Vec3)> = (0..count)
                 .into_par_iter()
                 .map(|v| {
-                    let t = &bake.vertex(i, v)[..sh::num_coeffs(order)];
-                    let l: DVec3 = t.iter().zip(lw).map(|(t, c)| *c * *t as f64).sum();
-                    let ts = (0..q)
-                        .map(|r| {
-                            let y = &yh[r * t.len()..(r + 1) * t.len()];
-                            (t.iter().zip(y).map(|(t, y)| *t as f64 * y).sum::<f64>()).max(0.0) as f32
-                        })
-                        .collect();
-                    (l.as_vec3(), albedo_of(i, v), ts)
+                    let l: DVec3 = transfer(v).iter().zip(lw).map(|(t, c)| *c * *t as f64).sum();
+                    (l.as_vec3(), albedo_of(i, v))
                 })
                 .collect();
             ls.push(rows.iter().map(|r| r.0).collect());
             albedo.push(rows.iter().map(|r| r.1).collect());
-            shadow_t.push(rows.into_iter().flat_map(|r| r.2).collect());
+            // Vertex-major, one element per (vertex, region): no allocation per vertex.
+            let ts: Vec<f32> = (0..count * q)
+                .into_par_iter()
+                .map(|k| {
+                    let (t, r) = (transfer(k / q), k % q);
+                    let y = &yh[r * t.len()..(r + 1) * t.len()];
+                    (t.iter().zip(y).map(|(t, y)| *t as f64 * y).sum::<f64>()).max(0.0) as f32
+                })
+                .collect();
+            shadow_t.push(ts);
         }
         Self { ls, albedo, shadow_t, posed }
     }
@@ -487,13 +490,17 @@ impl Frame {
         self.per_vertex(flat, |x| x)
     }
 
-    /// [`Frame::radiance`] at every vertex, mapped by `pick`.
+    /// [`Frame::radiance`] at every vertex, mapped by `pick`; each instance skips the pairs
+    /// whose shadow cannot reach its vertices.
     fn per_vertex<T: Send>(&self, flat: &FlatScene, pick: impl Fn((Vec3, f32)) -> T + Sync) -> Vec<Vec<T>> {
         let q = self.posed.regions.len();
-        let pairs = self.all_pairs();
         (0..flat.instances.len())
             .map(|i| {
                 let own = self.posed.group_of[i];
+                let (lo, hi) = (0..flat.vertex_count(i))
+                    .map(|v| flat.vertex(i, v).0)
+                    .fold((Vec3::MAX, Vec3::MIN), |(lo, hi), p| (lo.min(p), hi.max(p)));
+                let pairs = self.pairs_reaching(0.5 * (lo + hi), 0.5 * (hi - lo).length());
                 (0..self.ls[i].len())
                     .into_par_iter()
                     .map(|v| {

@@ -77,7 +77,8 @@ pub struct Prefiltered {
     /// Levels 0.. (level 0 is the map), halved down to [`MIN_WIDTH`] texels wide.
     mips: Arc<Vec<Image>>,
     intensity: f32,
-    rotation: f32,
+    /// Map-from-world: the inverse of the light's rotation about +Y.
+    to_map: Quat,
 }
 
 impl Prefiltered {
@@ -90,14 +91,15 @@ impl Prefiltered {
             let next = mips.last().expect("non-empty").halved();
             mips.push(next);
         }
-        Self { map: env.map.clone(), mips: Arc::new(mips), intensity: env.intensity, rotation: env.rotation }
+        let to_map = Quat::from_rotation_y(-env.rotation);
+        Self { map: env.map.clone(), mips: Arc::new(mips), intensity: env.intensity, to_map }
     }
 
     /// This chain for `env` without building it again when it shows the same map (only its
     /// intensity or rotation changed, e.g. a drag in the editor); else built anew.
     pub fn for_light(&self, env: &EnvironmentLight) -> Self {
         if Arc::ptr_eq(&self.map, &env.map) {
-            Self { intensity: env.intensity, rotation: env.rotation, ..self.clone() }
+            Self { intensity: env.intensity, to_map: Quat::from_rotation_y(-env.rotation), ..self.clone() }
         } else {
             Self::new(env)
         }
@@ -106,7 +108,7 @@ impl Prefiltered {
     /// Radiance of mip level `lod` (fractional: linear between levels) along world `dir`;
     /// level 0 reads texels as the reference does.
     pub fn lookup(&self, dir: Vec3, lod: f32) -> Vec3 {
-        let uv = dir_to_uv(Quat::from_rotation_y(-self.rotation) * dir);
+        let uv = dir_to_uv(self.to_map * dir);
         let lod = lod.clamp(0.0, (self.mips.len() - 1) as f32);
         let k = (lod.floor() as usize).min(self.mips.len() - 1);
         let f = lod - k as f32;
@@ -128,10 +130,10 @@ impl Prefiltered {
         }
         let texel = 4.0 * PI / (self.map.width * self.map.height) as f32;
         let g1 = ggx::g1(wo_l, alpha);
+        let normals = ggx::VisibleNormals::new(wo_l, alpha);
         let mut sum = Vec3::ZERO;
-        for s in 0..SAMPLES {
-            let u = Vec2::new((s as f32 + 0.5) / SAMPLES as f32, radical_inverse(s as u32));
-            let h = ggx::sample_visible_normal(wo_l, alpha, u);
+        for &(r, cos, sin) in DISK.iter() {
+            let h = normals.sample(r, cos, sin);
             let wi = 2.0 * wo_l.dot(h) * h - wo_l;
             if wi.z <= 0.0 {
                 continue;
@@ -144,6 +146,16 @@ impl Prefiltered {
         sum / SAMPLES as f32
     }
 }
+
+/// The samples' disk points `(√u.x, cos 2πu.y, sin 2πu.y)`: `u` stratified in x and Van der
+/// Corput's sequence in y (a Hammersley set), the same for every reflection.
+static DISK: std::sync::LazyLock<[(f32, f32, f32); SAMPLES]> = std::sync::LazyLock::new(|| {
+    std::array::from_fn(|s| {
+        let u = Vec2::new((s as f32 + 0.5) / SAMPLES as f32, radical_inverse(s as u32));
+        let phi = 2.0 * PI * u.y;
+        (u.x.sqrt(), phi.cos(), phi.sin())
+    })
+});
 
 /// Van der Corput's radical inverse in base 2 (the Hammersley set's second coordinate).
 fn radical_inverse(i: u32) -> f32 {
