@@ -1,17 +1,16 @@
 //! `--method baked`: plans and bakes what the scene needs into its database (or reads a pack),
 //! then shades the complete look ([`kage_engine::shading::baked`]).
 
-use super::{Args, Outputs, indirect, run_plan};
+use super::{Args, Job, Outputs, indirect, run_plan};
 use crate::commands::bake::print_plan;
 use anyhow::{Context, Result};
-use kage_bake_db::pack::Contents;
 use kage_engine::bspvt;
 use kage_engine::cache;
 use kage_engine::cache::record::{Glossy, GlossyDirect, Source};
 use kage_engine::prt::{self, prefilter::Prefiltered};
 use kage_engine::reference::Renderer;
+use kage_engine::scene::Scene;
 use kage_engine::scene::VertexValues;
-use kage_engine::scene::{Camera, Scene};
 use kage_engine::shading::baked::{Bakes, Look};
 use std::time::Instant;
 
@@ -22,14 +21,8 @@ struct Loaded {
 }
 
 /// Bakes (or reads) and shades; the indirect term is part of the look.
-pub(super) fn run(
-    args: &Args,
-    scene: &Scene,
-    renderer: &Renderer,
-    camera: &Camera,
-    want_image: bool,
-    pack: Option<&Contents>,
-) -> Result<Outputs> {
+pub(super) fn run(job: &Job) -> Result<Outputs> {
+    let Job { args, scene, renderer, camera, want_image, pack } = *job;
     let bakes = match pack {
         Some(p) => Loaded { bspvt: p.bspvt.clone(), prt: p.prt.clone() },
         None => bake(args, scene, renderer)?,

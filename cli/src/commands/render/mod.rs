@@ -206,17 +206,24 @@ pub fn run(args: &Args) -> Result<()> {
     if args.method == Method::Reference && args.indirect.is_some_and(|i| i != Indirect::None) {
         bail!("--indirect is for the per-vertex methods; the reference takes --bounces N");
     }
+    let job = Job {
+        args,
+        scene: &scene,
+        renderer: &renderer,
+        camera: &camera,
+        want_image: output.is_some(),
+        pack: pack.as_ref(),
+    };
     let Outputs { mut image, mut vertices, glossy } = match args.method {
-        Method::Reference => reference(args, &renderer, &camera, output.is_some())?,
-        Method::Baked => baked::run(args, &scene, &renderer, &camera, output.is_some(), pack.as_ref())?,
-        Method::Prt | Method::PrtSelf => prt(args, &scene, &renderer, &camera, output.is_some(), pack.as_ref())?,
-        m => per_vertex(args, m, &scene, &renderer, &camera, output.is_some(), pack.as_ref())?,
+        Method::Reference => reference(&job)?,
+        Method::Baked => baked::run(&job)?,
+        Method::Prt | Method::PrtSelf => prt(&job)?,
+        m => per_vertex(&job, m)?,
     };
     let later = args.method != Method::Baked && args.indirect() != Indirect::None;
     if let Some(direct) = vertices.as_mut().filter(|_| later) {
         let extra = glossy.with(&renderer.flat, |g| indirect(args, &scene, &renderer, direct, g, camera.eye()))?;
-        if let Some(pixels) = image.as_mut() {
-            let more = raster::vertex_image(&renderer, &camera, args.size.0, args.size.1, args.spp.min(16), &extra);
+        if let (Some(pixels), Some(more)) = (image.as_mut(), job.vertex_image(&extra)) {
             pixels.iter_mut().zip(more).for_each(|(p, m)| *p += m);
         }
         direct.iter_mut().flatten().zip(extra.iter().flatten()).for_each(|(d, e)| *d += *e);
@@ -233,6 +240,33 @@ pub fn run(args: &Args) -> Result<()> {
     Ok(())
 }
 
+/// What one render works on: the command line, the scene with its snapshot and camera, whether
+/// an image is wanted, and the pack it reads its bakes from (if any).
+struct Job<'a> {
+    args: &'a Args,
+    scene: &'a Scene,
+    renderer: &'a Renderer,
+    camera: &'a Camera,
+    want_image: bool,
+    pack: Option<&'a Contents>,
+}
+
+impl Job<'_> {
+    /// The image of per-vertex `values` (at most 16 samples per pixel), when one is wanted.
+    fn vertex_image(&self, values: &[Vec<Vec3>]) -> Option<Vec<Vec3>> {
+        let (w, h) = self.args.size;
+        self.want_image.then(|| raster::vertex_image(self.renderer, self.camera, w, h, self.args.spp.min(16), values))
+    }
+}
+
+/// A PRT bake with the lighting and settings it shades with.
+#[derive(Clone, Copy)]
+struct PrtParts<'a> {
+    bake: &'a prt::Bake,
+    lighting: &'a prt::Lighting,
+    settings: &'a prt::Settings,
+}
+
 /// What a method produced: the image, the per-vertex values, and how the indirect term's
 /// glossy hits are lit consistently with this direct term.
 struct Outputs {
@@ -241,7 +275,8 @@ struct Outputs {
     glossy: GlossyDirect,
 }
 
-fn reference(args: &Args, renderer: &Renderer, camera: &Camera, want_image: bool) -> Result<Outputs> {
+fn reference(job: &Job) -> Result<Outputs> {
+    let Job { args, renderer, camera, want_image, .. } = *job;
     let settings = Settings { spp: args.spp, seed: args.seed, max_bounces: args.bounces, min_bounces: 0 };
     let mut image = None;
     if want_image {
@@ -266,15 +301,8 @@ fn reference(args: &Args, renderer: &Renderer, camera: &Camera, want_image: bool
     Ok(Outputs { image, vertices, glossy: GlossyDirect::Reference })
 }
 
-fn per_vertex(
-    args: &Args,
-    method: Method,
-    scene: &Scene,
-    renderer: &Renderer,
-    camera: &Camera,
-    want_image: bool,
-    pack: Option<&Contents>,
-) -> Result<Outputs> {
+fn per_vertex(job: &Job, method: Method) -> Result<Outputs> {
+    let Job { args, scene, renderer, camera, pack, .. } = *job;
     let mut settings = bspvt::Settings { res: args.face_res, epsilon: args.epsilon };
     if let (Method::Bspvt, Some(budget)) = (method, args.error_budget) {
         let (chosen, why) = bspvt::budget::choose(&renderer.flat, budget, camera.eye());
@@ -318,8 +346,7 @@ fn per_vertex(
         "shade: {evals} vertex–light evaluations in {secs:.3} s ({:.2} M/s)\n",
         evals as f64 / secs / 1e6
     ));
-    let image =
-        want_image.then(|| raster::vertex_image(renderer, camera, args.size.0, args.size.1, args.spp.min(16), &values));
+    let image = job.vertex_image(&values);
     let glossy =
         if method == Method::LtcExactVis { GlossyDirect::Reference } else { GlossyDirect::Ltc(bake.map(Into::into)) };
     Ok(Outputs { image, vertices: Some(values), glossy })
@@ -342,19 +369,13 @@ fn in_memory_bspvt(renderer: &Renderer, settings: &bspvt::Settings) -> bspvt::Ba
     b
 }
 
-fn prt(
-    args: &Args,
-    scene: &Scene,
-    renderer: &Renderer,
-    camera: &Camera,
-    want_image: bool,
-    pack: Option<&Contents>,
-) -> Result<Outputs> {
+fn prt(job: &Job) -> Result<Outputs> {
+    let Job { args, scene, renderer, .. } = *job;
     let flat = &renderer.flat;
-    if let Some(pack) = pack {
+    if let Some(pack) = job.pack {
         let (bake, lighting, settings) =
             pack.prt.as_ref().context("the pack has no PRT data (its scene has no environment)")?;
-        return prt_shade(args, scene, renderer, camera, want_image, bake, lighting, settings);
+        return prt_shade(job, PrtParts { bake, lighting, settings });
     }
     let store = args.db.open_if_used(&args.scene)?;
     let settings = match &store {
@@ -389,24 +410,16 @@ fn prt(
             bake
         }
     };
-    prt_shade(args, scene, renderer, camera, want_image, &bake, &lighting, &settings)
+    prt_shade(job, PrtParts { bake: &bake, lighting: &lighting, settings: &settings })
 }
 
 /// PRT shading of a frame: per-vertex values and, if wanted, the image.
-#[allow(clippy::too_many_arguments)]
-fn prt_shade(
-    args: &Args,
-    scene: &Scene,
-    renderer: &Renderer,
-    camera: &Camera,
-    want_image: bool,
-    bake: &prt::Bake,
-    lighting: &prt::Lighting,
-    settings: &prt::Settings,
-) -> Result<Outputs> {
+fn prt_shade(job: &Job, parts: PrtParts) -> Result<Outputs> {
+    let Job { args, scene, renderer, camera, want_image, .. } = *job;
+    let PrtParts { bake, lighting, settings } = parts;
     let shadows = args.method.prt_shadows().context("a PRT method")?;
     if args.gpu {
-        return prt_gpu(args, scene, renderer, camera, want_image, bake, lighting, settings, shadows);
+        return prt_gpu(job, parts, shadows);
     }
     let start = Instant::now();
     let frame = prt::Frame::prepare(scene, &renderer.flat, bake, lighting, shadows, settings, camera.eye());
@@ -420,18 +433,8 @@ fn prt_shade(
 }
 
 /// [`prt_shade`] on the GPU: per-vertex values, the image interpolating them.
-#[allow(clippy::too_many_arguments)]
-fn prt_gpu(
-    args: &Args,
-    scene: &Scene,
-    renderer: &Renderer,
-    camera: &Camera,
-    want_image: bool,
-    bake: &prt::Bake,
-    lighting: &prt::Lighting,
-    settings: &prt::Settings,
-    shadows: prt::Shadows,
-) -> Result<Outputs> {
+fn prt_gpu(job: &Job, PrtParts { bake, lighting, settings }: PrtParts, shadows: prt::Shadows) -> Result<Outputs> {
+    let Job { scene, renderer, camera, .. } = *job;
     let gpu = gpu_device()?;
     let flat = &renderer.flat;
     let mut memo = prt::SilhouetteMemo::default();
@@ -440,9 +443,7 @@ fn prt_gpu(
     let start = Instant::now();
     let values = kage_gpu::prt::shade_vertices(&gpu, &shader, flat, &posed, camera.eye())?;
     crate::emit(&format!("shade: {} vertices in {:.3} s\n", renderer.vertex_count(), start.elapsed().as_secs_f64()));
-    let image =
-        want_image.then(|| raster::vertex_image(renderer, camera, args.size.0, args.size.1, args.spp.min(16), &values));
-    Ok(Outputs { image, vertices: Some(values), glossy: GlossyDirect::PerVertex })
+    Ok(Outputs { image: job.vertex_image(&values), vertices: Some(values), glossy: GlossyDirect::PerVertex })
 }
 
 /// The GPU device, announced on stderr.
