@@ -768,5 +768,11 @@ fn a_scene_without_a_camera_is_framed() {
     let lit = img.pixels().filter(|p| p.0.iter().any(|c| *c > 0)).count();
     let corners = [(0, 0), (31, 0), (0, 23), (31, 23)].map(|(x, y)| img.get_pixel(x, y).0);
     assert!(lit > 32 * 24 / 10 && corners.iter().all(|c| *c == [0, 0, 0]), "{lit} lit pixels, corners {corners:?}");
+    // The report shades toward the same framing.
+    let out = d.join("report");
+    let args = ["report", scene, "--only", "baked", "--reference-spp", "4", "--image-size", "16x12"];
+    let o = kage(&[&args[..], &["--reference-image-spp", "4", "--out", out.to_str().unwrap()]].concat());
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(std::fs::read_to_string(out.join("report.md")).unwrap().contains("| baked-polygonal |"));
     std::fs::remove_dir_all(d).unwrap();
 }

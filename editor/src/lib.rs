@@ -15,6 +15,7 @@ pub mod bake_job;
 pub mod camera;
 pub mod detail;
 pub mod files;
+mod indirect;
 pub mod reload;
 pub mod state;
 pub mod systems;

@@ -230,9 +230,9 @@ pub struct Editor {
     pub(super) watcher: Option<Watcher>,
     pub(super) reference_worker: Option<Worker<VertexValues>>,
     pub(super) exact_worker: Option<Worker<VertexValues>>,
-    pub(super) indirect_worker: Option<Worker<super::systems::Indirect>>,
+    pub(super) indirect_worker: Option<Worker<super::indirect::Indirect>>,
     /// The last indirect cache with what it was lit by, for the next refresh.
-    pub(super) indirect_base: Option<Box<super::systems::IndirectBase>>,
+    pub(super) indirect_base: Option<Box<super::indirect::IndirectBase>>,
     /// Bumped whenever `direct` changes; the generation the indirect term was started from.
     pub(super) generations: (u64, u64),
     pub(super) wake: Arc<dyn Fn() + Send + Sync>,

@@ -3,27 +3,23 @@
 //! pass: those run on rayon in the background and land here when done.
 
 use super::bake_job::{BakeJob, ChunkData, Landed};
+use super::indirect::{Indirect, Job};
 use super::reload::Change;
 use super::state::Editor;
 use super::worker::Worker;
 use glam::Vec3;
 use kage_bake_db::DbError;
-use kage_bake_db::records::{load_or_place, store_refreshed};
-use kage_engine::cache::{
-    self,
-    record::{GlossyDirect, Source},
-};
+use kage_engine::cache::record::GlossyDirect;
 use kage_engine::prt::prefilter::Prefiltered;
 use kage_engine::reference::{Renderer, Settings};
 use kage_engine::scene::VertexValues;
-use kage_engine::scene::{EnvMap, EnvironmentLight, Scene, flatten, import};
+use kage_engine::scene::{EnvMap, EnvironmentLight, flatten, import};
 use kage_engine::shading::Method;
 use kage_engine::shading::baked::{Environment, Look, Polygonal};
 use kage_engine::{bspvt, prt};
 use kage_gpu::bspvt::{BspvtShader, Mode};
 use kage_gpu::prt::PrtShader;
-use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::Ordering;
 use std::time::Instant;
 
 /// Samples per vertex of one progressive reference pass.
@@ -396,39 +392,6 @@ pub fn indirect_system(ed: &mut Editor) {
     }
 }
 
-/// A landed indirect term.
-pub struct Indirect {
-    /// Per instance and vertex.
-    values: VertexValues,
-    /// For the log.
-    what: String,
-    /// The cache and what lit it; `None` for a refresh's intermediate landing.
-    base: Option<Box<IndirectBase>>,
-}
-
-/// A radiance cache with the inputs it was lit by: a later lighting change over the same
-/// receivers refreshes it ([`cache::Cache::refresh`]) instead of gathering again.
-pub struct IndirectBase {
-    cache: cache::Cache,
-    settings: cache::Settings,
-    direct: VertexValues,
-    lights: Vec<kage_engine::scene::FlatLight>,
-    receivers: Vec<(u32, glam::Affine3A, bool)>,
-}
-
-impl IndirectBase {
-    /// The base when `renderer`'s receivers and `settings` are those it was made for.
-    fn fits(self: Box<Self>, renderer: &Renderer, settings: &cache::Settings) -> Option<Box<Self>> {
-        (self.settings == *settings && self.receivers == receivers(renderer, settings)).then_some(self)
-    }
-}
-
-/// What a cache's record placement depends on besides lighting: each receiver's mesh, pose and
-/// whether it reads the cache (a glossy receiver made rough would have no records).
-fn receivers(renderer: &Renderer, s: &cache::Settings) -> Vec<(u32, glam::Affine3A, bool)> {
-    let instances = renderer.flat.instances.iter().enumerate();
-    instances.map(|(k, i)| (i.mesh, i.world, cache::falls_back(renderer, s, k))).collect()
-}
 /// True while an indirect gather runs.
 pub fn gathering(ed: &Editor) -> bool {
     ed.indirect_worker.is_some()
@@ -449,7 +412,7 @@ fn glossy_direct(ed: &Editor) -> GlossyDirect {
 }
 
 fn spawn_indirect(ed: &mut Editor) -> Worker<Indirect> {
-    let job = IndirectJob {
+    let job = Job {
         scene: ed.method.lit(&ed.scene),
         glossy: glossy_direct(ed),
         direct: ed.direct.clone(),
@@ -460,99 +423,6 @@ fn spawn_indirect(ed: &mut Editor) -> Worker<Indirect> {
     };
     let wake = ed.wake.clone();
     Worker::spawn(move |stop, send| job.run(stop, send), move || wake())
-}
-
-/// Records re-lit per landing of a progressive refresh.
-const REFRESH_BATCH: usize = 64;
-
-/// One background indirect computation and what it needs.
-struct IndirectJob {
-    scene: Scene,
-    glossy: GlossyDirect,
-    direct: VertexValues,
-    eye: Vec3,
-    settings: cache::Settings,
-    store: Option<Arc<kage_bake_db::Store>>,
-    base: Option<Box<IndirectBase>>,
-}
-
-impl IndirectJob {
-    /// Refreshes the base cache when it fits (sending each batch's landing, storing the result),
-    /// else loads or gathers one; sends the final term with its base. Stops quietly when the
-    /// worker is dropped mid-refresh (the half-refreshed cache is discarded).
-    fn run(self, stop: &AtomicBool, send: &dyn Fn(Indirect)) {
-        let start = Instant::now();
-        let Self { scene, glossy, direct, eye, settings: s, store, base } = self;
-        let renderer = Renderer::new(&scene);
-        let landed = glossy.with(&renderer.flat, |glossy| {
-            let src = Source { renderer: &renderer, direct: &direct, glossy };
-            let (cache, note) = match base.and_then(|b| b.fits(&renderer, &s)) {
-                Some(b) => {
-                    let partial = |c: &cache::Cache| {
-                        send(Indirect { values: cache::shade_vertices(&src, c, eye), what: String::new(), base: None })
-                    };
-                    let (cache, note) = refreshed(*b, &src, stop, &partial)?;
-                    let stored = match store
-                        .as_deref()
-                        .map(|st| store_refreshed(st, &scene, &src, &cache, start.elapsed().as_secs_f64()))
-                    {
-                        Some(Ok(_)) => ", stored".to_string(),
-                        Some(Err(e)) => format!(" (not stored: {e})"),
-                        None => String::new(),
-                    };
-                    (cache, format!("{note}{stored}"))
-                }
-                None => match store.as_deref().map(|st| load_or_place(st, &scene, &src, &s)) {
-                    Some(Ok((cache, true))) => (cache, "from the bake database".to_string()),
-                    Some(Ok((cache, false))) => (cache, "gathered".to_string()),
-                    Some(Err(e)) => (cache::place_at_vertices(&src, &s), format!("gathered (not stored: {e})")),
-                    None => (cache::place_at_vertices(&src, &s), "gathered".to_string()),
-                },
-            };
-            let values = cache::shade_vertices(&src, &cache, eye);
-            Some((cache, note, values))
-        });
-        let Some((cache, note, values)) = landed else { return };
-        let what = format!("{} records {note}, {:.2} s", cache.records.len(), start.elapsed().as_secs_f64());
-        let base = IndirectBase {
-            cache,
-            settings: s,
-            direct,
-            lights: renderer.flat.lights.clone(),
-            receivers: receivers(&renderer, &s),
-        };
-        send(Indirect { values, what, base: Some(Box::new(base)) });
-    }
-}
-
-/// `base`'s cache re-lit for `src` (same receivers), batch by batch: only records that see
-/// changed light; `partial` sees the cache after each batch but the last. `None` when `stop`
-/// was set before the end.
-fn refreshed(
-    mut base: IndirectBase,
-    src: &Source,
-    stop: &AtomicBool,
-    partial: &dyn Fn(&cache::Cache),
-) -> Option<(cache::Cache, String)> {
-    let moved = cache::moved_lights(&base.lights, &src.renderer.flat.lights);
-    let change = cache::record::Change { old_direct: &base.direct, moved: &moved };
-    let done = base.cache.refresh_progressively(src, &change, REFRESH_BATCH, &mut |c, so_far| {
-        if stop.load(Ordering::Relaxed) {
-            return false;
-        }
-        if so_far.visited < c.records.len() {
-            partial(c);
-        }
-        true
-    });
-    (done.visited == base.cache.records.len()).then(|| {
-        let (relit, gathered, recast) = (done.relit, done.gathered, done.recast);
-        let note = format!(
-            "refreshed: {relit} re-lit, {gathered} gathered anew, {recast} of {} rays re-cast",
-            base.cache.rays()
-        );
-        (base.cache, note)
-    })
 }
 
 /// The method's per-vertex radiance, or `None` while a background result is pending.

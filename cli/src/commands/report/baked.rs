@@ -7,7 +7,7 @@
 
 use super::{Args, Row, Truth, announce};
 use crate::progress::bar;
-use anyhow::{Context, Result};
+use anyhow::Result;
 use glam::Vec3;
 use kage_engine::math::relative_rmse;
 use kage_engine::prt::{self, prefilter::Prefiltered};
@@ -30,7 +30,7 @@ enum Part {
 }
 
 /// Measures the section into `rows`; returns its header line.
-pub fn run(args: &Args, eye: Vec3, rows: &mut Vec<Row>) -> Result<String> {
+pub fn run(args: &Args, camera: &Camera, rows: &mut Vec<Row>) -> Result<String> {
     let scene = args.scene.load()?;
     let mut lines = Vec::new();
     for part in [Part::Whole, Part::Polygonal, Part::Environment] {
@@ -48,7 +48,7 @@ pub fn run(args: &Args, eye: Vec3, rows: &mut Vec<Row>) -> Result<String> {
             Part::Environment => has.1,
         };
         if applies {
-            let (row, line) = measure(args, &lit, &renderer, eye, part)?;
+            let (row, line) = measure(args, &lit, &renderer, camera, part)?;
             announce(&row);
             rows.push(row);
             lines.push(line);
@@ -58,8 +58,9 @@ pub fn run(args: &Args, eye: Vec3, rows: &mut Vec<Row>) -> Result<String> {
 }
 
 /// One row: bake, shade (vertices and image), compare.
-fn measure(args: &Args, scene: &Scene, renderer: &Renderer, eye: Vec3, part: Part) -> Result<(Row, String)> {
-    let (flat, camera) = (&renderer.flat, scene.first_camera().context("the scene has no camera")?);
+fn measure(args: &Args, scene: &Scene, renderer: &Renderer, camera: &Camera, part: Part) -> Result<(Row, String)> {
+    let eye = camera.eye();
+    let flat = &renderer.flat;
     let bounces = u32::from(part == Part::Whole);
     let what = match part {
         Part::Whole => "baked look against the full reference (direct + one bounce)",
@@ -68,7 +69,7 @@ fn measure(args: &Args, scene: &Scene, renderer: &Renderer, eye: Vec3, part: Par
     };
     let truth =
         Truth::vertices(renderer, eye, args.reference_spp, (0, bounces), vec![true; flat.instances.len()], what);
-    let (pixels, noise) = reference_image(args, renderer, &camera, bounces);
+    let (pixels, noise) = reference_image(args, renderer, camera, bounces);
     let t = Instant::now();
     let trees = (!flat.lights.is_empty()).then(|| bspvt::bake(flat, &bspvt::Settings::default(), &|_| {}));
     let prt_parts = flat.environment.as_ref().map(|_| {
@@ -101,9 +102,9 @@ fn measure(args: &Args, scene: &Scene, renderer: &Renderer, eye: Vec3, part: Par
         look = look.with_indirect(bounce);
     }
     let (w, h) = args.image_size;
-    let image = look.render(renderer, &camera, w, h, 4);
+    let image = look.render(renderer, camera, w, h, 4);
     let shade_s = t.elapsed().as_secs_f64();
-    let hits = raster::shade_image(renderer, &camera, w, h, 4, &|_| Vec3::ONE);
+    let hits = raster::shade_image(renderer, camera, w, h, 4, &|_| Vec3::ONE);
     let pick =
         |v: &[Vec3]| -> Vec<Vec3> { v.iter().zip(&hits).filter(|(_, m)| **m == Vec3::ONE).map(|(p, _)| *p).collect() };
     let row = Row {

@@ -146,7 +146,9 @@ impl Truth {
 /// Runs the sections the scene supports and writes the report.
 pub fn run(args: &Args) -> Result<()> {
     let scene = args.scene.load()?;
-    let eye = scene.first_camera().map(|c| c.eye()).context("the scene has no camera to shade toward")?;
+    // Every section shades toward one camera: the scene's, or the framing of the whole scene.
+    let camera = scene.first_camera().unwrap_or_else(|| kage_engine::scene::flatten(&scene).framing_camera());
+    let eye = camera.eye();
     let mut rows = Vec::new();
     let mut header = vec![format!("scene {}", scene.source)];
     let has_lights = scene.world.query::<&kage_engine::scene::PolygonLight>().iter().next().is_some();
@@ -157,13 +159,13 @@ pub fn run(args: &Args) -> Result<()> {
         scene.source
     );
     if args.wants(Section::Baked) {
-        header.push(baked::run(args, eye, &mut rows)?);
+        header.push(baked::run(args, &camera, &mut rows)?);
     }
     if has_lights && args.wants(Section::Polygon) {
         header.push(polygon::run(args, eye, &mut rows)?);
     }
     if has_env && args.wants(Section::Prt) {
-        header.push(prt::run(args, eye, &mut rows)?);
+        header.push(prt::run(args, &camera, &mut rows)?);
     }
     if args.wants(Section::Cache) {
         header.push(cache::run(args, eye, &mut rows)?);

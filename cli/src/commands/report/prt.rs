@@ -28,11 +28,11 @@ struct Bench<'a> {
 }
 
 /// Measures the section into `rows`; returns its header line.
-pub fn run(args: &Args, eye: Vec3, rows: &mut Vec<Row>) -> Result<String> {
+pub fn run(args: &Args, camera: &Camera, rows: &mut Vec<Row>) -> Result<String> {
+    let eye = camera.eye();
     let mut scene = args.scene.load()?;
     scene.remove_polygon_lights();
     let renderer = Renderer::new(&scene);
-    let camera = scene.first_camera().context("the scene has no camera")?;
     let lambertian = |m: &kage_engine::scene::Material| m.metallic == 0.0 && m.specular == 0.0;
     let keep: Vec<bool> = renderer.flat.instances.iter().map(|i| lambertian(&i.material)).collect();
     let truth =
@@ -40,14 +40,14 @@ pub fn run(args: &Args, eye: Vec3, rows: &mut Vec<Row>) -> Result<String> {
     let (w, h) = args.image_size;
     let pb = bar(h as u64, "reference image");
     let settings = Settings { spp: args.reference_image_spp, seed: 0x1A6E, max_bounces: 0, min_bounces: 0 };
-    let pixels = renderer.render_image(&camera, w, h, &settings, &|r| pb.set_position(r as u64));
+    let pixels = renderer.render_image(camera, w, h, &settings, &|r| pb.set_position(r as u64));
     pb.finish_and_clear();
     let coverage =
-        raster::shade_image(&renderer, &camera, w, h, 4, &|hit| Vec3::splat(f32::from(u8::from(keep[hit.instance]))));
+        raster::shade_image(&renderer, camera, w, h, 4, &|hit| Vec3::splat(f32::from(u8::from(keep[hit.instance]))));
     let bench = Bench {
         scene: &scene,
         renderer: &renderer,
-        camera: &camera,
+        camera,
         size: (w, h),
         truth,
         pixels: pixels.iter().map(|e| e.mean).collect(),
