@@ -7,6 +7,8 @@ struct View {
     view_proj: mat4x4<f32>,
     // x: exposure multiplier 2^stops; y: 1 to show the error overlay's display colours as they are.
     exposure: vec4<f32>,
+    // World from clip space, for the sky's view rays.
+    inverse_view_proj: mat4x4<f32>,
 }
 
 @group(0) @binding(0) var<uniform> view: View;
@@ -64,6 +66,49 @@ fn fs_main(v: VertexOut) -> @location(0) vec4<f32> {
     let lit = v.at_vertex > vec3<f32>(1e-6);
     let ratio = select(vec3<f32>(0.0), here / max(v.at_vertex, vec3<f32>(1e-6)), lit);
     return display(v.radiance * ratio);
+}
+
+// The environment behind the geometry (editor/src/sky.rs): one full-screen triangle, each pixel
+// the map's nearest texel along its view ray (dir_to_uv's mapping: u = atan2(x, −z)/2π,
+// v = acos(y)/π in the map's frame, the light's rotation about +Y undone first).
+
+struct Sky {
+    // x, y: cos and sin of the rotation about +Y; z: intensity.
+    rotation_intensity: vec4<f32>,
+}
+
+@group(1) @binding(0) var sky_map: texture_2d<f32>;
+@group(1) @binding(1) var<uniform> sky: Sky;
+
+struct SkyOut {
+    @builtin(position) clip: vec4<f32>,
+    @location(0) ndc: vec2<f32>,
+}
+
+@vertex
+fn vs_sky(@builtin(vertex_index) vi: u32) -> SkyOut {
+    let p = vec2<f32>(f32((vi << 1u) & 2u), f32(vi & 2u)) * 2.0 - 1.0;
+    var out: SkyOut;
+    out.clip = vec4<f32>(p, 1.0, 1.0);
+    out.ndc = p;
+    return out;
+}
+
+@fragment
+fn fs_sky(v: SkyOut) -> @location(0) vec4<f32> {
+    let near = view.inverse_view_proj * vec4<f32>(v.ndc, 0.0, 1.0);
+    let far = view.inverse_view_proj * vec4<f32>(v.ndc, 1.0, 1.0);
+    let d = normalize(far.xyz / far.w - near.xyz / near.w);
+    let c = sky.rotation_intensity.x;
+    let s = sky.rotation_intensity.y;
+    let m = vec3<f32>(c * d.x - s * d.z, d.y, s * d.x + c * d.z);
+    let pi = 3.14159265358979;
+    let u = fract(atan2(m.x, -m.z) / (2.0 * pi));
+    let w = acos(clamp(m.y, -1.0, 1.0)) / pi;
+    let size = textureDimensions(sky_map);
+    let i = min(u32(u * f32(size.x)), size.x - 1u);
+    let j = min(u32(w * f32(size.y)), size.y - 1u);
+    return display(textureLoad(sky_map, vec2<u32>(i, j), 0).rgb * sky.rotation_intensity.z);
 }
 
 // Per-pixel PRT (engine/src/prt/mod.rs, Frame::shade_hit):

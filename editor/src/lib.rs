@@ -17,6 +17,7 @@ pub mod detail;
 pub mod files;
 mod indirect;
 pub mod reload;
+mod sky;
 pub mod state;
 pub mod systems;
 pub mod ui;

@@ -59,6 +59,7 @@ impl App {
             ed.dirty.meshes = false;
         }
         vp.upload_radiance(ed.gpu(), &ed.values);
+        vp.set_environment(ed.gpu(), ed.flat.environment.as_ref());
         if ed.dirty.per_pixel {
             vp.upload_prt(ed.gpu(), &ed.flat, ed.per_pixel.as_ref());
             ed.dirty.per_pixel = false;

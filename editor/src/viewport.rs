@@ -6,11 +6,12 @@
 
 use super::camera::Orbit;
 use super::detail::{self, Detail};
+use super::sky::{self, Sky};
 use bytemuck::{Pod, Zeroable};
 use eframe::{egui, egui_wgpu};
 use glam::Vec3;
 use kage_engine::prt;
-use kage_engine::scene::FlatScene;
+use kage_engine::scene::{EnvironmentLight, FlatScene};
 use kage_gpu::buffers::{storage, uniform};
 use kage_gpu::prt::ShadowArrays;
 use kage_gpu::{Gpu, Shaders};
@@ -24,6 +25,7 @@ const DEPTH: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 struct View {
     view_proj: [[f32; 4]; 4],
     exposure: [f32; 4],
+    inverse_view_proj: [[f32; 4]; 4],
 }
 
 /// One drawable: world positions, radiance and texture detail per vertex, triangle indices,
@@ -70,17 +72,28 @@ struct Target {
     id: Option<egui::TextureId>,
 }
 
+/// The pipelines of preview.wgsl.
+struct Pipelines {
+    /// Per-vertex radiance with texture detail.
+    main: wgpu::RenderPipeline,
+    /// Per-pixel PRT; `None` where the device cannot bind its storage buffers in the fragment
+    /// stage (e.g. a GL adapter), which then interpolates PRT per vertex.
+    prt: Option<wgpu::RenderPipeline>,
+    /// The environment behind the geometry.
+    sky: wgpu::RenderPipeline,
+}
+
 /// The viewport renderer.
 pub struct Viewport {
-    pipeline: wgpu::RenderPipeline,
-    /// The per-pixel PRT pipeline; `None` where the device cannot bind its storage buffers in
-    /// the fragment stage (e.g. a GL adapter), which then interpolates PRT per vertex.
-    prt_pipeline: Option<wgpu::RenderPipeline>,
+    pipelines: Pipelines,
     uniform: wgpu::Buffer,
     bind: wgpu::BindGroup,
     layout: wgpu::BindGroupLayout,
     prt_layout: Option<wgpu::BindGroupLayout>,
     detail_layout: wgpu::BindGroupLayout,
+    sky_layout: wgpu::BindGroupLayout,
+    /// The environment map shown behind the geometry, if any.
+    sky: Option<Sky>,
     meshes: Vec<Mesh>,
     prt: Option<PrtDraw>,
     /// Flat-coloured light polygons.
@@ -118,17 +131,18 @@ impl Viewport {
             entries: &[wgpu::BindGroupEntry { binding: 0, resource: uniform.as_entire_binding() }],
         });
         let prt_layout = prt_layout(gpu);
-        let detail_layout = detail::layout(gpu);
-        let layouts = Layouts { view: &layout, detail: &detail_layout, prt: prt_layout.as_ref() };
-        let (pipeline, prt_pipeline) = build_pipelines(gpu, shaders, layouts)?;
+        let (detail_layout, sky_layout) = (detail::layout(gpu), sky::layout(gpu));
+        let layouts = Layouts { view: &layout, detail: &detail_layout, sky: &sky_layout, prt: prt_layout.as_ref() };
+        let pipelines = build_pipelines(gpu, shaders, layouts)?;
         Ok(Self {
-            pipeline,
-            prt_pipeline,
+            pipelines,
             uniform,
             bind,
             layout,
             prt_layout,
             detail_layout,
+            sky_layout,
+            sky: None,
             meshes: Vec::new(),
             prt: None,
             lights: Vec::new(),
@@ -140,14 +154,26 @@ impl Viewport {
     /// Rebuilds the pipeline (hot reload); on error the previous one stays.
     pub fn reload(&mut self, gpu: &Gpu, shaders: &Shaders, generation: u64) -> Result<(), kage_gpu::ShaderError> {
         self.generation = generation;
-        let layouts = Layouts { view: &self.layout, detail: &self.detail_layout, prt: self.prt_layout.as_ref() };
-        (self.pipeline, self.prt_pipeline) = build_pipelines(gpu, shaders, layouts)?;
+        let layouts = Layouts {
+            view: &self.layout,
+            detail: &self.detail_layout,
+            sky: &self.sky_layout,
+            prt: self.prt_layout.as_ref(),
+        };
+        self.pipelines = build_pipelines(gpu, shaders, layouts)?;
         Ok(())
     }
 
     /// Whether this device draws PRT per pixel.
     pub fn per_pixel_prt(&self) -> bool {
-        self.prt_pipeline.is_some()
+        self.pipelines.prt.is_some()
+    }
+
+    /// Shows `env` behind the geometry (`None`: the background colour); the map is uploaded
+    /// again only when it changed, its rotation and intensity every call.
+    pub fn set_environment(&mut self, gpu: &Gpu, env: Option<&EnvironmentLight>) {
+        let old = self.sky.take();
+        self.sky = env.map(|e| Sky::new(gpu, &self.sky_layout, e, old));
     }
 
     /// Draws the receivers with PRT per pixel from `frame`'s terms (`None`, or a device that
@@ -225,7 +251,8 @@ impl Viewport {
         target.id.expect("registered with egui")
     }
 
-    /// The view from `orbit` as an 8-bit sRGB image, misses black (as `kage render`'s PNGs).
+    /// The view from `orbit` as an 8-bit sRGB image; misses show the environment when one is set
+    /// ([`Viewport::set_environment`]), else black.
     pub fn render_image(
         &self,
         gpu: &Gpu,
@@ -252,9 +279,11 @@ impl Viewport {
         (exposure, raw): (f32, bool),
         background: wgpu::Color,
     ) {
+        let view_proj = orbit.view_proj(size[0] as f32 / size[1] as f32);
         let view = View {
-            view_proj: orbit.view_proj(size[0] as f32 / size[1] as f32).to_cols_array_2d(),
+            view_proj: view_proj.to_cols_array_2d(),
             exposure: [exposure.exp2(), if raw { 1.0 } else { 0.0 }, 0.0, 0.0],
+            inverse_view_proj: view_proj.inverse().to_cols_array_2d(),
         };
         gpu.queue.write_buffer(&self.uniform, 0, bytemuck::bytes_of(&view));
         let mut encoder = gpu.device.create_command_encoder(&Default::default());
@@ -275,7 +304,13 @@ impl Viewport {
                 ..Default::default()
             });
             pass.set_bind_group(0, &self.bind, &[]);
-            let per_vertex = match (&self.prt, &self.prt_pipeline) {
+            // The error overlay keeps a plain background: its colours are not radiance.
+            if let Some(sky) = self.sky.as_ref().filter(|_| !raw) {
+                pass.set_pipeline(&self.pipelines.sky);
+                pass.set_bind_group(1, &sky.bind, &[]);
+                pass.draw(0..3, 0..1);
+            }
+            let per_vertex = match (&self.prt, &self.pipelines.prt) {
                 (Some(prt), Some(pipeline)) => {
                     pass.set_pipeline(pipeline);
                     pass.set_bind_group(1, &prt.bind, &[]);
@@ -284,7 +319,7 @@ impl Viewport {
                 }
                 _ => &self.meshes[..],
             };
-            pass.set_pipeline(&self.pipeline);
+            pass.set_pipeline(&self.pipelines.main);
             for m in per_vertex.iter().chain(&self.lights) {
                 pass.set_bind_group(1, &m.texture, &[]);
                 pass.set_vertex_buffer(0, m.positions.slice(..));
@@ -414,20 +449,18 @@ fn prt_layout(gpu: &Gpu) -> Option<wgpu::BindGroupLayout> {
 }
 
 /// The bind group layouts the pipelines use: the view (group 0), then the base-colour texture
-/// (per-vertex pipeline) or the PRT arrays (per-pixel PRT) as group 1.
+/// (per-vertex pipeline), the environment map (sky) or the PRT arrays (per-pixel PRT) as
+/// group 1.
 #[derive(Clone, Copy)]
 struct Layouts<'a> {
     view: &'a wgpu::BindGroupLayout,
     detail: &'a wgpu::BindGroupLayout,
+    sky: &'a wgpu::BindGroupLayout,
     prt: Option<&'a wgpu::BindGroupLayout>,
 }
 
-/// The per-vertex pipeline and the per-pixel PRT pipeline, both from preview.wgsl.
-fn build_pipelines(
-    gpu: &Gpu,
-    shaders: &Shaders,
-    layouts: Layouts,
-) -> Result<(wgpu::RenderPipeline, Option<wgpu::RenderPipeline>), kage_gpu::ShaderError> {
+/// The pipelines of preview.wgsl.
+fn build_pipelines(gpu: &Gpu, shaders: &Shaders, layouts: Layouts) -> Result<Pipelines, kage_gpu::ShaderError> {
     let module = shaders.module(&gpu.device, "preview.wgsl")?;
     let attribute = |location, format, offset| wgpu::VertexAttribute { format, offset, shader_location: location };
     let vec3 = wgpu::VertexFormat::Float32x3;
@@ -447,9 +480,13 @@ fn build_pipelines(
     let view = Some(layouts.view);
     // The device may still refuse what naga accepted (e.g. storage buffers in the vertex stage).
     kage_gpu::buffers::checked(gpu, "preview pipelines", || {
-        let main = render_pipeline(gpu, &module, &[view, Some(layouts.detail)], ("vs_main", "fs_main"), &per_vertex);
-        let prt = layouts.prt.map(|prt| render_pipeline(gpu, &module, &[view, Some(prt)], ("vs_prt", "fs_prt"), &[]));
-        (main, prt)
+        let pipeline = |groups: &[Option<&wgpu::BindGroupLayout>], stages, buffers, depth| {
+            render_pipeline(gpu, &module, groups, stages, buffers, depth)
+        };
+        let main = pipeline(&[view, Some(layouts.detail)], ("vs_main", "fs_main"), &per_vertex, Depth::Tested);
+        let prt = layouts.prt.map(|prt| pipeline(&[view, Some(prt)], ("vs_prt", "fs_prt"), &[], Depth::Tested));
+        let sky = pipeline(&[view, Some(layouts.sky)], ("vs_sky", "fs_sky"), &[], Depth::Behind);
+        Pipelines { main, prt, sky }
     })
     .map_err(|e| kage_gpu::ShaderError {
         file: "preview.wgsl".into(),
@@ -459,13 +496,24 @@ fn build_pipelines(
     })
 }
 
+/// How a pipeline uses the depth buffer.
+#[derive(Clone, Copy, PartialEq)]
+enum Depth {
+    /// Tested and written: geometry.
+    Tested,
+    /// Neither: the background, drawn first.
+    Behind,
+}
+
 fn render_pipeline(
     gpu: &Gpu,
     module: &wgpu::ShaderModule,
     groups: &[Option<&wgpu::BindGroupLayout>],
     (vs, fs): (&str, &str),
     buffers: &[Option<wgpu::VertexBufferLayout>],
+    depth: Depth,
 ) -> wgpu::RenderPipeline {
+    let tested = depth == Depth::Tested;
     let pipeline_layout = gpu.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
         label: Some("preview"),
         bind_group_layouts: groups,
@@ -484,8 +532,8 @@ fn render_pipeline(
         primitive: wgpu::PrimitiveState::default(),
         depth_stencil: Some(wgpu::DepthStencilState {
             format: DEPTH,
-            depth_write_enabled: Some(true),
-            depth_compare: Some(wgpu::CompareFunction::Less),
+            depth_write_enabled: Some(tested),
+            depth_compare: Some(if tested { wgpu::CompareFunction::Less } else { wgpu::CompareFunction::Always }),
             stencil: Default::default(),
             bias: Default::default(),
         }),

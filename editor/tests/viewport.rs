@@ -117,3 +117,36 @@ fn texture_detail_is_drawn_per_pixel_over_per_vertex_lighting() {
     assert!(detail >= 0.97, "the detail matches its CPU statement on {:.1} % of pixels", 100.0 * detail);
     assert!(without < detail - 0.1, "without detail {:.1} %, with {:.1} %", 100.0 * without, 100.0 * detail);
 }
+
+/// The environment behind the geometry: every background pixel is the map's radiance along
+/// the pixel's view ray (rotation and intensity applied), as `kage render`'s images show it.
+#[test]
+fn the_environment_shows_behind_the_geometry() {
+    let gpu = Gpu::new().expect("a wgpu device (lavapipe without a GPU)");
+    let mut env = EnvironmentLight::new(EnvMap::load(&asset("envmaps/city.hdr")).unwrap());
+    (env.rotation, env.intensity) = (0.7, 0.5);
+    let orbit = Orbit { target: Vec3::new(0.0, 0.5, 0.0), distance: 3.0, yaw: 2.0, pitch: -0.2, yfov: 0.9 };
+    let (w, h) = (160u32, 100u32);
+    let mut vp = Viewport::new(&gpu, &Shaders::embedded()).unwrap();
+    vp.set_environment(&gpu, Some(&env));
+    let drawn = vp.render_image(&gpu, [w, h], &orbit, 0.0).unwrap();
+    let camera = Camera::look_at(orbit.eye(), orbit.target, orbit.yfov);
+    let expected: Vec<[u8; 3]> = (0..w * h)
+        .map(|k| {
+            let ndc = glam::Vec2::new(
+                2.0 * ((k % w) as f32 + 0.5) / w as f32 - 1.0,
+                1.0 - 2.0 * ((k / w) as f32 + 0.5) / h as f32,
+            );
+            let (_, d) = camera.ray(ndc, w as f32 / h as f32);
+            env.radiance(d).to_array().map(|c| (display_srgb(c) * 255.0 + 0.5) as u8)
+        })
+        .collect();
+    // Nearest texels: a ray on a texel boundary may land on its neighbour.
+    let close = within(&drawn, &expected, 2);
+    assert!(close >= 0.98, "the sky matches the map on {:.1} % of pixels", 100.0 * close);
+    let distinct: std::collections::HashSet<[u8; 3]> = expected.iter().copied().collect();
+    assert!(distinct.len() > 100, "the view sees the map's detail ({} colours)", distinct.len());
+    vp.set_environment(&gpu, None);
+    let plain = vp.render_image(&gpu, [w, h], &orbit, 0.0).unwrap();
+    assert!(plain.pixels().all(|p| p.0[..3] == [0, 0, 0]), "without an environment the background is black");
+}
