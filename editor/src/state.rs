@@ -224,20 +224,38 @@ pub struct Editor {
     pub(super) shaders: Shaders,
     pub(super) bspvt_gpu: Option<BspvtShader>,
     pub(super) prt_gpu: Option<PrtShader>,
+    /// What shading keeps between frames.
+    pub(super) memo: Memo,
+    pub(super) watcher: Option<Watcher>,
+    /// Computations running off the UI thread.
+    pub(super) workers: Workers,
+    pub(super) wake: Arc<dyn Fn() + Send + Sync>,
+    pub(super) started: Instant,
+    pub(super) edited_at: Option<Instant>,
+}
+
+/// What shading keeps between frames, so that a frame whose inputs did not change costs less.
+#[derive(Default)]
+pub(super) struct Memo {
+    /// PRT's silhouettes of groups that did not move.
     pub(super) silhouettes: prt::SilhouetteMemo,
     /// The environment prefiltered for the specular term (method `baked`), kept while its map is.
     pub(super) prefiltered: Option<prt::prefilter::Prefiltered>,
-    pub(super) watcher: Option<Watcher>,
-    pub(super) reference_worker: Option<Worker<VertexValues>>,
-    pub(super) exact_worker: Option<Worker<VertexValues>>,
-    pub(super) indirect_worker: Option<Worker<super::indirect::Indirect>>,
+}
+
+/// The editor's background computations (each streams results the systems take in).
+#[derive(Default)]
+pub(super) struct Workers {
+    /// The progressive reference.
+    pub(super) reference: Option<Worker<VertexValues>>,
+    /// Exact visibility (`ltc-exact-vis`).
+    pub(super) exact: Option<Worker<VertexValues>>,
+    /// The indirect term.
+    pub(super) indirect: Option<Worker<super::indirect::Indirect>>,
     /// The last indirect cache with what it was lit by, for the next refresh.
     pub(super) indirect_base: Option<Box<super::indirect::IndirectBase>>,
     /// Bumped whenever `direct` changes; the generation the indirect term was started from.
     pub(super) generations: (u64, u64),
-    pub(super) wake: Arc<dyn Fn() + Send + Sync>,
-    pub(super) started: Instant,
-    pub(super) edited_at: Option<Instant>,
 }
 
 impl Editor {
@@ -275,14 +293,9 @@ impl Editor {
             shaders,
             bspvt_gpu: None,
             prt_gpu: None,
-            silhouettes: prt::SilhouetteMemo::default(),
-            prefiltered: None,
+            memo: Memo::default(),
             watcher: None,
-            reference_worker: None,
-            exact_worker: None,
-            indirect_worker: None,
-            indirect_base: None,
-            generations: (0, 0),
+            workers: Workers::default(),
             wake,
             started: Instant::now(),
             edited_at: None,
@@ -545,8 +558,8 @@ impl Editor {
 
     /// The progressive reference restarts from zero (its scene or view changed).
     pub(super) fn restart_reference(&mut self) {
-        self.reference_worker = None;
-        self.exact_worker = None;
+        self.workers.reference = None;
+        self.workers.exact = None;
         self.reference = ReferenceSum::default();
     }
 

@@ -293,13 +293,13 @@ fn take(ed: &mut Editor, landed: Landed, patched: &mut [bool; 2]) {
 /// Refines the reference progressively while it is shown or compared against.
 pub fn reference_system(ed: &mut Editor) {
     if ed.method != Method::Reference && !ed.overlay {
-        ed.reference_worker = None;
+        ed.workers.reference = None;
         return;
     }
-    if ed.reference_worker.is_none() && ed.reference.passes < REFERENCE_PASSES {
-        ed.reference_worker = Some(spawn_reference(ed));
+    if ed.workers.reference.is_none() && ed.reference.passes < REFERENCE_PASSES {
+        ed.workers.reference = Some(spawn_reference(ed));
     }
-    let passes = ed.reference_worker.as_ref().map(|w| w.results()).unwrap_or_default();
+    let passes = ed.workers.reference.as_ref().map(|w| w.results()).unwrap_or_default();
     for pass in passes {
         ed.reference.add(pass);
         ed.dirty.shade = true;
@@ -341,7 +341,7 @@ pub fn shade_system(ed: &mut Editor) {
     ed.dirty.per_pixel = true;
     if let Some(values) = shade(ed) {
         ed.direct = values;
-        ed.generations.0 += 1;
+        ed.workers.generations.0 += 1;
         ed.stats.shading = start.elapsed().as_secs_f64();
         if let Some(t) = ed.edited_at.take() {
             ed.stats.edit_to_shade = t.elapsed().as_secs_f64();
@@ -372,29 +372,29 @@ fn compose(ed: &mut Editor) {
 /// it ends), its records kept in the bake database. The preview adds the last term that landed.
 pub fn indirect_system(ed: &mut Editor) {
     if !ed.indirect || !ed.method.direct() {
-        ed.indirect_worker = None;
+        ed.workers.indirect = None;
         return;
     }
-    let landed = ed.indirect_worker.as_ref().map(|w| w.results()).unwrap_or_default();
+    let landed = ed.workers.indirect.as_ref().map(|w| w.results()).unwrap_or_default();
     if let Some(last) = landed.into_iter().last() {
         ed.indirect_values = last.values;
         if let Some(base) = last.base {
-            ed.indirect_worker = None;
-            ed.indirect_base = Some(base);
+            ed.workers.indirect = None;
+            ed.workers.indirect_base = Some(base);
             ed.info(format!("indirect: {}", last.what));
         }
         compose(ed);
     }
-    let (direct, started) = ed.generations;
-    if ed.indirect_worker.is_none() && started != direct && !ed.direct.is_empty() {
-        ed.generations.1 = direct;
-        ed.indirect_worker = Some(spawn_indirect(ed));
+    let (direct, started) = ed.workers.generations;
+    if ed.workers.indirect.is_none() && started != direct && !ed.direct.is_empty() {
+        ed.workers.generations.1 = direct;
+        ed.workers.indirect = Some(spawn_indirect(ed));
     }
 }
 
 /// True while an indirect gather runs.
 pub fn gathering(ed: &Editor) -> bool {
-    ed.indirect_worker.is_some()
+    ed.workers.indirect.is_some()
 }
 
 /// What the current method offers to light glossy hits toward the cache's records.
@@ -419,7 +419,7 @@ fn spawn_indirect(ed: &mut Editor) -> Worker<Indirect> {
         eye: ed.orbit.eye(),
         settings: ed.options.cache,
         store: ed.store.clone(),
-        base: ed.indirect_base.take(),
+        base: ed.workers.indirect_base.take(),
     };
     let wake = ed.wake.clone();
     Worker::spawn(move |stop, send| job.run(stop, send), move || wake())
@@ -484,9 +484,9 @@ fn baked(ed: &mut Editor, eye: Vec3) -> VertexValues {
     let bake = ed.bakes.bspvt.as_deref().filter(|_| trees);
     let polygonal = values.map(|values| Polygonal { bake, values, lobes: None });
     let env = ed.flat.environment.clone();
-    ed.prefiltered =
-        env.as_ref().map(|e| ed.prefiltered.as_ref().map_or_else(|| Prefiltered::new(e), |p| p.for_light(e)));
-    let (Some(bake), Some(light), Some(pre)) = (&ed.bakes.prt, &ed.bakes.lighting, &ed.prefiltered) else {
+    ed.memo.prefiltered =
+        env.as_ref().map(|e| ed.memo.prefiltered.as_ref().map_or_else(|| Prefiltered::new(e), |p| p.for_light(e)));
+    let (Some(bake), Some(light), Some(pre)) = (&ed.bakes.prt, &ed.bakes.lighting, &ed.memo.prefiltered) else {
         return Look::new(&ed.flat, eye, polygonal, None).into_direct();
     };
     let n = kage_engine::math::sh::num_coeffs(bake.order);
@@ -494,21 +494,22 @@ fn baked(ed: &mut Editor, eye: Vec3) -> VertexValues {
         return Look::new(&ed.flat, eye, polygonal, None).into_direct();
     }
     let shadows = prt::Shadows::WithOthers;
-    let posed = prt::Posed::new(&ed.scene, &ed.flat, bake.order, light, shadows, &ed.options.prt, &mut ed.silhouettes);
+    let posed =
+        prt::Posed::new(&ed.scene, &ed.flat, bake.order, light, shadows, &ed.options.prt, &mut ed.memo.silhouettes);
     let frame = prt::Frame::from_posed(&ed.flat, bake, posed, eye);
     Look::new(&ed.flat, eye, polygonal, Some(Environment::new(frame, bake, light, Some(pre)))).into_direct()
 }
 
 /// The exact-visibility comparison casts cube maps per vertex: in the background.
 fn exact_vis(ed: &mut Editor, eye: Vec3) -> Option<VertexValues> {
-    if let Some(v) = ed.exact_worker.as_ref().and_then(|w| w.results().pop()) {
+    if let Some(v) = ed.workers.exact.as_ref().and_then(|w| w.results().pop()) {
         return Some(v);
     }
-    if ed.exact_worker.is_none() {
+    if ed.workers.exact.is_none() {
         let scene = ed.scene.duplicate();
         let s = ed.options.bspvt;
         let wake = ed.wake.clone();
-        ed.exact_worker = Some(Worker::spawn(
+        ed.workers.exact = Some(Worker::spawn(
             move |_, send| {
                 let flat = flatten(&scene);
                 send(bspvt::shade_vertices(&flat, bspvt::Shadows::Exact { res: s.res }, eye));
@@ -517,7 +518,7 @@ fn exact_vis(ed: &mut Editor, eye: Vec3) -> Option<VertexValues> {
         ));
         ed.info("ltc-exact-vis: casting visibility per vertex in the background".into());
     }
-    ed.dirty.shade = ed.exact_worker.is_some();
+    ed.dirty.shade = ed.workers.exact.is_some();
     None
 }
 
@@ -530,7 +531,8 @@ fn prt_gpu(ed: &mut Editor, eye: Vec3) -> VertexValues {
         return ed.flat.zeros();
     }
     let shadows = ed.method.prt_shadows().unwrap_or(prt::Shadows::SelfOnly);
-    let posed = prt::Posed::new(&ed.scene, &ed.flat, bake.order, light, shadows, &ed.options.prt, &mut ed.silhouettes);
+    let posed =
+        prt::Posed::new(&ed.scene, &ed.flat, bake.order, light, shadows, &ed.options.prt, &mut ed.memo.silhouettes);
     let gpu = ed.gpu.clone();
     let values = kage_gpu::prt::shade_vertices(&gpu, shader, &ed.flat, &posed, eye);
     // The viewport shades the shadows between groups per pixel from the frame's vertex terms.
