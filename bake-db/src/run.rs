@@ -134,11 +134,50 @@ impl Chunk<'_> {
 /// [`run`] steered by `hooks`: once `hooks.cancel` is set no job starts; the jobs in flight
 /// finish and are committed with the rest of their batch, then [`DbError::Cancelled`] is
 /// returned, and the next run finds their results cached.
+///
+/// A stored chunk whose bytes no longer match their checksum is baked again (cold: its
+/// lineage is not trusted either) and replaced, so a run never shades damaged data.
 pub fn run_cancellable(store: &Store, scene: &Scene, flat: &FlatScene, plan: &Plan, hooks: Hooks) -> Result<Outcome> {
     let start = Instant::now();
-    let (stats, fresh) = bake_misses(store, scene, flat, plan, hooks)?;
-    let outcome = assemble(store, flat, plan, &fresh, stats)?;
+    let (stats, mut fresh) = bake_misses(store, scene, flat, plan, hooks)?;
+    let outcome = match assemble(store, flat, plan, &fresh, stats)? {
+        Assembled::Done(outcome) => outcome,
+        Assembled::Damaged(damaged) => {
+            let again = Plan {
+                jobs: plan
+                    .jobs
+                    .iter()
+                    .map(|j| Job { cached: !damaged.contains(&j.key), slot: None, ..j.clone() })
+                    .collect(),
+                ..plan.clone()
+            };
+            let (rebaked, more) = bake_misses(store, scene, flat, &again, hooks)?;
+            fresh.extend(more);
+            let stats = RunStats {
+                cached: stats.cached - damaged.len(),
+                cold: stats.cold + rebaked.cold,
+                vertices_baked: stats.vertices_baked + rebaked.vertices_baked,
+                rays_cast: stats.rays_cast + rebaked.rays_cast,
+                tiles_built: stats.tiles_built + rebaked.tiles_built,
+                tiles_from_memo: stats.tiles_from_memo + rebaked.tiles_from_memo,
+                ..stats
+            };
+            match assemble(store, flat, plan, &fresh, stats)? {
+                Assembled::Done(outcome) => outcome,
+                Assembled::Damaged(keys) => return Err(damaged_error(store, &keys)),
+            }
+        }
+    };
     Ok(Outcome { stats: RunStats { seconds: start.elapsed().as_secs_f64(), ..outcome.stats }, ..outcome })
+}
+
+/// What a damaged artefact that baking again did not replace is reported as.
+fn damaged_error(store: &Store, keys: &[Key]) -> DbError {
+    let first = keys.first().map_or_else(String::new, Key::short);
+    DbError::Corrupted {
+        path: store.path().to_path_buf(),
+        detail: format!("{} artefacts (first {first}) fail their checksum (run `kage db check`)", keys.len()),
+    }
 }
 
 /// The bakes of a fully cached `plan`, read from the store without writing anything (not even
@@ -147,7 +186,11 @@ pub fn load(store: &Store, flat: &FlatScene, plan: &Plan) -> Result<Option<Outco
     if plan.misses().next().is_some() {
         return Ok(None);
     }
-    assemble(store, flat, plan, &HashMap::new(), RunStats::default()).map(Some)
+    // A damaged chunk counts as missing: a run bakes it again.
+    Ok(match assemble(store, flat, plan, &HashMap::new(), RunStats::default())? {
+        Assembled::Done(outcome) => Some(outcome),
+        Assembled::Damaged(_) => None,
+    })
 }
 
 /// [`run`] without assembling the bakes: the plan's misses are baked and committed, and no
@@ -489,9 +532,9 @@ fn assemble(
     plan: &Plan,
     fresh: &HashMap<Key, Vec<u8>>,
     stats: RunStats,
-) -> Result<Outcome> {
+) -> Result<Assembled> {
     let stored: Vec<Key> = plan.jobs.iter().map(|j| j.key).filter(|k| !fresh.contains_key(k)).collect();
-    store.with_artefacts(&stored, |found| {
+    let checked = store.with_checked_artefacts(&stored, |found| {
         let mut found = found.iter();
         let chunks: Vec<&[u8]> = plan
             .jobs
@@ -501,7 +544,17 @@ fn assemble(
             })
             .collect();
         bakes(store, flat, plan, &chunks, stats)
+    })?;
+    Ok(match checked {
+        Ok(outcome) => Assembled::Done(outcome),
+        Err(damaged) => Assembled::Damaged(damaged),
     })
+}
+
+/// A plan's bakes, or the stored chunks that failed their checksum.
+enum Assembled {
+    Done(Outcome),
+    Damaged(Vec<Key>),
 }
 
 /// A stored chunk, checked: a BSPVT chunk's offsets and records, or a PRT chunk's coefficients.

@@ -266,6 +266,39 @@ impl Store {
         })
     }
 
+    /// [`Store::with_artefacts`], each artefact checked against the checksum recorded with it
+    /// while `f` runs (on the other cores, on the borrowed bytes): `f`'s result when every
+    /// artefact is intact, else the damaged keys (and `f`'s result, built from them, dropped),
+    /// so that loads never shade garbage.
+    pub fn with_checked_artefacts<R: Send>(
+        &self,
+        keys: &[Key],
+        f: impl FnOnce(&[Option<&[u8]>]) -> Result<R> + Send,
+    ) -> Result<std::result::Result<R, Vec<Key>>> {
+        use rayon::prelude::*;
+        self.contained(|| {
+            let t = self.db.begin_read().map_err(|e| storage(&self.path, e))?;
+            let table = t.open_table(ARTEFACTS).map_err(|e| storage(&self.path, e))?;
+            let info = t.open_table(INFO).map_err(|e| storage(&self.path, e))?;
+            let fetch = |k: &Key| -> std::result::Result<_, redb::StorageError> {
+                let sum = info.get(k.as_bytes().as_slice())?.and_then(|i| checksum_of(i.value()));
+                Ok((table.get(k.as_bytes().as_slice())?, sum))
+            };
+            let rows = keys.iter().map(fetch).collect::<std::result::Result<Vec<_>, _>>();
+            let rows = rows.map_err(|e| storage(&self.path, e))?;
+            let found: Vec<Option<&[u8]>> = rows.iter().map(|(g, _)| g.as_ref().map(|g| g.value())).collect();
+            let damaged = || -> Vec<Key> {
+                let intact = |(v, (_, sum)): (&Option<&[u8]>, &(_, Option<[u8; 32]>))| {
+                    v.is_none_or(|v| *sum == Some(*blake3::hash(v).as_bytes()))
+                };
+                let ok: Vec<bool> = found.par_iter().zip(&rows).map(intact).collect();
+                keys.iter().zip(ok).filter(|(_, ok)| !ok).map(|(k, _)| *k).collect()
+            };
+            let (damaged, built) = rayon::join(damaged, || f(&found));
+            if damaged.is_empty() { built.map(Ok) } else { Ok(Err(damaged)) }
+        })
+    }
+
     /// Writes a batch of artefacts (with metadata) and lineage entries in one transaction.
     pub fn put_batch(&self, artefacts: &[(Key, Vec<u8>, Info)], lineage: &[(Key, Vec<u8>)]) -> Result<()> {
         self.write(|t| {
