@@ -776,3 +776,21 @@ fn a_scene_without_a_camera_is_framed() {
     assert!(std::fs::read_to_string(out.join("report.md")).unwrap().contains("| baked-polygonal |"));
     std::fs::remove_dir_all(d).unwrap();
 }
+
+/// `kage info` says what varies a material: textures (size, UV set), a second UV set, vertex
+/// colours.
+#[test]
+fn info_lists_materials_and_their_textures() {
+    let o = kage(&["info", &asset("scenes/textured_materials.gltf")]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = String::from_utf8(o.stdout).unwrap();
+    for needle in [
+        "material: base colour (1.000, 1.000, 1.000) × texture 0 (32×32, TEXCOORD_0), metallic 0.00, roughness 0.80",
+        "roughness 1.00 × texture 1 (4×16, TEXCOORD_0; roughness G, metalness B)",
+        "× texture 2 (16×16, TEXCOORD_1)",
+        "24 vertices  12 triangles  area 2.9400  vertex colours",
+        "TEXCOORD_1\n",
+    ] {
+        assert!(out.contains(needle), "missing '{needle}' in:\n{out}");
+    }
+}

@@ -3,7 +3,8 @@
 use crate::scene_args::SceneArgs;
 use anyhow::Result;
 use kage_engine::scene::{
-    Camera, EnvironmentLight, InGroup, MeshRef, Name, NodeId, PolygonLight, PrimitiveId, RigidGroup, Transform,
+    Camera, EnvironmentLight, Material, MaterialMaps, MeshRef, Name, NodeId, PolygonLight, PrimitiveId, RigidGroup,
+    Transform,
 };
 use std::fmt::Write;
 
@@ -38,31 +39,33 @@ fn describe(scene: &kage_engine::scene::Scene) -> Result<String, std::fmt::Error
     }
     writeln!(out, "meshes: {} unique", scene.meshes.len())?;
     for (i, m) in scene.meshes.iter().enumerate() {
+        let extra = [(!m.uvs1.is_empty(), "  TEXCOORD_1"), (!m.colors.is_empty(), "  vertex colours")];
+        let extra: String = extra.iter().filter(|(has, _)| *has).map(|(_, what)| *what).collect();
         writeln!(
             out,
-            "  [{i}] hash {}  {} vertices  {} triangles  area {:.4}",
+            "  [{i}] hash {}  {} vertices  {} triangles  area {:.4}{extra}",
             m.hash,
             m.positions.len(),
             m.triangles.len(),
             m.area()
         )?;
     }
-    let mut instances: Vec<(PrimitiveId, String, MeshRef, bool)> = w
-        .query::<(&PrimitiveId, &Name, &MeshRef, &Transform, &InGroup)>()
+    let mut instances: Vec<(PrimitiveId, String, MeshRef, bool, String)> = w
+        .query::<(&PrimitiveId, &Name, &MeshRef, &Transform, &Material, Option<&MaterialMaps>)>()
         .iter()
-        .map(|(id, n, m, t, _)| (*id, n.0.clone(), *m, t.is_mirrored()))
+        .map(|(id, n, m, t, mat, maps)| (*id, n.0.clone(), *m, t.is_mirrored(), material(scene, mat, maps)))
         .collect();
     instances.sort_by_key(|i| (i.0.node, i.0.mesh, i.0.primitive));
     let (mut verts, mut tris) = (0, 0);
     writeln!(out, "instances: {}", instances.len())?;
-    for (id, name, m, mirrored) in &instances {
+    for (id, name, m, mirrored, material) in &instances {
         let mesh = &scene.meshes[m.index as usize];
         verts += mesh.positions.len();
         tris += mesh.triangles.len();
         let mirror = if *mirrored { "  (mirrored)" } else { "" };
         writeln!(
             out,
-            "  node {} '{name}' mesh {} primitive {} → mesh [{}] {}{mirror}",
+            "  node {} '{name}' mesh {} primitive {} → mesh [{}] {}{mirror}\n    {material}",
             id.node, id.mesh, id.primitive, m.index, m.hash
         )?;
     }
@@ -103,4 +106,26 @@ fn describe(scene: &kage_engine::scene::Scene) -> Result<String, std::fmt::Error
         )?;
     }
     Ok(out)
+}
+
+/// One line for a material: its factors, and the textures that vary them.
+fn material(scene: &kage_engine::scene::Scene, m: &Material, maps: Option<&MaterialMaps>) -> String {
+    let texture = |slot: Option<kage_engine::scene::TextureSlot>, what: &str| {
+        slot.map_or(String::new(), |s| {
+            let t = &scene.textures[s.texture as usize];
+            format!(" × texture {} ({}×{}, TEXCOORD_{}{what})", s.texture, t.width, t.height, s.texcoord)
+        })
+    };
+    let maps = maps.copied().unwrap_or_default();
+    let c = m.base_color;
+    format!(
+        "material: base colour ({:.3}, {:.3}, {:.3}){}, metallic {:.2}, roughness {:.2}{}",
+        c.x,
+        c.y,
+        c.z,
+        texture(maps.base_color, ""),
+        m.metallic,
+        m.roughness,
+        texture(maps.metallic_roughness, "; roughness G, metalness B"),
+    )
 }
