@@ -43,7 +43,7 @@ pub struct Export<'a> {
     /// BSPVT bake.
     pub bspvt: Option<&'a bspvt::Bake>,
     /// PRT bake, lighting and settings.
-    pub prt: Option<(&'a prt::Bake, &'a Lighting, &'a prt::Settings)>,
+    pub prt: Option<prt::Parts<'a>>,
     /// Per instance and vertex: the baked radiance for the preview (linear).
     pub radiance: &'a [Vec<Vec3>],
     /// Preview exposure in stops (COLOR_0 = clamp(radiance · 2^exposure, 0, 1)).
@@ -153,7 +153,7 @@ pub fn write(path: &Path, e: &Export) -> std::io::Result<()> {
             let rec = &b.instances[k];
             ext["bspvt"] = json!({"offsets": bin.view(bytemuck::cast_slice(&rec.offsets), None), "records": bin.view(&rec.data, None)});
         }
-        if let Some((p, ..)) = e.prt {
+        if let Some(prt::Parts { bake: p, .. }) = e.prt {
             ext["prt"] = json!({"transfer": bin.view(bytemuck::cast_slice(&p.instances[k]), None)});
         }
         materials.push(json!({"name": format!("preview {k}"), "pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0], "metallicFactor": 0.0, "roughnessFactor": 1.0},
@@ -312,7 +312,7 @@ fn root_extension(e: &Export) -> Value {
     if let Some(b) = e.bspvt {
         root["bspvt"] = json!({"faceResolution": b.settings.res, "epsilon": b.settings.epsilon, "format": bspvt::layout::FORMAT_VERSION});
     }
-    if let Some((p, light, s)) = e.prt {
+    if let Some(prt::Parts { bake: p, lighting: light, settings: s }) = e.prt {
         let window = match light.window {
             Window::None => "none",
             Window::Hanning => "hanning",

@@ -27,7 +27,9 @@ fn write(ed: &mut Editor, path: PathBuf, with_bakes: bool) -> String {
         &zeros
     };
     let prt = match (&ed.bakes.prt, &ed.bakes.lighting) {
-        (Some(b), Some(l)) if with_bakes => Some((b, l, &ed.options.prt)),
+        (Some(bake), Some(lighting)) if with_bakes => {
+            Some(kage_engine::prt::Parts { bake, lighting, settings: &ed.options.prt })
+        }
         _ => None,
     };
     let export = Export {

@@ -32,7 +32,13 @@ fn per_pixel_prt_matches_the_cpu_per_pixel_render_and_beats_per_vertex_shading()
     let bake = prt::bake(&scene, &flat, &s, &|_| {});
     let light = prt::Lighting::new(&scene, &s).expect("the scene has an environment");
     let orbit = Orbit { target: Vec3::new(0.0, 0.3, 0.0), distance: 5.0, yaw: 0.6, pitch: 0.7, yfov: 0.8 };
-    let frame = prt::Frame::prepare(&scene, &flat, &bake, &light, Shadows::WithOthers, &s, orbit.eye());
+    let frame = prt::Frame::prepare(
+        &scene,
+        &flat,
+        prt::Parts { bake: &bake, lighting: &light, settings: &s },
+        Shadows::WithOthers,
+        orbit.eye(),
+    );
     let (w, h) = (240, 160);
     let camera = Camera::look_at(orbit.eye(), orbit.target, orbit.yfov);
     // The viewport draws no environment behind the geometry: neither does this CPU render.

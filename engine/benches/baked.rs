@@ -54,7 +54,11 @@ fn bench(c: &mut Criterion) {
             step = -step;
             nudge_light(&mut scene, step);
             let flat = flatten(&scene);
-            let bakes = Bakes { bspvt: Some(&trees), prt: Some((&transfer, &light, &s)), prefiltered: Some(&pre) };
+            let bakes = Bakes {
+                bspvt: Some(&trees),
+                prt: Some(prt::Parts { bake: &transfer, lighting: &light, settings: &s }),
+                prefiltered: Some(&pre),
+            };
             Look::prepare(&scene, &flat, bakes, camera.eye(), &mut memo).vertex_values().len()
         })
     });
@@ -68,12 +72,20 @@ fn bench(c: &mut Criterion) {
     });
     g.bench_function("environment_part", |b| {
         b.iter(|| {
-            let bakes = Bakes { bspvt: None, prt: Some((&transfer, &light, &s)), prefiltered: Some(&pre) };
+            let bakes = Bakes {
+                bspvt: None,
+                prt: Some(prt::Parts { bake: &transfer, lighting: &light, settings: &s }),
+                prefiltered: Some(&pre),
+            };
             Look::prepare(&scene, &flat, bakes, camera.eye(), &mut memo).vertex_values().len()
         })
     });
     let renderer = Renderer::new(&scene);
-    let bakes = Bakes { bspvt: Some(&trees), prt: Some((&transfer, &light, &s)), prefiltered: Some(&pre) };
+    let bakes = Bakes {
+        bspvt: Some(&trees),
+        prt: Some(prt::Parts { bake: &transfer, lighting: &light, settings: &s }),
+        prefiltered: Some(&pre),
+    };
     let look = Look::prepare(&scene, &renderer.flat, bakes, camera.eye(), &mut memo);
     g.bench_function("resolve_640x360", |b| b.iter(|| look.render(&renderer, &camera, 640, 360, 1).len()));
     g.finish();

@@ -41,6 +41,7 @@ fn bench(c: &mut Criterion) {
     g.bench_function("bake_order4_1024dirs", |b| b.iter(|| prt::bake(&scene, &flat, &s, &|_| {}).stats.vertices));
     let bake = prt::bake(&scene, &flat, &s, &|_| {});
     let light = Lighting::new(&scene, &s).expect("sky");
+    let parts = prt::Parts { bake: &bake, lighting: &light, settings: &s };
     let camera = scene.first_camera().expect("camera");
     let group = scene.find_group("torus a").expect("group");
     g.throughput(Throughput::Elements(1));
@@ -50,8 +51,7 @@ fn bench(c: &mut Criterion) {
             scene.pose_group(group, Quat::from_rotation_y(0.05), Vec3::new(0.01, 0.0, 0.0));
             let renderer = Renderer::new(&scene);
             let eye = camera.eye();
-            let frame =
-                Frame::prepare_cached(&scene, &renderer.flat, &bake, &light, Shadows::WithOthers, &s, eye, &mut cache);
+            let frame = Frame::prepare_cached(&scene, &renderer.flat, parts, Shadows::WithOthers, eye, &mut cache);
             frame.render(&renderer, &camera, 512, 512, 1).len()
         })
     });
@@ -63,7 +63,7 @@ fn bench(c: &mut Criterion) {
             scene.pose_group(group, Quat::from_rotation_y(0.05), Vec3::new(0.01, 0.0, 0.0));
             let flat = flatten(&scene);
             let eye = camera.eye();
-            let frame = Frame::prepare_cached(&scene, &flat, &bake, &light, Shadows::WithOthers, &s, eye, &mut cache);
+            let frame = Frame::prepare_cached(&scene, &flat, parts, Shadows::WithOthers, eye, &mut cache);
             frame.shade_grid(&grid, 512, &|_, l, _| l).len()
         })
     });

@@ -31,7 +31,11 @@ fn look(scene: &Scene, order: usize, directions: usize) -> VertexValues {
     let bake = prt::bake(scene, &flat, &s, &|_| {});
     let light = prt::Lighting::new(scene, &s).unwrap();
     let pre = Prefiltered::new(flat.environment.as_ref().unwrap());
-    let bakes = Bakes { bspvt: None, prt: Some((&bake, &light, &s)), prefiltered: Some(&pre) };
+    let bakes = Bakes {
+        bspvt: None,
+        prt: Some(prt::Parts { bake: &bake, lighting: &light, settings: &s }),
+        prefiltered: Some(&pre),
+    };
     Look::prepare(scene, &flat, bakes, EYE, &mut prt::SilhouetteMemo::default()).vertex_values()
 }
 
@@ -92,7 +96,11 @@ fn hard_views_and_roughness_extremes_stay_finite() {
         let light = prt::Lighting::new(&scene, &s).unwrap();
         let pre = Prefiltered::new(flat.environment.as_ref().unwrap());
         for eye in [Vec3::new(0.0, 5.0, 0.0), Vec3::new(0.0, -5.0, 0.0), Vec3::new(8.0, 0.0, 0.0)] {
-            let bakes = Bakes { bspvt: None, prt: Some((&bake, &light, &s)), prefiltered: Some(&pre) };
+            let bakes = Bakes {
+                bspvt: None,
+                prt: Some(prt::Parts { bake: &bake, lighting: &light, settings: &s }),
+                prefiltered: Some(&pre),
+            };
             let v = Look::prepare(&scene, &flat, bakes, eye, &mut prt::SilhouetteMemo::default()).vertex_values();
             assert!(v.iter().flatten().all(|v| v.is_finite() && v.min_element() >= 0.0), "eye {eye}");
         }

@@ -67,7 +67,14 @@ fn prt_with_moving_groups_on_the_gpu_matches_the_cpu() {
     let eye = Vec3::new(0.0, 4.0, 6.0);
     let compare = |scene: &Scene| {
         let flat = flatten(scene);
-        let cpu = prt::Frame::prepare(scene, &flat, &bake, &light, Shadows::WithOthers, &s, eye).vertex_values(&flat);
+        let cpu = prt::Frame::prepare(
+            scene,
+            &flat,
+            prt::Parts { bake: &bake, lighting: &light, settings: &s },
+            Shadows::WithOthers,
+            eye,
+        )
+        .vertex_values(&flat);
         let posed =
             prt::Posed::new(scene, &flat, bake.order, &light, Shadows::WithOthers, &s, &mut SilhouetteMemo::default());
         assert!(posed.silhouettes.len() > 1, "the scene has several groups");

@@ -88,7 +88,11 @@ fn the_baked_look_applies_materials_per_pixel_like_the_reference() {
         let transfer = prt::bake(scene, &flat, &ps, &|_| {});
         let lighting = prt::Lighting::new(scene, &ps).unwrap();
         let pre = Prefiltered::new(flat.environment.as_ref().unwrap());
-        let bakes = Bakes { bspvt: Some(&trees), prt: Some((&transfer, &lighting, &ps)), prefiltered: Some(&pre) };
+        let bakes = Bakes {
+            bspvt: Some(&trees),
+            prt: Some(prt::Parts { bake: &transfer, lighting: &lighting, settings: &ps }),
+            prefiltered: Some(&pre),
+        };
         let look = Look::prepare(scene, &flat, bakes, camera.eye(), &mut prt::SilhouetteMemo::default());
         let r = Renderer::new(scene);
         let per_vertex = raster::vertex_image(&r, &camera, w, h, 4, &look.vertex_values());

@@ -14,7 +14,8 @@ fn shade(scene: &Scene, s: &prt::Settings, shadows: Shadows) -> Vec<Vec<Vec3>> {
     let flat = flatten(scene);
     let bake = prt::bake(scene, &flat, s, &|_| {});
     let light = prt::Lighting::new(scene, s).expect("the scene has an environment");
-    prt::Frame::prepare(scene, &flat, &bake, &light, shadows, s, EYE).vertex_values(&flat)
+    prt::Frame::prepare(scene, &flat, prt::Parts { bake: &bake, lighting: &light, settings: s }, shadows, EYE)
+        .vertex_values(&flat)
 }
 
 /// Per-vertex reference (direct light only), per instance.

@@ -45,12 +45,14 @@ pub fn run(args: &Args) -> Result<()> {
     let out = with_bar(total, "baking", |p| kage_bake_db::run(&store, &scene, &flat, &plan, p))?;
     let eye = scene.first_camera().map_or(Vec3::new(0.0, 4.0, 8.0), |c| c.eye());
     let lighting = plan.prt.and_then(|s| prt::Lighting::new(&scene, &s).map(|l| (l, s)));
-    let radiance = preview(&scene, out.bspvt.as_ref(), out.prt.as_ref().zip(lighting.as_ref()), eye);
+    let parts = out.prt.as_ref().zip(lighting.as_ref());
+    let parts = parts.map(|(bake, (lighting, settings))| prt::Parts { bake, lighting, settings });
+    let radiance = preview(&scene, out.bspvt.as_ref(), parts, eye);
     let export = Export {
         scene: &scene,
         flat: &flat,
         bspvt: out.bspvt.as_ref(),
-        prt: out.prt.as_ref().zip(lighting.as_ref()).map(|(b, (l, s))| (b, l, s)),
+        prt: parts,
         radiance: &radiance,
         exposure: args.exposure,
     };
@@ -64,13 +66,13 @@ pub fn run(args: &Args) -> Result<()> {
 fn preview(
     scene: &kage_engine::scene::Scene,
     trees: Option<&bspvt::Bake>,
-    prt: Option<(&prt::Bake, &(prt::Lighting, prt::Settings))>,
+    prt: Option<prt::Parts>,
     eye: Vec3,
 ) -> VertexValues {
     let renderer = kage_engine::reference::Renderer::new(scene);
     let flat = &renderer.flat;
     let prefiltered = flat.environment.as_ref().map(prt::prefilter::Prefiltered::new);
-    let bakes = Bakes { bspvt: trees, prt: prt.map(|(b, (l, s))| (b, l, s)), prefiltered: prefiltered.as_ref() };
+    let bakes = Bakes { bspvt: trees, prt, prefiltered: prefiltered.as_ref() };
     let look = Look::prepare(scene, flat, bakes, eye, &mut prt::SilhouetteMemo::default());
     let bounce = crate::commands::render::baked::bounce(&look, &renderer, &cache::Settings::default(), eye);
     look.with_indirect(bounce).vertex_values()

@@ -335,35 +335,36 @@ fn group_poses(scene: &Scene, flat: &FlatScene) -> (Vec<hecs::Entity>, Vec<(DMat
     (groups.into_iter().map(|(_, g)| g).collect(), poses)
 }
 
+/// A transfer bake with the lighting and settings it shades with: what a frame is posed from.
+#[derive(Clone, Copy)]
+pub struct Parts<'a> {
+    /// The transfer.
+    pub bake: &'a Bake,
+    /// The environment projected for it.
+    pub lighting: &'a Lighting,
+    /// The settings both were made with.
+    pub settings: &'a Settings,
+}
+
 impl Frame {
     /// Poses the lighting into every group, reconstructs `Ls` and `T(v, w_i)` per vertex, and
     /// (for [`Shadows::WithOthers`] in a scene with several groups) rasterises the silhouettes.
-    pub fn prepare(
-        scene: &Scene,
-        flat: &FlatScene,
-        bake: &Bake,
-        light: &Lighting,
-        shadows: Shadows,
-        s: &Settings,
-        eye: Vec3,
-    ) -> Self {
-        Self::prepare_cached(scene, flat, bake, light, shadows, s, eye, &mut SilhouetteMemo::default())
+    pub fn prepare(scene: &Scene, flat: &FlatScene, parts: Parts, shadows: Shadows, eye: Vec3) -> Self {
+        Self::prepare_cached(scene, flat, parts, shadows, eye, &mut SilhouetteMemo::default())
     }
 
     /// [`Frame::prepare`], reusing from `memo` the silhouettes of groups that did not move
     /// (after a move, only the moved group's are rasterised again).
-    #[allow(clippy::too_many_arguments)]
     pub fn prepare_cached(
         scene: &Scene,
         flat: &FlatScene,
-        bake: &Bake,
-        light: &Lighting,
+        parts: Parts,
         shadows: Shadows,
-        s: &Settings,
         eye: Vec3,
         memo: &mut SilhouetteMemo,
     ) -> Self {
-        let posed = Posed::new(scene, flat, bake.order, light, shadows, s, memo);
+        let Parts { bake, lighting, settings } = parts;
+        let posed = Posed::new(scene, flat, bake.order, lighting, shadows, settings, memo);
         Self::from_posed(flat, bake, posed, eye)
     }
 

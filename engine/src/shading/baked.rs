@@ -75,7 +75,7 @@ pub struct Bakes<'a> {
     /// BSPVT trees (the scene has polygonal lights).
     pub bspvt: Option<&'a bspvt::Bake>,
     /// PRT transfer with its lighting and settings (the scene has an environment).
-    pub prt: Option<(&'a prt::Bake, &'a prt::Lighting, &'a prt::Settings)>,
+    pub prt: Option<prt::Parts<'a>>,
     /// The environment prefiltered for the specular term (`None`: diffuse only).
     pub prefiltered: Option<&'a Prefiltered>,
 }
@@ -94,10 +94,9 @@ impl<'a> Look<'a> {
             let (lobes, values) = bspvt::pixel::Lobes::at_vertices(flat, Some(b), eye);
             Polygonal { bake: Some(b), values, lobes: Some(lobes) }
         });
-        let environment = bakes.prt.map(|(bake, light, s)| {
-            let shadows = prt::Shadows::WithOthers;
-            let frame = prt::Frame::prepare_cached(scene, flat, bake, light, shadows, s, eye, memo);
-            Environment::new(frame, bake, light, bakes.prefiltered)
+        let environment = bakes.prt.map(|parts| {
+            let frame = prt::Frame::prepare_cached(scene, flat, parts, prt::Shadows::WithOthers, eye, memo);
+            Environment::new(frame, parts.bake, parts.lighting, bakes.prefiltered)
         });
         Self::new(flat, eye, polygonal, environment)
     }

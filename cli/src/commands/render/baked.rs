@@ -32,7 +32,7 @@ pub(super) fn run(job: &Job) -> Result<Outputs> {
     let prefiltered = flat.environment.as_ref().map(Prefiltered::new);
     let parts = Bakes {
         bspvt: bakes.bspvt.as_ref(),
-        prt: bakes.prt.as_ref().map(|(b, l, s)| (b, l, s)),
+        prt: bakes.prt.as_ref().map(|(bake, lighting, settings)| prt::Parts { bake, lighting, settings }),
         prefiltered: prefiltered.as_ref(),
     };
     let mut look = Look::prepare(scene, flat, parts, eye, &mut prt::SilhouetteMemo::default());

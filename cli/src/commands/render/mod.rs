@@ -259,14 +259,6 @@ impl Job<'_> {
     }
 }
 
-/// A PRT bake with the lighting and settings it shades with.
-#[derive(Clone, Copy)]
-struct PrtParts<'a> {
-    bake: &'a prt::Bake,
-    lighting: &'a prt::Lighting,
-    settings: &'a prt::Settings,
-}
-
 /// What a method produced: the image, the per-vertex values, and how the indirect term's
 /// glossy hits are lit consistently with this direct term.
 struct Outputs {
@@ -375,7 +367,7 @@ fn prt(job: &Job) -> Result<Outputs> {
     if let Some(pack) = job.pack {
         let (bake, lighting, settings) =
             pack.prt.as_ref().context("the pack has no PRT data (its scene has no environment)")?;
-        return prt_shade(job, PrtParts { bake, lighting, settings });
+        return prt_shade(job, prt::Parts { bake, lighting, settings });
     }
     let store = args.db.open_if_used(&args.scene)?;
     let settings = match &store {
@@ -410,19 +402,18 @@ fn prt(job: &Job) -> Result<Outputs> {
             bake
         }
     };
-    prt_shade(job, PrtParts { bake: &bake, lighting: &lighting, settings: &settings })
+    prt_shade(job, prt::Parts { bake: &bake, lighting: &lighting, settings: &settings })
 }
 
 /// PRT shading of a frame: per-vertex values and, if wanted, the image.
-fn prt_shade(job: &Job, parts: PrtParts) -> Result<Outputs> {
+fn prt_shade(job: &Job, parts: prt::Parts) -> Result<Outputs> {
     let Job { args, scene, renderer, camera, want_image, .. } = *job;
-    let PrtParts { bake, lighting, settings } = parts;
     let shadows = args.method.prt_shadows().context("a PRT method")?;
     if args.gpu {
         return prt_gpu(job, parts, shadows);
     }
     let start = Instant::now();
-    let frame = prt::Frame::prepare(scene, &renderer.flat, bake, lighting, shadows, settings, camera.eye());
+    let frame = prt::Frame::prepare(scene, &renderer.flat, parts, shadows, camera.eye());
     let values = frame.vertex_values(&renderer.flat);
     crate::emit(&format!("shade: {} vertices in {:.3} s\n", renderer.vertex_count(), start.elapsed().as_secs_f64()));
     let image = want_image.then(|| {
@@ -433,7 +424,7 @@ fn prt_shade(job: &Job, parts: PrtParts) -> Result<Outputs> {
 }
 
 /// [`prt_shade`] on the GPU: per-vertex values, the image interpolating them.
-fn prt_gpu(job: &Job, PrtParts { bake, lighting, settings }: PrtParts, shadows: prt::Shadows) -> Result<Outputs> {
+fn prt_gpu(job: &Job, prt::Parts { bake, lighting, settings }: prt::Parts, shadows: prt::Shadows) -> Result<Outputs> {
     let Job { scene, renderer, camera, .. } = *job;
     let gpu = gpu_device()?;
     let flat = &renderer.flat;

@@ -83,7 +83,7 @@ fn measure(args: &Args, scene: &Scene, renderer: &Renderer, camera: &Camera, par
     let prefiltered = flat.environment.as_ref().map(Prefiltered::new);
     let bakes = Bakes {
         bspvt: trees.as_ref(),
-        prt: prt_parts.as_ref().map(|(b, l, s)| (b, l, s)),
+        prt: prt_parts.as_ref().map(|(bake, lighting, settings)| prt::Parts { bake, lighting, settings }),
         prefiltered: prefiltered.as_ref(),
     };
     let mut look = Look::prepare(scene, flat, bakes, eye, &mut prt::SilhouetteMemo::default());

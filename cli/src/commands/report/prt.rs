@@ -108,7 +108,13 @@ impl Bench<'_> {
         let kind = if method == "prt" { prt::Shadows::WithOthers } else { prt::Shadows::SelfOnly };
         let eye = self.camera.eye();
         let t = Instant::now();
-        let frame = prt::Frame::prepare(self.scene, &self.renderer.flat, bake, light, kind, s, eye);
+        let frame = prt::Frame::prepare(
+            self.scene,
+            &self.renderer.flat,
+            prt::Parts { bake, lighting: light, settings: s },
+            kind,
+            eye,
+        );
         let (w, h) = self.size;
         let image = frame.render(self.renderer, self.camera, w, h, 4);
         let shade_s = t.elapsed().as_secs_f64();
