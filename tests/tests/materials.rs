@@ -110,3 +110,19 @@ fn the_baked_look_applies_materials_per_pixel_like_the_reference() {
     assert!(per_vertex > 3.0 * per_pixel, "materials per vertex: {per_vertex:.4}, per pixel: {per_pixel:.4}");
     assert!(untextured > 10.0 * per_pixel, "textures ignored: {untextured:.4}, applied: {per_pixel:.4}");
 }
+
+/// The radiance cache leaves to direct gathering a receiver whose roughness texture makes it
+/// smoother than the cache serves anywhere (the banded sphere: factor 1, metal bands 0.27).
+#[test]
+fn a_roughness_texture_decides_where_the_cache_falls_back() {
+    let s = scene();
+    let r = Renderer::new(&s);
+    let settings = kage_engine::cache::Settings::default();
+    let sphere = instance(&r.flat, "sphere", &s);
+    assert!(kage_engine::cache::falls_back(&r, &settings, sphere), "its metal bands are smooth");
+    let mut plain = s.duplicate();
+    let maps: Vec<hecs::Entity> = plain.world.query::<(hecs::Entity, &MaterialMaps)>().iter().map(|(e, _)| e).collect();
+    maps.into_iter().for_each(|e| _ = plain.world.remove_one::<MaterialMaps>(e));
+    let r = Renderer::new(&plain);
+    assert!(!kage_engine::cache::falls_back(&r, &settings, sphere), "roughness 1 alone is served by the cache");
+}

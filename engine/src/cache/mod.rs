@@ -421,19 +421,28 @@ fn diagonal(src: &Source) -> f32 {
     (hi - lo).length().max(1e-6)
 }
 
-/// True when instance `i` of `renderer`'s scene is a glossy receiver smoother than the cache
-/// can serve (it gathers directly; no records are placed on it).
+/// True when instance `i` of `renderer`'s scene is a glossy receiver smoother somewhere than
+/// the cache can serve — at its smoothest vertex, where a roughness texture varies it (it
+/// gathers directly; no records are placed on it).
 pub fn falls_back(renderer: &crate::reference::Renderer, s: &Settings, i: usize) -> bool {
-    let m = &renderer.flat.instances[i].material;
-    crate::shading::Bsdf::new(m, Vec3::Z).has_specular() && m.roughness < s.glossy_fallback
+    let flat = &renderer.flat;
+    let m = &flat.instances[i].material;
+    let vertices = (0..flat.vertex_count(i)).filter(|_| flat.varies(i));
+    let smoothest = vertices.map(|v| flat.vertex_material(i, v).roughness).fold(m.roughness, f32::min);
+    crate::shading::Bsdf::new(m, Vec3::Z).has_specular() && smoothest < s.glossy_fallback
+}
+
+/// [`falls_back`] for every instance.
+fn fallbacks(renderer: &crate::reference::Renderer, s: &Settings) -> Vec<bool> {
+    (0..renderer.flat.instances.len()).map(|i| falls_back(renderer, s, i)).collect()
 }
 
 /// A cache with records placed at the receiver vertices (in order) that read it (not the
 /// glossy receivers that gather directly).
 pub fn place_at_vertices(src: &Source, s: &Settings) -> Cache {
     let mut cache = Cache::new(*s, diagonal(src));
-    let points: Vec<(Vec3, Vec3)> =
-        vertices(src).iter().filter(|v| !falls_back(src.renderer, s, v.0)).map(|&(_, _, p, n)| (p, n)).collect();
+    let back = fallbacks(src.renderer, s);
+    let points: Vec<(Vec3, Vec3)> = vertices(src).iter().filter(|v| !back[v.0]).map(|&(_, _, p, n)| (p, n)).collect();
     cache.place(src, &points);
     cache
 }
@@ -450,6 +459,7 @@ pub fn from_records(src: &Source, s: &Settings, records: Vec<Record>) -> Cache {
 pub fn shade_vertices(src: &Source, cache: &Cache, eye: Vec3) -> VertexValues {
     use rayon::prelude::*;
     let s = &cache.settings;
+    let back = fallbacks(src.renderer, s);
     let values: Vec<Vec3> = vertices(src)
         .par_iter()
         .enumerate()
@@ -457,7 +467,7 @@ pub fn shade_vertices(src: &Source, cache: &Cache, eye: Vec3) -> VertexValues {
             let frame = crate::math::frame::Frame::from_normal(n);
             let wo = frame.to_local((eye - p).normalize_or(n));
             let bsdf = crate::shading::Bsdf::new(&src.renderer.flat.vertex_material(i, v), wo);
-            if falls_back(src.renderer, s, i) {
+            if back[i] {
                 return record::gather_bsdf(src, p, n, &bsdf, wo, s.side(), k as u64);
             }
             cache.incoming(p, n).map_or(Vec3::ZERO, |c| cache.outgoing(&c, &bsdf, wo))
