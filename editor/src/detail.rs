@@ -11,7 +11,7 @@ use kage_engine::math::color::linear_to_srgb;
 use kage_engine::scene::texture::{Texture, Wrap};
 use kage_engine::scene::{FlatScene, TextureSlot};
 use kage_gpu::Gpu;
-use wgpu::util::DeviceExt;
+use kage_gpu::buffers::texture_2d;
 
 /// `detail` of preview.wgsl's vertex input: the base-colour UV and the texture's value there.
 #[repr(C)]
@@ -72,20 +72,8 @@ pub fn bind_group(gpu: &Gpu, layout: &wgpu::BindGroupLayout, texture: Option<&Te
             [r, g, b, 255]
         })
         .collect();
-    let size = wgpu::Extent3d { width: t.width as u32, height: t.height as u32, depth_or_array_layers: 1 };
-    let descriptor = wgpu::TextureDescriptor {
-        label: Some("preview base colour"),
-        size,
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: wgpu::TextureDimension::D2,
-        format: wgpu::TextureFormat::Rgba8UnormSrgb,
-        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-        view_formats: &[],
-    };
-    let order = wgpu::util::TextureDataOrder::LayerMajor;
-    let view =
-        gpu.device.create_texture_with_data(&gpu.queue, &descriptor, order, &srgb).create_view(&Default::default());
+    let size = [t.width as u32, t.height as u32];
+    let view = texture_2d(gpu, "preview base colour", size, wgpu::TextureFormat::Rgba8UnormSrgb, &srgb);
     let address = |w: Wrap| match w {
         Wrap::Clamp => wgpu::AddressMode::ClampToEdge,
         Wrap::Repeat => wgpu::AddressMode::Repeat,

@@ -7,6 +7,7 @@ use bytemuck::{Pod, Zeroable};
 use glam::Vec4;
 use kage_engine::scene::{EnvMap, EnvironmentLight};
 use kage_gpu::Gpu;
+use kage_gpu::buffers::texture_2d;
 use std::sync::Arc;
 use wgpu::util::DeviceExt;
 
@@ -42,19 +43,8 @@ impl Sky {
 /// The map as an RGBA f32 texture read texel by texel, and its bind group.
 fn upload(gpu: &Gpu, layout: &wgpu::BindGroupLayout, map: &Arc<EnvMap>) -> Sky {
     let texels: Vec<Vec4> = map.texels.iter().map(|t| t.extend(1.0)).collect();
-    let descriptor = wgpu::TextureDescriptor {
-        label: Some("preview sky"),
-        size: wgpu::Extent3d { width: map.width as u32, height: map.height as u32, depth_or_array_layers: 1 },
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: wgpu::TextureDimension::D2,
-        format: wgpu::TextureFormat::Rgba32Float,
-        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-        view_formats: &[],
-    };
-    let order = wgpu::util::TextureDataOrder::LayerMajor;
-    let texture = gpu.device.create_texture_with_data(&gpu.queue, &descriptor, order, bytemuck::cast_slice(&texels));
-    let view = texture.create_view(&Default::default());
+    let size = [map.width as u32, map.height as u32];
+    let view = texture_2d(gpu, "preview sky", size, wgpu::TextureFormat::Rgba32Float, bytemuck::cast_slice(&texels));
     let params = gpu.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
         label: Some("preview sky"),
         contents: bytemuck::bytes_of(&Params { rotation_intensity: [1.0, 0.0, 1.0, 0.0] }),

@@ -25,6 +25,29 @@ pub fn uniform<T: bytemuck::Pod>(gpu: &Gpu, label: &str, value: &T) -> wgpu::Buf
     })
 }
 
+/// A sampled 2D texture of `[width, height]` texels in `format`, one level, filled from `data`
+/// (rows packed, top row first); its view.
+pub fn texture_2d(
+    gpu: &Gpu,
+    label: &str,
+    [width, height]: [u32; 2],
+    format: wgpu::TextureFormat,
+    data: &[u8],
+) -> wgpu::TextureView {
+    let descriptor = wgpu::TextureDescriptor {
+        label: Some(label),
+        size: wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format,
+        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+        view_formats: &[],
+    };
+    let order = wgpu::util::TextureDataOrder::LayerMajor;
+    gpu.device.create_texture_with_data(&gpu.queue, &descriptor, order, data).create_view(&Default::default())
+}
+
 /// Runs `f` inside a validation error scope: what the device rejects becomes an error naming
 /// `what` instead of wgpu's default panic.
 pub fn checked<T>(gpu: &Gpu, what: &str, f: impl FnOnce() -> T) -> Result<T, GpuError> {

@@ -190,15 +190,20 @@ impl<'a> Look<'a> {
     /// environment behind the geometry.
     pub fn render(&self, r: &Renderer, camera: &Camera, width: usize, height: usize, spp: u32) -> Vec<Vec3> {
         let (grid, side) = raster::primary_grid(r, camera, width, height, spp);
-        let vertex_albedo = self.indirect.as_ref().map(|_| prt::vertex_albedo(self.flat, self.eye));
+        // The vertices' albedos only matter where a material varies inside a triangle.
+        let varies = (0..self.flat.instances.len()).any(|i| self.flat.varies(i));
+        let vertex_albedo = self.indirect.as_ref().filter(|_| varies).map(|_| prt::vertex_albedo(self.flat, self.eye));
         let interpolated = |hit: &SurfaceHit, albedo: Vec3| {
             let poly = self.polygonal.as_ref().map_or(Vec3::ZERO, |p| match &p.lobes {
                 Some(lobes) => lobes.shade(self.flat, hit, self.eye),
                 None => hit.interpolate(&p.values[hit.instance]),
             });
-            let indirect = self.indirect.as_ref().zip(vertex_albedo.as_ref()).map_or(Vec3::ZERO, |(v, a)| {
+            let indirect = self.indirect.as_ref().map_or(Vec3::ZERO, |v| {
                 let i = hit.instance;
-                hit.interpolate(&v[i]) * albedo_ratio(albedo, hit.interpolate(&a[i]), self.flat.varies(i))
+                let ratio = vertex_albedo
+                    .as_ref()
+                    .map_or(Vec3::ONE, |a| albedo_ratio(albedo, hit.interpolate(&a[i]), self.flat.varies(i)));
+                hit.interpolate(&v[i]) * ratio
             });
             poly + indirect
         };
