@@ -29,17 +29,22 @@ impl From<WindowArg> for Window {
 #[derive(clap::Args, Debug, Clone)]
 pub struct PrtArgs {
     /// SH order n (n² coefficients per vertex); default: chosen from the error budget.
-    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=16))]
+    #[arg(long, value_parser = within(prt::ORDERS))]
     pub sh_order: Option<u32>,
     /// Environment regions for shadows between groups; default: chosen from the error budget.
-    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=256))]
+    #[arg(long, value_parser = within(prt::REGION_COUNTS))]
     pub regions: Option<u32>,
     /// Window against SH ringing; default: chosen from the error budget.
     #[arg(long, value_enum)]
     pub sh_window: Option<WindowArg>,
     /// Transfer directions per vertex (stratified; rounded down to a square).
-    #[arg(long, default_value_t = 1024, value_parser = clap::value_parser!(u32).range(4..=65536))]
+    #[arg(long, default_value_t = 1024, value_parser = within(prt::DIRECTION_COUNTS))]
     pub directions: u32,
+}
+
+/// A parser for a count within `r`.
+fn within(r: std::ops::RangeInclusive<usize>) -> clap::builder::RangedU64ValueParser<u32> {
+    clap::builder::RangedU64ValueParser::new().range(*r.start() as u64..=*r.end() as u64)
 }
 
 /// The budget PRT chooses its parameters with when none is given.

@@ -51,9 +51,9 @@ impl BakeOptions {
     /// The plan for a snapshot: BSPVT with polygonal lights, PRT (parameters planned or given)
     /// with an environment.
     pub fn plan(&self, store: &Store, scene: &Scene, flat: &FlatScene) -> Result<Plan> {
-        anyhow::ensure!((4..=1024).contains(&self.face_res), "--face-res must be in 4..=1024");
-        anyhow::ensure!(self.epsilon >= 0.0, "--epsilon must be ≥ 0");
-        let bspvt = Some(bspvt::Settings { res: self.face_res, epsilon: self.epsilon });
+        let bspvt = bspvt::Settings { res: self.face_res, epsilon: self.epsilon };
+        bspvt.check().map_err(|e| anyhow::anyhow!("--face-res/--epsilon: {e}"))?;
+        let bspvt = Some(bspvt);
         let prt = flat
             .environment
             .is_some()

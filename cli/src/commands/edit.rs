@@ -46,14 +46,15 @@ impl Args {
         if let Some(d) = &shader_dir {
             anyhow::ensure!(d.is_dir(), "{}: no such shader folder", d.display());
         }
-        anyhow::ensure!((4..=1024).contains(&self.face_res), "--face-res must be in 4..=1024");
+        let bspvt = bspvt::Settings { res: self.face_res, epsilon: self.epsilon };
+        bspvt.check().map_err(|e| anyhow::anyhow!("--face-res/--epsilon: {e}"))?;
         Ok(state::Options {
             scene_path: self.scene.scene.clone(),
             env_path: self.scene.env.clone(),
             import: self.scene.import_options(),
             shader_dir,
             db_path: self.db.path(&self.scene),
-            bspvt: bspvt::Settings { res: self.face_res, epsilon: self.epsilon },
+            bspvt,
             prt: prt::Settings::default(),
             cache: Default::default(),
             prt_budget: Some(crate::prt_args::DEFAULT_BUDGET),

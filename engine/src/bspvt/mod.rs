@@ -67,6 +67,23 @@ impl Default for Settings {
     }
 }
 
+/// The cube-face resolutions kage bakes and reads.
+pub const FACE_RESOLUTIONS: std::ops::RangeInclusive<usize> = 4..=1024;
+
+impl Settings {
+    /// Checks the settings against [`FACE_RESOLUTIONS`] and a finite, non-negative ε (a pack
+    /// may declare any numbers; work is sized by them).
+    pub fn check(&self) -> Result<(), String> {
+        if !FACE_RESOLUTIONS.contains(&self.res) {
+            return Err(format!("face resolution {} is outside {FACE_RESOLUTIONS:?}", self.res));
+        }
+        if !(self.epsilon.is_finite() && self.epsilon >= 0.0) {
+            return Err(format!("split threshold {} is not a finite number ≥ 0", self.epsilon));
+        }
+        Ok(())
+    }
+}
+
 /// Baked trees of one mesh instance: vertex `v`'s record is `data[offsets[v]..offsets[v + 1]]`.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct BakedInstance {

@@ -178,8 +178,8 @@ pub fn run(args: &Args) -> Result<()> {
     if args.spp == 0 {
         bail!("--spp must be at least 1");
     }
-    if !(4..=1024).contains(&args.face_res) || args.epsilon.is_nan() || args.epsilon < 0.0 {
-        bail!("--face-res must be in 4..=1024 and --epsilon ≥ 0");
+    if let Err(e) = (bspvt::Settings { res: args.face_res, epsilon: args.epsilon }).check() {
+        bail!("--face-res/--epsilon: {e}");
     }
     if args.error_budget.is_some_and(|b| !(b > 0.0 && b < 1.0)) {
         bail!("--error-budget is a relative error in (0, 1), e.g. 0.01");
