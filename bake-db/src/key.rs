@@ -25,6 +25,11 @@ impl Key {
     pub fn short(&self) -> String {
         self.0[..8].iter().map(|b| format!("{b:02x}")).collect()
     }
+
+    /// All 32 bytes in hex.
+    pub fn hex(&self) -> String {
+        self.0.iter().map(|b| format!("{b:02x}")).collect()
+    }
 }
 
 /// Builds a key from tagged fields.

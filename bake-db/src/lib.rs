@@ -38,6 +38,7 @@ pub mod plan;
 pub mod prt_budget;
 pub mod records;
 pub mod run;
+pub mod shard;
 pub mod store;
 
 pub use key::Key;

@@ -186,6 +186,37 @@ impl Plan {
     pub fn keys(&self) -> Vec<Key> {
         self.jobs.iter().map(|j| j.key).collect()
     }
+
+    /// Seconds per vertex of a technique on one worker before any bake measured it (the
+    /// defaults of `docs/bake-db.md`): BSPVT ≈ 10 ms at 64² faces, ∝ res²; PRT ≈ 80 µs at 1024
+    /// directions, ∝ directions.
+    pub fn default_seconds_per_vertex(&self, kind: Kind) -> f64 {
+        match kind {
+            Kind::Bspvt => self.bspvt.map_or(0.0, |s| 1e-2 * (s.res as f64 / 64.0).powi(2)),
+            Kind::Prt => self.prt.map_or(0.0, |s| 8e-5 * s.direction_side().pow(2) as f64 / 1024.0),
+        }
+    }
+
+    /// The work of a job in full-vertex units: a BSPVT vertex casts only the share of its tiles
+    /// the lights can reach. Deterministic: summed in vertex order whatever the thread count.
+    pub fn work(&self, flat: &FlatScene, job: &Job) -> f64 {
+        use rayon::prelude::*;
+        match (job.kind, self.bspvt, &self.reach) {
+            (Kind::Bspvt, Some(s), reach @ bspvt::reach::Reach::Within(_)) => {
+                let shares: Vec<f64> = job
+                    .vertices
+                    .clone()
+                    .into_par_iter()
+                    .map(|v| {
+                        let (p, n) = flat.vertex(job.instance, v);
+                        reach.share(p, n, s.res)
+                    })
+                    .collect();
+                shares.iter().sum()
+            }
+            _ => job.vertices.len() as f64,
+        }
+    }
 }
 
 /// Plans the bakes of a snapshot: BSPVT when it has polygonal lights and `bspvt` is given, PRT

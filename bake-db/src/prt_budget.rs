@@ -30,14 +30,7 @@ pub fn choose(
         return Ok(*base);
     };
     let (s, pilot) = order(store, scene, flat, env, budget, base, note)?;
-    let name = format!(
-        "prt-regions/{}",
-        key(scene, flat, budget, base.directions, true)
-            .u64("order", s.order as u64)
-            .u64("window", window_index(s.window) as u64)
-            .finish()
-            .short()
-    );
+    let name = regions_name(scene, flat, budget, &s);
     if let Some(&[q]) = store.meta(&name)?.as_deref() {
         note(format!("{q} regions (cached plan)"));
         return Ok(prt::Settings { regions: q as usize, ..s });
@@ -52,6 +45,40 @@ pub fn choose(
     Ok(s)
 }
 
+/// The settings [`choose`] recorded in `store` for `scene`, without choosing any (what every
+/// shard of a sharded bake reads from the base database); `None` when not all are recorded.
+pub fn recorded(
+    store: &Store,
+    scene: &Scene,
+    flat: &FlatScene,
+    budget: f64,
+    base: &prt::Settings,
+) -> Result<Option<prt::Settings>> {
+    if flat.environment.is_none() {
+        return Ok(Some(*base));
+    }
+    let Some(&[order, w]) = store.meta(&order_name(scene, flat, budget, base))?.as_deref() else { return Ok(None) };
+    let Some(&window) = WINDOWS.get(w as usize) else { return Ok(None) };
+    let s = prt::Settings { order: order as usize, window, ..*base };
+    Ok(match store.meta(&regions_name(scene, flat, budget, &s))?.as_deref() {
+        Some(&[q]) => Some(prt::Settings { regions: q as usize, ..s }),
+        _ => None,
+    })
+}
+
+/// The metadata name of the order and window chosen for `scene`.
+fn order_name(scene: &Scene, flat: &FlatScene, budget: f64, base: &prt::Settings) -> String {
+    format!("prt-order/{}", key(scene, flat, budget, base.directions, false).finish().short())
+}
+
+/// The metadata name of the region count chosen for `scene` at the order and window of `s`.
+fn regions_name(scene: &Scene, flat: &FlatScene, budget: f64, s: &prt::Settings) -> String {
+    let key = key(scene, flat, budget, s.directions, true)
+        .u64("order", s.order as u64)
+        .u64("window", window_index(s.window) as u64);
+    format!("prt-regions/{}", key.finish().short())
+}
+
 /// The chosen order and window, from the store or measured (then also the pilot).
 fn order(
     store: &Store,
@@ -62,7 +89,7 @@ fn order(
     base: &prt::Settings,
     note: &mut dyn FnMut(String),
 ) -> Result<(prt::Settings, Option<prt::Bake>)> {
-    let name = format!("prt-order/{}", key(scene, flat, budget, base.directions, false).finish().short());
+    let name = order_name(scene, flat, budget, base);
     if let Some(&[order, w]) = store.meta(&name)?.as_deref()
         && let Some(&window) = WINDOWS.get(w as usize)
     {

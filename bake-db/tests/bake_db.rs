@@ -621,3 +621,93 @@ fn a_flipped_bit_in_a_stored_artefact_is_baked_again_never_shaded() {
     assert_eq!(store.get::<u8>(&p.jobs[k].key).unwrap().unwrap(), bytes[k], "the same bytes as before the damage");
     assert!(load(&store, &flat, &p).unwrap().is_some(), "loads again once replaced");
 }
+
+/// Every artefact of a database as (key, kind, parameters, checksum, size): what a merge must
+/// reproduce (timings recorded beside them may differ).
+fn contents(path: &std::path::Path) -> Vec<(kage_bake_db::Key, String, String, [u8; 32], usize)> {
+    let store = Store::open_read_only(path).unwrap();
+    store.artefacts().unwrap().into_iter().map(|(k, i, n)| (k, i.kind, i.params, i.checksum, n)).collect()
+}
+
+/// Shards split the misses (each chunk in exactly one shard, loads balanced); their databases
+/// merged equal a single-machine bake artefact for artefact; a missing shard leaves exactly its
+/// chunks to bake; merging again adds nothing.
+#[test]
+fn shards_merged_equal_a_single_machine_bake() {
+    use kage_bake_db::shard::{self, Shard};
+    let s = scene("");
+    let flat = flatten(&s);
+    let single = scratch("shard-single");
+    bake(&Store::open(&single).unwrap(), &s);
+    let probe = Store::open(&scratch("shard-probe")).unwrap();
+    let p = plan(&probe, &s, &flat, Some(BSPVT), Some(prt_settings())).unwrap();
+    let n = 3;
+    let split = shard::split(&p, &flat, n);
+    assert!(split.owner.iter().all(|o| o.is_some_and(|i| i < n)), "every chunk in exactly one shard");
+    let (lo, hi) = split.load.iter().fold((f64::MAX, 0f64), |(lo, hi), l| (lo.min(*l), hi.max(*l)));
+    // Greedy dealing, costliest first: no shard exceeds another by more than one chunk's cost.
+    let costliest = p.jobs.iter().map(|j| p.default_seconds_per_vertex(j.kind) * p.work(&flat, j)).fold(0.0, f64::max);
+    assert!(hi - lo <= costliest, "balanced: {:?}, costliest chunk {costliest}", split.load);
+    assert_eq!(split, shard::split(&p, &flat, n), "deterministic");
+    let shards: Vec<PathBuf> = (0..n).map(|i| scratch(&format!("shard-{i}"))).collect();
+    for (index, path) in shards.iter().enumerate() {
+        let mine = p.shard(&split, Shard { index, count: n });
+        assert_eq!(mine.misses().count(), split.owner.iter().filter(|o| **o == Some(index)).count());
+        kage_bake_db::bake(&Store::open(path).unwrap(), &s, &flat, &mine, &|_| {}).unwrap();
+    }
+    let merged_path = scratch("shard-merged");
+    let merged = Store::open(&merged_path).unwrap();
+    for path in &shards[..n - 1] {
+        merged.merge_from(&Store::open_read_only(path).unwrap()).unwrap();
+    }
+    // Shard n−1 missing: the merged plan reports exactly its chunks.
+    let after = plan(&merged, &s, &flat, Some(BSPVT), Some(prt_settings())).unwrap();
+    let last = split.owner.iter().filter(|o| **o == Some(n - 1)).count();
+    assert_eq!(after.misses().count(), last);
+    let stats = merged.merge_from(&Store::open_read_only(&shards[n - 1]).unwrap()).unwrap();
+    assert_eq!(stats.added, last);
+    let again = merged.merge_from(&Store::open_read_only(&shards[0]).unwrap()).unwrap();
+    assert_eq!((again.added, again.bytes), (0, 0), "merging is idempotent");
+    drop(merged);
+    assert!(contents(&merged_path) == contents(&single), "the merge equals the single-machine bake");
+}
+
+/// A merge refuses, naming both files, a key whose bytes differ; refuses artefacts of another
+/// algorithm version or damaged ones; a read-only database refuses writes.
+#[test]
+fn merges_refuse_conflicting_foreign_and_damaged_artefacts() {
+    use kage_bake_db::store::Info;
+    let key = kage_bake_db::key::KeyHasher::new("test").u64("n", 1).finish();
+    let info = |bytes: &[u8], algorithm: u32| Info {
+        kind: "prt".into(),
+        params: format!("order 3, 256 directions, algorithm {algorithm}"),
+        seconds: 0.1,
+        vertices: 1,
+        checksum: *blake3::hash(bytes).as_bytes(),
+    };
+    let db = |name: &str, bytes: &[u8], algorithm: u32, checksum_of: &[u8]| {
+        let path = scratch(name);
+        let store = Store::open(&path).unwrap();
+        let info = Info { checksum: *blake3::hash(checksum_of).as_bytes(), ..info(bytes, algorithm) };
+        store.put_batch(&[(key, bytes.to_vec(), info)], &[]).unwrap();
+        path
+    };
+    let v = prt::ALGORITHM_VERSION;
+    let (a, b) = (db("merge-a", b"one", v, b"one"), db("merge-b", b"two", v, b"two"));
+    let out = Store::open(&a).unwrap();
+    let e = out.merge_from(&Store::open_read_only(&b).unwrap()).unwrap_err().to_string();
+    assert!(e.contains("merge-a") && e.contains("merge-b") && e.contains("same bake key"), "{e}");
+    let old = db("merge-old", b"two", v + 1, b"two");
+    let e = out.merge_from(&Store::open_read_only(&old).unwrap()).unwrap_err().to_string();
+    assert!(e.contains("merge-old") && e.contains(&format!("algorithm {}", v + 1)), "{e}");
+    let damaged = db("merge-damaged", b"two", v, b"tw0");
+    let e = out.merge_from(&Store::open_read_only(&damaged).unwrap()).unwrap_err().to_string();
+    assert!(e.contains("merge-damaged") && e.contains("checksum"), "{e}");
+    drop(out);
+    assert_eq!(contents(&a).len(), 1, "nothing of a refused batch was merged");
+    let ro = Store::open_read_only(&a).unwrap();
+    let e = ro.put_meta("x", b"y").unwrap_err().to_string();
+    assert!(e.contains("read-only"), "{e}");
+    let e = Store::open_read_only(&scratch("merge-none")).err().unwrap().to_string();
+    assert!(e.contains("no bake database"), "{e}");
+}

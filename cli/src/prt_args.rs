@@ -95,4 +95,29 @@ impl PrtArgs {
         let note = &mut |line: String| crate::emit(&format!("plan: {line}\n"));
         Ok(kage_bake_db::prt_budget::choose(store, scene, flat, budget, &self.base(), note)?)
     }
+
+    /// The settings given on the command line, else the parameter plan `base` records (an error
+    /// naming what to run when it has none).
+    pub fn settings_recorded(
+        &self,
+        base: Option<&kage_bake_db::Store>,
+        scene: &Scene,
+        flat: &FlatScene,
+        budget: Option<f64>,
+    ) -> anyhow::Result<prt::Settings> {
+        if let Some(s) = self.explicit() {
+            return Ok(s);
+        }
+        let budget = budget.unwrap_or(DEFAULT_BUDGET);
+        let recorded = match base {
+            Some(b) => kage_bake_db::prt_budget::recorded(b, scene, flat, budget, &self.base())?,
+            None => None,
+        };
+        recorded.ok_or_else(|| {
+            let at = base.map_or("BASE.redb".into(), |b| b.path().display().to_string());
+            anyhow::anyhow!(
+                "the scene has an environment and {at} holds no PRT parameter plan for it: run `kage bake SCENE --db {at} --dry-run` once before the shards and pass --base {at} to each (or give --sh-order, --regions and --sh-window)"
+            )
+        })
+    }
 }

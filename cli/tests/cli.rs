@@ -1,27 +1,12 @@
 //! The `kage` binary as a user runs it: outputs, exit codes, error messages, determinism.
 
 use kage_engine::output::read_vertex_csv;
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::path::Path;
+use std::process::Command;
 
-fn kage(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_kage")).args(args).output().expect("kage runs")
-}
+mod common;
 
-fn scratch(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("kage-cli-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn asset(rel: &str) -> String {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets").join(rel).display().to_string()
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
+use common::{asset, kage, scratch, stderr};
 
 #[test]
 fn info_describes_the_default_scene() {

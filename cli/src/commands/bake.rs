@@ -1,17 +1,20 @@
 //! `kage bake`: plan the scene's bakes against the database, print the plan, bake the misses
-//! (progress, ETA), and with `--watch` do it again whenever the scene file changes.
+//! (progress, ETA), and with `--watch` do it again whenever the scene file changes. With
+//! `--shard I/N`, bake one deterministic share of the misses into a database of its own (see
+//! `docs/sharded-bakes.md`).
 
 use crate::db_args::DbArgs;
 use crate::progress::with_bar;
 use crate::prt_args::PrtArgs;
 use crate::scene_args::SceneArgs;
 use anyhow::Result;
-use kage_bake_db::plan::{Job, Kind, Plan};
+use kage_bake_db::plan::{Kind, Plan};
+use kage_bake_db::shard::{self, Shard};
 use kage_bake_db::{Store, plan};
 use kage_engine::bspvt;
 use kage_engine::scene::{FlatScene, Scene, flatten};
-use rayon::prelude::*;
 use std::collections::BTreeMap;
+use std::path::PathBuf;
 use std::time::Instant;
 
 /// Arguments of `kage bake`.
@@ -25,8 +28,16 @@ pub struct Args {
     #[arg(long)]
     pub dry_run: bool,
     /// Re-plan and re-bake whenever the scene file changes on disk.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "shard")]
     pub watch: bool,
+    /// Bake only shard I of N (0-based, e.g. 2/8) of the missing chunks, into --db; merge the
+    /// shards' databases with `kage db merge`.
+    #[arg(long, value_name = "I/N", requires = "db")]
+    pub shard: Option<Shard>,
+    /// A database every shard reads, never writes: the parameter plan (`kage bake --dry-run
+    /// --db BASE` makes it) and the chunks already baked, which no shard bakes again.
+    #[arg(long, value_name = "BASE.redb", requires = "shard")]
+    pub base: Option<PathBuf>,
     #[command(flatten)]
     pub(crate) options: BakeOptions,
 }
@@ -61,15 +72,76 @@ impl BakeOptions {
             .transpose()?;
         Ok(plan(store, scene, flat, bspvt, prt)?)
     }
+
+    /// The plan a shard deals from: against `base` (every chunk missing without one), with the
+    /// parameter plan `base` records — the shards never choose parameters themselves, so they
+    /// all bake with the same ones.
+    pub fn shard_plan(&self, own: &Store, base: Option<&Store>, scene: &Scene, flat: &FlatScene) -> Result<Plan> {
+        let bspvt = bspvt::Settings { res: self.face_res, epsilon: self.epsilon };
+        bspvt.check().map_err(|e| anyhow::anyhow!("--face-res/--epsilon: {e}"))?;
+        let prt = match flat.environment {
+            None => None,
+            Some(_) => Some(self.prt.settings_recorded(base, scene, flat, self.error_budget)?),
+        };
+        let mut plan = plan(base.unwrap_or(own), scene, flat, Some(bspvt), prt)?;
+        if base.is_none() {
+            // Without a base nothing counts as cached, whatever the shard's own database holds.
+            plan.jobs.iter_mut().for_each(|j| j.cached = false);
+        }
+        Ok(plan)
+    }
 }
 
 /// Runs the command.
 pub fn run(args: &Args) -> Result<()> {
+    if let Some(shard) = args.shard {
+        return bake_shard(args, shard);
+    }
     let store = args.db.open(&args.scene)?;
     bake_once(args, &store)?;
     if args.watch {
         crate::watch::on_change(args.scene.scene.as_deref(), || bake_once(args, &store))?;
     }
+    Ok(())
+}
+
+/// Bakes one shard: plans against the base (read-only) with the base's parameter plan, deals
+/// the misses, and bakes this shard's share into its own database.
+fn bake_shard(args: &Args, shard: Shard) -> Result<()> {
+    let store = args.db.open(&args.scene)?;
+    let base = args.base.as_deref().map(Store::open_read_only).transpose()?;
+    let scene = args.scene.load()?;
+    let flat = flatten(&scene);
+    let start = Instant::now();
+    let plan = args.options.shard_plan(&store, base.as_ref(), &scene, &flat)?;
+    let split = shard::split(&plan, &flat, shard.count);
+    // Chunks this shard committed in an earlier, interrupted run are not baked again.
+    let mut mine = plan.shard(&split, shard);
+    let present = store.contains_all(&mine.keys())?;
+    mine.jobs.iter_mut().zip(present).for_each(|(j, p)| j.cached |= p);
+    print_plan(&store, &scene, &flat, &mine, start.elapsed().as_secs_f64())?;
+    let taken = split.owner.iter().filter(|o| **o == Some(shard.index)).count();
+    crate::emit(&format!(
+        "shard {shard}: {taken} of {} missing chunks (estimated {:.1} s on one worker; the shards' range {:.1}–{:.1} s), {} already in {}\n",
+        split.owner.iter().flatten().count(),
+        split.load[shard.index],
+        split.load.iter().copied().fold(f64::INFINITY, f64::min),
+        split.load.iter().copied().fold(0.0, f64::max),
+        taken - mine.misses().count(),
+        store.path().display()
+    ));
+    if args.dry_run || mine.misses().next().is_none() {
+        return Ok(());
+    }
+    let total: usize = mine.misses().map(|j| j.vertices.len()).sum();
+    let s = with_bar(total, "baking", |p| kage_bake_db::bake(&store, &scene, &flat, &mine, p))?;
+    crate::emit(&format!(
+        "shard {shard}: baked {} chunks ({} vertices) in {:.2} s into {}\n",
+        s.cold + s.warm,
+        s.vertices_baked,
+        s.seconds,
+        store.path().display()
+    ));
     Ok(())
 }
 
@@ -112,20 +184,15 @@ pub fn print_plan(store: &Store, scene: &Scene, flat: &FlatScene, plan: &Plan, p
         r.1 += usize::from(j.cached);
         if !j.cached {
             r.2 += j.vertices.len();
-            r.3 += work(flat, plan, j);
+            r.3 += plan.work(flat, j);
         }
     }
     // Seconds per vertex on one worker: measured by earlier bakes with the same parameters in
-    // this database, else the default rates of docs/bake-db.md (BSPVT ≈ 10 ms per vertex at 64², ∝ res²; PRT
-    // ≈ 80 µs per vertex at 1024 directions, ∝ directions).
+    // this database, else the defaults.
     let mut rate = std::collections::HashMap::new();
     for kind in [Kind::Bspvt, Kind::Prt] {
         let measured = store.seconds_per_vertex(kind.name(), &plan.params(kind))?;
-        let default = match kind {
-            Kind::Bspvt => plan.bspvt.map_or(0.0, |s| 1e-2 * (s.res as f64 / 64.0).powi(2)),
-            Kind::Prt => plan.prt.map_or(0.0, |s| 8e-5 * s.direction_side().pow(2) as f64 / 1024.0),
-        };
-        rate.insert(kind.name(), (measured.unwrap_or(default), measured.is_some()));
+        rate.insert(kind.name(), (measured.unwrap_or(plan.default_seconds_per_vertex(kind)), measured.is_some()));
     }
     // Measured rates already hold the reach's savings (the same parameters, reach included).
     let cost = |kind: &str, vertices: usize, work: f64| {
@@ -165,21 +232,4 @@ pub fn print_plan(store: &Store, scene: &Scene, flat: &FlatScene, plan: &Plan, p
     );
     crate::emit(&out);
     Ok(())
-}
-
-/// The work of a job in full-vertex units: a BSPVT vertex casts only the share of its tiles
-/// the lights can reach.
-fn work(flat: &FlatScene, plan: &Plan, job: &Job) -> f64 {
-    match (job.kind, plan.bspvt, &plan.reach) {
-        (Kind::Bspvt, Some(s), reach @ bspvt::reach::Reach::Within(_)) => job
-            .vertices
-            .clone()
-            .into_par_iter()
-            .map(|v| {
-                let (p, n) = flat.vertex(job.instance, v);
-                reach.share(p, n, s.res)
-            })
-            .sum(),
-        _ => job.vertices.len() as f64,
-    }
 }

@@ -1,8 +1,10 @@
-//! `kage db`: inspect, check and clean the bake database.
+//! `kage db`: inspect, check, list, clean and merge bake databases.
 
 use crate::db_args::DbArgs;
 use crate::scene_args::SceneArgs;
-use anyhow::Result;
+use anyhow::{Context, Result};
+use kage_bake_db::Store;
+use std::path::PathBuf;
 
 /// Arguments of `kage db`.
 #[derive(clap::Args, Debug)]
@@ -20,6 +22,17 @@ enum Action {
     Check(Target),
     /// Drop artefacts that no baked scene references.
     Gc(Target),
+    /// List every artefact: key, kind, bytes, checksum and parameters (no timings), by key.
+    List(Target),
+    /// Merge databases (e.g. the shards of a `kage bake --shard` run) into OUT, checking every
+    /// artefact's checksum and version; OUT is created if missing.
+    Merge {
+        /// The database to merge into.
+        out: PathBuf,
+        /// The databases to merge (read-only).
+        #[arg(required = true)]
+        inputs: Vec<PathBuf>,
+    },
 }
 
 #[derive(clap::Args, Debug)]
@@ -71,6 +84,41 @@ pub fn run(args: &Args) -> Result<()> {
             let dropped = store.gc()?;
             crate::emit(&format!("{}: dropped {dropped} unreferenced artefacts\n", store.path().display()));
         }
+        Action::List(t) => {
+            let store = Store::open_read_only(&t.db.path(&t.scene))?;
+            let mut out = String::new();
+            for (key, info, bytes) in store.artefacts()? {
+                let sum: String = info.checksum.iter().map(|b| format!("{b:02x}")).collect();
+                out += &format!("{} {} {bytes} {sum} {}\n", key.hex(), info.kind, info.params);
+            }
+            crate::emit(&out);
+        }
+        Action::Merge { out, inputs } => merge(out, inputs)?,
+    }
+    Ok(())
+}
+
+/// Merges `inputs` into `out`, one after another, reporting each.
+fn merge(out: &std::path::Path, inputs: &[PathBuf]) -> Result<()> {
+    let target = Store::open(out)?;
+    let canonical = |p: &std::path::Path| std::fs::canonicalize(p).ok();
+    for input in inputs {
+        anyhow::ensure!(canonical(input) != canonical(out), "{}: is the database being merged into", input.display());
+        let start = std::time::Instant::now();
+        let source = Store::open_read_only(input)?;
+        let s = target
+            .merge_from(&source)
+            .with_context(|| format!("merging {} into {}", input.display(), out.display()))?;
+        let secs = start.elapsed().as_secs_f64();
+        crate::emit(&format!(
+            "{}: {} artefacts merged ({:.2} MB, {:.0} MB/s), {} already in {}\n",
+            input.display(),
+            s.added,
+            s.bytes as f64 / 1e6,
+            s.bytes as f64 / 1e6 / secs.max(1e-9),
+            s.present,
+            out.display()
+        ));
     }
     Ok(())
 }

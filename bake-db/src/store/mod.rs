@@ -9,6 +9,10 @@ use redb::{Database, ReadableDatabase, ReadableTable, ReadableTableMetadata, Tab
 use std::collections::HashSet;
 use std::path::{Path, PathBuf};
 
+mod merge;
+
+pub use merge::MergeStats;
+
 /// Bumped when a table's meaning or an artefact layout changes incompatibly.
 pub const SCHEMA_VERSION: u32 = 1;
 
@@ -94,6 +98,20 @@ pub struct Info {
     pub checksum: [u8; 32],
 }
 
+impl Info {
+    /// The metadata recorded as `json` beside an artefact (`None` when unreadable).
+    pub fn parse(json: &str) -> Option<Info> {
+        let v: serde_json::Value = serde_json::from_str(json).ok()?;
+        Some(Info {
+            kind: v.get("kind")?.as_str()?.to_string(),
+            params: v.get("params")?.as_str()?.to_string(),
+            seconds: v.get("seconds")?.as_f64()?,
+            vertices: v.get("vertices")?.as_u64()? as usize,
+            checksum: checksum_of(json)?,
+        })
+    }
+}
+
 /// An open bake database.
 pub struct Store {
     db: Handle,
@@ -102,19 +120,32 @@ pub struct Store {
 
 /// The redb handle, closed inside a panic guard: redb commits its allocator state when a
 /// database is dropped, and asserts on some damaged pages there.
-struct Handle(Option<Database>);
+struct Handle(Option<Db>);
 
-impl std::ops::Deref for Handle {
-    type Target = Database;
-
-    fn deref(&self) -> &Database {
-        self.0.as_ref().expect("open until dropped")
-    }
+/// A database opened for writing, or read-only (many processes may read one file at once).
+enum Db {
+    Writable(Database),
+    ReadOnly(redb::ReadOnlyDatabase),
 }
 
-impl std::ops::DerefMut for Handle {
-    fn deref_mut(&mut self) -> &mut Database {
-        self.0.as_mut().expect("open until dropped")
+impl Handle {
+    fn db(&self) -> &Db {
+        self.0.as_ref().expect("open until dropped")
+    }
+
+    fn begin_read(&self) -> std::result::Result<redb::ReadTransaction, redb::TransactionError> {
+        match self.db() {
+            Db::Writable(d) => d.begin_read(),
+            Db::ReadOnly(d) => d.begin_read(),
+        }
+    }
+
+    /// The writable database; `None` when opened read-only.
+    fn writable(&mut self) -> Option<&mut Database> {
+        match self.0.as_mut() {
+            Some(Db::Writable(d)) => Some(d),
+            _ => None,
+        }
     }
 }
 
@@ -167,10 +198,34 @@ impl Store {
                 other => DbError::Corrupted { path: path.to_path_buf(), detail: other.to_string() },
             })
         })?;
-        let store = Self { db: Handle(Some(db)), path: path.to_path_buf() };
+        let store = Self { db: Handle(Some(Db::Writable(db))), path: path.to_path_buf() };
         store.init()?;
         sweep_partials(path, dir);
         Ok(store)
+    }
+
+    /// Opens the existing database at `path` for reading only: any number of processes may
+    /// (e.g. every shard of a bake reading its base), none while one has it open for writing.
+    /// Every write through it is an error.
+    pub fn open_read_only(path: &Path) -> Result<Self> {
+        if !path.is_file() {
+            return Err(DbError::Storage { path: path.to_path_buf(), detail: "no bake database here".into() });
+        }
+        let db = contained(path, || {
+            redb::ReadOnlyDatabase::open(path).map_err(|e| match e {
+                redb::DatabaseError::DatabaseAlreadyOpen => DbError::Locked(path.to_path_buf()),
+                other => DbError::Corrupted { path: path.to_path_buf(), detail: other.to_string() },
+            })
+        })?;
+        let store = Self { db: Handle(Some(Db::ReadOnly(db))), path: path.to_path_buf() };
+        match store.read(|t| Ok(t.open_table(META)?.get("schema_version")?.map(|v| v.value().to_vec())))? {
+            Some(v) if v == SCHEMA_VERSION.to_le_bytes() => Ok(store),
+            found => Err(DbError::Schema {
+                path: path.to_path_buf(),
+                found: found.and_then(|v| v.try_into().ok()).map_or(0, u32::from_le_bytes),
+                expected: SCHEMA_VERSION,
+            }),
+        }
     }
 
     /// Writes an initialised database beside `path` and links it there unless another process
@@ -182,7 +237,7 @@ impl Store {
         let redb = |e: redb::DatabaseError| storage(path, redb::Error::from(e));
         let backend = redb::backends::FileBackend::new(partial.reopen().map_err(io)?).map_err(redb)?;
         let db = Database::builder().create_with_backend(backend).map_err(redb)?;
-        Self { db: Handle(Some(db)), path: path.to_path_buf() }.init()?;
+        Self { db: Handle(Some(Db::Writable(db))), path: path.to_path_buf() }.init()?;
         match partial.persist_noclobber(path) {
             Ok(_) => Ok(()),
             Err(e) if e.error.kind() == std::io::ErrorKind::AlreadyExists => Ok(()),
@@ -226,7 +281,10 @@ impl Store {
 
     fn write(&self, f: impl FnOnce(&redb::WriteTransaction) -> std::result::Result<(), redb::Error>) -> Result<()> {
         self.contained(|| {
-            let t = self.db.begin_write().map_err(|e| storage(&self.path, e))?;
+            let Some(Db::Writable(db)) = self.db.0.as_ref() else {
+                return Err(DbError::Storage { path: self.path.clone(), detail: "opened read-only".into() });
+            };
+            let t = db.begin_write().map_err(|e| storage(&self.path, e))?;
             f(&t).map_err(|e| storage(&self.path, e))?;
             t.commit().map_err(|e| storage(&self.path, e))
         })
@@ -452,6 +510,22 @@ impl Store {
         Ok((vertices > 0).then(|| seconds / vertices as f64))
     }
 
+    /// Every artefact's key, metadata and size, by key (unreadable metadata reads as empty).
+    pub fn artefacts(&self) -> Result<Vec<(Key, Info, usize)>> {
+        self.read(|t| {
+            let (a, i) = (t.open_table(ARTEFACTS)?, t.open_table(INFO)?);
+            let mut out = Vec::new();
+            for row in a.iter()? {
+                let (k, v) = row?;
+                let info = i.get(k.value())?.and_then(|j| Info::parse(j.value()));
+                let empty =
+                    Info { kind: String::new(), params: String::new(), seconds: 0.0, vertices: 0, checksum: [0; 32] };
+                out.push((Key::from_slice(k.value()), info.unwrap_or(empty), v.value().len()));
+            }
+            Ok(out)
+        })
+    }
+
     /// Counts of (artefacts, their bytes, meshes, scenes).
     pub fn counts(&self) -> Result<(u64, u64, u64, u64)> {
         self.read(|t| {
@@ -466,10 +540,12 @@ impl Store {
 
     /// Verifies redb's own integrity (repairing what it can) and every artefact's checksum.
     pub fn check(&mut self) -> Result<CheckReport> {
-        let clean = self
-            .db
-            .check_integrity()
-            .map_err(|e| DbError::Corrupted { path: self.path.clone(), detail: e.to_string() })?;
+        let clean = match self.db.writable() {
+            Some(db) => db
+                .check_integrity()
+                .map_err(|e| DbError::Corrupted { path: self.path.clone(), detail: e.to_string() })?,
+            None => true,
+        };
         let bad = self.read(|t| {
             let (a, i) = (t.open_table(ARTEFACTS)?, t.open_table(INFO)?);
             let mut out = Vec::new();

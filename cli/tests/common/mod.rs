@@ -1,0 +1,29 @@
+//! What the `kage` binary's tests share: running it, scratch folders, the repository's assets.
+
+#![allow(dead_code)] // each test binary uses its own subset
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+/// Runs `kage` with `args`.
+pub fn kage(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_kage")).args(args).output().expect("kage runs")
+}
+
+/// A fresh folder for test `name`.
+pub fn scratch(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("kage-cli-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// The path of `rel` under the repository's `assets/`.
+pub fn asset(rel: &str) -> String {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets").join(rel).display().to_string()
+}
+
+/// What `o` wrote to stderr.
+pub fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
