@@ -22,7 +22,7 @@ fn bench(c: &mut Criterion) {
             let artefacts: Vec<_> = (batch * 64..(batch + 1) * 64)
                 .map(|n| {
                     let key = KeyHasher::new("bench").u64("chunk", n).finish();
-                    let bytes: Vec<u8> = (0..CHUNK_BYTES).map(|i| (i as u64 * 2654435761 ^ n) as u8).collect();
+                    let bytes: Vec<u8> = (0..CHUNK_BYTES).map(|i| ((i as u64 * 2654435761) ^ n) as u8).collect();
                     let info = Info {
                         kind: "bspvt".into(),
                         params: format!(
