@@ -3,7 +3,8 @@
 //! The bake database: every baker's results, content-addressed in one redb file per project.
 //!
 //! - [`store`]: the file (schema version; tables for meshes, artefacts, metadata, scenes,
-//!   lineage and bakers' memos), batched writes, integrity check and garbage collection;
+//!   lineage and bakers' memos), batched writes, read-only opens, integrity check, garbage
+//!   collection and merging;
 //! - [`bvhs`]: the BSPVT occluders' BVHs, kept between runs so that an edit rebuilds only
 //!   the BVHs of the instances it touched;
 //! - [`key`]: bake keys, blake3 of everything a result depends on;
@@ -18,7 +19,9 @@
 //!   instead of baking it;
 //! - [`records`]: radiance-cache records, keyed by geometry, materials, direct light and
 //!   settings;
-//! - [`pack`]: asset packs (glTF binary + the `KAGE_baked_shadows` extension) written and read.
+//! - [`pack`]: asset packs (glTF binary + the `KAGE_baked_shadows` extension) written and read;
+//! - [`shard`]: a plan's misses dealt to N shards for farms; [`Store::merge_from`] merges
+//!   their databases (`docs/sharded-bakes.md`).
 //!
 //! ## Guarantees
 //! - **Same inputs, same bytes**: a key covers the mesh content, parameters, algorithm version
