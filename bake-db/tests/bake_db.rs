@@ -710,4 +710,19 @@ fn merges_refuse_conflicting_foreign_and_damaged_artefacts() {
     assert!(e.contains("read-only"), "{e}");
     let e = Store::open_read_only(&scratch("merge-none")).err().unwrap().to_string();
     assert!(e.contains("no bake database"), "{e}");
+    // A truncated shard is refused when opened, naming the file.
+    let cut = scratch("merge-truncated");
+    bake(&Store::open(&cut).unwrap(), &scene(""));
+    let full = std::fs::read(&cut).unwrap();
+    std::fs::write(&cut, &full[..full.len() / 2]).unwrap();
+    match Store::open_read_only(&cut) {
+        Err(e) => assert!(e.to_string().contains("merge-truncated"), "{e}"),
+        // Whatever redb can still read must merge cleanly or be refused by its checksums.
+        Ok(input) => {
+            let out = Store::open(&scratch("merge-truncated-out")).unwrap();
+            if let Err(e) = out.merge_from(&input) {
+                assert!(e.to_string().contains("merge-truncated"), "{e}");
+            }
+        }
+    }
 }
