@@ -218,6 +218,18 @@ fn bad_database_files_give_clear_errors() {
     }
     let e = Store::open(&old).err().expect("another schema is refused");
     assert!(matches!(e, DbError::Schema { found: 99, .. }) && e.to_string().contains("schema version 99"), "{e}");
+    // A symbolic link, dangling or not, is refused: nothing is created at its target.
+    #[cfg(unix)]
+    for target in [scratch("link-target"), old.clone()] {
+        let link = scratch("link").with_file_name("link.redb");
+        let _ = std::fs::remove_file(&link);
+        std::os::unix::fs::symlink(&target, &link).unwrap();
+        let existed = target.exists();
+        let e = Store::open(&link).err().expect("a symlink is refused").to_string();
+        assert!(e.contains("symbolic link") && e.contains("link.redb"), "{e}");
+        assert!(Store::open_read_only(&link).is_err());
+        assert_eq!(target.exists(), existed, "nothing created at the link's target");
+    }
 }
 
 /// The PRT budget's pilot is cached bit for bit, survives moves (it is group-local), and a damaged

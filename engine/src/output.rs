@@ -1,4 +1,5 @@
-//! Writing results: EXR (linear radiance), PNG (exposure + sRGB), and per-vertex CSV.
+//! Writing results: EXR (linear radiance), PNG (exposure + sRGB), and per-vertex CSV — each
+//! through [`write_atomically`].
 
 use crate::math::color;
 use crate::{Error, Result};
@@ -32,23 +33,45 @@ impl ImageFormat {
     }
 }
 
+/// Writes `path` through `fill`, into a temporary file beside it that is then renamed over
+/// `path`: a reader never sees half a file, a failed write leaves the old file, and a symlink
+/// at `path` is replaced, never written through.
+pub fn write_atomically(
+    path: &Path,
+    fill: impl FnOnce(&mut std::fs::File) -> std::io::Result<()>,
+) -> std::io::Result<()> {
+    let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    let mut file = tempfile::Builder::new().prefix(".kage-").suffix(".partial").tempfile_in(dir)?;
+    fill(file.as_file_mut())?;
+    file.as_file().sync_all()?;
+    file.persist(path).map(drop).map_err(|e| e.error)
+}
+
 /// Writes an image by extension: `.exr` keeps linear radiance; `.png` applies `2^exposure`,
 /// clamps and encodes sRGB.
 pub fn write_image(path: &Path, width: usize, height: usize, pixels: &[Vec3], exposure: f32) -> Result<()> {
-    let result = match ImageFormat::of(path)? {
-        ImageFormat::Exr => {
-            let data: Vec<f32> = pixels.iter().flat_map(|p| p.to_array()).collect();
-            image::Rgb32FImage::from_raw(width as u32, height as u32, data).expect("size matches").save(path)
-        }
-        ImageFormat::Png => {
-            let scale = exposure.exp2();
-            let data: Vec<u8> = pixels
-                .iter()
-                .flat_map(|p| (*p * scale).to_array().map(|c| (display_srgb(c) * 255.0 + 0.5) as u8))
-                .collect();
-            image::RgbImage::from_raw(width as u32, height as u32, data).expect("size matches").save(path)
-        }
-    };
+    let format = ImageFormat::of(path)?;
+    let (w, h) = (width as u32, height as u32);
+    let result = write_atomically(path, |file| {
+        let mut out = std::io::BufWriter::new(file);
+        let encoded = match format {
+            ImageFormat::Exr => {
+                let data: Vec<f32> = pixels.iter().flat_map(|p| p.to_array()).collect();
+                let image = image::Rgb32FImage::from_raw(w, h, data).expect("size matches");
+                image.write_to(&mut out, image::ImageFormat::OpenExr)
+            }
+            ImageFormat::Png => {
+                let scale = exposure.exp2();
+                let data: Vec<u8> = pixels
+                    .iter()
+                    .flat_map(|p| (*p * scale).to_array().map(|c| (display_srgb(c) * 255.0 + 0.5) as u8))
+                    .collect();
+                image::RgbImage::from_raw(w, h, data).expect("size matches").write_to(&mut out, image::ImageFormat::Png)
+            }
+        };
+        encoded.map_err(std::io::Error::other)?;
+        out.flush()
+    });
     result.map_err(|e| Error::image(path, format!("cannot write: {e}")))
 }
 
@@ -74,19 +97,20 @@ pub const VERTEX_CSV_HEADER: &str = "node,mesh,primitive,vertex,x,y,z,r,g,b";
 
 /// Writes per-vertex results as CSV (`node,mesh,primitive,vertex,x,y,z,r,g,b`).
 pub fn write_vertex_csv(path: &Path, rows: &[VertexRow]) -> Result<()> {
-    let io = |e| Error::io(path, e);
-    let mut w = std::io::BufWriter::new(std::fs::File::create(path).map_err(io)?);
-    writeln!(w, "{VERTEX_CSV_HEADER}").map_err(io)?;
-    for r in rows {
-        let (p, c) = (r.position, r.radiance);
-        writeln!(
-            w,
-            "{},{},{},{},{},{},{},{},{},{}",
-            r.node, r.mesh, r.primitive, r.vertex, p.x, p.y, p.z, c.x, c.y, c.z
-        )
-        .map_err(io)?;
-    }
-    w.flush().map_err(io)
+    let result = write_atomically(path, |file| {
+        let mut w = std::io::BufWriter::new(file);
+        writeln!(w, "{VERTEX_CSV_HEADER}")?;
+        for r in rows {
+            let (p, c) = (r.position, r.radiance);
+            writeln!(
+                w,
+                "{},{},{},{},{},{},{},{},{},{}",
+                r.node, r.mesh, r.primitive, r.vertex, p.x, p.y, p.z, c.x, c.y, c.z
+            )?;
+        }
+        w.flush()
+    });
+    result.map_err(|e| Error::io(path, e))
 }
 
 /// Reads a CSV written by [`write_vertex_csv`].
@@ -124,6 +148,28 @@ pub fn read_vertex_csv(path: &Path) -> Result<Vec<VertexRow>> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// An image written over a symlink replaces the link and leaves its target alone; a write
+    /// that fails leaves the old file and no temporary file behind.
+    #[cfg(unix)]
+    #[test]
+    fn outputs_replace_symlinks_and_failed_writes_change_nothing() {
+        let dir = tempfile::tempdir().unwrap();
+        let victim = dir.path().join("victim.txt");
+        std::fs::write(&victim, "keep").unwrap();
+        let link = dir.path().join("out.png");
+        std::os::unix::fs::symlink(&victim, &link).unwrap();
+        write_image(&link, 2, 1, &[Vec3::ONE, Vec3::ZERO], 0.0).unwrap();
+        assert_eq!(std::fs::read_to_string(&victim).unwrap(), "keep");
+        assert!(std::fs::read(&link).unwrap().starts_with(b"\x89PNG"));
+        let failed = write_atomically(&victim, |f| {
+            f.write_all(b"half")?;
+            Err(std::io::Error::other("disk full"))
+        });
+        assert!(failed.is_err());
+        assert_eq!(std::fs::read_to_string(&victim).unwrap(), "keep");
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 2, "no temporary file left");
+    }
 
     #[test]
     fn csv_round_trips_exactly() {

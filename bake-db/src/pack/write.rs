@@ -19,11 +19,7 @@ use std::path::Path;
 /// never sees half a pack, and a symlink at `path` is replaced, never written through).
 pub fn write(path: &Path, e: &Export) -> std::io::Result<()> {
     let bytes = encode(e)?;
-    let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
-    let mut file = tempfile::Builder::new().prefix(".kage-pack").suffix(".partial").tempfile_in(dir)?;
-    std::io::Write::write_all(&mut file, &bytes)?;
-    file.as_file().sync_all()?;
-    file.persist(path).map(drop).map_err(|e| e.error)
+    kage_engine::output::write_atomically(path, |file| std::io::Write::write_all(file, &bytes))
 }
 
 /// The pack's bytes.

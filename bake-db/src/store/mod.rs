@@ -187,6 +187,7 @@ impl Store {
     /// A new database is made whole under a temporary name and then linked into place, so a
     /// process killed while creating it never leaves a half-written file at `path`.
     pub fn open(path: &Path) -> Result<Self> {
+        refuse_symlink(path)?;
         let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
         std::fs::create_dir_all(dir).map_err(|e| storage(path, e))?;
         if !path.exists() {
@@ -208,6 +209,7 @@ impl Store {
     /// (e.g. every shard of a bake reading its base), none while one has it open for writing.
     /// Every write through it is an error.
     pub fn open_read_only(path: &Path) -> Result<Self> {
+        refuse_symlink(path)?;
         if !path.is_file() {
             return Err(DbError::Storage { path: path.to_path_buf(), detail: "no bake database here".into() });
         }
@@ -629,6 +631,18 @@ fn sweep_partials(path: &Path, dir: &Path) {
         if name.starts_with(&prefix) && name.ends_with(".partial") && stale.is_some_and(|age| age.as_secs() > 60) {
             let _ = std::fs::remove_file(entry.path());
         }
+    }
+}
+
+/// A database path that is a symbolic link is refused: the file is updated in place, and a
+/// link (dangling ones included) would have kage create or change a file somewhere else.
+fn refuse_symlink(path: &Path) -> Result<()> {
+    match std::fs::symlink_metadata(path) {
+        Ok(m) if m.file_type().is_symlink() => Err(DbError::Storage {
+            path: path.to_path_buf(),
+            detail: "is a symbolic link; a bake database is opened only at its real path (pass that with --db)".into(),
+        }),
+        _ => Ok(()),
     }
 }
 

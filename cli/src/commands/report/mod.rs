@@ -242,8 +242,11 @@ fn write_files(args: &Args, title: &str, header: &str, rows: &[Row]) -> Result<V
     if rays {
         md.push_str("\n![The indirect rows' relative RMSE against rays cast](report-rays.svg)\n\n[report-rays.png](report-rays.png) · [report-rays.svg](report-rays.svg)\n");
     }
-    let write =
-        |name: &str, text: &str| std::fs::write(args.out.join(name), text).with_context(|| format!("writing {name}"));
+    let write = |name: &str, text: &str| {
+        let path = args.out.join(name);
+        kage_engine::output::write_atomically(&path, |f| std::io::Write::write_all(f, text.as_bytes()))
+            .with_context(|| format!("writing {}", path.display()))
+    };
     write("report.md", &md)?;
     write("report.csv", &csv)?;
     plot::write(&args.out, "report", &format!("{title}: error against shade time"), rows, &plot::SHADE_TIME)?;
