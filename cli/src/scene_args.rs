@@ -39,6 +39,14 @@ pub struct SceneArgs {
     /// longest-edge bisection on its Phong surface, e.g. `--refine teapot=17000`; repeatable.
     #[arg(long = "refine", value_name = "NODE=VERTICES", value_parser = parse_refine)]
     pub refinements: Vec<(String, usize)>,
+    /// Refine every receiver where the polygonal lights' shadows need vertices, adding at most
+    /// VERTICES over the scene (adaptive, for the lights as placed; docs/receivers.md).
+    #[arg(long, value_name = "VERTICES")]
+    pub refine_receivers: Option<usize>,
+    /// Largest visibility error (0–1) linear interpolation may make along an edge after
+    /// --refine-receivers.
+    #[arg(long, value_name = "ERROR", default_value_t = 0.1)]
+    pub refine_tolerance: f32,
 }
 
 fn parse_numbers(s: &str, n: usize) -> Result<(String, Vec<f32>), String> {
@@ -120,6 +128,17 @@ impl SceneArgs {
         for (node, offset) in &self.moves {
             let g = scene.find_group(node)?;
             scene.pose_group(g, Quat::IDENTITY, *offset);
+        }
+        if let Some(budget) = self.refine_receivers {
+            let t = self.refine_tolerance;
+            anyhow::ensure!(t > 0.0 && t < 1.0, "--refine-tolerance is a visibility error in (0, 1), got {t}");
+            let settings = kage_engine::receivers::Settings { budget, tolerance: t, ..Default::default() };
+            let report = kage_engine::receivers::refine(&mut scene, &settings)?;
+            let (before, after) = report.iter().fold((0, 0), |(b, a), (x, y)| (b + x, a + y));
+            eprintln!("refined receivers: {before} → {after} vertices (budget {budget}, tolerance {t})");
+            for (i, (b, a)) in report.iter().enumerate().filter(|(_, (b, a))| a > b) {
+                eprintln!("  instance {i:3}: {b} → {a} vertices (+{})", a - b);
+            }
         }
         Ok(scene)
     }

@@ -31,6 +31,7 @@ pub mod math;
 pub mod output;
 pub mod prt;
 pub mod raster;
+pub mod receivers;
 pub mod reference;
 pub mod scene;
 pub mod shading;

@@ -1,13 +1,21 @@
 //! Mesh refinement for per-vertex bakes: a per-vertex method resolves shadows only as finely
-//! as the receiver is tessellated, so a coarse mesh can be refined to a vertex budget.
+//! as the receiver is tessellated, so a coarse mesh can be refined — uniformly to a vertex
+//! budget ([`refine`]), or where a criterion asks ([`Adaptive`], driven by
+//! [`crate::receivers`]).
 //!
-//! Longest-edge bisection (Rivara): the globally longest edge is split at a time, in every
+//! Uniform: longest-edge bisection (Rivara): the globally longest edge is split at a time, in every
 //! triangle that shares it, so the mesh stays conforming (no T-junctions) and, since that edge
 //! is the longest of each of its triangles, angles stay bounded. A new vertex lies on the
 //! edge's Phong-tessellation curve (Boubekeur & Alexa 2008, α = ¾) so a curved surface stays
 //! curved; its normal is the normalised mean of the edge's, and its uv the midpoint. Each split
 //! adds exactly one vertex, so the result has exactly the requested count. Deterministic: ties
 //! between equal lengths go to the smaller vertex pair.
+//!
+//! Adaptive: edges are named by their ends' *positions*, so an edge along a UV seam or a hard
+//! crease (two vertices at one position) is split in every triangle that shares it — one new
+//! vertex per side of the seam, all at one position: no crack, no T-junction. A new vertex is
+//! lifted onto the Phong surface only where every side agrees on the ends' normals (smooth
+//! there); on a crease it stays on the flat edge, so an occluder's silhouette does not move.
 
 use super::mesh::{Mesh, MeshProblem};
 use glam::Vec3;
@@ -31,13 +39,17 @@ struct Refiner {
     uvs1: Vec<glam::Vec2>,
     colors: Vec<Vec3>,
     triangles: Vec<[u32; 3]>,
+    /// Per vertex: the vertex that names its position (itself, unless welded to an earlier one).
+    canon: Vec<u32>,
     users: HashMap<Edge, Vec<u32>>,
     /// (squared length bits, reversed pair): the longest first, then the smallest pair.
     queue: BinaryHeap<(u32, Reverse<Edge>)>,
 }
 
 impl Refiner {
-    fn new(mesh: &Mesh) -> Self {
+    /// A refiner of `mesh`; with `weld`, vertices at one position share their edges.
+    fn new(mesh: &Mesh, weld: bool) -> Self {
+        let canon = if weld { welded(&mesh.positions) } else { (0..mesh.positions.len() as u32).collect() };
         let mut r = Self {
             positions: mesh.positions.clone(),
             normals: mesh.normals.clone(),
@@ -45,6 +57,7 @@ impl Refiner {
             uvs1: mesh.uvs1.clone(),
             colors: mesh.colors.clone(),
             triangles: Vec::with_capacity(mesh.triangles.len()),
+            canon,
             users: HashMap::new(),
             queue: BinaryHeap::new(),
         };
@@ -58,8 +71,13 @@ impl Refiner {
         let t = self.triangles.len() as u32;
         self.triangles.push(tri);
         for k in 0..3 {
-            self.use_edge(edge(tri[k], tri[(k + 1) % 3]), t);
+            self.use_edge(self.named(tri[k], tri[(k + 1) % 3]), t);
         }
+    }
+
+    /// The edge between vertices `a` and `b`, named by their positions' vertices.
+    fn named(&self, a: u32, b: u32) -> Edge {
+        edge(self.canon[a as usize], self.canon[b as usize])
     }
 
     /// Records that triangle `t` uses `e`, queueing `e` when it is new.
@@ -84,11 +102,66 @@ impl Refiner {
         false
     }
 
-    fn split(&mut self, (a, b): Edge, users: &[u32]) {
+    /// Splits edge `e` in every triangle that uses it: one new vertex per distinct pair of
+    /// vertices along it (per side of a seam), all at one position.
+    fn split(&mut self, e: Edge, users: &[u32]) {
+        let sides: Vec<(u32, u32, u32)> = users
+            .iter()
+            .map(|&t| {
+                let tri = self.triangles[t as usize];
+                // Rotate so the split edge is p → q in the triangle's winding.
+                let k = (0..3).find(|&k| self.named(tri[k], tri[(k + 1) % 3]) == e).expect("the edge's user has it");
+                (tri[k], tri[(k + 1) % 3], tri[(k + 2) % 3])
+            })
+            .collect();
+        let position = self.split_point(&sides);
+        let name = self.positions.len() as u32;
+        let mut mids: Vec<((u32, u32), u32)> = Vec::new();
+        for (&t, &(p, q, r)) in users.iter().zip(&sides) {
+            let m = match mids.iter().find(|(pair, _)| *pair == edge(p, q)) {
+                Some(&(_, m)) => m,
+                None => {
+                    let m = self.push_vertex(p, q, position, name, self.triangles[t as usize]);
+                    mids.push((edge(p, q), m));
+                    m
+                }
+            };
+            self.triangles[t as usize] = [p, m, r];
+            let u = self.triangles.len() as u32;
+            self.triangles.push([m, q, r]);
+            let qr = self.users.get_mut(&self.named(q, r)).expect("the triangle's edge is known");
+            *qr.iter_mut().find(|x| **x == t).expect("the edge knows its triangle") = u;
+            let (pm, mq, mr) = (self.named(p, m), self.named(m, q), self.named(m, r));
+            self.use_edge(pm, t);
+            self.use_edge(mq, u);
+            self.use_edge(mr, t);
+            self.use_edge(mr, u);
+        }
+    }
+
+    /// Where a split edge's new vertex goes: on the Phong curve of the first side when every
+    /// side has the same normals at the ends (smooth), else on the flat edge.
+    fn split_point(&self, sides: &[(u32, u32, u32)]) -> Vec3 {
+        let (p, q, r) = sides[0];
+        let normals = |a: u32, b: u32| {
+            let (na, nb) = (self.normals[a as usize], self.normals[b as usize]);
+            if self.canon[a as usize] < self.canon[b as usize] { (na, nb) } else { (nb, na) }
+        };
+        let smooth = sides.iter().all(|&(a, b, _)| normals(a, b) == normals(p, q));
+        if smooth {
+            self.midpoint(p, q, [p, q, r])
+        } else {
+            0.5 * (self.positions[p as usize] + self.positions[q as usize])
+        }
+    }
+
+    /// A new vertex at `position` between `a` and `b` of `tri` (normal, UVs and colour
+    /// interpolated), named `name`.
+    fn push_vertex(&mut self, a: u32, b: u32, position: Vec3, name: u32, tri: [u32; 3]) -> u32 {
         let m = self.positions.len() as u32;
-        let first = self.triangles[users[0] as usize];
-        self.positions.push(self.midpoint(a, b, first));
-        let face = self.face_normal(first);
+        self.positions.push(position);
+        self.canon.push(name);
+        let face = self.face_normal(tri);
         self.normals.push((self.normals[a as usize] + self.normals[b as usize]).normalize_or(face));
         let (a_, b_) = (a as usize, b as usize);
         for uvs in [&mut self.uvs, &mut self.uvs1].into_iter().filter(|u| !u.is_empty()) {
@@ -97,21 +170,7 @@ impl Refiner {
         if !self.colors.is_empty() {
             self.colors.push(0.5 * (self.colors[a_] + self.colors[b_]));
         }
-        for &t in users {
-            let tri = self.triangles[t as usize];
-            // Rotate so the split edge is p → q in the triangle's winding.
-            let k = (0..3).find(|&k| edge(tri[k], tri[(k + 1) % 3]) == (a, b)).expect("the edge's user has it");
-            let (p, q, r) = (tri[k], tri[(k + 1) % 3], tri[(k + 2) % 3]);
-            self.triangles[t as usize] = [p, m, r];
-            let u = self.triangles.len() as u32;
-            self.triangles.push([m, q, r]);
-            let qr = self.users.get_mut(&edge(q, r)).expect("the triangle's edge is known");
-            *qr.iter_mut().find(|x| **x == t).expect("the edge knows its triangle") = u;
-            self.use_edge(edge(p, m), t);
-            self.use_edge(edge(m, q), u);
-            self.use_edge(edge(m, r), t);
-            self.use_edge(edge(m, r), u);
-        }
+        m
     }
 
     /// The edge's midpoint moved onto its Phong-tessellation curve.
@@ -137,10 +196,112 @@ pub fn refine(mesh: &Mesh, target_vertices: usize) -> Result<Mesh, MeshProblem> 
     if mesh.positions.len() >= target_vertices {
         return Ok(mesh.clone());
     }
-    let mut r = Refiner::new(mesh);
+    let mut r = Refiner::new(mesh, false);
     while r.positions.len() < target_vertices && r.split_longest() {}
-    let (m, _) = Mesh::new(r.positions, Some(r.normals), r.uvs, r.triangles, false)?;
-    Ok(m.with_attributes(r.uvs1, r.colors))
+    r.finish()
+}
+
+impl Refiner {
+    /// The refined mesh.
+    fn finish(self) -> Result<Mesh, MeshProblem> {
+        let (m, _) = Mesh::new(self.positions, Some(self.normals), self.uvs, self.triangles, false)?;
+        Ok(m.with_attributes(self.uvs1, self.colors))
+    }
+}
+
+/// Per vertex, the first vertex at the same position (bit for bit).
+fn welded(positions: &[Vec3]) -> Vec<u32> {
+    let mut first: HashMap<[u32; 3], u32> = HashMap::new();
+    positions
+        .iter()
+        .enumerate()
+        .map(|(i, p)| *first.entry(p.to_array().map(f32::to_bits)).or_insert(i as u32))
+        .collect()
+}
+
+/// A mesh refined where a criterion asks, in rounds: list the edges, split the ones it marks.
+/// Edges are named by position (see the module documentation).
+pub struct Adaptive(Refiner);
+
+impl Adaptive {
+    /// Starts from `mesh` (refinement always starts from the source mesh).
+    pub fn new(mesh: &Mesh) -> Self {
+        Self(Refiner::new(mesh, true))
+    }
+
+    /// The current vertex positions (the mesh's frame).
+    pub fn positions(&self) -> &[Vec3] {
+        &self.0.positions
+    }
+
+    /// The current unit vertex normals.
+    pub fn normals(&self) -> &[Vec3] {
+        &self.0.normals
+    }
+
+    /// The current triangles.
+    pub fn triangles(&self) -> &[[u32; 3]] {
+        &self.0.triangles
+    }
+
+    /// Every edge once, as the two vertices that name its ends' positions, in a fixed order.
+    pub fn edges(&self) -> Vec<[u32; 2]> {
+        let mut edges: Vec<[u32; 2]> = self.0.users.keys().map(|&(a, b)| [a, b]).collect();
+        edges.sort_unstable();
+        edges
+    }
+
+    /// Splits `edges` (as [`Adaptive::edges`] names them), longest first, while the mesh has
+    /// fewer than `limit` vertices; returns how many were split. An edge a previous split in
+    /// this call already divided is split no further.
+    pub fn split(&mut self, edges: &[[u32; 2]], limit: usize) -> usize {
+        let length = |e: &[u32; 2]| self.0.positions[e[0] as usize].distance_squared(self.0.positions[e[1] as usize]);
+        let mut order: Vec<(f32, [u32; 2])> = edges.iter().map(|e| (length(e), *e)).collect();
+        order.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
+        let mut done = 0;
+        for (_, [a, b]) in order {
+            if self.0.positions.len() >= limit {
+                break;
+            }
+            if let Some(users) = self.0.users.remove(&(a, b)) {
+                self.0.split((a, b), &users);
+                done += 1;
+            }
+        }
+        done
+    }
+
+    /// For edge `e`, the longest edge of each triangle that uses it (`e` itself where it is
+    /// the longest): splitting those instead keeps triangles well shaped, as Rivara's
+    /// bisection does, and `e` is divided by a later round if it still needs to be.
+    pub fn longest_around(&self, e: [u32; 2]) -> Vec<[u32; 2]> {
+        let r = &self.0;
+        let Some(users) = r.users.get(&(e[0], e[1])) else { return Vec::new() };
+        users
+            .iter()
+            .map(|&t| {
+                let tri = r.triangles[t as usize];
+                let (a, b) = (0..3)
+                    .map(|k| r.named(tri[k], tri[(k + 1) % 3]))
+                    .max_by(|x, y| {
+                        let len = |(a, b): &Edge| r.positions[*a as usize].distance_squared(r.positions[*b as usize]);
+                        len(x).total_cmp(&len(y)).then(y.cmp(x))
+                    })
+                    .expect("three edges");
+                [a, b]
+            })
+            .collect()
+    }
+
+    /// Vertices so far.
+    pub fn vertices(&self) -> usize {
+        self.0.positions.len()
+    }
+
+    /// The refined mesh.
+    pub fn finish(self) -> Result<Mesh, MeshProblem> {
+        self.0.finish()
+    }
 }
 
 #[cfg(test)]
@@ -280,6 +441,78 @@ mod tests {
         assert_eq!((refs(&scene)["c"].index, scene.meshes[0].positions.len()), (0, 60));
         let e = scene.refine_instances("nope", 10).unwrap_err().to_string();
         assert!(e.contains("test: no mesh instance or group named 'nope'"), "{e}");
+    }
+
+    /// Edges by position (bit patterns) with their number of triangles.
+    fn welded_edge_users(m: &Mesh) -> HashMap<([u32; 3], [u32; 3]), usize> {
+        let key = |i: u32| m.positions[i as usize].to_array().map(f32::to_bits);
+        let mut users = HashMap::new();
+        for t in &m.triangles {
+            for k in 0..3 {
+                let (a, b) = (key(t[k]), key(t[(k + 1) % 3]));
+                *users.entry((a.min(b), a.max(b))).or_default() += 1;
+            }
+        }
+        users
+    }
+
+    /// Splits every edge of `m` adaptively `rounds` times.
+    fn split_all(m: &Mesh, rounds: usize) -> Mesh {
+        let mut a = Adaptive::new(m);
+        for _ in 0..rounds {
+            let edges = a.edges();
+            a.split(&edges, usize::MAX);
+        }
+        a.finish().unwrap()
+    }
+
+    /// A UV seam (two vertices at each position along x = 0) is split on both sides at once:
+    /// no crack opens along it (the only boundary is the outline) and no T-junction forms.
+    #[test]
+    fn adaptive_splits_conform_across_a_uv_seam() {
+        let (mut p, mut uv) = (Vec::new(), Vec::new());
+        for side in [0.0, 1.0f32] {
+            for z in 0..3 {
+                for x in 0..2 {
+                    p.push(Vec3::new(side - 1.0 + x as f32, 0.0, z as f32 - 1.0));
+                    uv.push(glam::Vec2::new(side * 10.0 + x as f32, z as f32));
+                }
+            }
+        }
+        // Each side is a 1×2 strip of quads; side 0's right column and side 1's left column
+        // coincide (x = 0) but are different vertices.
+        let quads = |o: u32| [[o, o + 2, o + 3], [o, o + 3, o + 1], [o + 2, o + 4, o + 5], [o + 2, o + 5, o + 3]];
+        let tris: Vec<[u32; 3]> = quads(0).into_iter().chain(quads(6)).collect();
+        let (m, _) = Mesh::new(p, None, uv, tris, false).unwrap();
+        let fine = split_all(&m, 3);
+        let users = welded_edge_users(&fine);
+        assert!(users.values().all(|&n| n <= 2), "no edge shared by three triangles");
+        let boundary: f32 = users
+            .iter()
+            .filter(|(_, n)| **n == 1)
+            .map(|((a, b), _)| {
+                Vec3::from_array(a.map(f32::from_bits)).distance(Vec3::from_array(b.map(f32::from_bits)))
+            })
+            .sum();
+        assert!((boundary - 8.0).abs() < 1e-4, "the seam stays closed: boundary {boundary}");
+        assert!((fine.area() - 4.0).abs() < 1e-4);
+        // Both sides keep their own UVs at the seam's new vertices.
+        let at_seam: Vec<glam::Vec2> =
+            (0..fine.positions.len()).filter(|&i| fine.positions[i].x == 0.0).map(|i| fine.uvs[i]).collect();
+        assert!(at_seam.iter().any(|uv| uv.x == 1.0) && at_seam.iter().any(|uv| uv.x == 10.0));
+    }
+
+    /// A box's hard edges (per-face normals) stay closed and sharp: new vertices on a crease sit
+    /// on the flat edge, never lifted off it.
+    #[test]
+    fn adaptive_splits_keep_a_creased_box_closed_and_flat() {
+        let h = 0.5;
+        let cube = shapes::cuboid(Vec3::splat(h));
+        let fine = split_all(&cube, 2);
+        assert!(fine.positions.len() > cube.positions.len());
+        assert!(welded_edge_users(&fine).values().all(|&n| n == 2), "closed: every edge has two triangles");
+        assert!(fine.positions.iter().all(|p| (p.abs().max_element() - h).abs() < 1e-6), "on the box's faces");
+        assert!((fine.area() - 6.0).abs() < 1e-4);
     }
 
     #[test]
