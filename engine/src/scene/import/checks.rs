@@ -5,6 +5,57 @@ use super::SUPPORTED_EXTENSIONS;
 use gltf::accessor::{DataType, Dimensions};
 use gltf::json;
 
+/// Most bytes of zeros that accessors without a buffer view may stand for, in all.
+pub const MAX_ZERO_BYTES: usize = 64 << 20;
+
+/// Gives every accessor that has neither a buffer view nor sparse data — zeros, as glTF
+/// defines it, though the gltf crate's validation reports it as missing data — a view into one
+/// new buffer of zeros appended to the document; returns that buffer's index, if any.
+pub fn zero_accessors(root: &mut json::Root) -> Result<Option<usize>, String> {
+    use json::validation::{Checked, USize64};
+    let mut offset = 0usize;
+    let buffer = root.buffers.len();
+    for (i, acc) in root.accessors.iter_mut().enumerate() {
+        let (Checked::Valid(t), Checked::Valid(c)) = (&acc.type_, &acc.component_type) else { continue };
+        if acc.buffer_view.is_some() || acc.sparse.is_some() {
+            continue;
+        }
+        let bytes = usize::try_from(acc.count.0).ok().and_then(|n| n.checked_mul(t.multiplicity() * c.0.size()));
+        let end = bytes.and_then(|b| offset.checked_add(b)).filter(|&end| end <= MAX_ZERO_BYTES);
+        let end = end.ok_or_else(|| {
+            format!(
+                "accessors[{i}]: {} elements of zeros (no bufferView) exceed kage's limit of {MAX_ZERO_BYTES} bytes",
+                acc.count.0
+            )
+        })?;
+        let view = json::buffer::View {
+            buffer: json::Index::new(buffer as u32),
+            byte_length: USize64((end - offset) as u64),
+            byte_offset: Some(USize64(offset as u64)),
+            byte_stride: None,
+            name: None,
+            target: None,
+            extensions: None,
+            extras: Default::default(),
+        };
+        acc.buffer_view = Some(json::Index::push(&mut root.buffer_views, view));
+        acc.byte_offset = None;
+        offset = end.next_multiple_of(4);
+    }
+    if offset == 0 && root.buffer_views.iter().all(|v| v.buffer.value() != buffer) {
+        return Ok(None);
+    }
+    let zeros = json::Buffer {
+        byte_length: USize64(offset.max(4) as u64),
+        name: None,
+        uri: None,
+        extensions: None,
+        extras: Default::default(),
+    };
+    root.buffers.push(zeros);
+    Ok(Some(buffer))
+}
+
 /// References that `gltf`'s own validation dereferences unchecked, the node graph, and
 /// required extensions.
 pub fn references(root: &json::Root) -> Result<(), String> {
@@ -75,8 +126,15 @@ pub fn byte_ranges(doc: &gltf::Document, buffers: &[gltf::buffer::Data]) -> Resu
         let len = buffers.get(view.buffer().index()).map_or(0, |b| b.len());
         view.offset().checked_add(view.length()).is_some_and(|end| end <= len)
     };
+    // A buffer without data (no URI in a .gltf) is legal until a used accessor reads it, which
+    // then fails cleanly: the readers get no bytes for it.
+    let dataless = |view: &gltf::buffer::View| buffers.get(view.buffer().index()).is_some_and(|b| b.is_empty());
     for acc in doc.accessors() {
         let at = || format!("accessors[{}]", acc.index());
+        let sparse_views = acc.sparse().map(|s| [s.indices().view(), s.values().view()]);
+        if acc.view().iter().chain(sparse_views.iter().flatten()).any(dataless) {
+            continue;
+        }
         if let Some(view) = acc.view() {
             if !view_ok(&view) {
                 return Err(format!("{}: bufferViews[{}] extends past the end of its buffer", at(), view.index()));
@@ -165,4 +223,33 @@ pub fn world_extent(scene: &crate::scene::Scene) -> Result<(), String> {
         check(node.0, &t.world, &l.points)?;
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn root(accessors: &str) -> json::Root {
+        json::Root::from_str(&format!(r#"{{"asset": {{"version": "2.0"}}, "accessors": [{accessors}]}}"#)).unwrap()
+    }
+
+    /// Accessors without a buffer view read zeros from one new buffer, 4-byte aligned; a count
+    /// beyond the limit is an error naming the accessor.
+    #[test]
+    fn accessors_without_a_buffer_view_become_zeros_within_a_limit() {
+        let mut r = root(
+            r#"{"componentType": 5126, "count": 3, "type": "VEC2"}, {"componentType": 5121, "count": 3, "type": "SCALAR"}"#,
+        );
+        assert_eq!(zero_accessors(&mut r).unwrap(), Some(0));
+        let views: Vec<(u64, u64)> =
+            r.buffer_views.iter().map(|v| (v.byte_offset.unwrap().0, v.byte_length.0)).collect();
+        assert_eq!(views, vec![(0, 24), (24, 3)]);
+        assert_eq!(r.buffers[0].byte_length.0, 28);
+        assert!(r.accessors.iter().all(|a| a.buffer_view.is_some()));
+        let mut none = root(r#"{"componentType": 5126, "count": 3, "type": "VEC2", "bufferView": 0}"#);
+        assert_eq!(zero_accessors(&mut none).unwrap(), None);
+        let mut huge = root(r#"{"componentType": 5126, "count": 100000000, "type": "VEC3"}"#);
+        let e = zero_accessors(&mut huge).unwrap_err();
+        assert!(e.contains("accessors[0]") && e.contains("limit"), "{e}");
+    }
 }

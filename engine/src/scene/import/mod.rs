@@ -77,14 +77,15 @@ impl<'a> Importer<'a> {
         let raw = gltf::Gltf::from_slice_without_validation(bytes)
             .map_err(|e| err(format!("not a readable glTF file: {e}")))?;
         let blob = raw.blob;
-        let json = raw.document.into_json();
+        let mut json = raw.document.into_json();
         checks::references(&json).map_err(err)?;
+        let zeros = checks::zero_accessors(&mut json).map_err(err)?;
         let doc = gltf::Document::from_json(json).map_err(|e| err(format!("invalid glTF: {}", describe(&e))))?;
         if let Some(ext) = doc.extensions_required().find(|e| !SUPPORTED_EXTENSIONS.contains(e)) {
             return Err(err(format!("requires extension {ext}, which kage does not support")));
         }
         let root = files::Root::for_scene(path, options.allow_root.as_deref()).map_err(err)?;
-        let buffers = load_buffers(&doc, base_dir(path), &root, blob)
+        let buffers = load_buffers(&doc, base_dir(path), &root, blob, zeros)
             .map_err(|e| err(format!("cannot load buffer data: {e}")))?;
         checks::byte_ranges(&doc, &buffers).map_err(err)?;
         let scene = Scene {
@@ -285,7 +286,7 @@ impl<'a> Importer<'a> {
         }
         checks::attribute_formats(prim).map_err(|m| self.error(format!("{where_}: {m}")))?;
         let buffers = &self.buffers;
-        let reader = prim.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
+        let reader = prim.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]).filter(|d| !d.is_empty()));
         let positions: Vec<Vec3> = reader
             .read_positions()
             .ok_or_else(|| self.error(format!("{where_}: has no POSITION data")))?
@@ -405,20 +406,27 @@ fn base_dir(path: &Path) -> &Path {
     path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."))
 }
 
-/// Every buffer's bytes: from its URI through `root` (exactly `byteLength` of them), or the
-/// GLB binary chunk; padded to a multiple of 4 as the gltf crate pads them.
+/// Every buffer's bytes: from its URI through `root` (exactly `byteLength` of them), the GLB
+/// binary chunk, or zeros for buffer `zeros` ([`checks::zero_accessors`]); padded to a
+/// multiple of 4 as the gltf crate pads them. A buffer with no URI outside a GLB has no data
+/// (empty): legal until an accessor that is used reads it.
 fn load_buffers(
     doc: &gltf::Document,
     base: &Path,
     root: &files::Root,
     mut blob: Option<Vec<u8>>,
+    zeros: Option<usize>,
 ) -> std::result::Result<Vec<gltf::buffer::Data>, String> {
     doc.buffers()
         .map(|b| {
             let at = |e: String| format!("buffers[{}]: {e}", b.index());
             let mut data = match b.source() {
+                _ if Some(b.index()) == zeros => vec![0; b.length()],
                 gltf::buffer::Source::Uri(uri) => root.read_exact(base, uri, b.length() as u64).map_err(at)?,
-                gltf::buffer::Source::Bin => blob.take().ok_or_else(|| at("no URI and no GLB binary chunk".into()))?,
+                gltf::buffer::Source::Bin => match blob.take() {
+                    Some(bin) => bin,
+                    None => return Ok(gltf::buffer::Data(Vec::new())),
+                },
             };
             if data.len() < b.length() {
                 return Err(at(format!("{} bytes where byteLength declares {}", data.len(), b.length())));
