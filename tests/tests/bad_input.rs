@@ -93,6 +93,9 @@ fn synthetic_files_are_rejected_clearly() {
     expect_error(&p, "triangle 0 uses vertex index 7");
     let p = write_gltf(&dir, "accessor_oob", &TRI, &[0, 1, 2], |d| d["accessors"][0]["count"] = json!(30));
     expect_error(&p, "30 elements do not fit");
+    // A stride shorter than a float VEC3: an error before the gltf crate's reader asserts.
+    let p = write_gltf(&dir, "short_stride", &TRI, &[0, 1, 2], |d| d["bufferViews"][0]["byteStride"] = json!(4));
+    expect_error(&p, "bufferViews[0].byteStride 4 is smaller than one element (12 bytes)");
     let p = write_gltf(&dir, "cycle", &TRI, &[0, 1, 2], |d| {
         d["nodes"] = json!([{"mesh": 0, "children": [1]}, {"children": [2]}, {"children": [1]}]);
     });

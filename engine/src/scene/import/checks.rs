@@ -140,6 +140,15 @@ pub fn byte_ranges(doc: &gltf::Document, buffers: &[gltf::buffer::Data]) -> Resu
                 return Err(format!("{}: bufferViews[{}] extends past the end of its buffer", at(), view.index()));
             }
             let stride = view.stride().unwrap_or(acc.size());
+            if stride < acc.size() {
+                // The gltf crate's readers assert on this.
+                return Err(format!(
+                    "{}: bufferViews[{}].byteStride {stride} is smaller than one element ({} bytes)",
+                    at(),
+                    view.index(),
+                    acc.size()
+                ));
+            }
             let need = match acc.count() {
                 0 => Some(0),
                 c => stride.checked_mul(c - 1).and_then(|b| b.checked_add(acc.offset() + acc.size())),
