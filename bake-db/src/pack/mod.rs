@@ -62,13 +62,9 @@ mod tests {
     /// material at every vertex and at points inside triangles is the same after reading.
     #[test]
     fn textured_materials_survive_a_pack() {
-        let asset = Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/scenes/textured_materials.gltf");
-        let scene = import::import(&asset, ImportOptions::default()).unwrap();
+        let path = textured_pack("materials");
+        let scene = import::import(&textured_scene(), ImportOptions::default()).unwrap();
         let flat = kage_engine::scene::flatten(&scene);
-        let path = std::env::temp_dir().join(format!("kage-pack-materials-{}.glb", std::process::id()));
-        let radiance = flat.zeros();
-        let export = Export { scene: &scene, flat: &flat, bspvt: None, prt: None, radiance: &radiance, exposure: 0.0 };
-        write(&path, &export).unwrap();
         let (back, _) = read(&path).unwrap();
         std::fs::remove_file(&path).unwrap();
         let again = kage_engine::scene::flatten(&back);
@@ -87,15 +83,23 @@ mod tests {
         assert_eq!(poster.uv(Vec2::ZERO, Vec2::ZERO), Vec2::new(0.5, 0.0));
     }
 
+    fn textured_scene() -> std::path::PathBuf {
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/scenes/textured_materials.gltf")
+    }
+
+    /// Writes a pack of `scene` without bakes at `path`.
+    fn write_unbaked(path: &Path, scene: &kage_engine::scene::Scene) {
+        let flat = kage_engine::scene::flatten(scene);
+        let radiance = flat.zeros();
+        let export = Export { scene, flat: &flat, bspvt: None, prt: None, radiance: &radiance, exposure: 0.0 };
+        write(path, &export).unwrap();
+    }
+
     /// A pack of the textured scene without bakes, written to a fresh path.
     fn textured_pack(name: &str) -> std::path::PathBuf {
-        let asset = Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/scenes/textured_materials.gltf");
-        let scene = import::import(&asset, ImportOptions::default()).unwrap();
-        let flat = kage_engine::scene::flatten(&scene);
+        let scene = import::import(&textured_scene(), ImportOptions::default()).unwrap();
         let path = std::env::temp_dir().join(format!("kage-pack-{name}-{}.glb", std::process::id()));
-        let radiance = flat.zeros();
-        let export = Export { scene: &scene, flat: &flat, bspvt: None, prt: None, radiance: &radiance, exposure: 0.0 };
-        write(&path, &export).unwrap();
+        write_unbaked(&path, &scene);
         path
     }
 
@@ -163,10 +167,7 @@ mod tests {
         let bytes = std::fs::read(&pack).unwrap();
         std::fs::rename(&pack, dir.path().join("first.glb")).unwrap();
         let (scene, _) = read(&dir.path().join("first.glb")).unwrap();
-        let flat = kage_engine::scene::flatten(&scene);
-        let radiance = flat.zeros();
-        let export = Export { scene: &scene, flat: &flat, bspvt: None, prt: None, radiance: &radiance, exposure: 0.0 };
-        write(&link, &export).unwrap();
+        write_unbaked(&link, &scene);
         assert_eq!(std::fs::read_to_string(&victim).unwrap(), "keep");
         assert!(!std::fs::symlink_metadata(&link).unwrap().file_type().is_symlink());
         // Written again from what it read, the pack has the same bytes.
