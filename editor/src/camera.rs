@@ -1,7 +1,7 @@
 //! The viewport's orbit camera: yaw and pitch about a target at a distance, with pan and zoom,
 //! convertible to and from a scene camera.
 
-use glam::{Mat4, Vec3};
+use glam::{Mat4, Vec2, Vec3};
 use kage_engine::scene::{Camera, Projection};
 
 /// An orbit camera.
@@ -57,11 +57,16 @@ impl Orbit {
         self.pitch = (self.pitch + dy).clamp(-PITCH_LIMIT, PITCH_LIMIT);
     }
 
-    /// Moves the target in the view plane by `dx`, `dy` (fractions of the view height).
-    pub fn pan(&mut self, dx: f32, dy: f32) {
+    /// Unit vectors to the eye, to the right and up of the view.
+    fn basis(&self) -> (Vec3, Vec3, Vec3) {
         let back = self.back();
         let right = Vec3::Y.cross(back).normalize_or(Vec3::X);
-        let up = back.cross(right);
+        (back, right, back.cross(right))
+    }
+
+    /// Moves the target in the view plane by `dx`, `dy` (fractions of the view height).
+    pub fn pan(&mut self, dx: f32, dy: f32) {
+        let (_, right, up) = self.basis();
         let scale = 2.0 * self.distance * (0.5 * self.yfov).tan();
         self.target += (-right * dx + up * dy) * scale;
     }
@@ -82,6 +87,25 @@ impl Orbit {
             self.distance * 100.0 + 100.0,
         );
         proj * glam::camera::rh::view::look_at_mat4(self.eye(), self.target, Vec3::Y)
+    }
+
+    /// The ray (eye, unit direction) through viewport point `uv` (0 to 1 across, 0 to 1 down).
+    pub fn ray(&self, uv: Vec2, aspect: f32) -> (Vec3, Vec3) {
+        // From the camera's basis, as `view_proj` builds it (unprojecting through the far plane
+        // loses digits in f32).
+        let ndc = Vec2::new(2.0 * uv.x - 1.0, 1.0 - 2.0 * uv.y);
+        let (back, right, up) = self.basis();
+        let t = (0.5 * self.yfov).tan();
+        (self.eye(), (-back + right * (ndc.x * t * aspect) + up * (ndc.y * t)).normalize())
+    }
+
+    /// Where `p` appears in the viewport (the inverse of [`Self::ray`]), or `None` behind the eye.
+    pub fn project(&self, p: Vec3, aspect: f32) -> Option<Vec2> {
+        let clip = self.view_proj(aspect) * p.extend(1.0);
+        (clip.w > 1e-6).then(|| {
+            let ndc = clip.truncate() / clip.w;
+            Vec2::new(0.5 * (ndc.x + 1.0), 0.5 * (1.0 - ndc.y))
+        })
     }
 }
 
@@ -112,5 +136,21 @@ mod tests {
         // The projected target stays at the centre of the view.
         let c = o.view_proj(1.5).project_point3(o.target);
         assert!(c.x.abs() < 1e-5 && c.y.abs() < 1e-5, "{c}");
+    }
+
+    #[test]
+    fn rays_and_projections_are_inverses() {
+        let o = Orbit { target: Vec3::new(0.5, 1.0, -2.0), distance: 6.0, yaw: 0.7, pitch: 0.4, yfov: 0.9 };
+        for uv in [Vec2::new(0.5, 0.5), Vec2::new(0.1, 0.9), Vec2::new(0.97, 0.03)] {
+            let (eye, dir) = o.ray(uv, 1.6);
+            assert!(eye.distance(o.eye()) < 1e-5 && (dir.length() - 1.0).abs() < 1e-5);
+            for t in [0.5, 6.0, 40.0] {
+                let back = o.project(eye + dir * t, 1.6).unwrap();
+                assert!(back.distance(uv) < 1e-4, "{uv} at {t}: {back}");
+            }
+        }
+        let (_, centre) = o.ray(Vec2::splat(0.5), 1.6);
+        assert!(centre.dot((o.target - o.eye()).normalize()) > 1.0 - 1e-5, "the centre looks at the target");
+        assert!(o.project(o.eye() - centre, 1.6).is_none(), "behind the eye");
     }
 }

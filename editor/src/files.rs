@@ -1,6 +1,6 @@
-//! File actions: save the edited scene and export an asset pack, both as glTF binary through
-//! the pack writer (so poses, materials, lights and cameras round-trip through
-//! `kage_bake_db::pack::read`), and replace a mesh by one read from a glTF file.
+//! File actions: save the edits into the scene file ([`super::source`]), export an asset pack
+//! (glTF binary through the pack writer, with the bakes), and replace a mesh by one read from a
+//! glTF file.
 
 use super::state::Editor;
 use kage_bake_db::pack::{self, Export};
@@ -52,10 +52,50 @@ fn write(ed: &mut Editor, path: PathBuf, with_bakes: bool) -> String {
     message
 }
 
-/// Writes the edited scene (no bakes) beside the original as `<stem>.edited.glb`.
+/// Saves the edits into the scene file that was opened ([`super::source::save`]); the built-in
+/// scene, which has no file, is written as `kage-default.glb` through the pack writer.
 pub fn save(ed: &mut Editor) -> String {
-    let path = beside_scene(ed, ".edited.glb");
-    write(ed, path, false)
+    match ed.options.scene_path.clone() {
+        Some(path) => save_as(ed, &path),
+        None => write(ed, beside_scene(ed, ".glb"), false),
+    }
+}
+
+/// Saves the opened scene with its edits at `to` (the opened file itself for Save), keeping
+/// everything kage does not edit; afterwards `to` is the scene the editor edits.
+pub fn save_as(ed: &mut Editor, to: &Path) -> String {
+    let Some(from) = ed.options.scene_path.clone() else {
+        return write(ed, to.to_path_buf(), false);
+    };
+    match super::source::save(&ed.scene, &ed.baseline, &from, to) {
+        Ok(saved) => {
+            ed.baseline = super::source::Baseline::of(&ed.scene);
+            if to != from {
+                ed.options.scene_path = Some(to.to_path_buf());
+                ed.start_watching();
+            } else if let Some(w) = &mut ed.watcher {
+                w.note_write(to);
+            }
+            let message = format!(
+                "saved {} ({} nodes and {} materials written{}{})",
+                to.display(),
+                saved.nodes,
+                saved.materials,
+                saved.backup.map(|b| format!("; the previous version is {}", b.display())).unwrap_or_default(),
+                if saved.copied.is_empty() {
+                    String::new()
+                } else {
+                    format!("; {} files copied beside it", saved.copied.len())
+                },
+            );
+            ed.info(message.clone());
+            message
+        }
+        Err(e) => {
+            ed.error(e.clone());
+            e
+        }
+    }
 }
 
 /// Writes an asset pack with the current bakes as `<stem>.pack.glb`.

@@ -9,15 +9,20 @@
 //!   shading — plain functions over the state, none of which blocks on long work;
 //! - [`bake_job`]: BSPVT and PRT bakes in parallel in the background, through the database;
 //! - [`viewport`]: the wgpu preview; [`ui`]: the egui panels; [`reload`]: file watching;
-//!   [`camera`]: the orbit camera; [`files`]: save and export.
+//!   [`camera`]: the orbit camera; [`files`]: save and export; [`history`]: undo and redo.
 
 pub mod bake_job;
 pub mod camera;
 pub mod detail;
 pub mod files;
+pub mod gizmo;
+pub mod history;
 mod indirect;
+pub mod interaction;
+pub mod pick;
 pub mod reload;
 mod sky;
+pub mod source;
 pub mod state;
 pub mod systems;
 pub mod ui;

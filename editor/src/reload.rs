@@ -87,6 +87,15 @@ impl Watcher {
         Ok(w)
     }
 
+    /// Records `path`'s bytes as seen: the editor's own save is not a change to act on.
+    pub fn note_write(&mut self, path: &Path) {
+        let path = canonical_file(path);
+        if self.classify(&path).is_some() {
+            let now = content(&path);
+            self.seen.insert(path, now);
+        }
+    }
+
     /// The changes since the last call (never blocks), without repeats; watcher errors are
     /// returned as messages.
     pub fn changes(&mut self) -> (Vec<Change>, Vec<String>) {

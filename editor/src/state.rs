@@ -4,6 +4,7 @@
 
 use super::bake_job::BakeJob;
 use super::camera::Orbit;
+use super::history::Target;
 use super::reload::Watcher;
 use super::worker::Worker;
 use glam::{Affine3A, Quat, Vec3};
@@ -182,8 +183,21 @@ pub struct Editor {
     pub orbit: Orbit,
     /// The scene's own cameras.
     pub cameras: Vec<Camera>,
-    /// The outliner's selection.
+    /// The outliner's selection (the viewport's too: a click picks).
     pub selection: Selection,
+    /// The gizmo's mode, axes and snapping.
+    pub gizmo: super::gizmo::Settings,
+    /// What the pointer hovers in the viewport.
+    pub hover: Selection,
+    /// Undo and redo.
+    pub history: super::history::History,
+    /// The values the scene file holds (as opened or last saved): what a save writes against.
+    pub baseline: super::source::Baseline,
+    /// The scene file changed on disk while edits were unsaved: the UI asks what to do.
+    pub outside_change: bool,
+    /// A drag is in progress (a pointer button is down): BSPVT re-bakes wait for its end
+    /// rather than restarting at every frame of it.
+    pub dragging: bool,
     /// Per instance and vertex: the displayed radiance (or the error overlay's colours).
     pub values: VertexValues,
     /// Per instance and vertex: the method's radiance, plus the cached indirect term when on
@@ -241,6 +255,8 @@ pub(super) struct Memo {
     pub(super) silhouettes: prt::SilhouetteMemo,
     /// The environment prefiltered for the specular term (method `baked`), kept while its map is.
     pub(super) prefiltered: Option<prt::prefilter::Prefiltered>,
+    /// Picking's BVH of the current snapshot, built on the first pick after it changed.
+    pub(super) picker: Option<super::pick::Picker>,
 }
 
 /// The editor's background computations (each streams results the systems take in).
@@ -265,6 +281,7 @@ impl Editor {
         let cameras = cameras(&scene);
         let orbit = initial_orbit(&flat, cameras.first());
         let shaders = options.shader_dir.clone().map_or_else(Shaders::embedded, Shaders::from_dir);
+        let baseline = super::source::Baseline::of(&scene);
         let mut ed = Self {
             scene,
             flat,
@@ -272,6 +289,12 @@ impl Editor {
             orbit,
             cameras,
             selection: Selection::None,
+            hover: Selection::None,
+            gizmo: Default::default(),
+            history: Default::default(),
+            baseline,
+            outside_change: false,
+            dragging: false,
             values: Vec::new(),
             radiance: Vec::new(),
             direct: Vec::new(),
@@ -341,7 +364,7 @@ impl Editor {
         }
     }
 
-    fn start_watching(&mut self) {
+    pub(super) fn start_watching(&mut self) {
         let wake = self.wake.clone();
         let o = &self.options;
         if o.shader_dir.is_none() && o.scene_path.is_none() && o.env_path.is_none() {
@@ -351,6 +374,11 @@ impl Editor {
             Ok(w) => self.watcher = Some(w),
             Err(e) => self.error(format!("{e:#}")),
         }
+    }
+
+    /// True when the scene differs from what its file holds (edits not saved).
+    pub fn unsaved(&self) -> bool {
+        self.baseline.iter().any(|b| self.stored(b.target()).as_ref() != Some(b))
     }
 
     /// Logs a message.
@@ -382,7 +410,7 @@ impl Editor {
         &self.shaders
     }
 
-    fn edited(&mut self) {
+    pub(super) fn edited(&mut self) {
         self.edited_at = Some(Instant::now());
         self.dirty.shade = true;
     }
@@ -447,6 +475,7 @@ impl Editor {
         if !self.stays_in_reach(light, pose * local, &points) {
             return;
         }
+        self.remember(Target::Light(light));
         if let Ok(mut member) = self.scene.world.get::<&mut InGroup>(light) {
             member.local = local;
         }
@@ -466,6 +495,7 @@ impl Editor {
         let c = points.iter().copied().sum::<Vec3>() / points.len().max(1) as f32;
         points.iter_mut().for_each(|p| *p = c + (*p - c) * factor);
         let resize = factor == 1.0 || self.stays_in_reach(light, world, &points);
+        self.remember(Target::Light(light));
         if let Ok(mut l) = self.scene.world.get::<&mut PolygonLight>(light) {
             if resize {
                 l.points = points;
@@ -498,6 +528,7 @@ impl Editor {
     /// Moves and turns a rigid group about its origin: PRT shading and the shadows between
     /// groups update at once; BSPVT visibility is re-baked incrementally in the background.
     pub fn move_group(&mut self, group: hecs::Entity, offset: Vec3, rotation: Quat) {
+        self.remember(Target::Group(group));
         self.scene.pose_group(group, rotation, offset);
         self.dirty.pose = true;
         self.dirty.geometry = true;
@@ -508,6 +539,7 @@ impl Editor {
 
     /// Sets an instance's material (no re-bake: bakes exclude albedo).
     pub fn set_material(&mut self, instance: hecs::Entity, m: Material) {
+        self.remember(Target::Material(instance));
         if let Ok(mut mat) = self.scene.world.get::<&mut Material>(instance) {
             *mat = m;
         }
@@ -518,6 +550,7 @@ impl Editor {
 
     /// Sets the environment's intensity and rotation (radians about +Y).
     pub fn set_environment(&mut self, intensity: f32, rotation: f32) {
+        self.remember(Target::Environment);
         for env in self.scene.world.query_mut::<&mut EnvironmentLight>() {
             env.intensity = intensity;
             env.rotation = rotation;
@@ -530,6 +563,7 @@ impl Editor {
 
     /// Replaces an instance's mesh (a geometry edit: BSPVT and PRT re-bake what it affects).
     pub fn replace_mesh(&mut self, instance: hecs::Entity, mesh: kage_engine::scene::Mesh) {
+        self.remember(Target::Mesh(instance));
         let index = self.scene.meshes.len() as u32;
         let hash = mesh.hash;
         self.scene.meshes.push(Arc::new(mesh));

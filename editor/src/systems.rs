@@ -47,7 +47,7 @@ pub fn reload_system(ed: &mut Editor) {
     for change in changes {
         match change {
             Change::Shader(name) => reload_shader(ed, &name),
-            Change::Scene => reimport_scene(ed),
+            Change::Scene => scene_changed(ed),
             Change::Environment => reload_environment(ed),
         }
     }
@@ -94,8 +94,23 @@ fn plain_frames(report: &str) -> String {
         .collect()
 }
 
-fn reimport_scene(ed: &mut Editor) {
+/// A change of the scene file on disk (the editor's own saves are not reported: see
+/// [`super::reload::Watcher::note_write`]): a question ([`Editor::outside_change`]) when edits
+/// are unsaved, a re-import otherwise.
+fn scene_changed(ed: &mut Editor) {
     let Some(path) = ed.options.scene_path.clone() else { return };
+    if ed.unsaved() {
+        ed.outside_change = true;
+        ed.info(format!("{}: changed on disk while edits are unsaved", path.display()));
+        return;
+    }
+    reimport_scene(ed);
+}
+
+/// Re-imports the scene file (edits since the last save are dropped).
+pub fn reimport_scene(ed: &mut Editor) {
+    let Some(path) = ed.options.scene_path.clone() else { return };
+    ed.outside_change = false;
     match import::import(&path, ed.options.import.clone()) {
         Ok(mut scene) => {
             if let Some(env) = ed.scene.world.query::<&EnvironmentLight>().iter().next().cloned() {
@@ -103,6 +118,9 @@ fn reimport_scene(ed: &mut Editor) {
             }
             ed.scene = scene;
             ed.selection = super::state::Selection::None;
+            ed.hover = super::state::Selection::None;
+            ed.history.clear();
+            ed.baseline = super::source::Baseline::of(&ed.scene);
             ed.dirty.pose = true;
             ed.dirty.geometry = true;
             ed.dirty.meshes = true;
@@ -133,6 +151,7 @@ pub fn pose_system(ed: &mut Editor) {
     if ed.dirty.pose {
         ed.scene.update_transforms();
         ed.flat = flatten(&ed.scene);
+        ed.memo.picker = None;
         ed.dirty.pose = false;
         ed.dirty.shade = true;
     }
@@ -149,7 +168,7 @@ pub fn environment_system(ed: &mut Editor) {
 
 /// Starts (or restarts) the background bake after geometry edits and takes in what landed.
 pub fn bake_system(ed: &mut Editor) {
-    if ed.dirty.geometry {
+    if ed.dirty.geometry && !ed.dragging {
         ed.dirty.geometry = false;
         start_bake(ed);
     }

@@ -19,6 +19,18 @@ pub struct App {
     last_frame: Option<Instant>,
     /// The last pack or save written, for the status line.
     status: String,
+    /// The gizmo drag in progress.
+    drag: Option<super::gizmo::Drag>,
+    /// Where the viewport was drawn in the last frame (tests aim the pointer with it).
+    pub viewport_rect: Option<egui::Rect>,
+    /// The Save As dialog's path, while it is open.
+    save_as: Option<String>,
+    /// The window was asked to close with edits unsaved: the prompt is open.
+    closing: bool,
+    /// The user chose to close without saving.
+    discard: bool,
+    /// The window title last sent (it marks unsaved edits).
+    title: String,
 }
 
 impl App {
@@ -35,7 +47,18 @@ impl App {
                 None
             }
         };
-        Self { editor, viewport, last_frame: None, status: String::new() }
+        Self {
+            editor,
+            viewport,
+            last_frame: None,
+            status: String::new(),
+            drag: None,
+            viewport_rect: None,
+            save_as: None,
+            closing: false,
+            discard: false,
+            title: String::new(),
+        }
     }
 
     /// Advances the systems and keeps the viewport's GPU data current.
@@ -70,6 +93,16 @@ impl App {
 impl eframe::App for App {
     fn ui(&mut self, ui: &mut egui::Ui, frame: &mut eframe::Frame) {
         self.step();
+        if shortcuts(ui, &mut self.editor) {
+            self.status = super::files::save(&mut self.editor);
+        }
+        self.window(ui.ctx());
+        // A gesture (one drag) ends when every button is up: it was one undo step, and the
+        // re-bake it asks for starts then.
+        self.editor.dragging = ui.input(|i| i.pointer.any_down());
+        if !self.editor.dragging {
+            self.editor.history.seal();
+        }
         menu(ui, self);
         egui::Panel::left("outliner").resizable(true).default_size(220.0).show(ui, |ui| outliner(ui, &mut self.editor));
         egui::Panel::right("inspector").resizable(true).default_size(280.0).show(ui, |ui| {
@@ -92,28 +125,85 @@ impl eframe::App for App {
 }
 
 impl App {
+    /// The window's title (a `*` marks unsaved edits), the prompt when it is closed with edits
+    /// unsaved or the scene file changed under them, and the Save As dialog.
+    fn window(&mut self, ctx: &egui::Context) {
+        let unsaved = self.editor.unsaved();
+        let title = format!("kage — {}{}", self.editor.scene.source, if unsaved { " *" } else { "" });
+        if title != self.title {
+            ctx.send_viewport_cmd(egui::ViewportCommand::Title(title.clone()));
+            self.title = title;
+        }
+        if ctx.input(|i| i.viewport().close_requested()) && unsaved && !self.discard {
+            ctx.send_viewport_cmd(egui::ViewportCommand::CancelClose);
+            self.closing = true;
+        }
+        if self.closing {
+            self.close_prompt(ctx);
+        }
+        if self.editor.outside_change {
+            egui::Modal::new(egui::Id::unique("outside change")).show(ctx, |ui| {
+                ui.label("The scene file changed on disk, and your edits are not saved.");
+                ui.horizontal(|ui| {
+                    if ui.button("Reload it (drop my edits)").clicked() {
+                        super::systems::reimport_scene(&mut self.editor);
+                    }
+                    if ui.button("Keep my edits").clicked() {
+                        self.editor.outside_change = false;
+                    }
+                });
+            });
+        }
+        if let Some(mut path) = self.save_as.take() {
+            let mut open = true;
+            egui::Modal::new(egui::Id::unique("save as")).show(ctx, |ui| {
+                ui.label("Save the scene as");
+                ui.text_edit_singleline(&mut path);
+                ui.horizontal(|ui| {
+                    if ui.button("Save").clicked() {
+                        self.status = super::files::save_as(&mut self.editor, std::path::Path::new(path.trim()));
+                        open = false;
+                    }
+                    open &= !ui.button("Cancel").clicked();
+                });
+            });
+            if open {
+                self.save_as = Some(path);
+            }
+        }
+    }
+
+    fn close_prompt(&mut self, ctx: &egui::Context) {
+        egui::Modal::new(egui::Id::unique("close")).show(ctx, |ui| {
+            ui.label("Save your edits before closing?");
+            ui.horizontal(|ui| {
+                if ui.button("Save").clicked() {
+                    self.status = super::files::save(&mut self.editor);
+                    self.closing = false;
+                    if !self.editor.unsaved() {
+                        ctx.send_viewport_cmd(egui::ViewportCommand::Close);
+                    }
+                }
+                if ui.button("Close without saving").clicked() {
+                    self.discard = true;
+                    ctx.send_viewport_cmd(egui::ViewportCommand::Close);
+                }
+                if ui.button("Cancel").clicked() {
+                    self.closing = false;
+                }
+            });
+        });
+    }
+
     fn view(&mut self, ui: &mut egui::Ui, frame: &eframe::Frame) {
         if !self.status.is_empty() {
             ui.label(&self.status);
         }
+        super::interaction::toolbar(ui, &mut self.editor);
         let size = ui.available_size();
         let (rect, response) = ui.allocate_exact_size(size, egui::Sense::click_and_drag());
-        let mut orbit = self.editor.orbit;
-        if response.dragged_by(egui::PointerButton::Primary) {
-            let d = response.drag_delta();
-            orbit.rotate(d.x * 0.01, d.y * 0.01);
-        }
-        if response.dragged_by(egui::PointerButton::Secondary) || response.dragged_by(egui::PointerButton::Middle) {
-            let d = response.drag_delta() / rect.height().max(1.0);
-            orbit.pan(d.x, d.y);
-        }
-        if response.hovered() {
-            let scroll = ui.input(|i| i.smooth_scroll_delta.y);
-            if scroll != 0.0 {
-                orbit.zoom((-scroll * 0.002).exp());
-            }
-        }
-        self.editor.set_orbit(orbit);
+        self.viewport_rect = Some(rect);
+        super::interaction::handle(ui, &mut self.editor, rect, &response, &mut self.drag);
         let (Some(vp), Some(rs)) = (&mut self.viewport, frame.wgpu_render_state()) else {
             ui.painter().text(
                 rect.center(),
@@ -130,6 +220,7 @@ impl App {
         let id = vp.paint(ed.gpu(), &mut rs.renderer.write(), px, &ed.orbit, ed.exposure, ed.overlay);
         let uv = egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0));
         ui.painter().image(id, rect, uv, egui::Color32::WHITE);
+        super::interaction::paint(ui, &self.editor, rect, self.drag.as_ref());
     }
 }
 
@@ -137,11 +228,28 @@ fn menu(ui: &mut egui::Ui, app: &mut App) {
     egui::Panel::top("menu").show(ui, |ui| {
         egui::MenuBar::new().ui(ui, |ui| {
             ui.menu_button("File", |ui| {
-                if ui.button("Save").clicked() {
+                if ui.add(egui::Button::new("Save").shortcut_text("Ctrl+S")).clicked() {
                     app.status = super::files::save(&mut app.editor);
+                }
+                if ui.button("Save As…").clicked() {
+                    let current = app.editor.options.scene_path.as_ref().map(|p| p.display().to_string());
+                    app.save_as = Some(current.unwrap_or_else(|| "scene.glb".into()));
                 }
                 if ui.button("Export pack").clicked() {
                     app.status = super::files::export_pack(&mut app.editor);
+                }
+            });
+            ui.menu_button("Edit", |ui| {
+                let ed = &mut app.editor;
+                if ui
+                    .add_enabled(ed.history.undo_len() > 0, egui::Button::new("Undo").shortcut_text("Ctrl+Z"))
+                    .clicked()
+                {
+                    ed.undo();
+                }
+                let redo = egui::Button::new("Redo").shortcut_text("Ctrl+Shift+Z");
+                if ui.add_enabled(ed.history.redo_len() > 0, redo).clicked() {
+                    ed.redo();
                 }
             });
             ui.menu_button("View", |ui| {
@@ -155,13 +263,33 @@ fn menu(ui: &mut egui::Ui, app: &mut App) {
     });
 }
 
+/// Ctrl+Z undoes; Ctrl+Shift+Z and Ctrl+Y redo; true when Ctrl+S asks to save.
+fn shortcuts(ui: &egui::Ui, ed: &mut Editor) -> bool {
+    use egui::{Key, KeyboardShortcut, Modifiers};
+    let redo = [
+        KeyboardShortcut::new(Modifiers::COMMAND | Modifiers::SHIFT, Key::Z),
+        KeyboardShortcut::new(Modifiers::COMMAND, Key::Y),
+    ];
+    // The more specific shortcut first: Ctrl+Z also matches Ctrl+Shift+Z.
+    if ui.ctx().input_mut(|i| redo.iter().any(|k| i.consume_shortcut(k))) {
+        ed.redo();
+    } else if ui.ctx().input_mut(|i| i.consume_shortcut(&KeyboardShortcut::new(Modifiers::COMMAND, Key::Z))) {
+        ed.undo();
+    }
+    ui.ctx().input_mut(|i| i.consume_shortcut(&KeyboardShortcut::new(Modifiers::COMMAND, Key::S)))
+}
+
 fn outliner(ui: &mut egui::Ui, ed: &mut Editor) {
     ui.heading("Outliner");
     egui::ScrollArea::vertical().show(ui, |ui| {
         for (sel, label, depth) in ed.outline() {
             ui.horizontal(|ui| {
                 ui.add_space(16.0 * depth as f32);
-                if ui.selectable_label(ed.selection == sel, label).clicked() {
+                let mut row = ui.selectable_label(ed.selection == sel, label);
+                if ed.hover == sel {
+                    row = row.highlight();
+                }
+                if row.clicked() {
                     ed.selection = sel;
                 }
             });
@@ -212,7 +340,7 @@ fn inspector(ui: &mut egui::Ui, ed: &mut Editor) {
     ui.heading("Inspector");
     match ed.selection {
         Selection::None => {
-            ui.label("Select a group, mesh, light or the environment in the outliner.");
+            ui.label("Click a group or light in the viewport, or select anything in the outliner.");
         }
         Selection::Group(g) => group_inspector(ui, ed, g),
         Selection::Instance(e) => {

@@ -65,7 +65,7 @@ fn step_until(h: &mut Harness<App>, what: &str, done: impl Fn(&Editor) -> bool) 
 }
 
 fn settled(ed: &Editor) -> bool {
-    ed.job.is_none() && !ed.dirty.shade && ed.bakes.bspvt.is_some()
+    ed.job.is_none() && !ed.dirty.shade && !ed.dirty.geometry && ed.bakes.bspvt.is_some()
 }
 
 /// Renders the window and keeps a copy; returns the pixels.
@@ -443,4 +443,187 @@ fn the_editor_takes_prt_parameters_from_the_budget_kage_bake_chose() {
     assert_eq!(ed.options.prt, chosen);
     let cached = ed.log.iter().filter(|l| l.text.starts_with("PRT:") && l.text.contains("cached plan")).count();
     assert_eq!(cached, 2, "order and regions both read from the database: {:#?}", ed.log);
+}
+
+/// Screen position of world point `p` in the last frame's viewport.
+fn on_screen(h: &Harness<App>, p: Vec3) -> egui::Pos2 {
+    let app = h.state();
+    let rect = app.viewport_rect.expect("the viewport was drawn");
+    let uv = app.editor.orbit.project(p, rect.width() / rect.height()).expect("in front of the camera");
+    rect.min + egui::vec2(uv.x * rect.width(), uv.y * rect.height())
+}
+
+fn pose(h: &Harness<App>, group: hecs::Entity) -> glam::Affine3A {
+    h.state().editor.scene.world.get::<&kage_engine::scene::Transform>(group).unwrap().world
+}
+
+/// Presses at `a` and moves to `b` over several frames, as a hand would (the button stays down).
+fn press_and_move(h: &mut Harness<App>, a: egui::Pos2, b: egui::Pos2) {
+    h.hover_at(a);
+    h.step();
+    h.drag_at(a);
+    h.step();
+    for k in 1..=8 {
+        h.hover_at(a + (b - a) * (k as f32 / 8.0));
+        h.step();
+    }
+}
+
+/// Drags the pointer from `a` to `b` and releases it there.
+fn drag(h: &mut Harness<App>, a: egui::Pos2, b: egui::Pos2) {
+    press_and_move(h, a, b);
+    h.drop_at(b);
+    h.step();
+}
+
+#[test]
+fn click_picks_the_gizmo_moves_and_undo_returns_to_the_cached_bakes_bit_for_bit() {
+    let dir = scratch("gizmo");
+    let mut h = harness(default_scene(), options(&dir, None, None));
+    step_until(&mut h, "the first bakes", settled);
+    let sphere = h.state().editor.scene.find_group("sphere").unwrap();
+    let start = pose(&h, sphere);
+    let centre = Vec3::from(start.translation);
+
+    // Hovering highlights, a click selects what is under the pointer, Escape clears.
+    let at = on_screen(&h, centre);
+    h.hover_at(at);
+    h.step();
+    assert_eq!(h.state().editor.hover, Selection::Group(sphere), "hovering the sphere highlights it");
+    h.drag_at(at);
+    h.step();
+    h.drop_at(at);
+    h.step();
+    assert_eq!(h.state().editor.selection, Selection::Group(sphere), "a click picks the sphere's group");
+    h.key_press(egui::Key::Escape);
+    h.step();
+    assert_eq!(h.state().editor.selection, Selection::None);
+    let light = h.state().editor.flat.lights[0].clone();
+    let light_centre = light.points.iter().copied().sum::<Vec3>() / light.points.len() as f32;
+    // The light hangs above the opening view: zoom out (as the wheel does) to see it.
+    let mut wide = h.state().editor.orbit;
+    wide.zoom(2.5);
+    h.state_mut().editor.set_orbit(wide);
+    h.step();
+    h.hover_at(on_screen(&h, light_centre));
+    h.step();
+    h.drag_at(on_screen(&h, light_centre));
+    h.step();
+    h.drop_at(on_screen(&h, light_centre));
+    h.step();
+    assert_eq!(h.state().editor.selection, Selection::Light(light.entity), "lights are picked too");
+
+    // Dragging the X arrow moves the group along X; the whole drag is one undo step.
+    h.state_mut().editor.selection = Selection::Group(sphere);
+    h.step();
+    let place = kage_editor::interaction::placement(&h.state().editor, Selection::Group(sphere)).unwrap();
+    let probe = place.origin + place.axes[0] * 0.05;
+    let (a, tip) = (on_screen(&h, centre), on_screen(&h, probe));
+    let grab = a + (tip - a).normalized() * 0.5 * kage_editor::gizmo::HANDLE_PIXELS;
+    let plans = |h: &Harness<App>| h.state().editor.log.iter().filter(|l| l.text.starts_with("bake plan")).count();
+    let planned = plans(&h);
+    let to = grab + (tip - a).normalized() * 60.0;
+    press_and_move(&mut h, grab, to);
+    assert_eq!(plans(&h), planned, "no re-bake starts while the drag lasts");
+    h.drop_at(to);
+    h.step();
+    let moved = pose(&h, sphere);
+    let shift = Vec3::from(moved.translation) - centre;
+    assert!(shift.x > 0.05 && shift.y.abs() < 1e-4 && shift.z.abs() < 1e-4, "moved along +X: {shift}");
+    assert_eq!(h.state().editor.history.undo_len(), 1, "one drag, one step");
+    snapshot(&mut h, "gizmo-moved");
+    step_until(&mut h, "the re-bake after the drag", settled);
+    assert_eq!(plans(&h), planned + 1, "one re-bake, after the drag");
+
+    // Ctrl+Z: the stored pose comes back bit for bit, and with it the bakes the database holds.
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
+    h.step();
+    assert_eq!(pose(&h, sphere), start, "undo restores the stored pose exactly");
+    step_until(&mut h, "the bakes after undo", settled);
+    let ed = &h.state().editor;
+    let (b, p) = (ed.stats.runs[0].unwrap(), ed.stats.runs[1].unwrap());
+    assert!(b.cold == 0 && b.warm == 0 && b.cached > 0, "after undo BSPVT is fully cached: {b:?}");
+    assert!(p.cold == 0 && p.warm == 0, "PRT too: {p:?}");
+    // Ctrl+Shift+Z redoes, to the moved pose exactly.
+    h.key_press_modifiers(egui::Modifiers::COMMAND | egui::Modifiers::SHIFT, egui::Key::Z);
+    h.step();
+    assert_eq!(pose(&h, sphere), moved);
+    assert_eq!((h.state().editor.history.undo_len(), h.state().editor.history.redo_len()), (1, 0));
+
+    // Turning: the E key switches the gizmo, dragging the Y ring turns the group about +Y.
+    h.key_press(egui::Key::E);
+    h.step();
+    assert_eq!(h.state().editor.gizmo.mode, kage_editor::gizmo::Mode::Rotate);
+    let before = pose(&h, sphere);
+    let orbit = h.state().editor.orbit;
+    let rect = h.state().viewport_rect.unwrap();
+    let view = kage_editor::gizmo::View { orbit: &orbit, size: glam::Vec2::new(rect.width(), rect.height()) };
+    let place = kage_editor::interaction::placement(&h.state().editor, Selection::Group(sphere)).unwrap();
+    let ring = &place.handles(kage_editor::gizmo::Mode::Rotate, &view)[1];
+    let (r0, r1) = (ring[8], ring[16]);
+    drag(&mut h, rect.min + egui::vec2(r0.x, r0.y), rect.min + egui::vec2(r1.x, r1.y));
+    let turned = pose(&h, sphere);
+    assert_eq!(Vec3::from(turned.translation), Vec3::from(before.translation), "a turn keeps the origin");
+    let axis = turned.matrix3 * before.matrix3.inverse();
+    assert!((axis * glam::Vec3A::Y - glam::Vec3A::Y).length() < 1e-4, "turned about Y");
+    assert!((axis * glam::Vec3A::X - glam::Vec3A::X).length() > 0.05, "by a visible angle");
+    h.state_mut().editor.undo();
+    assert_eq!(pose(&h, sphere), before);
+    let ed = &h.state().editor;
+    assert!(errors(ed).is_empty(), "{:?}", errors(ed));
+}
+
+#[test]
+fn ctrl_s_saves_the_opened_file_which_is_not_reimported_and_outside_changes_ask_first() {
+    let dir = scratch("save");
+    let path = dir.join("cube_on_plane.gltf");
+    std::fs::copy(asset("scenes/cube_on_plane.gltf"), &path).unwrap();
+    let original = std::fs::read(&path).unwrap();
+    let scene = import::import(&path, Default::default()).unwrap();
+    let mut opts = options(&dir, Some(path.clone()), None);
+    opts.prt = prt::Settings { order: 3, directions: 64, ..opts.prt };
+    let mut h = harness(scene, opts);
+    step_until(&mut h, "the first bakes", settled);
+    assert!(!h.state().editor.unsaved());
+    let cube = h.state().editor.scene.find_group("cube").unwrap();
+    h.state_mut().editor.move_group(cube, Vec3::new(0.5, 0.0, 0.0), Quat::IDENTITY);
+    h.step();
+    assert!(h.state().editor.unsaved(), "a move is an unsaved edit");
+
+    // Ctrl+S writes the edit into the file; re-opened, the cube stands where it was moved.
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::S);
+    h.step();
+    let ed = &h.state().editor;
+    assert!(!ed.unsaved(), "{:?}", ed.log);
+    let saved = import::import(&path, Default::default()).unwrap();
+    let at = |s: &kage_engine::scene::Scene| {
+        s.world.get::<&kage_engine::scene::Transform>(s.find_group("cube").unwrap()).unwrap().world.translation
+    };
+    assert!((at(&saved) - at(&ed.scene)).length() < 1e-5);
+    assert_eq!(std::fs::read(dir.join("cube_on_plane.gltf.bak")).unwrap(), original, "the old version is kept");
+    // The editor's own save is not an outside change: no re-import.
+    for _ in 0..40 {
+        h.step();
+        std::thread::sleep(Duration::from_millis(25));
+    }
+    assert!(!h.state().editor.log.iter().any(|l| l.text.contains("re-imported")), "{:#?}", h.state().editor.log);
+
+    // An outside change while edits are unsaved asks first; keeping the edits keeps them.
+    h.state_mut().editor.move_group(cube, Vec3::new(0.0, 0.0, 0.5), Quat::IDENTITY);
+    let edited = pose(&h, cube);
+    std::fs::write(dir.join("other.tmp"), &original).unwrap();
+    std::fs::rename(dir.join("other.tmp"), &path).unwrap();
+    step_until(&mut h, "the question", |ed| ed.outside_change);
+    h.get_by_label("Keep my edits").click();
+    h.step();
+    assert!(!h.state().editor.outside_change);
+    assert_eq!(pose(&h, cube), edited, "the edits stay");
+    // With nothing unsaved, an outside change re-imports at once.
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::S);
+    h.step();
+    std::fs::write(dir.join("other.tmp"), &original).unwrap();
+    std::fs::rename(dir.join("other.tmp"), &path).unwrap();
+    step_until(&mut h, "the re-import", |ed| ed.log.iter().any(|l| l.text.contains("re-imported")));
+    let ed = &h.state().editor;
+    assert!(!ed.unsaved() && errors(ed).is_empty(), "{:?}", errors(ed));
 }

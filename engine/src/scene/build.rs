@@ -2,8 +2,8 @@
 //! rigid group, as a top-level glTF node would be.
 
 use crate::scene::{
-    Camera, EnvironmentLight, InGroup, Material, MaterialMaps, Mesh, MeshRef, Name, NodeId, PolygonLight, PrimitiveId,
-    RigidGroup, Scene, Transform, propagate_transforms,
+    Camera, Emitter, EnvironmentLight, InGroup, Material, MaterialMaps, Mesh, MeshRef, Name, NodeId, PolygonLight,
+    PrimitiveId, RigidGroup, Scene, Transform, propagate_transforms,
 };
 use glam::{Affine3A, Vec3};
 use std::sync::Arc;
@@ -101,6 +101,7 @@ impl Scene {
             copy::<Material>(&e, &mut b);
             copy::<MaterialMaps>(&e, &mut b);
             copy::<PolygonLight>(&e, &mut b);
+            copy::<Emitter>(&e, &mut b);
             copy::<Camera>(&e, &mut b);
             copy::<EnvironmentLight>(&e, &mut b);
             world.spawn_at(e.entity(), b.build());

@@ -133,6 +133,16 @@ pub struct PrimitiveId {
     pub primitive: u32,
 }
 
+/// Where a polygonal light came from in the glTF file: its emissive primitive (a primitive whose
+/// outline is not one convex polygon gives several lights, `polygon` numbering them).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Emitter {
+    /// The primitive.
+    pub id: PrimitiveId,
+    /// Which of the primitive's polygons.
+    pub polygon: u32,
+}
+
 /// A reference to a shared mesh, keyed by its content hash.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct MeshRef {

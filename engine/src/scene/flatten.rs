@@ -52,6 +52,8 @@ pub struct FlatLight {
     pub texture: Option<Arc<Texture>>,
     /// See [`PolygonLight::reach`].
     pub reach: Option<[Vec3; 2]>,
+    /// The light's entity (what the editor selects and edits).
+    pub entity: hecs::Entity,
 }
 
 impl FlatLight {
@@ -147,20 +149,20 @@ pub fn flatten(scene: &Scene) -> FlatScene {
             flat.refs.push(TriangleRef { owner, local: k as u32, light: NO_LIGHT });
         }
     }
-    let mut lights: Vec<(u32, PolygonLight, Transform)> = scene
+    let mut lights: Vec<(u32, PolygonLight, Transform, hecs::Entity)> = scene
         .world
-        .query::<(&PolygonLight, &Transform, &crate::scene::NodeId)>()
+        .query::<(hecs::Entity, &PolygonLight, &Transform, &crate::scene::NodeId)>()
         .iter()
-        .map(|(l, t, n)| (n.0, l.clone(), *t))
+        .map(|(e, l, t, n)| (n.0, l.clone(), *t, e))
         .collect();
     lights.sort_by(|a, b| a.0.cmp(&b.0).then_with(|| a.1.points.len().cmp(&b.1.points.len())));
-    for (_, light, t) in lights {
-        add_light(&mut flat, scene, &light, &t);
+    for (_, light, t, entity) in lights {
+        add_light(&mut flat, scene, &light, &t, entity);
     }
     flat
 }
 
-fn add_light(flat: &mut FlatScene, scene: &Scene, light: &PolygonLight, t: &Transform) {
+fn add_light(flat: &mut FlatScene, scene: &Scene, light: &PolygonLight, t: &Transform, entity: hecs::Entity) {
     let mut points: Vec<Vec3> = light.points.iter().map(|p| t.world.transform_point3(*p)).collect();
     let mut uvs = light.uvs.clone();
     if t.is_mirrored() {
@@ -177,7 +179,16 @@ fn add_light(flat: &mut FlatScene, scene: &Scene, light: &PolygonLight, t: &Tran
         flat.refs.push(TriangleRef { owner: index, local: k as u32, light: index });
     }
     let texture = light.texture.map(|i| scene.textures[i as usize].clone());
-    flat.lights.push(FlatLight { points, uvs, normal, area, radiance: light.radiance, texture, reach: light.reach });
+    flat.lights.push(FlatLight {
+        points,
+        uvs,
+        normal,
+        area,
+        radiance: light.radiance,
+        texture,
+        reach: light.reach,
+        entity,
+    });
 }
 
 /// The triangles of one rigid group in the group's own frame (instances and lights, winding

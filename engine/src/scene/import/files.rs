@@ -58,8 +58,9 @@ impl Root {
         Ok(bytes)
     }
 
-    /// The real path of the regular file inside the root that relative URI `uri` names.
-    fn resolve(&self, base: &Path, uri: &str) -> Result<PathBuf, String> {
+    /// The real path of the regular file inside the root that relative URI `uri` names (`base`
+    /// as in [`Self::read`]), or why it is refused.
+    pub fn resolve(&self, base: &Path, uri: &str) -> Result<PathBuf, String> {
         let refuse = |rule: &str| Err(format!("URI '{}' refused: {rule}", short(uri)));
         if has_scheme(uri) {
             return refuse("only data: URIs and relative paths inside the scene's folder are read");

@@ -13,8 +13,8 @@ pub mod reach;
 pub use light::polygon_normal_area;
 
 use crate::scene::{
-    Camera, InGroup, Material, MaterialMaps, Mesh, MeshRef, Name, NodeId, PolygonLight, PrimitiveId, Projection,
-    RigidGroup, Scene, Texture, TextureSlot, Transform, propagate_transforms, texture::Wrap,
+    Camera, Emitter, InGroup, Material, MaterialMaps, Mesh, MeshRef, Name, NodeId, PolygonLight, PrimitiveId,
+    Projection, RigidGroup, Scene, Texture, TextureSlot, Transform, propagate_transforms, texture::Wrap,
 };
 use crate::{Error, Result};
 use glam::{Affine2, Affine3A, Mat4, Vec2, Vec3};
@@ -226,7 +226,8 @@ impl<'a> Importer<'a> {
                 if polys.is_empty() {
                     return Err(self.error(format!("{where_}: emitter has zero area")));
                 }
-                for poly in polys {
+                let id = PrimitiveId { node: node_id, mesh: mesh.index() as u32, primitive: prim.index() as u32 };
+                for (polygon, poly) in polys.into_iter().enumerate() {
                     let uvs = if texture.is_some() && !m.uvs.is_empty() {
                         poly.iter().map(|&i| m.uvs[i as usize]).collect()
                     } else {
@@ -240,7 +241,8 @@ impl<'a> Importer<'a> {
                         .map_err(|m| self.error(format!("{node_name}: {m}")))?;
                     let light = PolygonLight { points, uvs, radiance: emissive, texture, reach };
                     lights += 1;
-                    self.scene.world.spawn((light, member, transform, NodeId(node_id)));
+                    let emitter = Emitter { id, polygon: polygon as u32 };
+                    self.scene.world.spawn((light, member, transform, NodeId(node_id), emitter));
                     self.members += 1;
                 }
             } else {
