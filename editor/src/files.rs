@@ -76,6 +76,10 @@ pub fn save_as(ed: &mut Editor, to: &Path) -> String {
             } else if let Some(w) = &mut ed.watcher {
                 w.note_write(to);
             }
+            // Added things now have nodes in the file, which their entities do not know.
+            if saved.added > 0 {
+                super::systems::reimport_scene(ed);
+            }
             let message = format!(
                 "saved {} ({} nodes and {} materials written{}{})",
                 to.display(),

@@ -1,6 +1,6 @@
-//! The move and turn gizmos: axis arrows and rings drawn over the viewport with egui's painter
+//! The move, turn and scale gizmos: axis arrows, rings and scale handles drawn over the viewport with egui's painter
 //! (no gizmo crate: the maintained ones lag egui's releases), and the drag math that turns
-//! pointer motion into an edit, with grid and angle snapping in world or local axes.
+//! pointer motion into an edit, with grid, angle and scale snapping in world or local axes.
 //!
 //! Everything here is in viewport pixels and world units; the UI feeds it pointer positions and
 //! applies what [`Drag::step`] returns through the editor's edits (so a drag is undoable, as one
@@ -16,6 +16,8 @@ pub enum Mode {
     Translate,
     /// Turn about an axis.
     Rotate,
+    /// Scale uniformly (any axis's handle; dragging outward grows).
+    Scale,
 }
 
 /// Which axes the handles follow.
@@ -53,6 +55,10 @@ pub const HANDLE_PIXELS: f32 = 90.0;
 /// How close (pixels) the pointer must be to a handle to grab it.
 pub const GRAB_PIXELS: f32 = 8.0;
 const RING_SEGMENTS: usize = 64;
+/// The smallest total scale one drag reaches.
+const MIN_SCALE: f32 = 0.05;
+/// Snapping step of scale factors.
+const SCALE_STEP: f32 = 0.1;
 
 /// Where the gizmo stands: its origin and unit axes in world space.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -95,7 +101,7 @@ impl Placement {
         let length = view.handle_length(self.origin);
         std::array::from_fn(|k| {
             let world: Vec<Vec3> = match mode {
-                Mode::Translate => vec![self.origin, self.origin + self.axes[k] * length],
+                Mode::Translate | Mode::Scale => vec![self.origin, self.origin + self.axes[k] * length],
                 Mode::Rotate => {
                     let (a, b) = (self.axes[(k + 1) % 3], self.axes[(k + 2) % 3]);
                     (0..=RING_SEGMENTS)
@@ -138,6 +144,8 @@ pub enum Edit {
     Move(Vec3),
     /// Turn by this rotation about the placement's origin.
     Turn(Quat),
+    /// Scale by this factor about the placement's origin.
+    Scale(f32),
 }
 
 /// A drag in progress on one axis: the pointer motion so far and how much of it (snapped) has
@@ -152,7 +160,7 @@ pub struct Drag {
     pub mode: Mode,
     /// Pointer position at the start.
     pub from: Vec2,
-    /// Total amount applied (world units or radians).
+    /// Total amount applied (world units, radians, or the scale factor minus one).
     applied: f32,
 }
 
@@ -165,25 +173,29 @@ impl Drag {
     /// The edit that brings the selection to where the pointer at `to` asks, snapped when
     /// `settings.snap`; `None` when nothing changes.
     pub fn step(&mut self, view: &View, to: Vec2, settings: &Settings) -> Option<Edit> {
+        // Scaling: one handle length outward doubles the size (never below MIN_SCALE).
         let total = match self.mode {
             Mode::Translate => self.distance(view, to),
             Mode::Rotate => self.angle(view, to),
+            Mode::Scale => (self.distance(view, to) / view.handle_length(self.start.origin)).max(MIN_SCALE - 1.0),
         };
         let step = match (settings.snap, self.mode) {
             (false, _) => 0.0,
             (true, Mode::Translate) => settings.grid,
             (true, Mode::Rotate) => settings.angle.to_radians(),
+            (true, Mode::Scale) => SCALE_STEP,
         };
         let wanted = if step > 0.0 { (total / step).round() * step } else { total };
         let delta = wanted - self.applied;
         if delta == 0.0 || !delta.is_finite() {
             return None;
         }
-        self.applied = wanted;
+        let before = std::mem::replace(&mut self.applied, wanted);
         let axis = self.start.axes[self.axis];
         Some(match self.mode {
             Mode::Translate => Edit::Move(axis * delta),
             Mode::Rotate => Edit::Turn(Quat::from_axis_angle(axis, delta)),
+            Mode::Scale => Edit::Scale((1.0 + wanted) / (1.0 + before)),
         })
     }
 
@@ -272,5 +284,19 @@ mod tests {
         assert!((signed - std::f32::consts::FRAC_PI_2).abs() < 1e-5, "{}", signed.to_degrees());
         assert!(q.mul_vec3(Vec3::X).dot(Vec3::NEG_Z) > 0.999, "+X turns to −Z about +Y");
         assert_eq!(drag.step(&view, to, &snap), None, "no motion, no edit");
+    }
+
+    #[test]
+    fn dragging_a_scale_handle_out_by_its_length_doubles_and_never_flips() {
+        let (orbit, place) = setup();
+        let view = View { orbit: &orbit, size: Vec2::new(800.0, 600.0) };
+        let handles = place.handles(Mode::Scale, &view);
+        let (a, b) = (handles[0][0], handles[0][1]);
+        let mut drag = Drag::new(place, Mode::Scale, 0, a);
+        let Some(Edit::Scale(f)) = drag.step(&view, b, &Settings::default()) else { panic!("a scale") };
+        assert!((f - 2.0).abs() < 1e-3, "{f}");
+        // Back past the origin: the total stops at the smallest scale, relative to what was applied.
+        let Some(Edit::Scale(g)) = drag.step(&view, a - (b - a) * 3.0, &Settings::default()) else { panic!() };
+        assert!((f * g - MIN_SCALE).abs() < 1e-4, "{}", f * g);
     }
 }

@@ -24,6 +24,32 @@ pub enum Stored {
     Mesh(hecs::Entity, MeshRef),
     /// The environment's intensity and rotation (radians about +Y).
     Environment(f32, f32),
+    /// Whether entities exist, with all their components (adding, duplicating, deleting).
+    Presence(Vec<(hecs::Entity, Option<Snapshot>)>),
+}
+
+/// Every component of one entity, to spawn it again exactly as it was.
+#[derive(Clone)]
+pub struct Snapshot(std::sync::Arc<hecs::BuiltEntityClone>);
+
+impl Snapshot {
+    /// Keeps `components`.
+    pub fn new(components: hecs::BuiltEntityClone) -> Self {
+        Self(std::sync::Arc::new(components))
+    }
+}
+
+impl PartialEq for Snapshot {
+    /// The same snapshot (components are not comparable as a whole).
+    fn eq(&self, other: &Self) -> bool {
+        std::sync::Arc::ptr_eq(&self.0, &other.0)
+    }
+}
+
+impl std::fmt::Debug for Snapshot {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("Snapshot")
+    }
 }
 
 /// What a [`Stored`] value belongs to.
@@ -39,6 +65,8 @@ pub enum Target {
     Mesh(hecs::Entity),
     /// The environment.
     Environment,
+    /// A set of entities added or deleted together (named by the first).
+    Presence(hecs::Entity),
 }
 
 impl Stored {
@@ -50,6 +78,7 @@ impl Stored {
             Self::Material(e, _) => Target::Material(*e),
             Self::Mesh(e, _) => Target::Mesh(*e),
             Self::Environment(..) => Target::Environment,
+            Self::Presence(list) => Target::Presence(list.first().map_or(hecs::Entity::DANGLING, |p| p.0)),
         }
     }
 }
@@ -158,15 +187,39 @@ impl Editor {
                 let env = w.query::<&EnvironmentLight>().iter().next().map(|e| (e.intensity, e.rotation))?;
                 Stored::Environment(env.0, env.1)
             }
+            // A set of entities is read by `presence`, from its list.
+            Target::Presence(_) => return None,
         })
+    }
+
+    /// Whether the entities of `list` exist now, with their components.
+    fn presence(&self, list: &[(hecs::Entity, Option<Snapshot>)]) -> Stored {
+        Stored::Presence(list.iter().map(|(e, _)| (*e, self.scene.components(*e).map(Snapshot::new))).collect())
     }
 
     /// Writes `values` into the world and returns the values they replaced, marking what must
     /// be redone as the original edit did.
     fn swap_in(&mut self, values: Stored) -> Option<Stored> {
-        let now = self.stored(values.target())?;
+        let now = match &values {
+            Stored::Presence(list) => self.presence(list),
+            other => self.stored(other.target())?,
+        };
         let w = &mut self.scene.world;
         match values {
+            Stored::Presence(list) => {
+                for (e, components) in list {
+                    match components {
+                        Some(c) => w.spawn_at(e, &*c.0),
+                        None => {
+                            let _ = w.despawn(e);
+                        }
+                    }
+                }
+                kage_engine::scene::propagate_transforms(w);
+                self.selection = super::state::Selection::None;
+                self.dirty.geometry = true;
+                self.dirty.meshes = true;
+            }
             Stored::Group(e, pose) => {
                 w.get::<&mut Transform>(e).ok()?.world = pose;
                 kage_engine::scene::propagate_transforms(w);

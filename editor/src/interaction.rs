@@ -1,7 +1,8 @@
 //! What the pointer and keys do in the viewport: a click picks, hovering highlights, dragging a
 //! gizmo handle moves or turns the selection, dragging elsewhere orbits (secondary or middle:
-//! pans), the wheel zooms, Escape clears the selection, W and E switch the gizmo between moving
-//! and turning. Outlines and handles are painted over the rendered image.
+//! pans), the wheel zooms, Escape clears the selection, W, E and R switch the gizmo between
+//! moving, turning and scaling, a glTF file dropped on the window is added as a new group. Outlines and handles
+//! are painted over the rendered image.
 
 use super::gizmo::{Drag, Edit, Mode, Placement, Space, View};
 use super::state::{Editor, Selection};
@@ -23,6 +24,11 @@ pub fn handle(ui: &egui::Ui, ed: &mut Editor, rect: egui::Rect, response: &egui:
     let orbit = ed.orbit;
     let view = View { orbit: &orbit, size };
     keys(ui, ed);
+    for path in ui.input(|i| i.raw.dropped_files.iter().map(|f| f.path().to_path_buf()).collect::<Vec<_>>()) {
+        if let Err(e) = ed.add_file(&path) {
+            ed.error(e);
+        }
+    }
     if response.drag_started_by(egui::PointerButton::Primary) {
         let from = ui.input(|i| i.pointer.press_origin()).map(to_view);
         let mode = ed.gizmo.mode;
@@ -60,19 +66,17 @@ pub fn handle(ui: &egui::Ui, ed: &mut Editor, rect: egui::Rect, response: &egui:
 
 fn keys(ui: &egui::Ui, ed: &mut Editor) {
     // Keys typed into a text or number field are not commands.
-    if ui.ctx().egui_wants_keyboard_input() {
+    if ui.ctx().text_edit_focused() {
         return;
     }
-    let (escape, w, e) =
-        ui.input(|i| (i.key_pressed(egui::Key::Escape), i.key_pressed(egui::Key::W), i.key_pressed(egui::Key::E)));
-    if escape {
+    let pressed = |k: egui::Key| ui.input(|i| i.key_pressed(k));
+    if pressed(egui::Key::Escape) {
         ed.selection = Selection::None;
     }
-    if w {
-        ed.gizmo.mode = Mode::Translate;
-    }
-    if e {
-        ed.gizmo.mode = Mode::Rotate;
+    for (key, mode) in [(egui::Key::W, Mode::Translate), (egui::Key::E, Mode::Rotate), (egui::Key::R, Mode::Scale)] {
+        if pressed(key) {
+            ed.gizmo.mode = mode;
+        }
     }
 }
 
@@ -124,7 +128,14 @@ pub fn apply(ed: &mut Editor, sel: Selection, edit: Edit) {
     match (sel, edit) {
         (Selection::Group(g), Edit::Move(v)) => ed.move_group(g, v, Quat::IDENTITY),
         (Selection::Group(g), Edit::Turn(q)) => ed.move_group(g, Vec3::ZERO, q),
+        (Selection::Group(g), Edit::Scale(f)) => ed.scale_group(g, f),
         (Selection::Light(e), Edit::Move(v)) => ed.move_light(e, v, Quat::IDENTITY),
+        (Selection::Light(e), Edit::Scale(f)) => {
+            let radiance = ed.scene.world.get::<&kage_engine::scene::PolygonLight>(e).map(|l| l.radiance);
+            if let Ok(radiance) = radiance {
+                ed.set_light(e, radiance, f);
+            }
+        }
         (Selection::Light(e), Edit::Turn(q)) => {
             // A light turns in its group's frame: the world rotation seen from there.
             let group = ed.scene.world.get::<&InGroup>(e).map(|m| m.group).ok();
@@ -160,10 +171,14 @@ pub fn paint(ui: &egui::Ui, ed: &Editor, rect: egui::Rect, drag: Option<&Drag>) 
         let colour = if drag.is_some_and(|d| d.axis == k) { ACTIVE } else { AXES[k] };
         let points: Vec<egui::Pos2> = line.iter().map(|p| at(*p)).collect();
         painter.add(egui::Shape::line(points.clone(), egui::Stroke::new(3.0, colour)));
-        if ed.gizmo.mode == Mode::Translate
-            && let Some(tip) = points.last()
-        {
-            painter.circle_filled(*tip, 5.0, colour);
+        match (ed.gizmo.mode, points.last()) {
+            (Mode::Translate, Some(tip)) => {
+                painter.circle_filled(*tip, 5.0, colour);
+            }
+            (Mode::Scale, Some(tip)) => {
+                painter.rect_filled(egui::Rect::from_center_size(*tip, egui::vec2(9.0, 9.0)), 0.0, colour);
+            }
+            _ => {}
         }
     }
 }
@@ -188,6 +203,7 @@ pub fn toolbar(ui: &mut egui::Ui, ed: &mut Editor) {
         let g = &mut ed.gizmo;
         ui.selectable_value(&mut g.mode, Mode::Translate, "Move (W)");
         ui.selectable_value(&mut g.mode, Mode::Rotate, "Turn (E)");
+        ui.selectable_value(&mut g.mode, Mode::Scale, "Scale (R)");
         ui.separator();
         ui.selectable_value(&mut g.space, Space::World, "World");
         ui.selectable_value(&mut g.space, Space::Local, "Local");

@@ -378,7 +378,7 @@ impl Editor {
 
     /// True when the scene differs from what its file holds (edits not saved).
     pub fn unsaved(&self) -> bool {
-        self.baseline.iter().any(|b| self.stored(b.target()).as_ref() != Some(b))
+        super::source::Baseline::of(&self.scene) != self.baseline
     }
 
     /// Logs a message.
@@ -408,6 +408,15 @@ impl Editor {
     /// Where shaders come from.
     pub fn shaders(&self) -> &Shaders {
         &self.shaders
+    }
+
+    /// Marks a geometry edit: the snapshot, the viewport's meshes and the bakes follow.
+    pub(super) fn geometry_edited(&mut self) {
+        self.dirty.pose = true;
+        self.dirty.geometry = true;
+        self.dirty.meshes = true;
+        self.restart_reference();
+        self.edited();
     }
 
     pub(super) fn edited(&mut self) {
@@ -530,11 +539,21 @@ impl Editor {
     pub fn move_group(&mut self, group: hecs::Entity, offset: Vec3, rotation: Quat) {
         self.remember(Target::Group(group));
         self.scene.pose_group(group, rotation, offset);
-        self.dirty.pose = true;
-        self.dirty.geometry = true;
-        self.dirty.meshes = true;
-        self.restart_reference();
-        self.edited();
+        self.geometry_edited();
+    }
+
+    /// Scales a rigid group uniformly about its origin by `factor` (a geometry edit, like a
+    /// move: BSPVT and PRT re-bake what it changes in the background).
+    pub fn scale_group(&mut self, group: hecs::Entity, factor: f32) {
+        if !(factor.is_finite() && factor > 0.0) {
+            return;
+        }
+        self.remember(Target::Group(group));
+        if let Ok(mut t) = self.scene.world.get::<&mut Transform>(group) {
+            t.world.matrix3 *= factor;
+        }
+        self.scene.update_transforms();
+        self.geometry_edited();
     }
 
     /// Sets an instance's material (no re-bake: bakes exclude albedo).
@@ -570,11 +589,7 @@ impl Editor {
         if let Ok(mut r) = self.scene.world.get::<&mut kage_engine::scene::MeshRef>(instance) {
             *r = kage_engine::scene::MeshRef { index, hash };
         }
-        self.dirty.pose = true;
-        self.dirty.geometry = true;
-        self.dirty.meshes = true;
-        self.restart_reference();
-        self.edited();
+        self.geometry_edited();
     }
 
     /// Stops a running bake after its chunks in flight (finished batches stay in the database).

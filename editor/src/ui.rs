@@ -251,6 +251,23 @@ fn menu(ui: &mut egui::Ui, app: &mut App) {
                 if ui.add_enabled(ed.history.redo_len() > 0, redo).clicked() {
                     ed.redo();
                 }
+                ui.separator();
+                let editable = matches!(ed.selection, Selection::Group(_) | Selection::Light(_));
+                if ui.add_enabled(editable, egui::Button::new("Duplicate").shortcut_text("Ctrl+D")).clicked() {
+                    ed.duplicate(ed.selection);
+                }
+                if ui.add_enabled(editable, egui::Button::new("Delete").shortcut_text("Del")).clicked() {
+                    ed.delete(ed.selection);
+                }
+            });
+            ui.menu_button("Add", |ui| {
+                if ui.button("Quad light").clicked() {
+                    app.editor.add_light(super::entities::Shape::Quad);
+                }
+                if ui.button("Disc light").clicked() {
+                    app.editor.add_light(super::entities::Shape::Disc);
+                }
+                ui.label("Drop a .gltf or .glb on the viewport to add its meshes.");
             });
             ui.menu_button("View", |ui| {
                 for k in 0..app.editor.cameras.len() {
@@ -263,7 +280,8 @@ fn menu(ui: &mut egui::Ui, app: &mut App) {
     });
 }
 
-/// Ctrl+Z undoes; Ctrl+Shift+Z and Ctrl+Y redo; true when Ctrl+S asks to save.
+/// Ctrl+Z undoes; Ctrl+Shift+Z and Ctrl+Y redo; Ctrl+D duplicates and Delete deletes the
+/// selection; true when Ctrl+S asks to save.
 fn shortcuts(ui: &egui::Ui, ed: &mut Editor) -> bool {
     use egui::{Key, KeyboardShortcut, Modifiers};
     let redo = [
@@ -275,6 +293,13 @@ fn shortcuts(ui: &egui::Ui, ed: &mut Editor) -> bool {
         ed.redo();
     } else if ui.ctx().input_mut(|i| i.consume_shortcut(&KeyboardShortcut::new(Modifiers::COMMAND, Key::Z))) {
         ed.undo();
+    }
+    if ui.ctx().input_mut(|i| i.consume_shortcut(&KeyboardShortcut::new(Modifiers::COMMAND, Key::D))) {
+        ed.duplicate(ed.selection);
+    }
+    // Delete in a text field edits the text.
+    if !ui.ctx().text_edit_focused() && ui.input(|i| i.key_pressed(Key::Delete)) {
+        ed.delete(ed.selection);
     }
     ui.ctx().input_mut(|i| i.consume_shortcut(&KeyboardShortcut::new(Modifiers::COMMAND, Key::S)))
 }

@@ -569,6 +569,20 @@ fn click_picks_the_gizmo_moves_and_undo_returns_to_the_cached_bakes_bit_for_bit(
     assert!((axis * glam::Vec3A::X - glam::Vec3A::X).length() > 0.05, "by a visible angle");
     h.state_mut().editor.undo();
     assert_eq!(pose(&h, sphere), before);
+
+    // Scaling: R, then the X handle dragged outward grows the group uniformly about its origin.
+    h.key_press(egui::Key::R);
+    h.step();
+    let place = kage_editor::interaction::placement(&h.state().editor, Selection::Group(sphere)).unwrap();
+    let handle = &place.handles(kage_editor::gizmo::Mode::Scale, &view)[0];
+    let (s0, s1) = (rect.min + egui::vec2(handle[0].x, handle[0].y), rect.min + egui::vec2(handle[1].x, handle[1].y));
+    drag(&mut h, s0 + (s1 - s0) * 0.5, s1);
+    let grown = pose(&h, sphere);
+    let ratio = |k: usize| grown.matrix3.col(k).length() / before.matrix3.col(k).length();
+    assert!(ratio(0) > 1.2 && (ratio(0) - ratio(1)).abs() < 1e-4 && (ratio(0) - ratio(2)).abs() < 1e-4, "{grown:?}");
+    assert_eq!(Vec3::from(grown.translation), Vec3::from(before.translation));
+    h.state_mut().editor.undo();
+    assert_eq!(pose(&h, sphere), before, "undo restores the stored pose exactly");
     let ed = &h.state().editor;
     assert!(errors(ed).is_empty(), "{:?}", errors(ed));
 }
@@ -626,4 +640,84 @@ fn ctrl_s_saves_the_opened_file_which_is_not_reimported_and_outside_changes_ask_
     step_until(&mut h, "the re-import", |ed| ed.log.iter().any(|l| l.text.contains("re-imported")));
     let ed = &h.state().editor;
     assert!(!ed.unsaved() && errors(ed).is_empty(), "{:?}", errors(ed));
+}
+
+/// A file dropped on the window, as eframe hands it to egui.
+#[derive(Debug)]
+struct Dropped(PathBuf);
+
+impl egui::DroppedFile for Dropped {
+    fn path(&self) -> &Path {
+        &self.0
+    }
+
+    fn bytes(&self) -> Result<Vec<u8>, String> {
+        std::fs::read(&self.0).map_err(|e| e.to_string())
+    }
+}
+
+#[test]
+fn lights_are_added_groups_duplicated_deleted_and_dropped_files_added_each_one_undo_step() {
+    let dir = scratch("add");
+    let mut h = harness(default_scene(), options(&dir, None, None));
+    step_until(&mut h, "the first bakes", settled);
+    let counts = |h: &Harness<App>| (h.state().editor.flat.instances.len(), h.state().editor.flat.lights.len());
+    let start = counts(&h);
+    let before = values(&h);
+
+    // Add > Quad light: a new light, selected, shading the scene once its bake lands.
+    h.get_by_label("Add").click();
+    h.step();
+    h.step();
+    h.get_by_label("Quad light").click();
+    h.step();
+    h.step();
+    assert_eq!(counts(&h), (start.0, start.1 + 1));
+    assert!(matches!(h.state().editor.selection, Selection::Light(_)));
+    step_until(&mut h, "the bake with the new light", settled);
+    assert!(changed(&before, &values(&h)) > 1000, "the new light lights the scene");
+
+    // Ctrl+D copies the selected group; Delete removes the copy.
+    let sphere = h.state().editor.scene.find_group("sphere").unwrap();
+    h.state_mut().editor.selection = Selection::Group(sphere);
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::D);
+    h.step();
+    h.step();
+    assert_eq!(counts(&h), (start.0 + 1, start.1 + 1), "the sphere's copy");
+    let copy = h.state().editor.selection;
+    assert!(matches!(copy, Selection::Group(g) if g != sphere));
+    h.key_press(egui::Key::Delete);
+    h.step();
+    h.step();
+    assert_eq!(counts(&h), (start.0, start.1 + 1));
+
+    // A glTF dropped on the window becomes a group of its own.
+    h.input_mut().dropped_files.push(std::sync::Arc::new(Dropped(asset("models/bunny.glb"))));
+    h.step();
+    h.step();
+    assert_eq!(counts(&h), (start.0 + 1, start.1 + 1), "{:?}", errors(&h.state().editor));
+    step_until(&mut h, "the bake with the bunny", settled);
+    snapshot(&mut h, "added");
+    let ed = &h.state().editor;
+    assert!(errors(ed).is_empty(), "{:?}", errors(ed));
+    assert_eq!(ed.history.undo_len(), 4, "add, duplicate, delete, drop: four steps");
+
+    // Undoing everything leads back to the scene that was opened, and to its bakes.
+    for _ in 0..4 {
+        h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
+        h.step();
+    }
+    h.step();
+    assert_eq!(counts(&h), start);
+    step_until(&mut h, "the bakes after undoing", settled);
+    let ed = &h.state().editor;
+    let b = ed.stats.runs[0].unwrap();
+    assert!(b.cold == 0 && b.warm == 0 && b.cached > 0, "the opened scene's bakes are all cached: {b:?}");
+    // Redo brings the copy back, then deletes it again: the same entity, bit for bit.
+    h.key_press_modifiers(egui::Modifiers::COMMAND | egui::Modifiers::SHIFT, egui::Key::Z);
+    h.key_press_modifiers(egui::Modifiers::COMMAND | egui::Modifiers::SHIFT, egui::Key::Z);
+    h.step();
+    h.step();
+    assert_eq!(counts(&h), (start.0 + 1, start.1 + 1));
+    assert!(errors(&h.state().editor).is_empty());
 }

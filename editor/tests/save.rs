@@ -43,6 +43,17 @@ fn light_points(scene: &Scene) -> Vec<Vec<Vec3>> {
     flatten(scene).lights.iter().map(|l| l.points.clone()).collect()
 }
 
+/// The Khronos validator finds no error in `file` (installed by `scripts/test`).
+fn assert_valid(file: &Path) {
+    let script = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../tools/gltf-validator/validate.js");
+    let out = std::process::Command::new("node")
+        .arg(script)
+        .arg(file)
+        .output()
+        .expect("node runs the glTF validator (scripts/test installs it)");
+    assert!(out.status.success(), "{}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
+}
+
 fn close(a: Vec3, b: Vec3) -> bool {
     (a - b).abs().max_element() < 1e-4
 }
@@ -91,6 +102,7 @@ fn saved_edits_come_back_and_everything_else_stays_the_same_text() {
     assert_eq!(std::fs::read(saved.backup.unwrap()).unwrap(), original, "the previous version is kept");
 
     // Re-opened, the file is the edited scene.
+    assert_valid(&path);
     let back = open(&path);
     let pose = |s: &Scene| s.world.get::<&Transform>(entity_named(s, "cube")).unwrap().world;
     assert!(pose(&back).abs_diff_eq(pose(&scene), 1e-5), "{:?} vs {:?}", pose(&back), pose(&scene));
@@ -194,4 +206,68 @@ fn edits_the_file_cannot_hold_are_refused_by_name_and_nothing_is_written() {
     assert!(err.contains("mesh was replaced") && err.contains("nodes["), "{err}");
     assert_eq!(std::fs::read(&path).unwrap(), original, "nothing was written");
     assert!(!dir.join("scene.gltf.bak").exists());
+}
+
+#[test]
+fn added_groups_become_new_nodes_and_deleted_ones_leave_the_scene() {
+    let dir = scratch("presence");
+    let path = dir.join("scene.gltf");
+    std::fs::copy(asset("scenes/bunny_two_groups.gltf"), &path).unwrap();
+    std::fs::copy(asset("scenes/bunny_two_groups.bin"), dir.join("bunny_two_groups.bin")).unwrap();
+    let mut scene = open(&path);
+    let baseline = Baseline::of(&scene);
+    let groups = |s: &Scene| s.world.query::<&kage_engine::scene::RigidGroup>().iter().count();
+    let before = groups(&scene);
+
+    // Added in the editor: a new light and a copy of a group become new nodes.
+    let mut added = scene.duplicate();
+    let lamp = vec![Vec3::new(0.0, 3.0, 0.0), Vec3::new(0.0, 3.0, 1.0), Vec3::new(1.0, 3.0, 0.0)];
+    added.add_light("new lamp", lamp.clone(), Vec3::splat(25.0), Affine3A::IDENTITY);
+    let source = entity_named(&added, "group_box_sphere");
+    let pose =
+        Affine3A::from_translation(Vec3::new(0.0, 0.0, 3.0)) * added.world.get::<&Transform>(source).unwrap().world;
+    let copy = added.world.spawn((
+        kage_engine::scene::RigidGroup { index: 99 },
+        Transform { world: pose },
+        kage_engine::scene::Name("copy".into()),
+        kage_engine::scene::NodeId(1000),
+    ));
+    for m in added.members(source) {
+        let e = added.world.spawn(&added.components(m).unwrap());
+        added.world.get::<&mut InGroup>(e).unwrap().group = copy;
+    }
+    kage_engine::scene::propagate_transforms(&mut added.world);
+    let to = dir.join("added.gltf");
+    let saved = save(&added, &baseline, &path, &to).unwrap();
+    assert_eq!(saved.added, 2, "{saved:?}");
+    assert_valid(&to);
+    let back = open(&to);
+    assert_eq!(groups(&back), before + 2);
+    let lights = light_points(&back);
+    assert!(lights.iter().any(|l| l.len() == 3 && l.iter().zip(&lamp).all(|(p, q)| close(*p, *q))), "{lights:?}");
+    let copied = back.world.get::<&Transform>(entity_named(&back, "copy")).unwrap().world;
+    assert!(copied.abs_diff_eq(pose, 1e-5));
+    let after = top(&to);
+    assert_eq!(objects(&after["meshes"]).len(), 5, "the copy shows the file's meshes; the lamp has one of its own");
+    assert!(
+        after["buffers"].get().contains("data:application/octet-stream;base64,"),
+        "new geometry in a buffer of its own"
+    );
+
+    // Deleted: the group and its members leave the scene; the nodes stay in the file, unused.
+    let group = entity_named(&scene, "group_bunny");
+    for e in scene.members(group).into_iter().chain([group]) {
+        scene.world.despawn(e).unwrap();
+    }
+    let saved = save(&scene, &baseline, &path, &path).unwrap();
+    assert_eq!(saved.nodes, 1);
+    assert_valid(&path);
+    let back = open(&path);
+    assert_eq!(groups(&back), before - 1);
+    assert!(back.find_group("group_bunny").is_err());
+    let after = top(&path);
+    assert_eq!(objects(&after["nodes"]).len(), 7, "the nodes stay");
+    let scenes = objects(&after["scenes"]);
+    let roots: Vec<usize> = serde_json::from_str(scenes[0]["nodes"].get()).unwrap();
+    assert!(!roots.contains(&2), "{roots:?}");
 }

@@ -20,13 +20,21 @@ impl Scene {
         }
     }
 
-    fn next_node(&self) -> u32 {
-        self.world.query::<&NodeId>().iter().map(|n| n.0 + 1).max().unwrap_or(0)
+    /// A node number no entity uses yet (nodes of lights and groups, and of mesh instances).
+    pub fn next_node(&self) -> u32 {
+        let nodes = self.world.query::<&NodeId>().iter().map(|n| n.0 + 1).max().unwrap_or(0);
+        let instances = self.world.query::<&PrimitiveId>().iter().map(|p| p.node + 1).max().unwrap_or(0);
+        nodes.max(instances)
+    }
+
+    /// A group index no group uses yet (after the last: groups keep their order).
+    pub fn next_group_index(&self) -> u32 {
+        self.world.query::<&RigidGroup>().iter().map(|g| g.index + 1).max().unwrap_or(0)
     }
 
     fn add_group(&mut self, name: &str, pose: Affine3A) -> (hecs::Entity, u32) {
         let node = self.next_node();
-        let index = self.world.query::<&RigidGroup>().iter().count() as u32;
+        let index = self.next_group_index();
         let group =
             self.world.spawn((RigidGroup { index }, Transform { world: pose }, Name(name.into()), NodeId(node)));
         (group, node)
@@ -85,26 +93,11 @@ impl Scene {
     }
 
     /// An independent copy with the same entity ids (a snapshot for a background bake while the
-    /// original keeps being edited). Copies every component type the importer and builders
-    /// create; meshes and textures are shared.
+    /// original keeps being edited); meshes and textures are shared.
     pub fn duplicate(&self) -> Self {
         let mut world = hecs::World::new();
         for e in self.world.iter() {
-            let mut b = hecs::EntityBuilder::new();
-            copy::<Name>(&e, &mut b);
-            copy::<NodeId>(&e, &mut b);
-            copy::<Transform>(&e, &mut b);
-            copy::<RigidGroup>(&e, &mut b);
-            copy::<InGroup>(&e, &mut b);
-            copy::<PrimitiveId>(&e, &mut b);
-            copy::<MeshRef>(&e, &mut b);
-            copy::<Material>(&e, &mut b);
-            copy::<MaterialMaps>(&e, &mut b);
-            copy::<PolygonLight>(&e, &mut b);
-            copy::<Emitter>(&e, &mut b);
-            copy::<Camera>(&e, &mut b);
-            copy::<EnvironmentLight>(&e, &mut b);
-            world.spawn_at(e.entity(), b.build());
+            world.spawn_at(e.entity(), &clone_components(&e));
         }
         Self {
             world,
@@ -115,6 +108,12 @@ impl Scene {
         }
     }
 
+    /// A copy of every component of entity `e` (`None` when it does not exist), to spawn again
+    /// later (the editor's undo of a deletion).
+    pub fn components(&self, e: hecs::Entity) -> Option<hecs::BuiltEntityClone> {
+        self.world.entity(e).ok().map(|e| clone_components(&e))
+    }
+
     /// Sets the environment (see [`Scene::set_environment`]) and returns `self`, for chaining.
     pub fn with_environment(mut self, env: EnvironmentLight) -> Self {
         self.set_environment(env);
@@ -122,7 +121,26 @@ impl Scene {
     }
 }
 
-fn copy<T: hecs::Component + Clone>(e: &hecs::EntityRef, b: &mut hecs::EntityBuilder) {
+/// Every component type the importer and builders create, copied.
+fn clone_components(e: &hecs::EntityRef) -> hecs::BuiltEntityClone {
+    let mut b = hecs::EntityBuilderClone::new();
+    copy::<Name>(e, &mut b);
+    copy::<NodeId>(e, &mut b);
+    copy::<Transform>(e, &mut b);
+    copy::<RigidGroup>(e, &mut b);
+    copy::<InGroup>(e, &mut b);
+    copy::<PrimitiveId>(e, &mut b);
+    copy::<MeshRef>(e, &mut b);
+    copy::<Material>(e, &mut b);
+    copy::<MaterialMaps>(e, &mut b);
+    copy::<PolygonLight>(e, &mut b);
+    copy::<Emitter>(e, &mut b);
+    copy::<Camera>(e, &mut b);
+    copy::<EnvironmentLight>(e, &mut b);
+    b.build()
+}
+
+fn copy<T: hecs::Component + Clone>(e: &hecs::EntityRef, b: &mut hecs::EntityBuilderClone) {
     if let Some(c) = e.get::<&T>() {
         b.add((*c).clone());
     }

@@ -95,6 +95,19 @@ impl Scene {
         })
     }
 
+    /// The instances and lights of rigid group `group`, in entity order.
+    pub fn members(&self, group: hecs::Entity) -> Vec<hecs::Entity> {
+        let mut m: Vec<hecs::Entity> = self
+            .world
+            .query::<(hecs::Entity, &InGroup)>()
+            .iter()
+            .filter(|(_, g)| g.group == group)
+            .map(|(e, _)| e)
+            .collect();
+        m.sort();
+        m
+    }
+
     /// Rotates `group` by `rotation` about its own origin, then moves it by `offset`, and
     /// re-derives its members' transforms (a run-time pose change: no bake depends on it but
     /// BSPVT visibility, which the caller re-bakes).

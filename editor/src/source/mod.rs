@@ -16,23 +16,28 @@
 //! light edit on a node that also holds meshes or children (they would move with it), a glTF
 //! material shared by things edited differently, a replaced mesh (buffers are never rewritten).
 
+mod added;
+mod document;
+
 use super::history::{Stored, Target};
+use document::{Document, Object, edit_object, set};
 use glam::{Affine3A, Mat4, Vec3};
-use indexmap::IndexMap;
 use kage_engine::scene::import::files::Root;
 use kage_engine::scene::{
     Emitter, InGroup, Material, MeshRef, NodeId, PolygonLight, PrimitiveId, RigidGroup, Scene, Transform,
 };
-use serde_json::value::{RawValue, to_raw_value};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
-/// A JSON object: keys in source order, values as their raw text.
-type Object = IndexMap<String, Box<RawValue>>;
-
-/// The values the source file holds, per editable thing.
-#[derive(Clone, Debug, Default)]
-pub struct Baseline(HashMap<Target, Stored>);
+/// The values the source file holds, per editable thing, and the glTF node of each group and
+/// light.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Baseline {
+    values: HashMap<Target, Stored>,
+    nodes: HashMap<hecs::Entity, usize>,
+    /// The mesh each of the file's (mesh, primitive) pairs was imported as.
+    primitives: HashMap<(u32, u32), MeshRef>,
+}
 
 impl Baseline {
     /// The values of `scene` now (as opened, or as just saved).
@@ -52,17 +57,15 @@ impl Baseline {
             keep(Stored::Material(e, *m));
             keep(Stored::Mesh(e, *r));
         }
-        Self(values)
+        let nodes = w.query::<(hecs::Entity, &NodeId)>().iter().map(|(e, n)| (e, n.0 as usize)).collect();
+        let primitives =
+            w.query::<(&PrimitiveId, &MeshRef)>().iter().map(|(id, r)| ((id.mesh, id.primitive), *r)).collect();
+        Self { values, nodes, primitives }
     }
 
     /// The stored values of `target`, if the file holds it.
     pub fn get(&self, target: Target) -> Option<&Stored> {
-        self.0.get(&target)
-    }
-
-    /// Everything the baseline holds.
-    pub fn iter(&self) -> impl Iterator<Item = &Stored> {
-        self.0.values()
+        self.values.get(&target)
     }
 }
 
@@ -77,6 +80,9 @@ pub struct Saved {
     pub copied: Vec<PathBuf>,
     /// A copy of the file that was replaced, if there was one.
     pub backup: Option<PathBuf>,
+    /// Groups added in the editor and written as new nodes (their entities do not know their
+    /// nodes: the editor reads the saved file again).
+    pub added: usize,
 }
 
 /// Writes the edits `scene` made since `baseline` into the glTF at `from`, saving the result
@@ -98,6 +104,8 @@ pub fn save(scene: &Scene, baseline: &Baseline, from: &Path, to: &Path) -> Resul
     };
     let mut file = Document::parse(&json).map_err(|e| format!("{name}: {e}"))?;
     let mut plan = Plan { scene, baseline, doc: &doc, file: &mut file, problems: Vec::new(), nodes: 0, materials: 0 };
+    let added = plan.added();
+    plan.deleted();
     plan.groups_and_lights();
     plan.materials();
     plan.replaced_meshes();
@@ -123,70 +131,11 @@ pub fn save(scene: &Scene, baseline: &Baseline, from: &Path, to: &Path) -> Resul
     }
     kage_engine::output::write_atomically(to, |f| std::io::Write::write_all(f, &out))
         .map_err(|e| format!("{}: {e}", to.display()))?;
-    Ok(Saved { nodes, materials, copied, backup })
+    Ok(Saved { nodes, materials, copied, backup, added })
 }
 
 fn is_glb(p: &Path) -> bool {
     p.extension().is_some_and(|e| e.eq_ignore_ascii_case("glb"))
-}
-
-/// The glTF JSON with the arrays the edits touch parsed one level deeper.
-struct Document {
-    top: Object,
-    nodes: Vec<Object>,
-    materials: Vec<Object>,
-    meshes: Vec<Object>,
-    touched: [bool; 3],
-}
-
-impl Document {
-    fn parse(json: &[u8]) -> serde_json::Result<Self> {
-        let top: Object = serde_json::from_slice(json)?;
-        let array = |key: &str| -> serde_json::Result<Vec<Object>> {
-            top.get(key).map_or(Ok(Vec::new()), |raw| serde_json::from_str(raw.get()))
-        };
-        Ok(Self {
-            nodes: array("nodes")?,
-            materials: array("materials")?,
-            meshes: array("meshes")?,
-            top,
-            touched: [false; 3],
-        })
-    }
-
-    fn into_json(mut self) -> serde_json::Result<Vec<u8>> {
-        for (k, (key, array)) in
-            [("nodes", &self.nodes), ("materials", &self.materials), ("meshes", &self.meshes)].into_iter().enumerate()
-        {
-            if self.touched[k] {
-                self.top.insert(key.to_string(), to_raw_value(array)?);
-            }
-        }
-        serde_json::to_vec(&self.top)
-    }
-
-    fn node(&mut self, i: usize) -> &mut Object {
-        self.touched[0] = true;
-        &mut self.nodes[i]
-    }
-
-    fn material(&mut self, i: usize) -> &mut Object {
-        self.touched[1] = true;
-        &mut self.materials[i]
-    }
-}
-
-/// Sets `key` of `object` to `value` (in place when present, keeping the key order).
-fn set(object: &mut Object, key: &str, value: impl serde::Serialize) {
-    let raw = to_raw_value(&value).expect("numbers and arrays serialise");
-    object.insert(key.to_string(), raw);
-}
-
-/// Edits `object[key]`, an object (created when absent).
-fn edit_object(object: &mut Object, key: &str, f: impl FnOnce(&mut Object)) {
-    let mut inner: Object = object.get(key).and_then(|r| serde_json::from_str(r.get()).ok()).unwrap_or_default();
-    f(&mut inner);
-    set(object, key, &inner);
 }
 
 fn set_transform(node: &mut Object, m: Affine3A) {
@@ -269,9 +218,12 @@ impl Plan<'_> {
             let base = frames.get(&node).copied().unwrap_or_else(|| self.matrix(node));
             frames.insert(node, base * chain.inverse() * delta * chain);
         }
-        self.nodes = frames.len();
+        self.nodes += frames.len();
         for (node, m) in frames {
-            set_transform(self.file.node(node), m);
+            match self.file.array("nodes").get_mut(node) {
+                Some(object) => set_transform(object, m),
+                None => self.problems.push(format!("nodes[{node}] is not in the file")),
+            }
         }
     }
 
@@ -300,16 +252,17 @@ impl Plan<'_> {
         let w = &self.scene.world;
         // Per glTF material: what its users want now, and whether any of them changed.
         let mut wanted: HashMap<Option<usize>, (Vec<Wanted>, bool)> = HashMap::new();
+        // Things added in the editor are written with materials of their own (see `added`).
         for (e, m, id) in w.query::<(hecs::Entity, &Material, &PrimitiveId)>().iter() {
-            let before = self.baseline.get(Target::Material(e));
-            let changed = matches!(before, Some(Stored::Material(_, b)) if b != m);
+            let Some(before) = self.baseline.get(Target::Material(e)) else { continue };
+            let changed = matches!(before, Stored::Material(_, b) if b != m);
             let entry = wanted.entry(self.material_index(*id)).or_default();
             entry.0.push(Wanted::Surface(*m, *id));
             entry.1 |= changed;
         }
         for (e, l, emitter) in w.query::<(hecs::Entity, &PolygonLight, &Emitter)>().iter() {
-            let changed =
-                matches!(self.baseline.get(Target::Light(e)), Some(Stored::Light(_, _, b)) if b.radiance != l.radiance);
+            let Some(before) = self.baseline.get(Target::Light(e)) else { continue };
+            let changed = matches!(before, Stored::Light(_, _, b) if b.radiance != l.radiance);
             let entry = wanted.entry(self.material_index(emitter.id)).or_default();
             entry.0.push(Wanted::Emission(l.radiance, emitter.id));
             entry.1 |= changed;
@@ -329,8 +282,8 @@ impl Plan<'_> {
             }
             // Primitives on glTF's default material get a material of their own.
             let index = index.unwrap_or_else(|| {
-                let i = self.file.add_material();
-                users.iter().for_each(|u| self.file.assign(u.id(), i));
+                let i = self.file.push("materials", Object::new());
+                users.iter().for_each(|u| self.file.assign(u.id().mesh as usize, u.id().primitive as usize, i));
                 i
             });
             self.write_material(index, users[0]);
@@ -343,7 +296,7 @@ impl Plan<'_> {
         let specular = source.as_ref().and_then(|s| s.specular()).map_or(1.0, |s| s.specular_factor());
         let strength = source.as_ref().and_then(|s| s.emissive_strength()).unwrap_or(1.0);
         self.materials += 1;
-        let object = self.file.material(index);
+        let object = &mut self.file.array("materials")[index];
         match wanted {
             Wanted::Surface(m, _) => {
                 edit_object(object, "pbrMetallicRoughness", |pbr| {
@@ -372,6 +325,49 @@ impl Plan<'_> {
                 }
             }
         }
+    }
+
+    /// Deleted groups leave the scene's node list (their nodes stay, unused, as glTF allows);
+    /// a light deleted from a group that stays leaves its parent's children.
+    fn deleted(&mut self) {
+        let w = &self.scene.world;
+        let gone = |e: &hecs::Entity| !w.contains(*e);
+        let node_of = |e: &hecs::Entity| self.baseline.nodes.get(e).copied();
+        let entities = |light: bool| {
+            self.baseline.values.values().filter_map(move |s| match s {
+                Stored::Group(e, _) if !light => Some(*e),
+                Stored::Light(e, ..) if light => Some(*e),
+                _ => None,
+            })
+        };
+        let roots: Vec<usize> = entities(false).filter(gone).filter_map(|e| node_of(&e)).collect();
+        let lights: Vec<usize> = entities(true).filter(gone).filter_map(|e| node_of(&e)).collect();
+        for node in lights.into_iter().filter(|n| !roots.contains(n)) {
+            let parent = self.doc.nodes().find(|p| p.children().any(|c| c.index() == node));
+            match parent {
+                Some(p) if !self.holds_more(node) => self.file.drop_child(p.index(), node),
+                _ => self.problems.push(format!(
+                    "{}: the deleted light shares its node with other things, which would go too",
+                    self.node_name(node)
+                )),
+            }
+        }
+        self.nodes += roots.len();
+        self.file.drop_roots(&roots);
+    }
+
+    /// Whether glTF node `node` holds anything still in the scene (meshes, other polygons of
+    /// its emitter) or has children.
+    fn holds_more(&self, node: usize) -> bool {
+        let w = &self.scene.world;
+        let kept = |e: hecs::Entity, t: Target| self.baseline.get(t).is_some() && w.contains(e);
+        w.query::<(hecs::Entity, &PrimitiveId)>()
+            .iter()
+            .any(|(e, id)| id.node as usize == node && kept(e, Target::Mesh(e)))
+            || w.query::<(hecs::Entity, &Emitter)>()
+                .iter()
+                .any(|(e, x)| x.id.node as usize == node && kept(e, Target::Light(e)))
+            || self.doc.nodes().nth(node).is_some_and(|n| n.children().next().is_some())
     }
 
     fn replaced_meshes(&mut self) {
@@ -405,37 +401,6 @@ impl Wanted {
             (Self::Surface(a, _), Self::Surface(b, _)) => a == b,
             (Self::Emission(a, _), Self::Emission(b, _)) => a == b,
             _ => false,
-        }
-    }
-}
-
-impl Document {
-    /// Appends an empty material; returns its index.
-    fn add_material(&mut self) -> usize {
-        self.touched[1] = true;
-        self.materials.push(Object::new());
-        self.materials.len() - 1
-    }
-
-    /// Points primitive `id` at material `material`.
-    fn assign(&mut self, id: PrimitiveId, material: usize) {
-        self.touched[2] = true;
-        let mesh = &mut self.meshes[id.mesh as usize];
-        let mut primitives: Vec<Object> =
-            mesh.get("primitives").and_then(|r| serde_json::from_str(r.get()).ok()).unwrap_or_default();
-        if let Some(p) = primitives.get_mut(id.primitive as usize) {
-            set(p, "material", material);
-        }
-        set(mesh, "primitives", primitives);
-    }
-
-    /// Lists `extension` in `extensionsUsed` (once).
-    fn uses(&mut self, extension: &str) {
-        let mut used: Vec<String> =
-            self.top.get("extensionsUsed").and_then(|r| serde_json::from_str(r.get()).ok()).unwrap_or_default();
-        if !used.iter().any(|u| u == extension) {
-            used.push(extension.to_string());
-            set(&mut self.top, "extensionsUsed", used);
         }
     }
 }
