@@ -1,7 +1,10 @@
 #!/usr/bin/env bash
-# Smoke test of the real editor window: starts `kage edit` on the built-in scene under Xvfb,
-# waits for its first bakes, takes a screenshot of the X screen and checks it is not blank.
-# usage: tools/editor_smoke.sh PATH/TO/kage [SECONDS]   (run by cli/tests/smoke.rs)
+# Smoke test of the real editor window: starts `kage edit` under Xvfb, waits for its first
+# bakes, takes a screenshot of the X screen and checks it is not blank. With SCENE (a .gltf),
+# edits a copy of it as a user would with xdotool — a click in the middle of the viewport picks
+# what is there, Delete deletes it, Ctrl+S saves — and checks the saved file lost one root node
+# and kept a .bak of the original.
+# usage: tools/editor_smoke.sh PATH/TO/kage [SECONDS] [SCENE]   (run by cli/tests/smoke.rs)
 set -euo pipefail
 kage=$(realpath "$1")
 wait_s=${2:-25}
@@ -12,7 +15,12 @@ Xvfb "$display" -screen 0 1280x800x24 -nolisten tcp >"$work/xvfb.log" 2>&1 &
 xvfb=$!
 trap 'kill $xvfb 2>/dev/null || true; kill $app 2>/dev/null || true' EXIT
 for _ in $(seq 50); do [ -e "/tmp/.X11-unix/X${display#:}" ] && break; sleep 0.1; done
-(cd "$work" && DISPLAY=$display exec "$kage" edit --face-res 16 >"$work/kage.log" 2>&1) &
+scene=()
+if [ -n "${3:-}" ]; then
+  cp "$3" "$work/scene.gltf"
+  scene=("$work/scene.gltf")
+fi
+(cd "$work" && DISPLAY=$display exec "$kage" edit "${scene[@]}" --face-res 16 >"$work/kage.log" 2>&1) &
 app=$!
 sleep "$wait_s"
 if ! kill -0 $app 2>/dev/null; then
@@ -21,4 +29,23 @@ fi
 DISPLAY=$display xwd -root -silent >"$work/screen.xwd"
 mkdir -p "$root/target"
 python3 "$root/tools/xwd_check.py" "$work/screen.xwd" "$root/target/editor-smoke.png"
+if [ ${#scene[@]} -gt 0 ]; then
+  # Keyboard focus (there is no window manager to give it), then a click in the viewport's
+  # middle of the 1280×800 window (outliner left, inspector right, log below).
+  DISPLAY=$display xdotool windowfocus --sync "$(DISPLAY=$display xdotool search --name kage | head -1)"
+  DISPLAY=$display xdotool mousemove 570 390 click 1
+  sleep 1
+  DISPLAY=$display xdotool key Delete
+  sleep 1
+  DISPLAY=$display xdotool key ctrl+s
+  sleep 3
+  python3 - "$work/scene.gltf" <<'PY'
+import json, sys
+path = sys.argv[1]
+roots = lambda p: len(json.load(open(p))["scenes"][0]["nodes"])
+before, after = roots(path + ".bak"), roots(path)
+assert after == before - 1, f"the saved scene has {after} root nodes, the original {before}"
+print(f"editor smoke test: a click, Delete and Ctrl+S saved the scene with {after} of {before} root nodes")
+PY
+fi
 echo "editor smoke test: ok (screenshot in target/editor-smoke.png)"

@@ -632,6 +632,15 @@ fn ctrl_s_saves_the_opened_file_which_is_not_reimported_and_outside_changes_ask_
     h.step();
     assert!(!h.state().editor.outside_change);
     assert_eq!(pose(&h, cube), edited, "the edits stay");
+    // Closing the window with edits unsaved asks first; Cancel keeps editing.
+    h.input_mut().viewports.entry(egui::ViewportId::ROOT).or_default().events.push(egui::ViewportEvent::Close);
+    h.step();
+    h.step();
+    h.get_by_label("Save your edits before closing?");
+    h.get_by_label("Cancel").click();
+    h.step();
+    h.step();
+    assert!(h.query_by_label("Save your edits before closing?").is_none());
     // With nothing unsaved, an outside change re-imports at once.
     h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::S);
     h.step();
