@@ -54,6 +54,41 @@ impl Error {
     }
 }
 
+thread_local! {
+    /// How many [`contain`] calls this thread is inside.
+    static CONTAINING: std::cell::Cell<u32> = const { std::cell::Cell::new(0) };
+}
+
+static CONTAINED: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+static QUIET_HOOK: std::sync::Once = std::sync::Once::new();
+
+/// Runs `f`, turning a panic inside it into `Err` with the panic's message — quietly: the
+/// panic hook stays silent for it (it becomes an error kage reports, not a message and
+/// backtrace on stderr). The last line of defence around third-party code that asserts on bad
+/// input (the gltf parser, the storage library on a damaged page); kage validates what it
+/// knows those assert, and [`contained_panics`] counts what still got through.
+pub fn contain<T>(f: impl FnOnce() -> T) -> std::result::Result<T, String> {
+    QUIET_HOOK.call_once(|| {
+        let previous = std::panic::take_hook();
+        std::panic::set_hook(Box::new(move |info| {
+            if CONTAINING.with(|c| c.get()) > 0 {
+                CONTAINED.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
+            } else {
+                previous(info);
+            }
+        }));
+    });
+    CONTAINING.with(|c| c.set(c.get() + 1));
+    let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(f));
+    CONTAINING.with(|c| c.set(c.get() - 1));
+    result.map_err(|panic| panic_message(&*panic))
+}
+
+/// Panics [`contain`] has turned into errors in this process so far.
+pub fn contained_panics() -> usize {
+    CONTAINED.load(std::sync::atomic::Ordering::SeqCst)
+}
+
 /// The message a caught panic carried (empty when it was not a string): for turning a panic
 /// inside a third-party library into an error that says what happened.
 pub fn panic_message(panic: &(dyn std::any::Any + Send)) -> String {

@@ -153,7 +153,7 @@ impl Drop for Handle {
     fn drop(&mut self) {
         if let Some(db) = self.0.take() {
             // Nothing more to report: every result was committed, or its error returned, earlier.
-            let _ = std::panic::catch_unwind(std::panic::AssertUnwindSafe(move || drop(db)));
+            let _ = kage_engine::error::contain(move || drop(db));
         }
     }
 }
@@ -172,8 +172,7 @@ pub struct CheckReport {
 /// Runs `f` on the database at `path`, turning a panic inside the storage library (it asserts
 /// on some damaged pages) into an error that names the file: damaged bytes never crash kage.
 fn contained<T>(path: &Path, f: impl FnOnce() -> Result<T>) -> Result<T> {
-    std::panic::catch_unwind(std::panic::AssertUnwindSafe(f)).unwrap_or_else(|panic| {
-        let what = kage_engine::error::panic_message(&*panic);
+    kage_engine::error::contain(f).unwrap_or_else(|what| {
         Err(DbError::Corrupted {
             path: path.to_path_buf(),
             detail: format!("a damaged page ({what}); run `kage db check`"),

@@ -56,13 +56,24 @@ pub fn zero_accessors(root: &mut json::Root) -> Result<Option<usize>, String> {
     Ok(Some(buffer))
 }
 
-/// References that `gltf`'s own validation dereferences unchecked, the node graph, and
-/// required extensions.
+/// References that `gltf`'s own validation dereferences unchecked, accessor counts and image
+/// sources its readers assume, the node graph, and required extensions.
 pub fn references(root: &json::Root) -> Result<(), String> {
     if let Some(ext) = root.extensions_required.iter().find(|e| !SUPPORTED_EXTENSIONS.contains(&e.as_str())) {
         return Err(format!("requires extension {ext}, which kage does not support"));
     }
     node_graph(root)?;
+    // The gltf crate's readers compute `count − 1` and unwrap an image's URI or MIME type.
+    if let Some(i) = root.accessors.iter().position(|a| a.count.0 == 0) {
+        return Err(format!("accessors[{i}]: count is 0 (glTF requires at least 1)"));
+    }
+    for (i, image) in root.images.iter().enumerate() {
+        match (&image.uri, &image.buffer_view, &image.mime_type) {
+            (Some(_), None, _) | (None, Some(_), Some(_)) => {}
+            (None, Some(_), None) => return Err(format!("images[{i}]: a bufferView image needs a mimeType")),
+            _ => return Err(format!("images[{i}]: needs exactly one of uri and bufferView")),
+        }
+    }
     let n = root.accessors.len();
     for (m, mesh) in root.meshes.iter().enumerate() {
         for (p, prim) in mesh.primitives.iter().enumerate() {

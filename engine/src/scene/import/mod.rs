@@ -44,13 +44,8 @@ pub struct ImportOptions {
 pub fn import(path: &Path, options: ImportOptions) -> Result<Scene> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
     // Last line of defence: the gltf crate has panicked on malformed input before.
-    match std::panic::catch_unwind(|| Importer::run(path, &bytes, options)) {
-        Ok(result) => result,
-        Err(panic) => {
-            let what = crate::error::panic_message(&*panic);
-            Err(Error::gltf(path, format!("malformed glTF (the parser failed: {what})")))
-        }
-    }
+    crate::error::contain(|| Importer::run(path, &bytes, options))
+        .unwrap_or_else(|what| Err(Error::gltf(path, format!("malformed glTF (the parser failed: {what})"))))
 }
 
 struct Importer<'a> {
