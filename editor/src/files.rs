@@ -69,7 +69,7 @@ pub fn save_as(ed: &mut Editor, to: &Path) -> String {
     };
     match super::source::save(&ed.scene, &ed.baseline, &from, to) {
         Ok(saved) => {
-            ed.baseline = super::source::Baseline::of(&ed.scene);
+            ed.mark_saved();
             if to != from {
                 ed.options.scene_path = Some(to.to_path_buf());
                 ed.start_watching();

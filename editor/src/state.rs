@@ -191,8 +191,13 @@ pub struct Editor {
     pub hover: Selection,
     /// Undo and redo.
     pub history: super::history::History,
-    /// The values the scene file holds (as opened or last saved): what a save writes against.
-    pub baseline: super::source::Baseline,
+    /// The values the scene file holds (as opened or last saved): what a save writes against
+    /// (set with [`Editor::mark_saved`]).
+    pub(super) baseline: super::source::Baseline,
+    /// Bumped by every edit and save; [`Editor::unsaved`] compares only when it moved.
+    revision: u64,
+    /// [`Editor::unsaved`]'s last answer and the revision it was for.
+    unsaved_memo: std::cell::Cell<Option<(u64, bool)>>,
     /// The scene file changed on disk while edits were unsaved: the UI asks what to do.
     pub outside_change: bool,
     /// A drag is in progress (a pointer button is down): BSPVT re-bakes wait for its end
@@ -293,6 +298,8 @@ impl Editor {
             gizmo: Default::default(),
             history: Default::default(),
             baseline,
+            revision: 0,
+            unsaved_memo: Default::default(),
             outside_change: false,
             dragging: false,
             values: Vec::new(),
@@ -378,7 +385,25 @@ impl Editor {
 
     /// True when the scene differs from what its file holds (edits not saved).
     pub fn unsaved(&self) -> bool {
-        super::source::Baseline::of(&self.scene) != self.baseline
+        if let Some((revision, unsaved)) = self.unsaved_memo.get()
+            && revision == self.revision
+        {
+            return unsaved;
+        }
+        let unsaved = super::source::Baseline::of(&self.scene) != self.baseline;
+        self.unsaved_memo.set(Some((self.revision, unsaved)));
+        unsaved
+    }
+
+    /// The scene as it is now is what its file holds (just opened again, or saved).
+    pub fn mark_saved(&mut self) {
+        self.baseline = super::source::Baseline::of(&self.scene);
+        self.revision += 1;
+    }
+
+    /// What a save of the scene writes against.
+    pub fn baseline(&self) -> &super::source::Baseline {
+        &self.baseline
     }
 
     /// Logs a message.
@@ -421,6 +446,7 @@ impl Editor {
 
     pub(super) fn edited(&mut self) {
         self.edited_at = Some(Instant::now());
+        self.revision += 1;
         self.dirty.shade = true;
     }
 

@@ -120,7 +120,7 @@ pub fn reimport_scene(ed: &mut Editor) {
             ed.selection = super::state::Selection::None;
             ed.hover = super::state::Selection::None;
             ed.history.clear();
-            ed.baseline = super::source::Baseline::of(&ed.scene);
+            ed.mark_saved();
             ed.dirty.pose = true;
             ed.dirty.geometry = true;
             ed.dirty.meshes = true;
