@@ -7,6 +7,7 @@
 
 mod commands;
 mod db_args;
+mod exposure;
 mod progress;
 mod prt_args;
 mod scene_args;

@@ -25,17 +25,38 @@ fn render_writes_png_exr_and_vertex_csv() {
     let d = scratch("render");
     let (png, exr, csv) = (d.join("a.png"), d.join("a.exr"), d.join("v.csv"));
     let db = d.join("bake.redb");
+    let mut printed = Vec::new();
     for (out, extra) in [(&png, vec![]), (&exr, vec!["--vertices-out", csv.to_str().unwrap()])] {
         let mut args =
             vec!["render", "--spp", "2", "--size", "40x24", "-o", out.to_str().unwrap(), "--db", db.to_str().unwrap()];
         args.extend(extra);
         let o = kage(&args);
         assert!(o.status.success(), "{}", stderr(&o));
+        printed.push(String::from_utf8(o.stdout).unwrap());
     }
-    let png_img = image::open(&png).unwrap();
-    assert_eq!((png_img.width(), png_img.height()), (40, 24));
     let exr_img = image::open(&exr).unwrap().into_rgb32f();
     assert!(exr_img.pixels().any(|p| p.0[0] > 1.0), "EXR keeps linear radiance above 1 (the light)");
+    // The PNG's exposure is metered (and printed); an EXR is never exposed.
+    let metered = printed[0].lines().find_map(|l| l.strip_prefix("exposure: ")).expect("metered exposure printed");
+    let stops: f32 = metered.split_whitespace().next().unwrap().parse().unwrap();
+    assert!(!printed[1].contains("exposure:"));
+    let expected = kage_engine::math::color::metered_exposure(exr_img.pixels().map(|p| glam::Vec3::from(p.0)));
+    assert!((stops - expected).abs() < 0.006, "printed {stops}, EXR meters {expected}");
+    let png_img = image::open(&png).unwrap().into_rgb8();
+    assert_eq!(png_img.dimensions(), (40, 24));
+    for (p, e) in png_img.pixels().zip(exr_img.pixels()) {
+        for c in 0..3 {
+            let want = kage_engine::output::display_srgb(e.0[c] * expected.exp2()) * 255.0;
+            assert!((f32::from(p.0[c]) - want).abs() <= 1.5, "{p:?} vs {e:?}");
+        }
+    }
+    // Stops are given as numbers, negative ones without `=`; anything else is refused.
+    let fixed = d.join("fixed.png");
+    let (fixed_s, db_s) = (fixed.to_str().unwrap(), db.to_str().unwrap());
+    let o = kage(&["render", "--spp", "1", "--size", "8x8", "--exposure", "-1.5", "-o", fixed_s, "--db", db_s]);
+    assert!(o.status.success() && !String::from_utf8_lossy(&o.stdout).contains("exposure:"), "{}", stderr(&o));
+    let o = kage(&["render", "--exposure", "bright", "-o", fixed_s, "--db", db_s]);
+    assert!(!o.status.success() && stderr(&o).contains("expected 'auto' or stops"), "{}", stderr(&o));
     let rows = read_vertex_csv(&csv).unwrap();
     assert_eq!(rows.len(), 1681 + 1625 + 1225 + 24);
     assert!(rows.iter().all(|r| r.radiance.is_finite() && r.radiance.min_element() >= 0.0));

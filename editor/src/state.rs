@@ -219,6 +219,8 @@ pub struct Editor {
     pub overlay: bool,
     /// Display exposure in stops.
     pub exposure: f32,
+    /// Meter the exposure from the next lit result (set when a scene opens).
+    pub metering: bool,
     /// Everything that happened, errors included.
     pub log: Vec<LogLine>,
     /// Timings.
@@ -309,6 +311,7 @@ impl Editor {
             indirect_values: Vec::new(),
             overlay: false,
             exposure: 0.0,
+            metering: true,
             log: Vec::new(),
             stats: Stats::default(),
             store: None,

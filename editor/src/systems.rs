@@ -10,6 +10,7 @@ use super::worker::Worker;
 use glam::Vec3;
 use kage_bake_db::DbError;
 use kage_engine::cache::record::GlossyDirect;
+use kage_engine::math::color::metered_exposure;
 use kage_engine::prt::prefilter::Prefiltered;
 use kage_engine::reference::{Renderer, Settings};
 use kage_engine::scene::VertexValues;
@@ -384,6 +385,19 @@ fn compose(ed: &mut Editor) {
         ed.direct.clone()
     };
     ed.values = if ed.overlay { overlay(ed) } else { ed.radiance.clone() };
+    if ed.metering {
+        meter_exposure(ed);
+    }
+}
+
+/// Sets the exposure from the displayed radiance as `kage render --exposure auto` does (within
+/// the slider's range); waits, metering on, while nothing is lit yet.
+pub fn meter_exposure(ed: &mut Editor) {
+    let lit = ed.radiance.iter().flatten().any(|c| c.max_element() > 0.0);
+    if lit {
+        ed.exposure = metered_exposure(ed.radiance.iter().flatten().copied()).clamp(-6.0, 6.0);
+        ed.metering = false;
+    }
 }
 
 /// One bounce of indirect light from the HSH radiance cache, lit by the current direct result:

@@ -346,7 +346,12 @@ fn methods(ui: &mut egui::Ui, ed: &mut Editor) {
     if ed.overlay || ed.method == Method::Reference {
         ui.label(format!("reference: {} samples per vertex", ed.reference.passes * 4));
     }
-    ui.add(egui::Slider::new(&mut ed.exposure, -6.0..=6.0).text("exposure (stops)"));
+    ui.horizontal(|ui| {
+        ui.add(egui::Slider::new(&mut ed.exposure, -6.0..=6.0).text("exposure (stops)"));
+        if ui.button("meter").on_hover_text("meter the exposure from the current result").clicked() {
+            super::systems::meter_exposure(ed);
+        }
+    });
 }
 
 fn vec3_drag(ui: &mut egui::Ui, label: &str, v: &mut Vec3, speed: f32) -> bool {

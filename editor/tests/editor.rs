@@ -113,6 +113,8 @@ fn the_default_scene_bakes_in_the_background_and_every_method_shades() {
     assert_eq!(ed.method, Method::Baked);
     let baked = values(&h);
     assert!(baked.iter().any(|v| v.max_element() > 0.01) && baked.iter().all(|v| v.is_finite()));
+    // The exposure was metered from the first lit result, as `kage render` meters its PNGs.
+    assert!(!ed.metering && ed.exposure != 0.0 && ed.exposure.abs() < 6.0, "exposure {}", ed.exposure);
     let img = snapshot(&mut h, "default-baked");
     assert!(viewport_colours(&img) > 200, "the viewport shows the scene ({} colours)", viewport_colours(&img));
     let mut seen = vec![baked];
@@ -130,6 +132,13 @@ fn the_default_scene_bakes_in_the_background_and_every_method_shades() {
         snapshot(&mut h, &format!("default-{label}"));
         seen.push(v);
     }
+    // "meter" meters the current method's result.
+    h.state_mut().editor.exposure = 5.0;
+    h.get_by_label("meter").click();
+    h.step();
+    let ed = &h.state().editor;
+    let expected = kage_engine::math::color::metered_exposure(ed.radiance.iter().flatten().copied());
+    assert!((ed.exposure - expected).abs() < 1e-6, "metered {expected}, shows {}", ed.exposure);
     // The error overlay refines against the progressive reference.
     h.get_by_label("bspvt").click();
     h.get_by_label("Error overlay (vs progressive reference)").click();

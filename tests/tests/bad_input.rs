@@ -184,7 +184,19 @@ fn bad_environment_maps_are_rejected_clearly() {
     let dir = scratch("bad-env");
     let garbage = dir.join("garbage.hdr");
     std::fs::write(&garbage, b"#?RADIANCE\nthis is not an image").unwrap();
+    // Headers that claim more texels than the limit, or (EXR) a display window larger than the
+    // pixels the file holds, are refused before anything is decoded.
+    let (huge_hdr, huge_exr) = (dir.join("huge.hdr"), dir.join("huge.exr"));
+    std::fs::write(&huge_hdr, b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 100000 +X 200000\n\x02\x02").unwrap();
+    let mut exr = std::fs::read(asset("envmaps/sky.exr")).unwrap();
+    let window = b"displayWindow\0box2i\0\x10\0\0\0";
+    let at = exr.windows(window.len()).position(|w| w == window).unwrap() + window.len();
+    exr[at + 12..at + 16].copy_from_slice(&33023i32.to_le_bytes()); // yMax
+    std::fs::write(&huge_exr, exr).unwrap();
     for (path, needle) in [
+        (huge_hdr, "declares 200000×100000 texels, more than the limit"),
+        (huge_exr, "display window (512×33024) is larger than its data window (512×256)"),
+        (asset("edge_cases/fuzz/sky_display_window_too_large.exr"), "display window (512×33024) is larger"),
         (garbage, "cannot decode"),
         (dir.join("absent.exr"), "No such file"),
         (asset("scenes/stained_glass.png"), "must be .hdr or .exr"),

@@ -6,8 +6,8 @@
 //!   (`kage_engine::error::contain`) except inside the storage library on a damaged database
 //!   page, which the store turns into an error by design;
 //! - no run longer than [`TIME_BOUND`];
-//! - no run allocating more than [`MEMORY_BOUND`] above what was live before it (inputs are
-//!   under 1 MB; the allocator is instrumented);
+//! - no run allocating more than 64 MiB plus 64 bytes per input byte above what was live before
+//!   it ([`MEMORY_ALLOWANCE`]; inputs are under 1 MB; the allocator is instrumented);
 //! - no file outside the scene's folder read: a URI that leads outside (in any spelling) or to a
 //!   special file must fail the import.
 //!
@@ -36,8 +36,12 @@ static GLOBAL: &PeakMemAlloc<System> = &INSTRUMENTED_SYSTEM;
 
 /// Longest a run may take.
 const TIME_BOUND: Duration = Duration::from_secs(10);
-/// Most a run may allocate above what was live before it.
-const MEMORY_BOUND: usize = 1 << 30;
+/// Most a run may allocate above what was live before it: proportional to the input, a fixed
+/// allowance plus [`MEMORY_PER_BYTE`] per byte of it.
+const MEMORY_ALLOWANCE: usize = 64 << 20;
+/// See [`MEMORY_ALLOWANCE`]: 64 bytes per input byte (decoded float textures and meshes stay
+/// well under it).
+const MEMORY_PER_BYTE: usize = 64;
 
 static PANICS: AtomicUsize = AtomicUsize::new(0);
 
@@ -312,6 +316,7 @@ fn hostile_uri(dir: &Path, rng: &mut Pcg64) -> String {
 /// What one mutant is: its file, and whether it must fail (a hostile URI).
 struct Mutant {
     path: PathBuf,
+    bytes: usize,
     must_fail: bool,
 }
 
@@ -346,8 +351,8 @@ fn make(kind: Kind, seeds: &Seeds, n: usize, rng: &mut Pcg64) -> Mutant {
             (file("redb"), bytes, false)
         }
     };
-    std::fs::write(&path, bytes).unwrap();
-    Mutant { path, must_fail }
+    std::fs::write(&path, &bytes).unwrap();
+    Mutant { path, bytes: bytes.len(), must_fail }
 }
 
 /// Loads a mutant as kage would; `Ok(true)` when it loaded, `Ok(false)` on a clean error.
@@ -414,7 +419,9 @@ fn mutants_load_or_fail_cleanly_within_time_and_memory_and_never_read_outside_th
                 Err(e) => Some(e.clone()),
                 Ok(true) if mutant.must_fail => Some("a URI outside the scene folder was read".into()),
                 _ if took > TIME_BOUND => Some(format!("took {took:?}")),
-                _ if used > MEMORY_BOUND => Some(format!("allocated {} MB", used >> 20)),
+                _ if used > MEMORY_ALLOWANCE + MEMORY_PER_BYTE * mutant.bytes => {
+                    Some(format!("allocated {} MB from {} bytes", used >> 20, mutant.bytes))
+                }
                 _ => None,
             };
             if let Some(why) = broke {

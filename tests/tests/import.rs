@@ -124,3 +124,135 @@ fn the_default_scene_has_everything_a_render_needs() {
     assert!(f.environment.is_some() && f.camera.is_some());
     assert!((f.lights[0].normal - Vec3::NEG_Y).length() < 1e-6);
 }
+
+/// Writes `doc` as `name.gltf` with `bytes` as its one buffer, `name.bin`, in `dir`.
+fn gltf_with_buffer(dir: &std::path::Path, name: &str, mut doc: serde_json::Value, bytes: &[u8]) -> std::path::PathBuf {
+    std::fs::write(dir.join(format!("{name}.bin")), bytes).unwrap();
+    doc["asset"] = serde_json::json!({"version": "2.0"});
+    doc["buffers"] = serde_json::json!([{"uri": format!("{name}.bin"), "byteLength": bytes.len()}]);
+    let path = dir.join(format!("{name}.gltf"));
+    std::fs::write(&path, doc.to_string()).unwrap();
+    path
+}
+
+/// Little-endian bytes of `floats`.
+fn f32_bytes(floats: &[f32]) -> Vec<u8> {
+    floats.iter().flat_map(|f| f.to_le_bytes()).collect()
+}
+
+/// World-space positions of the instance of the node named `name`.
+fn world_positions(s: &Scene, name: &str) -> Vec<Vec3> {
+    use kage_engine::scene::{Name, Transform};
+    let mut q = s.world.query::<(&MeshRef, &Transform, &Name)>();
+    let (m, t, _) = q.iter().find(|(_, _, n)| n.0 == name).unwrap_or_else(|| panic!("no instance '{name}'"));
+    s.meshes[m.index as usize].positions.iter().map(|p| t.world.transform_point3(*p)).collect()
+}
+
+fn assert_points(got: &[Vec3], want: &[[f32; 3]], what: &str) {
+    assert_eq!(got.len(), want.len(), "{what}");
+    for (g, w) in got.iter().zip(want) {
+        assert!((*g - Vec3::from_array(*w)).abs().max_element() < 1e-5, "{what}: {got:?}");
+    }
+}
+
+#[test]
+fn morph_targets_import_with_their_default_weights() {
+    let dir = kage_tests::scratch("morph");
+    // A triangle, two position targets; the mesh's weights (0.5, 0.25), overridden by a node's (1, 0).
+    let mut bytes = f32_bytes(&[0., 0., 0., 1., 0., 0., 0., 1., 0.]);
+    bytes.extend(f32_bytes(&[0., 0., 1., 0., 0., 1., 0., 0., 1.]));
+    bytes.extend(f32_bytes(&[0., 0., 0., 0., 0., 0., 0., 1., 0.]));
+    bytes.extend(f32_bytes(&[1., 0., 0., 0., 0., 0., 0., 0., 0.]));
+    let vec3 = |offset: usize| serde_json::json!({"bufferView": 0, "byteOffset": offset, "componentType": 5126, "count": 3, "type": "VEC3"});
+    let mut position = vec3(0);
+    position["min"] = serde_json::json!([0, 0, 0]);
+    position["max"] = serde_json::json!([1, 1, 0]);
+    let doc = |target_count: usize| {
+        let mut short = vec3(72);
+        short["count"] = serde_json::json!(target_count);
+        serde_json::json!({
+            "scene": 0, "scenes": [{"nodes": [0, 1]}],
+            "nodes": [{"name": "mesh weights", "mesh": 0}, {"name": "node weights", "mesh": 0, "weights": [1.0, 0.0]}],
+            "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "NORMAL": 1}, "targets": [{"POSITION": 2}, {"POSITION": 3}]}], "weights": [0.5, 0.25]}],
+            "accessors": [position, vec3(36), short, vec3(108)],
+            "bufferViews": [{"buffer": 0, "byteLength": bytes.len()}],
+        })
+    };
+    let s = import(&gltf_with_buffer(&dir, "morph", doc(3), &bytes), ImportOptions::default()).unwrap();
+    assert_points(&world_positions(&s, "mesh weights"), &[[0.25, 0., 0.], [1., 0., 0.], [0., 1.5, 0.]], "mesh");
+    assert_points(&world_positions(&s, "node weights"), &[[0., 0., 0.], [1., 0., 0.], [0., 2., 0.]], "node");
+    // A target with the wrong element count is named.
+    let e = import(&gltf_with_buffer(&dir, "short", doc(2), &bytes), ImportOptions::default())
+        .err()
+        .expect("refused")
+        .to_string();
+    assert!(e.contains("short.gltf") && e.contains("morph target 0") && e.contains("2 elements for 3 vertices"), "{e}");
+    std::fs::remove_dir_all(dir).unwrap();
+}
+
+#[test]
+fn skinned_meshes_import_posed_by_their_joints() {
+    let dir = kage_tests::scratch("skin");
+    // A strip of two quads' corners: the bottom pair bound to joint 0, the top pair to joint 1,
+    // which sits 1 m up and is turned 90° about Z. The skinned node's own translation is ignored.
+    let mut bytes = f32_bytes(&[0., 0., 0., 1., 0., 0., 0., 2., 0., 1., 2., 0.]);
+    bytes.extend(f32_bytes(&[0., 0., 1., 0., 0., 1., 0., 0., 1., 0., 0., 1.]));
+    bytes.extend(f32_bytes(&[1., 0., 0., 0., 1., 0., 0., 0., 1., 0., 0., 0., 1., 0., 0., 0.]));
+    let mut inverse_binds = glam::Mat4::IDENTITY.to_cols_array().to_vec();
+    inverse_binds.extend(glam::Mat4::from_translation(Vec3::new(0., -1., 0.)).to_cols_array());
+    bytes.extend(f32_bytes(&inverse_binds));
+    let joints_offset = bytes.len();
+    let joints = |top: u8| [0u8, 0, 0, 0, 0, 0, 0, 0, top, 0, 0, 0, top, 0, 0, 0];
+    let doc = |top: u8| {
+        let mut b = bytes.clone();
+        b.extend(joints(top));
+        let acc = |offset: usize, count: usize, component: u32, kind: &str| serde_json::json!({"bufferView": 0, "byteOffset": offset, "componentType": component, "count": count, "type": kind});
+        let mut position = acc(0, 4, 5126, "VEC3");
+        position["min"] = serde_json::json!([0, 0, 0]);
+        position["max"] = serde_json::json!([1, 2, 0]);
+        let s = (0.5f32).sqrt();
+        let json = serde_json::json!({
+            "scene": 0, "scenes": [{"nodes": [0, 1]}],
+            "nodes": [
+                {"name": "skinned", "mesh": 0, "skin": 0, "translation": [5, 0, 0]},
+                {"name": "skeleton", "children": [2]},
+                {"name": "joint0", "children": [3]},
+                {"name": "joint1", "translation": [0, 1, 0], "rotation": [0, 0, s, s]},
+            ],
+            "skins": [{"joints": [2, 3], "inverseBindMatrices": 4}],
+            "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "NORMAL": 1, "WEIGHTS_0": 2, "JOINTS_0": 3}}]}],
+            "accessors": [position, acc(48, 4, 5126, "VEC3"), acc(96, 4, 5126, "VEC4"), acc(joints_offset, 4, 5121, "VEC4"), acc(160, 2, 5126, "MAT4")],
+            "bufferViews": [{"buffer": 0, "byteLength": b.len()}],
+        });
+        (json, b)
+    };
+    let (json, b) = doc(1);
+    let s = import(&gltf_with_buffer(&dir, "skin", json, &b), ImportOptions::default()).unwrap();
+    let posed = [[0., 0., 0.], [1., 0., 0.], [-1., 1., 0.], [-1., 2., 0.]];
+    assert_points(&world_positions(&s, "skinned"), &posed, "skinned");
+    // A joint index beyond the skin's joints is named.
+    let (json, b) = doc(7);
+    let e =
+        import(&gltf_with_buffer(&dir, "bad", json, &b), ImportOptions::default()).err().expect("refused").to_string();
+    assert!(e.contains("bad.gltf") && e.contains("names joint 7, but the skin has 2 joints"), "{e}");
+    std::fs::remove_dir_all(dir).unwrap();
+}
+
+#[test]
+fn sparse_positions_without_a_base_view_substitute_into_zeros() {
+    let dir = kage_tests::scratch("sparse");
+    // Three vertices, all zeros but for two substituted by the sparse data.
+    let mut bytes = vec![1u8, 2, 0, 0];
+    bytes.extend(f32_bytes(&[1., 0., 0., 0., 1., 0.]));
+    let doc = serde_json::json!({
+        "scene": 0, "scenes": [{"nodes": [0]}],
+        "nodes": [{"name": "sparse", "mesh": 0}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
+        "accessors": [{"componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0],
+            "sparse": {"count": 2, "indices": {"bufferView": 0, "componentType": 5121}, "values": {"bufferView": 1}}}],
+        "bufferViews": [{"buffer": 0, "byteLength": 2}, {"buffer": 0, "byteOffset": 4, "byteLength": 24}],
+    });
+    let s = import(&gltf_with_buffer(&dir, "sparse", doc, &bytes), ImportOptions::default()).unwrap();
+    assert_points(&world_positions(&s, "sparse"), &[[0., 0., 0.], [1., 0., 0.], [0., 1., 0.]], "sparse");
+    std::fs::remove_dir_all(dir).unwrap();
+}

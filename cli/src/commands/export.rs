@@ -4,6 +4,7 @@
 
 use crate::commands::bake::{BakeOptions, print_plan};
 use crate::db_args::DbArgs;
+use crate::exposure::Exposure;
 use crate::progress::with_bar;
 use crate::scene_args::SceneArgs;
 use anyhow::{Context, Result};
@@ -25,9 +26,10 @@ pub struct Args {
     /// The pack to write (.glb).
     #[arg(short, long)]
     output: PathBuf,
-    /// Preview exposure in stops: COLOR_0 = clamp(radiance · 2^EV, 0, 1).
-    #[arg(long, default_value_t = 0.0)]
-    exposure: f32,
+    /// Preview exposure: stops (COLOR_0 = clamp(radiance · 2^EV, 0, 1)), or `auto` to meter
+    /// the vertices' radiance.
+    #[arg(long, default_value = "auto", allow_negative_numbers = true)]
+    exposure: Exposure,
     #[command(flatten)]
     options: BakeOptions,
 }
@@ -54,7 +56,7 @@ pub fn run(args: &Args) -> Result<()> {
         bspvt: out.bspvt.as_ref(),
         prt: parts,
         radiance: &radiance,
-        exposure: args.exposure,
+        exposure: args.exposure.stops(radiance.iter().flatten().copied()),
     };
     pack::write(&args.output, &export).with_context(|| format!("writing {}", args.output.display()))?;
     let size = std::fs::metadata(&args.output).map(|m| m.len()).unwrap_or(0);

@@ -1,4 +1,4 @@
-//! Colour: the sRGB transfer function and luminance.
+//! Colour: the sRGB transfer function, luminance and exposure metering.
 
 use glam::Vec3;
 
@@ -17,9 +17,52 @@ pub fn luminance(c: Vec3) -> f32 {
     0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z
 }
 
+/// Middle grey: the log-average luminance [`metered_exposure`] maps the scene to.
+const KEY: f32 = 0.18;
+/// The share of values [`metered_exposure`] lets clip at 1 (the brightest 5 %, e.g. lights).
+const CLIPPED: f32 = 0.05;
+/// Where the brightest value that must not clip lands.
+const HEADROOM: f32 = 0.9;
+
+/// The exposure in stops that shows `values` well on a display clamped to [0, 1], as a
+/// camera's averaging meter does: the log-average luminance maps to middle grey (Reinhard et
+/// al. 2002's key of 0.18), lowered so that at most the brightest 5 % clip. Non-finite and
+/// negative values are ignored; 0 stops when nothing is lit.
+pub fn metered_exposure(values: impl IntoIterator<Item = Vec3>) -> f32 {
+    let mut lum: Vec<f32> = values.into_iter().map(luminance).filter(|l| l.is_finite() && *l > 0.0).collect();
+    if lum.is_empty() {
+        return 0.0;
+    }
+    let log_average = (lum.iter().map(|l| f64::from(*l).ln()).sum::<f64>() / lum.len() as f64).exp() as f32;
+    let k = ((lum.len() - 1) as f32 * (1.0 - CLIPPED)).round() as usize;
+    let bright = *lum.select_nth_unstable_by(k, f32::total_cmp).1;
+    (KEY / log_average).log2().min((HEADROOM / bright).log2()).clamp(-32.0, 32.0)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn metering_maps_a_uniform_image_to_middle_grey_and_ignores_scale() {
+        for radiance in [1e-3f32, 0.18, 40.0] {
+            let ev = metered_exposure(vec![Vec3::splat(radiance); 100]);
+            assert!((radiance * ev.exp2() - KEY).abs() < 1e-4, "{radiance}: {ev}");
+        }
+        assert_eq!(metered_exposure(vec![Vec3::ZERO, Vec3::NAN, Vec3::splat(-1.0)]), 0.0);
+    }
+
+    #[test]
+    fn metering_keeps_all_but_the_brightest_values_from_clipping() {
+        // Half the image at 0.01, half at 1.5: the log-average alone would clip the bright half.
+        let values: Vec<Vec3> = (0..200).map(|k| Vec3::splat(if k % 2 == 0 { 0.01 } else { 1.5 })).collect();
+        let scale = metered_exposure(values).exp2();
+        assert!((1.5 * scale - HEADROOM).abs() < 1e-4, "{scale}");
+        // A small bright light does not darken the rest.
+        let mut lamp: Vec<Vec3> = vec![Vec3::splat(0.5); 99];
+        lamp.push(Vec3::splat(1e5));
+        assert!((0.5 * metered_exposure(lamp).exp2() - 0.18).abs() < 0.05);
+    }
 
     #[test]
     fn every_8_bit_srgb_value_round_trips_through_linear() {

@@ -40,6 +40,29 @@ pub fn uv_to_dir(uv: Vec2) -> Vec3 {
     Vec3::new(theta.sin() * phi.sin(), theta.cos(), -theta.sin() * phi.cos())
 }
 
+/// The most texels an environment map may have (8192 × 4096): a file's header is checked
+/// against it before decoding, so that a few bytes cannot claim gigabytes.
+pub const MAX_TEXELS: u64 = 8192 * 4096;
+
+/// An EXR's display window (the image the decoder allocates) must be no larger than its data
+/// window (the pixels the file holds): a damaged header cannot claim memory its data lacks.
+fn exr_windows(bytes: &[u8]) -> std::result::Result<(), String> {
+    let meta = exr::meta::MetaData::read_from_buffered(std::io::Cursor::new(bytes), false)
+        .map_err(|e| format!("cannot decode: {e}"))?;
+    let header = meta.headers.first().ok_or("cannot decode: the file has no header")?;
+    let (display, data) = (header.shared_attributes.display_window.size, header.layer_size);
+    if display.area() > data.area() {
+        return Err(format!(
+            "its display window ({}×{}) is larger than its data window ({}×{}); an environment map's pixels must cover it",
+            display.width(),
+            display.height(),
+            data.width(),
+            data.height()
+        ));
+    }
+    Ok(())
+}
+
 impl EnvMap {
     /// Builds a map from texels; NaN, infinite or negative radiance is rejected.
     pub fn new(width: usize, height: usize, texels: Vec<Vec3>, source: String) -> Result<Self> {
@@ -72,9 +95,22 @@ impl EnvMap {
             .ok()
             .filter(|f| matches!(f, image::ImageFormat::Hdr | image::ImageFormat::OpenExr))
             .ok_or_else(|| Error::image(path, "environment maps must be .hdr or .exr"))?;
-        let img = image::load_from_memory_with_format(&bytes, format)
-            .map_err(|e| Error::image(path, format!("cannot decode: {e}")))?
-            .into_rgb32f();
+        let decode_error = |e: image::ImageError| Error::image(path, format!("cannot decode: {e}"));
+        let reader = || image::ImageReader::with_format(std::io::Cursor::new(&bytes), format);
+        // The header's size is checked before the decoder allocates for it.
+        let (w, h) = reader().into_dimensions().map_err(decode_error)?;
+        if u64::from(w) * u64::from(h) > MAX_TEXELS {
+            let limit = "8192×4096 texels: downsample the map";
+            return Err(Error::image(path, format!("the map declares {w}×{h} texels, more than the limit of {limit}")));
+        }
+        if format == image::ImageFormat::OpenExr {
+            exr_windows(&bytes).map_err(|m| Error::image(path, m))?;
+        }
+        let mut limited = reader();
+        let mut limits = image::Limits::default();
+        limits.max_alloc = Some(MAX_TEXELS * 16);
+        limited.limits(limits);
+        let img = limited.decode().map_err(decode_error)?.into_rgb32f();
         let (w, h) = (img.width() as usize, img.height() as usize);
         let texels = img.pixels().map(|p| Vec3::from_array(p.0)).collect();
         Self::new(w, h, texels, path.display().to_string())

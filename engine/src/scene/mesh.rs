@@ -79,7 +79,7 @@ impl fmt::Display for MeshProblem {
                 write!(f, "triangle {triangle} uses vertex index {index}, past the end of the vertex data")
             }
             Self::Degenerate { triangle } => {
-                write!(f, "triangle {triangle} is degenerate (zero area)")
+                write!(f, "triangle {triangle} is degenerate (zero area; --drop-degenerate removes such triangles)")
             }
             Self::Empty => write!(f, "no triangles"),
         }

@@ -4,6 +4,7 @@
 pub(crate) mod baked;
 
 use crate::db_args::DbArgs;
+use crate::exposure::Exposure;
 use crate::progress::{bar, with_bar};
 use crate::prt_args::PrtArgs;
 use crate::scene_args::SceneArgs;
@@ -13,7 +14,7 @@ use glam::Vec3;
 use kage_bake_db::pack::Contents;
 use kage_engine::cache::Blend;
 use kage_engine::cache::record::{Glossy, GlossyDirect, GradientForm, Source};
-use kage_engine::output::{VertexRow, write_image, write_vertex_csv};
+use kage_engine::output::{ImageFormat, VertexRow, write_image, write_vertex_csv};
 use kage_engine::reference::{Estimate, Renderer, Settings};
 use kage_engine::scene::VertexValues;
 use kage_engine::scene::{Camera, Scene};
@@ -90,9 +91,9 @@ pub struct Args {
     /// Indirect bounces for the reference (0 = direct lighting only).
     #[arg(long, default_value_t = 0)]
     bounces: u32,
-    /// PNG exposure in stops.
-    #[arg(long, default_value_t = 0.0)]
-    exposure: f32,
+    /// PNG exposure: stops (radiance × 2^EV, then clamped), or `auto` to meter the image.
+    #[arg(long, default_value = "auto", allow_negative_numbers = true)]
+    exposure: Exposure,
     /// BSPVT cube-face resolution (texels per side).
     #[arg(long, default_value_t = 64)]
     face_res: usize,
@@ -198,7 +199,7 @@ pub fn run(args: &Args) -> Result<()> {
     let camera = camera(args, scene.first_camera(), &renderer.flat)?;
     let output = args.output.clone().or_else(|| args.vertices_out.is_none().then(|| PathBuf::from("render.png")));
     if let Some(path) = &output {
-        kage_engine::output::ImageFormat::of(path)?;
+        ImageFormat::of(path)?;
     }
     if args.gpu && !args.method.on_gpu() {
         bail!("--gpu shades bspvt, ltc-unshadowed, prt and prt-self; {} runs on the CPU only", args.method);
@@ -229,7 +230,9 @@ pub fn run(args: &Args) -> Result<()> {
         direct.iter_mut().flatten().zip(extra.iter().flatten()).for_each(|(d, e)| *d += *e);
     }
     if let (Some(path), Some(pixels)) = (&output, image) {
-        write_image(path, args.size.0, args.size.1, &pixels, args.exposure)?;
+        let stops =
+            if ImageFormat::of(path)? == ImageFormat::Png { args.exposure.stops(pixels.iter().copied()) } else { 0.0 };
+        write_image(path, args.size.0, args.size.1, &pixels, stops)?;
         crate::emit(&format!("wrote {}\n", path.display()));
     }
     if let (Some(path), Some(values)) = (&args.vertices_out, vertices) {

@@ -182,16 +182,28 @@ pub fn byte_ranges(doc: &gltf::Document, buffers: &[gltf::buffer::Data]) -> Resu
     Ok(())
 }
 
-/// The attribute types kage reads: POSITION/NORMAL float VEC3, TEXCOORD_0 VEC2, scalar indices.
+/// The attribute types kage reads: POSITION/NORMAL float VEC3, TEXCOORD_n VEC2, JOINTS_n and
+/// WEIGHTS_n VEC4 (one per vertex), scalar indices.
 pub fn attribute_formats(prim: &gltf::Primitive) -> Result<(), String> {
     use gltf::Semantic;
+    let vertices = prim.get(&Semantic::Positions).map_or(0, |p| p.count());
     for (sem, acc) in prim.attributes() {
+        if matches!(sem, Semantic::Joints(_) | Semantic::Weights(_)) && acc.count() != vertices {
+            return Err(format!("attribute {sem:?} has {} elements for {vertices} vertices", acc.count()));
+        }
         let ok = match sem {
             Semantic::Positions | Semantic::Normals => {
                 acc.dimensions() == Dimensions::Vec3 && acc.data_type() == DataType::F32
             }
             Semantic::TexCoords(_) => {
                 acc.dimensions() == Dimensions::Vec2
+                    && matches!(acc.data_type(), DataType::F32 | DataType::U8 | DataType::U16)
+            }
+            Semantic::Joints(_) => {
+                acc.dimensions() == Dimensions::Vec4 && matches!(acc.data_type(), DataType::U8 | DataType::U16)
+            }
+            Semantic::Weights(_) => {
+                acc.dimensions() == Dimensions::Vec4
                     && matches!(acc.data_type(), DataType::F32 | DataType::U8 | DataType::U16)
             }
             _ => true,

@@ -6,6 +6,7 @@
 //! Every error names the file and the glTF element at fault.
 
 mod checks;
+mod deform;
 pub mod files;
 mod light;
 pub mod reach;
@@ -51,7 +52,9 @@ pub fn import(path: &Path, options: ImportOptions) -> Result<Scene> {
 struct Importer<'a> {
     path: &'a Path,
     root: files::Root,
-    doc: gltf::Document,
+    /// Shared, so that node handles do not borrow the importer while entities are spawned
+    /// (a clone of the document would double the memory of a scene of many nodes).
+    doc: std::rc::Rc<gltf::Document>,
     buffers: Vec<gltf::buffer::Data>,
     options: ImportOptions,
     scene: Scene,
@@ -60,6 +63,8 @@ struct Importer<'a> {
     by_hash: HashMap<crate::scene::MeshHash, u32>,
     /// (glTF texture, decoded as sRGB) → imported texture index.
     texture_cache: HashMap<(usize, bool), u32>,
+    /// Every node's world transform, for skins' joints (empty without skins).
+    world: Vec<Option<Affine3A>>,
     group_count: u32,
     /// Instances and lights spawned into the current group.
     members: usize,
@@ -90,16 +95,18 @@ impl<'a> Importer<'a> {
             source: path.display().to_string(),
             warnings: Vec::new(),
         };
+        let world = if doc.skins().len() > 0 { deform::world_transforms(&doc) } else { Vec::new() };
         let mut imp = Importer {
             path,
             root,
-            doc,
+            doc: std::rc::Rc::new(doc),
             buffers,
             options,
             scene,
             mesh_cache: HashMap::new(),
             by_hash: HashMap::new(),
             texture_cache: HashMap::new(),
+            world,
             group_count: 0,
             members: 0,
         };
@@ -144,8 +151,7 @@ impl<'a> Importer<'a> {
     }
 
     fn import_nodes(&mut self) -> Result<()> {
-        // A clone, so that node handles do not borrow `self` while entities are spawned.
-        let doc = self.doc.clone();
+        let doc = std::rc::Rc::clone(&self.doc);
         let mut seen = vec![false; doc.nodes().len()];
         for root in self.roots() {
             let node = doc.nodes().nth(root).expect("checked index");
@@ -202,13 +208,22 @@ impl<'a> Importer<'a> {
             self.unused_reach(declared, 0, &node_name);
             return Ok(());
         };
+        let buffers = &self.buffers;
+        let deform = deform::Deform::of(node, &mesh, |b| buffers.get(b.index()).map(|d| &d.0[..]), &self.world)
+            .map_err(|m| self.error(format!("{node_name}: {m}")))?;
+        // A skinned mesh is posed in world space: the node's own transform does not apply.
+        let local = match deform.joints.is_empty() {
+            true => local,
+            false if pose.matrix3.determinant() != 0.0 => pose.inverse(),
+            false => return Err(self.error(format!("{node_name}: a skinned mesh under a node scaled to zero"))),
+        };
         let mut lights = 0;
         for prim in mesh.primitives() {
             let where_ =
                 format!("meshes[{}] ('{}') primitives[{}]", mesh.index(), mesh.name().unwrap_or(""), prim.index());
             let mat = prim.material();
             let emissive = Vec3::from_array(mat.emissive_factor()) * mat.emissive_strength().unwrap_or(1.0);
-            let mesh_index = self.mesh(&mesh, &prim, &where_)?;
+            let mesh_index = self.mesh(&mesh, &prim, &deform, &where_)?;
             let member = InGroup { group, local };
             let transform = Transform { world: pose * local };
             if emissive.max_element() > 0.0 {
@@ -276,21 +291,33 @@ impl<'a> Importer<'a> {
         }
     }
 
-    /// Reads (or reuses) the mesh of one primitive.
-    fn mesh(&mut self, mesh: &gltf::Mesh, prim: &gltf::Primitive, where_: &str) -> Result<u32> {
-        if let Some(&i) = self.mesh_cache.get(&(mesh.index(), prim.index())) {
+    /// Reads (or reuses) the mesh of one primitive, deformed as its node says.
+    fn mesh(
+        &mut self,
+        mesh: &gltf::Mesh,
+        prim: &gltf::Primitive,
+        deform: &deform::Deform,
+        where_: &str,
+    ) -> Result<u32> {
+        let rigid = deform.is_rigid();
+        if let Some(&i) = self.mesh_cache.get(&(mesh.index(), prim.index())).filter(|_| rigid) {
             return Ok(i);
         }
         checks::attribute_formats(prim).map_err(|m| self.error(format!("{where_}: {m}")))?;
         let buffers = &self.buffers;
         let reader = prim.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]).filter(|d| !d.is_empty()));
-        let positions: Vec<Vec3> = reader
+        let mut positions: Vec<Vec3> = reader
             .read_positions()
             .ok_or_else(|| self.error(format!("{where_}: has no POSITION data")))?
             .map(Vec3::from_array)
             .collect();
         let normals = reader.read_normals().map(|n| n.map(Vec3::from_array).collect::<Vec<_>>());
-        let normals = normals.filter(|n| n.len() == positions.len());
+        let mut normals = normals.filter(|n| n.len() == positions.len());
+        if !rigid {
+            deform
+                .apply(&reader, prim, &mut positions, normals.as_mut())
+                .map_err(|m| self.error(format!("{where_}: {m}")))?;
+        }
         let uv_set = |set| reader.read_tex_coords(set).map(|t| t.into_f32().map(Vec2::from_array).collect());
         let (uvs, uvs1) = (uv_set(0).unwrap_or_default(), uv_set(1).unwrap_or_default());
         let colors = reader
@@ -336,7 +363,9 @@ impl<'a> Importer<'a> {
                 i
             }
         };
-        self.mesh_cache.insert((mesh.index(), prim.index()), index);
+        if rigid {
+            self.mesh_cache.insert((mesh.index(), prim.index()), index);
+        }
         Ok(index)
     }
 
