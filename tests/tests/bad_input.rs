@@ -125,7 +125,7 @@ fn synthetic_files_are_rejected_clearly() {
         .err()
         .expect("zero-area emitter")
         .to_string();
-    assert!(err.contains("zero_area_light.gltf") && err.contains("no triangles"), "{err}");
+    assert!(err.contains("zero_area_light.gltf") && err.contains("emitter has zero area"), "{err}");
     let p = write_gltf(&dir, "huge_scale", &TRI, &[0, 1, 2], |d| d["nodes"][0]["scale"] = json!([1e20, 1e20, 1e20]));
     expect_error(&p, "beyond kage's limit of ±1e12 m");
     let p = write_gltf(&dir, "large_scale", &TRI, &[0, 1, 2], |d| d["nodes"][0]["scale"] = json!([1e9, 1e9, 1e9]));
@@ -238,7 +238,8 @@ fn edge_case_corpus_never_panics() {
     ];
     // Valid by the spec (the validator reports 0 errors): accessors without a buffer view are
     // zeros, a buffer without URI is legal until a used accessor reads it. node/valid.gltf's
-    // meshes are all zeros (no surface) and stays a clear error under kage's geometry rules.
+    // meshes are all zeros (no surface): a clear error under kage's geometry rules, and with
+    // degenerate triangles dropped (as the error suggests) a scene without them.
     let must_import = [
         "accessor/valid.gltf",
         "mesh/valid.gltf",
@@ -266,6 +267,11 @@ fn edge_case_corpus_never_panics() {
         }
     }
     eprintln!("corpus: {} files, {ok} imported, {failed} rejected with an error", files.len());
+    let zeros = asset("edge_cases/validator/node/valid.gltf");
+    let e = import(&zeros, ImportOptions::default()).err().expect("degenerate").to_string();
+    assert!(e.contains("degenerate") && e.contains("--drop-degenerate"), "{e}");
+    let dropped = import(&zeros, ImportOptions { drop_degenerate: true, ..Default::default() }).unwrap();
+    assert!(dropped.warnings.iter().any(|w| w.contains("no surface left")), "{:?}", dropped.warnings);
 }
 
 /// A scene reads only regular files inside its own folder, never more than it declares; the

@@ -13,6 +13,7 @@ pub mod reach;
 
 pub use light::polygon_normal_area;
 
+use crate::scene::mesh::MeshProblem;
 use crate::scene::{
     Camera, Emitter, InGroup, Material, MaterialMaps, Mesh, MeshRef, Name, NodeId, PolygonLight, PrimitiveId,
     Projection, RigidGroup, Scene, Texture, TextureSlot, Transform, propagate_transforms, texture::Wrap,
@@ -223,7 +224,12 @@ impl<'a> Importer<'a> {
                 format!("meshes[{}] ('{}') primitives[{}]", mesh.index(), mesh.name().unwrap_or(""), prim.index());
             let mat = prim.material();
             let emissive = Vec3::from_array(mat.emissive_factor()) * mat.emissive_strength().unwrap_or(1.0);
-            let mesh_index = self.mesh(&mesh, &prim, &deform, &where_)?;
+            let Some(mesh_index) = self.mesh(&mesh, &prim, &deform, &where_)? else {
+                if emissive.max_element() > 0.0 {
+                    return Err(self.error(format!("{where_}: emitter has zero area")));
+                }
+                continue;
+            };
             let member = InGroup { group, local };
             let transform = Transform { world: pose * local };
             if emissive.max_element() > 0.0 {
@@ -291,17 +297,18 @@ impl<'a> Importer<'a> {
         }
     }
 
-    /// Reads (or reuses) the mesh of one primitive, deformed as its node says.
+    /// Reads (or reuses) the mesh of one primitive, deformed as its node says; `None` when
+    /// dropping degenerate triangles left it without a surface (skipped with a warning).
     fn mesh(
         &mut self,
         mesh: &gltf::Mesh,
         prim: &gltf::Primitive,
         deform: &deform::Deform,
         where_: &str,
-    ) -> Result<u32> {
+    ) -> Result<Option<u32>> {
         let rigid = deform.is_rigid();
         if let Some(&i) = self.mesh_cache.get(&(mesh.index(), prim.index())).filter(|_| rigid) {
-            return Ok(i);
+            return Ok(Some(i));
         }
         checks::attribute_formats(prim).map_err(|m| self.error(format!("{where_}: {m}")))?;
         let buffers = &self.buffers;
@@ -346,8 +353,19 @@ impl<'a> Importer<'a> {
                 )));
             }
         };
-        let (m, dropped) = Mesh::new(positions, normals, uvs, triangles, self.options.drop_degenerate)
-            .map_err(|p| self.error(format!("{where_}: {p}")))?;
+        let drop = self.options.drop_degenerate;
+        let (m, dropped) = match Mesh::new(positions, normals, uvs, triangles, drop) {
+            Ok(mesh) => mesh,
+            Err(MeshProblem::Empty) if drop => {
+                let warning = format!(
+                    "{}: {where_}: no surface left after dropping degenerate triangles; skipped",
+                    self.path.display()
+                );
+                self.scene.warnings.push(warning);
+                return Ok(None);
+            }
+            Err(p) => return Err(self.error(format!("{where_}: {p}"))),
+        };
         let m = m.with_attributes(uvs1, colors);
         if dropped > 0 {
             self.scene
@@ -366,7 +384,7 @@ impl<'a> Importer<'a> {
         if rigid {
             self.mesh_cache.insert((mesh.index(), prim.index()), index);
         }
-        Ok(index)
+        Ok(Some(index))
     }
 
     /// A material texture's slot: texture (decoded as sRGB colour or as linear data), UV set
