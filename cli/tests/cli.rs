@@ -6,7 +6,7 @@ use std::process::Command;
 
 mod common;
 
-use common::{asset, kage, scratch, stderr};
+use common::{asset, kage, kage_as_shipped, scratch, stderr};
 
 #[test]
 fn info_describes_the_default_scene() {
@@ -292,6 +292,7 @@ fn refine_tessellates_a_named_instance_for_every_command() {
 #[test]
 fn prt_methods_plan_render_and_move_groups() {
     let d = scratch("prt");
+    let db = d.join("bake.redb");
     let scene = asset("scenes/bunny_two_groups.gltf");
     let env = asset("envmaps/city.hdr");
     let run = |method: &str, extra: &[&str], name: &str| {
@@ -299,6 +300,7 @@ fn prt_methods_plan_render_and_move_groups() {
         let png = d.join(format!("{name}.png"));
         let mut args = vec!["render", &scene, "--env", &env, "--method", method, "--size", "48x27", "--spp", "1"];
         args.extend_from_slice(&["-o", png.to_str().unwrap(), "--vertices-out", csv.to_str().unwrap()]);
+        args.extend_from_slice(&["--db", db.to_str().unwrap()]);
         args.extend_from_slice(extra);
         let o = kage(&args);
         assert!(o.status.success(), "{method} {extra:?}: {}", stderr(&o));
@@ -416,6 +418,7 @@ fn a_bake_killed_at_random_points_resumes_to_a_clean_bakes_result() {
         let delay = 50 + seed % 900;
         let mut child = Command::new(env!("CARGO_BIN_EXE_kage"))
             .args(["bake", &scene, "--face-res", "32"])
+            .env("KAGE_REFINE_RECEIVERS", "0")
             .stdout(std::process::Stdio::null())
             .stderr(std::process::Stdio::null())
             .spawn()
@@ -729,6 +732,27 @@ fn baked_is_the_default_and_shades_every_light() {
     assert!(all > 500 && lit * 20 > all * 19, "the metal torus is lit: {lit} of {all} vertices facing the camera");
     let img = image::open(&exr).unwrap().into_rgb32f();
     assert!(img.get_pixel(0, 0).0.iter().all(|c| *c > 0.0), "the environment shows behind the geometry");
+    std::fs::remove_dir_all(d).unwrap();
+}
+
+/// As shipped, every command refines receivers (at most 6000 added vertices) and says how many
+/// each instance got; `--refine-receivers 0` (or `KAGE_REFINE_RECEIVERS=0`) turns it off.
+#[test]
+fn receivers_are_refined_by_default_and_say_by_how_much() {
+    let d = scratch("default-refinement");
+    let db = d.join("bake.redb");
+    let text = |o: std::process::Output| {
+        assert!(o.status.success(), "{}", stderr(&o));
+        format!("{}{}", String::from_utf8_lossy(&o.stdout), stderr(&o))
+    };
+    let info = text(kage_as_shipped(&["info"]));
+    assert!(info.contains("refined receivers: 4555 → 10555 vertices (budget 6000"), "{info}");
+    assert!(info.contains("totals: 10555 vertices"), "{info}");
+    let plan = text(kage_as_shipped(&["bake", "--dry-run", "--db", db.to_str().unwrap()]));
+    assert!(plan.contains("instance   0: 1681 →") && plan.contains("10555 vertices"), "{plan}");
+    let off = text(kage_as_shipped(&["info", "--refine-receivers", "0"]));
+    assert!(!off.contains("refined receivers") && off.contains("totals: 4555 vertices"), "{off}");
+    assert!(text(kage(&["info"])).contains("totals: 4555 vertices"), "the tests' helper turns it off");
     std::fs::remove_dir_all(d).unwrap();
 }
 

@@ -96,7 +96,8 @@ fn a_sharded_bake_on_slurm_equals_a_one_machine_bake() {
     let env = asset("envmaps/sky.hdr");
     // Polygonal light and environment: BSPVT and PRT chunks, PRT's parameters chosen once by the
     // plan job from the error budget.
-    let options = ["--env", &env, "--face-res", "16"];
+    // Receiver refinement on: every shard refines the same meshes (it is deterministic).
+    let options = ["--env", &env, "--face-res", "16", "--refine-receivers", "2000"];
     let cluster = Cluster::start(&d.join("c"));
     let db = d.join("farm").join("bake.redb");
     let o = script("submit.sh")

@@ -67,7 +67,7 @@ impl Args {
 
 /// Opens the editor window.
 pub fn run(args: &Args) -> Result<()> {
-    kage_editor::run(args.scene.load()?, args.options()?, args.size)
+    kage_editor::run(args.scene.load_unrefined()?, args.options()?, args.size)
 }
 
 #[cfg(test)]

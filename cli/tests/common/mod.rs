@@ -5,9 +5,15 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-/// Runs `kage` with `args`.
+/// Runs `kage` with `args`, without receiver refinement unless `args` ask for it: most tests
+/// are about something else and bake the source meshes faster ([`kage_as_shipped`] does not).
 pub fn kage(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_kage")).args(args).output().expect("kage runs")
+    Command::new(env!("CARGO_BIN_EXE_kage")).args(args).env("KAGE_REFINE_RECEIVERS", "0").output().expect("kage runs")
+}
+
+/// Runs `kage` with `args` and the defaults a user gets (receiver refinement on).
+pub fn kage_as_shipped(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_kage")).args(args).env_remove("KAGE_REFINE_RECEIVERS").output().expect("kage runs")
 }
 
 /// A fresh folder for test `name`.
