@@ -527,8 +527,10 @@ fn baked(ed: &mut Editor, eye: Vec3) -> VertexValues {
         return Look::new(&ed.flat, eye, polygonal, None).into_direct();
     }
     let shadows = prt::Shadows::WithOthers;
+    // The look shades the map's sun apart: PRT carries the rest.
+    let rest = light.split_sun().1;
     let posed =
-        prt::Posed::new(&ed.scene, &ed.flat, bake.order, light, shadows, &ed.options.prt, &mut ed.memo.silhouettes);
+        prt::Posed::new(&ed.scene, &ed.flat, bake.order, rest, shadows, &ed.options.prt, &mut ed.memo.silhouettes);
     let frame = prt::Frame::from_posed(&ed.flat, bake, posed, eye);
     Look::new(&ed.flat, eye, polygonal, Some(Environment::new(frame, bake, light, Some(pre)))).into_direct()
 }

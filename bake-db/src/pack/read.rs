@@ -251,7 +251,13 @@ impl Pack<'_> {
             .collect::<Checked<Vec<Vec<f32>>>>()?;
         let lobes = prt::lighting::negative_lobes(&coeffs, settings.window);
         let bake = prt::Bake { order, instances, stats: prt::Stats::default() };
-        Ok((bake, Lighting { coeffs, regions, window: settings.window, lobes }, settings))
+        let lighting = Lighting { coeffs, regions, window: settings.window, lobes, sunless: None };
+        // With the map in the pack, the baked look shades its sun apart as from a database.
+        let lighting = match &flat.environment {
+            Some(env) => lighting.splitting_sun(env, &settings),
+            None => lighting,
+        };
+        Ok((bake, lighting, settings))
     }
 
     /// The environment light: its exact texels, intensity and rotation.

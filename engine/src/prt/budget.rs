@@ -57,7 +57,8 @@ fn shade(scene: &Scene, flat: &FlatScene, b: &Bake, l: &Lighting, m: Shadows, s:
 
 /// `env` at [`REFERENCE_ORDER`] with no regions, under `window`.
 fn unshadowed(coeffs: &lighting::RgbCoeffs, window: Window) -> Lighting {
-    Lighting { coeffs: coeffs.clone(), regions: Vec::new(), window, lobes: lighting::negative_lobes(coeffs, window) }
+    let lobes = lighting::negative_lobes(coeffs, window);
+    Lighting { coeffs: coeffs.clone(), regions: Vec::new(), window, lobes, sunless: None }
 }
 
 /// The transfer the plan measures against: every instance at [`REFERENCE_ORDER`] with `base`'s

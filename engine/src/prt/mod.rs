@@ -21,6 +21,7 @@ pub mod lighting;
 pub mod prefilter;
 pub mod regions;
 pub mod silhouette;
+pub mod sun;
 pub mod transfer;
 
 use crate::accel::SceneBvh;
@@ -211,15 +212,39 @@ pub struct Lighting {
     pub window: Window,
     /// Negative lobes of the windowed reconstruction.
     pub lobes: NegativeLobes,
+    /// Where the map has a sun: the sun and this lighting without it ([`sun`]), what the baked
+    /// look shades with.
+    pub sunless: Option<(sun::Sun, Box<Lighting>)>,
 }
 
 impl Lighting {
-    /// Projects and decomposes the scene's environment (`None` without one).
+    /// Projects and decomposes the scene's environment (`None` without one), and the same
+    /// without its sun when it has one.
     pub fn new(scene: &Scene, s: &Settings) -> Option<Self> {
         let env = scene.world.query::<&crate::scene::EnvironmentLight>().iter().next().cloned()?;
-        let coeffs = lighting::project(&env, s.order);
+        Some(Self::of(&env, s).splitting_sun(&env, s))
+    }
+
+    /// This lighting (e.g. read from a pack) with the lighting of `env` without its sun
+    /// beside it, when `env`'s map has one.
+    pub fn splitting_sun(self, env: &crate::scene::EnvironmentLight, s: &Settings) -> Self {
+        let sunless = sun::split_light(env).map(|(sun, rest)| (sun, Box::new(Self::of(&rest, s))));
+        Self { sunless, ..self }
+    }
+
+    fn of(env: &crate::scene::EnvironmentLight, s: &Settings) -> Self {
+        let coeffs = lighting::project(env, s.order);
         let lobes = lighting::negative_lobes(&coeffs, s.window);
-        Some(Self { coeffs, regions: regions::decompose(&env, s.regions), window: s.window, lobes })
+        Self { coeffs, regions: regions::decompose(env, s.regions), window: s.window, lobes, sunless: None }
+    }
+
+    /// What the baked look shades the environment with: the sun apart (if the map has one)
+    /// and the lighting of the rest.
+    pub fn split_sun(&self) -> (Option<sun::Sun>, &Lighting) {
+        match &self.sunless {
+            Some((sun, rest)) => (Some(*sun), rest),
+            None => (None, self),
+        }
     }
 }
 

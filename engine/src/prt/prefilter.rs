@@ -73,6 +73,9 @@ impl Image {
 /// reflection by filtered importance sampling.
 #[derive(Clone, Debug)]
 pub struct Prefiltered {
+    /// The light's map, for [`Self::for_light`]'s identity test.
+    source: Arc<EnvMap>,
+    /// The map without its sun ([`super::sun`]: the baked look shades the sun on its own).
     map: Arc<EnvMap>,
     /// Levels 0.. (level 0 is the map), halved down to [`MIN_WIDTH`] texels wide.
     mips: Arc<Vec<Image>>,
@@ -82,9 +85,11 @@ pub struct Prefiltered {
 }
 
 impl Prefiltered {
-    /// The mip chain of `env`'s map (its intensity and rotation are applied at lookup).
+    /// The mip chain of `env`'s map without its sun (its intensity and rotation are applied at
+    /// lookup).
     pub fn new(env: &EnvironmentLight) -> Self {
-        let source = Image { width: env.map.width, height: env.map.height, texels: env.map.texels.clone() };
+        let map = super::sun::split(&env.map).map_or_else(|| env.map.clone(), |(_, rest)| Arc::new(rest));
+        let source = Image { width: map.width, height: map.height, texels: map.texels.clone() };
         let mut mips = vec![source];
         // Coarser mips than MIN_WIDTH wide would smear a bright source across latitudes.
         while mips.last().is_some_and(|m| m.width / 2 >= MIN_WIDTH) {
@@ -92,13 +97,13 @@ impl Prefiltered {
             mips.push(next);
         }
         let to_map = Quat::from_rotation_y(-env.rotation);
-        Self { map: env.map.clone(), mips: Arc::new(mips), intensity: env.intensity, to_map }
+        Self { source: env.map.clone(), map, mips: Arc::new(mips), intensity: env.intensity, to_map }
     }
 
     /// This chain for `env` without building it again when it shows the same map (only its
     /// intensity or rotation changed, e.g. a drag in the editor); else built anew.
     pub fn for_light(&self, env: &EnvironmentLight) -> Self {
-        if Arc::ptr_eq(&self.map, &env.map) {
+        if Arc::ptr_eq(&self.source, &env.map) {
             Self { intensity: env.intensity, to_map: Quat::from_rotation_y(-env.rotation), ..self.clone() }
         } else {
             Self::new(env)
@@ -189,8 +194,9 @@ mod tests {
         }
     }
 
-    /// The chain keeps a sun's energy (sphere means of each level within 2 %), and a rough lobe
-    /// toward the sun gathers far less than a mirror looking straight at it.
+    /// The chain keeps a bright source's energy (sphere means of each level within 2 %), and a
+    /// rough lobe toward it gathers far less than a mirror looking straight at it. (The source
+    /// spans 0.13 sr: too wide to be split off as a sun.)
     #[test]
     fn mips_keep_a_suns_energy() {
         let (w, h) = (128, 64);
@@ -198,7 +204,7 @@ mod tests {
         let texels = (0..w * h)
             .map(|k| {
                 let uv = Vec2::new(((k % w) as f32 + 0.5) / w as f32, ((k / w) as f32 + 0.5) / h as f32);
-                if uv_to_dir(uv).dot(sun) > 0.995 { Vec3::splat(1000.0) } else { Vec3::splat(0.1) }
+                if uv_to_dir(uv).dot(sun) > 0.98 { Vec3::splat(1000.0) } else { Vec3::splat(0.1) }
             })
             .collect();
         let map = EnvMap::new(w, h, texels, "sun".into()).unwrap();
@@ -223,6 +229,19 @@ mod tests {
         let mirror = p.reflect(sun, sun, 1e-4, Vec3::ONE, Vec3::ONE).x;
         let rough = p.reflect(sun, sun, 1.0, Vec3::ONE, Vec3::ONE).x;
         assert!(rough < 0.2 * mirror, "mirror {mirror}, rough {rough}");
+    }
+
+    /// A sun is left out of the chain: the baked look shades it on its own.
+    #[test]
+    fn the_chain_leaves_out_the_sun() {
+        let (w, h) = (128, 64);
+        let sun = Vec3::new(0.3, 0.8, -0.5).normalize();
+        let uv_sun = dir_to_uv(sun);
+        let (cx, cy) = ((uv_sun.x * w as f32) as usize, (uv_sun.y * h as f32) as usize);
+        let mut texels = vec![Vec3::splat(0.1); w * h];
+        texels[cy * w + cx] = Vec3::splat(1e5);
+        let p = Prefiltered::new(&light(EnvMap::new(w, h, texels, "sun".into()).unwrap()));
+        assert!((p.lookup(sun, 0.0) - Vec3::splat(0.1)).abs().max_element() < 1e-6, "{}", p.lookup(sun, 0.0));
     }
 
     #[test]

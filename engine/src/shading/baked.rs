@@ -5,19 +5,25 @@
 //!   visibility carried from the vertices ([`bspvt::pixel`]);
 //! - the environment: PRT's diffuse transfer with self- and other-group shadows (other groups
 //!   evaluated per pixel in images), plus its specular term on glossy and metal surfaces
-//!   ([`crate::prt::glossy`]) per pixel;
+//!   ([`crate::prt::glossy`]) per pixel — without the map's sun, if it has one
+//!   ([`crate::prt::sun`]), which is shaded as a directional light with a shadow ray;
 //! - one bounce of indirect light from the HSH radiance cache, per vertex, lit by the sum.
 //!
 //! Each part is present only where the scene has its light. Images show the environment
 //! behind the geometry.
 
+use crate::accel::{SceneBvh, offset_ray_origin};
 use crate::bspvt;
-use crate::prt::{self, glossy::Lobe, glossy::Specular, prefilter::Prefiltered};
+use crate::math::frame::Frame;
+use crate::prt::{self, glossy::Lobe, glossy::Specular, prefilter::Prefiltered, sun::Sun};
 use crate::raster::{self, SurfaceHit};
 use crate::reference::Renderer;
 use crate::scene::{Camera, FlatScene, VertexValues};
 use glam::Vec3;
 use rayon::prelude::*;
+
+/// The GGX α the sun's highlight has at least, per radian of the sun's angular radius.
+const SUN_ALPHA_FLOOR: f32 = 0.125;
 
 /// The polygonal lights' part: per-vertex radiance toward the eye and the trees it came from.
 pub struct Polygonal<'a> {
@@ -36,19 +42,22 @@ pub struct Environment<'a> {
     /// `None`: no map to reflect (a pack written before packs carried it): diffuse only.
     prefiltered: Option<&'a Prefiltered>,
     lobe: Lobe,
+    /// The map's sun, shaded apart (the frame and `prefiltered` hold the rest).
+    sun: Option<Sun>,
 }
 
 impl<'a> Environment<'a> {
-    /// The environment's part from a posed `frame` of the transfer `bake` under `lighting`,
-    /// with the environment `prefiltered`.
+    /// The environment's part from a `frame` of the transfer `bake` posed under
+    /// `lighting.split_sun().1` (the sun apart), with the environment `prefiltered`.
     pub fn new(
         frame: prt::Frame,
         bake: &'a prt::Bake,
         lighting: &prt::Lighting,
         prefiltered: Option<&'a Prefiltered>,
     ) -> Self {
-        let lobe = Lobe::new(frame.posed().order, lighting.window);
-        Self { frame, bake, prefiltered, lobe }
+        let (sun, rest) = lighting.split_sun();
+        let lobe = Lobe::new(frame.posed().order, rest.window);
+        Self { frame, bake, prefiltered, lobe, sun }
     }
 
     fn specular<'s>(&'s self, flat: &'s FlatScene) -> Option<Specular<'s>> {
@@ -67,6 +76,8 @@ pub struct Look<'a> {
     /// Per instance and vertex: the direct radiance toward the eye (computed once per frame).
     direct: VertexValues,
     indirect: Option<VertexValues>,
+    /// The sun and what its shadow rays are cast against (the whole snapshot, lights included).
+    sun: Option<(Sun, SceneBvh)>,
 }
 
 /// What the look is shaded from: each part's bake, where the scene has its light.
@@ -95,7 +106,8 @@ impl<'a> Look<'a> {
             Polygonal { bake: Some(b), values, lobes: Some(lobes) }
         });
         let environment = bakes.prt.map(|parts| {
-            let frame = prt::Frame::prepare_cached(scene, flat, parts, prt::Shadows::WithOthers, eye, memo);
+            let rest = prt::Parts { lighting: parts.lighting.split_sun().1, ..parts };
+            let frame = prt::Frame::prepare_cached(scene, flat, rest, prt::Shadows::WithOthers, eye, memo);
             Environment::new(frame, parts.bake, parts.lighting, bakes.prefiltered)
         });
         Self::new(flat, eye, polygonal, environment)
@@ -113,8 +125,9 @@ impl<'a> Look<'a> {
             let radiance = both.iter().map(|v| v.iter().map(|x| x.0).collect()).collect();
             (radiance, both.iter().map(|v| v.iter().map(|x| x.1).collect()).collect())
         });
+        let sun = environment.as_ref().and_then(|e| e.sun).map(|sun| (sun, SceneBvh::quick(&flat.triangles)));
         let mut look =
-            Self { flat, eye, polygonal, environment, environment_vertices, direct: Vec::new(), indirect: None };
+            Self { flat, eye, polygonal, environment, environment_vertices, direct: Vec::new(), indirect: None, sun };
         look.direct = look.shade_direct();
         look
     }
@@ -180,6 +193,25 @@ impl<'a> Look<'a> {
         let o = (0..3).map(|c| open[i][corners[c]] * bary[c]).sum::<f32>();
         let d = (0..3).map(|c| diffuse[i][corners[c]] * bary[c]).sum::<Vec3>();
         d + env.specular(self.flat).map_or(Vec3::ZERO, |s| s.at(i, corners, bary, p, to, o))
+            + self.sun_at(i, corners, bary, p, to)
+    }
+
+    /// The sun's light leaving a point toward `to`: the material's BSDF times the sun's
+    /// irradiance, where a shadow ray reaches it. The GGX α is at least an eighth of the sun's
+    /// angular radius, so that a near-mirror's highlight stays finite; chosen by measurement
+    /// (docs/baked.md: a wider floor spread a near-mirror's highlight too far).
+    fn sun_at(&self, i: usize, corners: [usize; 3], bary: [f32; 3], p: Vec3, to: Vec3) -> Vec3 {
+        let Some((sun, bvh)) = &self.sun else { return Vec3::ZERO };
+        let n = (0..3).map(|c| self.flat.vertex(i, corners[c]).1 * bary[c]).sum::<Vec3>().normalize_or_zero();
+        let frame = Frame::from_normal(n);
+        let wi = frame.to_local(sun.direction);
+        if wi.z <= 0.0 || bvh.occluded(offset_ray_origin(p, n, sun.direction), sun.direction, f32::INFINITY) {
+            return Vec3::ZERO;
+        }
+        let mut material = self.flat.material_at(i, corners, bary);
+        material.roughness = material.roughness.max((SUN_ALPHA_FLOOR * sun.angular_radius).sqrt());
+        let wo = frame.to_local((to - p).normalize_or_zero());
+        crate::shading::Bsdf::new(&material, wo).eval(wo, wi) * wi.z * sun.irradiance
     }
 
     /// A `width × height` image with `spp` samples per pixel through `camera`: the material per
@@ -215,7 +247,8 @@ impl<'a> Look<'a> {
                         s.at(hit.instance, hit.corners, hit.weights, hit.position, self.eye, open)
                     });
                     let albedo = self.albedo(hit);
-                    albedo * light + interpolated(hit, albedo) + s
+                    let sun = self.sun_at(hit.instance, hit.corners, hit.weights, hit.position, self.eye);
+                    albedo * light + interpolated(hit, albedo) + s + sun
                 })
             }
             None => grid
