@@ -147,6 +147,8 @@ fn env_and_camera_overrides_apply() {
     let o = kage(&["info", "--env", &asset("envmaps/sky.exr"), "--env-intensity", "2"]);
     let text = String::from_utf8(o.stdout).unwrap();
     assert!(text.contains("sky.exr (512×256), intensity 2"), "{text}");
+    // Its sun, 48° up, is split off for the baked look.
+    assert!(text.contains("sun (shaded apart by the baked look): toward (-0.378, 0.742, 0.554)"), "{text}");
     std::fs::remove_dir_all(d).unwrap();
 }
 

@@ -104,6 +104,20 @@ fn describe(scene: &kage_engine::scene::Scene) -> Result<String, std::fmt::Error
             env.intensity,
             env.rotation.to_degrees()
         )?;
+        if let Some((sun, _)) = kage_engine::prt::sun::split_light(env) {
+            let (d, e) = (sun.direction, sun.irradiance);
+            writeln!(
+                out,
+                "  sun (shaded apart by the baked look): toward ({:.3}, {:.3}, {:.3}), {:.2}° radius, irradiance ({:.1}, {:.1}, {:.1})",
+                d.x,
+                d.y,
+                d.z,
+                sun.angular_radius.to_degrees(),
+                e.x,
+                e.y,
+                e.z
+            )?;
+        }
     }
     Ok(out)
 }
