@@ -40,12 +40,13 @@ pub fn read(path: &Path) -> Result<(Scene, Contents)> {
         return Err(bad(path, format!("{} baked meshes for {} instances", instances.len(), flat.instances.len())));
     }
     pack.restore_materials(&mut scene, &flat, &instances).map_err(|e| bad(path, e))?;
-    let flat = kage_engine::scene::flatten(&scene);
-    let bspvt = root.bspvt.as_ref().map(|h| pack.bspvt(h, &instances, &flat)).transpose().map_err(|e| bad(path, e))?;
-    let prt = root.prt.as_ref().map(|h| pack.prt(h, &instances, &flat)).transpose().map_err(|e| bad(path, e))?;
+    // The environment before the PRT record: its lighting splits the map's sun off.
     if let Some(env) = &root.environment {
         scene.set_environment(pack.environment(path, env).map_err(|e| bad(path, e))?);
     }
+    let flat = kage_engine::scene::flatten(&scene);
+    let bspvt = root.bspvt.as_ref().map(|h| pack.bspvt(h, &instances, &flat)).transpose().map_err(|e| bad(path, e))?;
+    let prt = root.prt.as_ref().map(|h| pack.prt(h, &instances, &flat)).transpose().map_err(|e| bad(path, e))?;
     Ok((scene, Contents { bspvt, prt }))
 }
 
