@@ -370,7 +370,10 @@ fn shader_saves_rebuild_pipelines_and_broken_shaders_keep_the_last_good_one() {
     assert!(e.file.ends_with("preview.wgsl") && e.line > 0, "{e:?}");
     assert!(errors(ed).iter().any(|l| l.contains("keeping the last good pipeline")));
     let still = snapshot(&mut h, "reload-broken");
-    assert_eq!(viewport_colours(&still), viewport_colours(&changed_img), "the last good pipeline keeps drawing");
+    // The same pipeline draws the same scene, a little smaller: the error's panel below the
+    // viewport takes some of its height (a failed view would have a handful of colours).
+    let (before, after) = (viewport_colours(&changed_img), viewport_colours(&still));
+    assert!(before.abs_diff(after) * 50 < before, "the last good pipeline keeps drawing: {before} → {after} colours");
 
     // Fixed again: the error clears.
     std::fs::write(shaders.join("preview.wgsl"), &source).unwrap();
