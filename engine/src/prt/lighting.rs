@@ -50,9 +50,7 @@ pub fn texels(env: &EnvironmentLight) -> Vec<(DVec3, f64, DVec3)> {
     (0..w * h)
         .map(|i| {
             let (x, y) = (i % w, i / w);
-            // A texel spans Δφ = 2π/w and θ ∈ [πy/h, π(y+1)/h]: Ω = Δφ (cos θ0 − cos θ1).
-            let (t0, t1) = (PI * y as f64 / h as f64, PI * (y + 1) as f64 / h as f64);
-            let omega = 2.0 * PI / w as f64 * (t0.cos() - t1.cos());
+            let omega = crate::scene::environment::texel_solid_angle(y, w, h);
             let uv = Vec2::new((x as f32 + 0.5) / w as f32, (y as f32 + 0.5) / h as f32);
             let d = (rot * uv_to_dir(uv)).as_dvec3().normalize();
             (d, omega, (map.texels[i] * env.intensity).as_dvec3())

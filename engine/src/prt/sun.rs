@@ -22,10 +22,10 @@ pub const MIN_SHARE: f32 = 0.2;
 /// A texel belongs to the patch when its luminance is at least this fraction of the peak's.
 const PATCH_FRACTION: f32 = 0.01;
 
-/// A sun in the map's frame, before the light's rotation and intensity.
+/// A sun: in the map's frame as [`split`] finds it, in world space after [`Sun::in_world`].
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct MapSun {
-    /// Unit direction toward the sun, map frame (power-weighted mean of its texels).
+pub struct Sun {
+    /// Unit direction toward the sun (power-weighted mean of its texels).
     pub direction: Vec3,
     /// Irradiance it gives a surface facing it (radiance × solid angle, summed; RGB).
     pub irradiance: Vec3,
@@ -33,32 +33,19 @@ pub struct MapSun {
     pub angular_radius: f32,
 }
 
-/// A sun in world space.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Sun {
-    /// Unit direction toward the sun.
-    pub direction: Vec3,
-    /// Irradiance on a surface facing it, the light's intensity applied.
-    pub irradiance: Vec3,
-    /// Angular radius (radians).
-    pub angular_radius: f32,
-}
-
-impl MapSun {
-    /// The sun of a light whose map this is.
-    pub fn in_world(&self, env: &EnvironmentLight) -> Sun {
-        Sun {
+impl Sun {
+    /// This map-frame sun under `env`'s rotation and intensity.
+    pub fn in_world(self, env: &EnvironmentLight) -> Self {
+        Self {
             direction: Quat::from_rotation_y(env.rotation) * self.direction,
             irradiance: self.irradiance * env.intensity,
-            angular_radius: self.angular_radius,
+            ..self
         }
     }
 }
 
-/// Solid angle of texel row `y` of an `w × h` map.
 fn texel_solid_angle(y: usize, w: usize, h: usize) -> f32 {
-    let (t0, t1) = (PI * y as f32 / h as f32, PI * (y + 1) as f32 / h as f32);
-    2.0 * PI / w as f32 * (t0.cos() - t1.cos())
+    crate::scene::environment::texel_solid_angle(y, w, h) as f32
 }
 
 /// The 8-connected neighbours of texel `i` (wrapping in longitude).
@@ -72,7 +59,7 @@ fn neighbours(i: usize, w: usize, h: usize) -> impl Iterator<Item = usize> {
 }
 
 /// Splits `map` into its sun and the residual map (`None`: no patch qualifies as a sun).
-pub fn split(map: &EnvMap) -> Option<(MapSun, EnvMap)> {
+pub fn split(map: &EnvMap) -> Option<(Sun, EnvMap)> {
     let (w, h) = (map.width, map.height);
     let lum: Vec<f32> = map.texels.iter().map(|t| luminance(*t)).collect();
     let peak = (0..lum.len()).max_by(|a, b| lum[*a].total_cmp(&lum[*b]))?;
@@ -112,7 +99,7 @@ pub fn split(map: &EnvMap) -> Option<(MapSun, EnvMap)> {
     patch.iter().for_each(|&i| texels[i] = texels[i].min(fill));
     let residual = EnvMap::new(w, h, texels, map.source.clone()).ok()?;
     let angular_radius = (1.0 - omega / (2.0 * PI)).clamp(-1.0, 1.0).acos();
-    Some((MapSun { direction: weighted.normalize(), irradiance, angular_radius }, residual))
+    Some((Sun { direction: weighted.normalize(), irradiance, angular_radius }, residual))
 }
 
 /// `env` without its sun (a light of the residual map), and the sun in world space.

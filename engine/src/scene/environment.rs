@@ -27,6 +27,14 @@ pub struct EnvMap {
     distribution: Distribution2D,
 }
 
+/// Exact solid angle of a texel of row `y` in a `w × h` map: it spans Δφ = 2π/w and
+/// θ ∈ [πy/h, π(y+1)/h], so Ω = Δφ (cos θ0 − cos θ1).
+pub fn texel_solid_angle(y: usize, w: usize, h: usize) -> f64 {
+    use std::f64::consts::PI;
+    let (t0, t1) = (PI * y as f64 / h as f64, PI * (y + 1) as f64 / h as f64);
+    2.0 * PI / w as f64 * (t0.cos() - t1.cos())
+}
+
 /// Direction → (u, v) in [0,1)², map frame.
 pub fn dir_to_uv(d: Vec3) -> Vec2 {
     let u = (d.x.atan2(-d.z) / (2.0 * PI)).rem_euclid(1.0);
