@@ -13,6 +13,7 @@
 //! - [`run`](mod@run): bakes the misses on rayon while one writer commits batches, re-bakes BSPVT warm
 //!   from lineage after edits (with the BSPVT subtree memo kept between runs), and assembles the
 //!   engine's bakes ([`bake`]: the same without assembling, reading no cached chunk);
+//! - [`estimate`]: a plan's bake time, measured by baking a sample of its misses;
 //! - [`prt_budget`]: PRT's order, window and region count chosen from an error budget and kept
 //!   in `meta`, so that `kage bake`, `kage render` and the editor bake with the same parameters;
 //!   [`pilot`]: its pilot transfer, kept so that choosing again after a rotation reads it
@@ -34,6 +35,7 @@
 //! - **Clear errors**: a locked, corrupted or incompatible file is an error naming the file.
 
 pub mod bvhs;
+pub mod estimate;
 pub mod key;
 pub mod pack;
 pub mod pilot;

@@ -22,7 +22,7 @@ use std::ops::Range;
 pub const CHUNK: usize = 256;
 
 /// Which technique a job bakes.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum Kind {
     /// BSPVT visibility trees.
     Bspvt,

@@ -28,6 +28,8 @@ use std::time::{Duration, Instant};
 
 /// Artefacts per write transaction at most.
 const BATCH: usize = 32;
+/// Finished artefacts queued for the writer at most (workers wait beyond it).
+const IN_FLIGHT: usize = 2 * BATCH;
 /// Longest a finished artefact waits before it is committed.
 const FLUSH_EVERY: Duration = Duration::from_millis(250);
 
@@ -139,7 +141,7 @@ impl Chunk<'_> {
 /// lineage is not trusted either) and replaced, so a run never shades damaged data.
 pub fn run_cancellable(store: &Store, scene: &Scene, flat: &FlatScene, plan: &Plan, hooks: Hooks) -> Result<Outcome> {
     let start = Instant::now();
-    let (stats, mut fresh) = bake_misses(store, scene, flat, plan, hooks)?;
+    let (stats, mut fresh) = bake_misses(store, scene, flat, plan, hooks, true)?;
     let outcome = match assemble(store, flat, plan, &fresh, stats)? {
         Assembled::Done(outcome) => outcome,
         Assembled::Damaged(damaged) => {
@@ -151,7 +153,7 @@ pub fn run_cancellable(store: &Store, scene: &Scene, flat: &FlatScene, plan: &Pl
                     .collect(),
                 ..plan.clone()
             };
-            let (rebaked, more) = bake_misses(store, scene, flat, &again, hooks)?;
+            let (rebaked, more) = bake_misses(store, scene, flat, &again, hooks, true)?;
             fresh.extend(more);
             let stats = RunStats {
                 cached: stats.cached - damaged.len(),
@@ -204,18 +206,21 @@ pub fn bake(
 ) -> Result<RunStats> {
     let start = Instant::now();
     let hooks = Hooks { progress, cancel: &AtomicBool::new(false), chunk: None };
-    let (stats, _) = bake_misses(store, scene, flat, plan, hooks)?;
+    let (stats, _) = bake_misses(store, scene, flat, plan, hooks, false)?;
     Ok(RunStats { seconds: start.elapsed().as_secs_f64(), ..stats })
 }
 
-/// Bakes and commits the plan's misses (see [`run_cancellable`]); returns what it did and the
-/// fresh artefacts by key.
+/// Bakes and commits the plan's misses (see [`run_cancellable`]); returns what it did and, with
+/// `keep`, the fresh artefacts by key. Without `keep` the run streams: memory holds only the
+/// artefacts in flight (a bounded queue to the writer, one batch being committed), whatever
+/// the scene's total bake size.
 fn bake_misses(
     store: &Store,
     scene: &Scene,
     flat: &FlatScene,
     plan: &Plan,
     hooks: Hooks,
+    keep: bool,
 ) -> Result<(RunStats, HashMap<Key, Vec<u8>>)> {
     let Hooks { progress, cancel, chunk } = hooks;
     if let Some(f) = chunk {
@@ -224,26 +229,15 @@ fn bake_misses(
         }
     }
     let misses: Vec<&Job> = plan.misses().collect();
-    // What only baking needs is set up only when something of its kind is missing.
-    let baking = |kind: Kind| misses.iter().any(|j| j.kind == kind);
-    let bspvt = plan.bspvt.filter(|_| baking(Kind::Bspvt));
-    let (occluders, new_bvhs) = bspvt.map(|_| crate::bvhs::occluders(store, flat)).transpose()?.unzip();
-    let tiles = bspvt.map(|s| load_tiles(store, &s)).transpose()?;
-    let transfer = plan.prt.filter(|_| baking(Kind::Prt)).map(|s| prt::Baker::new(scene, flat, &s));
-    let ctx = Context {
-        flat,
-        plan,
-        store,
-        occluders: occluders.as_ref(),
-        tiles: tiles.as_ref(),
-        transfer: transfer.as_ref(),
-    };
+    let tools = Tools::for_jobs(store, scene, flat, plan, &misses)?;
+    let ctx = tools.context(store, flat, plan);
     let done = AtomicUsize::new(0);
-    let (tx, rx) = mpsc::channel::<Baked<'_>>();
+    // Bounded, so that workers wait for the writer instead of piling artefacts up in memory.
+    let (tx, rx) = mpsc::sync_channel::<Baked<'_>>(IN_FLIGHT);
     let mut fresh: HashMap<Key, Vec<u8>> = HashMap::new();
     let mut stats = RunStats { cached: plan.jobs.len() - misses.len(), ..RunStats::default() };
     let written = std::thread::scope(|scope| -> Result<()> {
-        let writer = scope.spawn(|| write_batches(store, rx, chunk));
+        let writer = scope.spawn(|| write_batches(store, rx, chunk, keep));
         let baking = misses.par_iter().try_for_each_with(tx, |tx, job| -> Result<()> {
             if cancel.load(Ordering::Relaxed) {
                 return Err(DbError::Cancelled { done: 0 });
@@ -272,17 +266,17 @@ fn bake_misses(
             stats.vertices_baked += b.vertices;
             stats.rays_cast += b.rays;
             stats.tiles_built += b.tiles;
-            fresh.insert(b.key, b.bytes);
+            if keep {
+                fresh.insert(b.key, b.bytes);
+            }
         }
         Ok(())
     });
     // Kept even when the run failed or was cancelled: what was built stays useful.
-    let mut memos = new_bvhs.unwrap_or_default();
-    memos.extend(tiles.as_ref().filter(|t| t.added() > 0).map(|t| (tiles_name(t.settings()), t.to_bytes())));
-    let saved = store.put_memos(&memos);
+    let saved = store.put_memos(&tools.memos());
     written?;
     saved?;
-    stats.tiles_from_memo = tiles.as_ref().map_or(0, |t| t.hits());
+    stats.tiles_from_memo = tools.tiles.as_ref().map_or(0, |t| t.hits());
     store.put_scene(&scene.source, &plan.keys(), &plan.snapshot.hash)?;
     let meshes: Vec<([u8; 32], u32, u32)> =
         scene.meshes.iter().map(|m| (m.hash.0, m.positions.len() as u32, m.triangles.len() as u32)).collect();
@@ -290,11 +284,26 @@ fn bake_misses(
     Ok((stats, fresh))
 }
 
-/// Receives finished artefacts and commits them in batches; returns them all.
+/// Bakes `jobs` in parallel and throws the results away; returns the seconds they took summed
+/// over the workers (what [`crate::estimate`] scales).
+pub(crate) fn time_jobs(ctx: &Context<'_>, jobs: &[Job]) -> Result<f64> {
+    let seconds = jobs
+        .par_iter()
+        .map(|job| {
+            let t = Instant::now();
+            ctx.bake(job).map(|_| t.elapsed().as_secs_f64())
+        })
+        .collect::<Result<Vec<f64>>>()?;
+    Ok(seconds.iter().sum())
+}
+
+/// Receives finished artefacts and commits them in batches; returns them all, their bytes and
+/// lineage dropped once committed unless `keep`.
 fn write_batches<'a>(
     store: &Store,
     rx: mpsc::Receiver<Baked<'a>>,
     chunk: Option<&(dyn Fn(Chunk<'_>) + Sync)>,
+    keep: bool,
 ) -> Result<Vec<Baked<'a>>> {
     let mut all: Vec<Baked> = Vec::new();
     let mut pending = 0usize;
@@ -315,6 +324,10 @@ fn write_batches<'a>(
             if let Some(f) = chunk {
                 batch.iter().for_each(|b| f(Chunk { job: b.job, bytes: &b.bytes }));
             }
+            if !keep {
+                let at = all.len() - pending;
+                all[at..].iter_mut().for_each(|b| (b.bytes, b.lineage) = (Vec::new(), None));
+            }
             pending = 0;
             last = Instant::now();
         }
@@ -324,7 +337,47 @@ fn write_batches<'a>(
     }
 }
 
-struct Context<'a> {
+/// What baking jobs needs beyond the plan, set up only for the kinds a set of jobs has.
+pub(crate) struct Tools {
+    occluders: Option<Occluders>,
+    /// Occluder BVHs built now, as memos to store.
+    new_bvhs: Vec<(String, Vec<u8>)>,
+    tiles: Option<bspvt::memo::SubtreeMemo>,
+    transfer: Option<prt::Baker>,
+}
+
+impl Tools {
+    pub(crate) fn for_jobs(store: &Store, scene: &Scene, flat: &FlatScene, plan: &Plan, jobs: &[&Job]) -> Result<Self> {
+        let baking = |kind: Kind| jobs.iter().any(|j| j.kind == kind);
+        let bspvt = plan.bspvt.filter(|_| baking(Kind::Bspvt));
+        let (occluders, new_bvhs) = bspvt.map(|_| crate::bvhs::occluders(store, flat)).transpose()?.unzip();
+        Ok(Tools {
+            occluders,
+            new_bvhs: new_bvhs.unwrap_or_default(),
+            tiles: bspvt.map(|s| load_tiles(store, &s)).transpose()?,
+            transfer: plan.prt.filter(|_| baking(Kind::Prt)).map(|s| prt::Baker::new(scene, flat, &s)),
+        })
+    }
+
+    pub(crate) fn context<'a>(&'a self, store: &'a Store, flat: &'a FlatScene, plan: &'a Plan) -> Context<'a> {
+        Context {
+            flat,
+            plan,
+            store,
+            occluders: self.occluders.as_ref(),
+            tiles: self.tiles.as_ref(),
+            transfer: self.transfer.as_ref(),
+        }
+    }
+
+    /// The memos worth storing: new occluder BVHs, and the subtree memo when it grew.
+    fn memos(&self) -> Vec<(String, Vec<u8>)> {
+        let tiles = self.tiles.as_ref().filter(|t| t.added() > 0).map(|t| (tiles_name(t.settings()), t.to_bytes()));
+        self.new_bvhs.iter().cloned().chain(tiles).collect()
+    }
+}
+
+pub(crate) struct Context<'a> {
     flat: &'a FlatScene,
     plan: &'a Plan,
     store: &'a Store,
@@ -644,4 +697,63 @@ fn bakes(store: &Store, flat: &FlatScene, plan: &Plan, chunks: &[&[u8]], stats: 
         prt::Bake { order: s.order, instances: prt_instances, stats: prt::Stats { vertices, bytes, seconds: 0.0 } }
     });
     Ok(Outcome { bspvt, prt, stats })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Streaming: every artefact is committed, and once committed its bytes are not held
+    /// (without `keep`), so a bake's memory does not grow with its size; with `keep` they are.
+    #[test]
+    fn the_writer_commits_everything_and_holds_bytes_only_when_asked() {
+        let dir = tempfile::tempdir().unwrap();
+        let store = Store::open(&dir.path().join("bake.redb")).unwrap();
+        let jobs: Vec<Job> = (0..100u8)
+            .map(|i| Job {
+                kind: Kind::Prt,
+                instance: 0,
+                vertices: 0..1,
+                key: Key::from_slice(&[i; 32]),
+                slot: None,
+                cached: false,
+            })
+            .collect();
+        for keep in [false, true] {
+            let (tx, rx) = mpsc::sync_channel(IN_FLIGHT);
+            let held = std::thread::scope(|s| {
+                let writer = s.spawn(|| write_batches(&store, rx, None, keep));
+                for job in &jobs {
+                    let bytes = vec![job.key.as_bytes()[0]; 4096];
+                    let info = Info {
+                        kind: "prt".into(),
+                        params: String::new(),
+                        seconds: 0.0,
+                        vertices: 1,
+                        checksum: *blake3::hash(&bytes).as_bytes(),
+                    };
+                    let baked = Baked {
+                        job,
+                        key: job.key,
+                        bytes,
+                        info,
+                        lineage: None,
+                        warm: false,
+                        vertices: 1,
+                        rays: 0,
+                        tiles: 0,
+                    };
+                    tx.send(baked).unwrap();
+                }
+                drop(tx);
+                writer.join().unwrap().unwrap()
+            });
+            assert_eq!(held.len(), jobs.len());
+            let bytes: usize = held.iter().map(|b| b.bytes.len()).sum();
+            assert_eq!(bytes, if keep { 4096 * jobs.len() } else { 0 }, "keep {keep}");
+            let keys: Vec<Key> = jobs.iter().map(|j| j.key).collect();
+            assert!(store.contains_all(&keys).unwrap().iter().all(|&c| c));
+            assert_eq!(store.get::<u8>(&keys[7]).unwrap().unwrap(), vec![7u8; 4096]);
+        }
+    }
 }

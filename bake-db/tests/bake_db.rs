@@ -315,6 +315,32 @@ fn bake_commits_what_run_commits() {
     }
 }
 
+/// The estimate bakes a sample of both techniques' misses, writes nothing (every chunk is still
+/// missing after it, and the bake that follows equals one never estimated), and has nothing
+/// to measure once everything is cached.
+#[test]
+fn the_estimate_samples_both_techniques_and_writes_nothing() {
+    let (store, plain) = (Store::open(&scratch("estimate")).unwrap(), Store::open(&scratch("no-estimate")).unwrap());
+    let s = scene("");
+    let flat = flatten(&s);
+    let p = plan(&store, &s, &flat, Some(BSPVT), Some(prt_settings())).unwrap();
+    let e = kage_bake_db::estimate::estimate(&store, &s, &flat, &p).unwrap();
+    assert_eq!(e.rates.iter().map(|r| r.0).collect::<Vec<_>>(), ["bspvt", "prt"]);
+    assert!(e.rates.iter().all(|r| r.1 > 0.0 && r.2 > 0.0) && e.total(2) > 0.0, "{e:?}");
+    let sampled: usize = [Kind::Bspvt, Kind::Prt]
+        .iter()
+        .flat_map(|&k| kage_bake_db::estimate::sample(&p, k))
+        .map(|j| j.vertices.len())
+        .sum();
+    assert_eq!(e.sampled, sampled);
+    assert!(store.contains_all(&p.keys()).unwrap().iter().all(|c| !c), "the sample was not stored");
+    let (_, estimated, _) = bake(&store, &s);
+    let (_, fresh, _) = bake(&plain, &s);
+    assert!(estimated == fresh, "the bake after an estimate equals one without");
+    let p = plan(&store, &s, &flat, Some(BSPVT), Some(prt_settings())).unwrap();
+    assert_eq!(kage_bake_db::estimate::estimate(&store, &s, &flat, &p).unwrap(), Default::default());
+}
+
 /// The occluders' BVHs are stored by a run for the instances with enough triangles (here the
 /// ground alone) and restored by the next; a damaged entry is built and stored again, and the
 /// bytes are a cold bake's either way.

@@ -56,6 +56,7 @@ fn teapot_editor() -> Harness<'static, App> {
         bake_on_start: true,
         indirect: false,
         shade_on: shade_on(),
+        background_shading: usize::MAX,
     };
     let mut h = harness(scene, options);
     while h.state().editor.job.is_some() || h.state().editor.bakes.bspvt.is_none() {

@@ -155,6 +155,9 @@ pub struct Options {
     pub indirect: bool,
     /// Where polygonal-light shading (BSPVT, LTC) runs.
     pub shade_on: ShadeOn,
+    /// Scenes with more receiver vertices than this shade on the CPU in the background (the
+    /// last shading stays on screen meanwhile) instead of within the frame.
+    pub background_shading: usize,
 }
 
 /// Where the editor shades polygonal lights. PRT always shades on the GPU.
@@ -273,6 +276,8 @@ pub(super) struct Workers {
     pub(super) reference: Option<Worker<VertexValues>>,
     /// Exact visibility (`ltc-exact-vis`).
     pub(super) exact: Option<Worker<VertexValues>>,
+    /// The direct light of a large scene, shaded in the background, and when it started.
+    pub(super) shading: Option<(Worker<VertexValues>, std::time::Instant)>,
     /// The indirect term.
     pub(super) indirect: Option<Worker<super::indirect::Indirect>>,
     /// The last indirect cache with what it was lit by, for the next refresh.

@@ -350,7 +350,14 @@ fn spawn_reference(ed: &Editor) -> Worker<VertexValues> {
 
 /// Shades the current method when anything it depends on changed, then the overlay.
 pub fn shade_system(ed: &mut Editor) {
-    if !ed.dirty.shade {
+    if let Some((values, start)) = ed.workers.shading.as_ref().and_then(|(w, start)| Some((w.results().pop()?, *start)))
+    {
+        ed.workers.shading = None;
+        land(ed, values, start);
+        compose(ed);
+    }
+    // One background shading at a time: a change while it runs is shaded when it lands.
+    if !ed.dirty.shade || ed.workers.shading.is_some() {
         return;
     }
     ed.dirty.shade = false;
@@ -359,15 +366,67 @@ pub fn shade_system(ed: &mut Editor) {
         ed.per_pixel = None;
     }
     ed.dirty.per_pixel = true;
+    if let Some(job) = Background::of(ed) {
+        let wake = ed.wake.clone();
+        ed.workers.shading = Some((Worker::spawn(move |_, send| send(job.shade()), move || wake()), start));
+        return;
+    }
     if let Some(values) = shade(ed) {
-        ed.direct = values;
-        ed.workers.generations.0 += 1;
-        ed.stats.shading = start.elapsed().as_secs_f64();
-        if let Some(t) = ed.edited_at.take() {
-            ed.stats.edit_to_shade = t.elapsed().as_secs_f64();
-        }
+        land(ed, values, start);
     }
     compose(ed);
+}
+
+/// Takes newly shaded direct light, started at `start`.
+fn land(ed: &mut Editor, values: VertexValues, start: Instant) {
+    ed.direct = values;
+    ed.workers.generations.0 += 1;
+    ed.stats.shading = start.elapsed().as_secs_f64();
+    if let Some(t) = ed.edited_at.take() {
+        ed.stats.edit_to_shade = t.elapsed().as_secs_f64();
+    }
+}
+
+/// A CPU shading of the polygonal lights (run in the background for scenes larger than
+/// [`super::state::Options::background_shading`]: a million vertices take seconds, and orbiting
+/// the camera must not wait for them) ; for `baked`, the whole look of a scene without an
+/// environment), with what it reads copied.
+struct Background {
+    flat: kage_engine::scene::FlatScene,
+    trees: Option<std::sync::Arc<bspvt::Bake>>,
+    method: Method,
+    eye: Vec3,
+}
+
+impl Background {
+    /// The job for the editor's current view, when the scene is large enough and the method
+    /// shades on the CPU with no environment term (those keep shading within the frame).
+    fn of(ed: &Editor) -> Option<Self> {
+        let vertices: usize = (0..ed.flat.instances.len()).map(|k| ed.flat.vertex_count(k)).sum();
+        let cpu = match ed.method {
+            Method::Bspvt | Method::LtcUnshadowed => true,
+            Method::Baked => ed.flat.environment.is_none(),
+            _ => false,
+        };
+        if vertices <= ed.options.background_shading || !cpu || ed.polygonal_on_gpu() {
+            return None;
+        }
+        let trees = ed.bakes.bspvt.clone().filter(|b| fits(ed, &b.instances, |i| i.offsets.len() - 1));
+        let trees = trees.filter(|_| ed.method != Method::LtcUnshadowed);
+        Some(Self { flat: ed.flat.clone(), trees, method: ed.method, eye: ed.orbit.eye() })
+    }
+
+    fn shade(&self) -> VertexValues {
+        let shadows = self.trees.as_deref().map_or(bspvt::Shadows::Unshadowed, bspvt::Shadows::Trees);
+        let values = (!self.flat.lights.is_empty()).then(|| bspvt::shade_vertices(&self.flat, shadows, self.eye));
+        match (self.method, values) {
+            (Method::Baked, values) => {
+                let polygonal = values.map(|values| Polygonal { bake: self.trees.as_deref(), values, lobes: None });
+                Look::new(&self.flat, self.eye, polygonal, None).into_direct()
+            }
+            (_, values) => values.unwrap_or_else(|| self.flat.zeros()),
+        }
+    }
 }
 
 /// What the viewport shows: direct plus (when on and of the same shape) the indirect term,
@@ -428,6 +487,11 @@ pub fn indirect_system(ed: &mut Editor) {
 /// True while an indirect gather runs.
 pub fn gathering(ed: &Editor) -> bool {
     ed.workers.indirect.is_some()
+}
+
+/// True while a large scene's direct light is shaded in the background.
+pub fn shading(ed: &Editor) -> bool {
+    ed.workers.shading.is_some()
 }
 
 /// What the current method offers to light glossy hits toward the cache's records.

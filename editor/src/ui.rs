@@ -337,6 +337,12 @@ fn methods(ui: &mut egui::Ui, ed: &mut Editor) {
     let mut indirect = ed.indirect;
     ui.checkbox(&mut indirect, "Indirect light (HSH radiance cache)");
     ed.set_indirect(indirect);
+    if super::systems::shading(ed) {
+        ui.horizontal(|ui| {
+            ui.spinner();
+            ui.label("shading in the background");
+        });
+    }
     if ed.indirect && super::systems::gathering(ed) {
         ui.horizontal(|ui| {
             ui.spinner();

@@ -46,6 +46,7 @@ fn options(dir: &Path, scene_path: Option<PathBuf>, shader_dir: Option<PathBuf>)
         // Tests that need the bounce turn it on as a user would (the toggle).
         indirect: false,
         shade_on: SHADE_ON,
+        background_shading: usize::MAX,
     }
 }
 
@@ -65,7 +66,12 @@ fn step_until(h: &mut Harness<App>, what: &str, done: impl Fn(&Editor) -> bool) 
 }
 
 fn settled(ed: &Editor) -> bool {
-    ed.job.is_none() && !ed.dirty.shade && !ed.dirty.geometry && ed.bakes.bspvt.is_some()
+    ed.job.is_none() && shaded(ed) && !ed.dirty.geometry && ed.bakes.bspvt.is_some()
+}
+
+/// Nothing left to shade, within the frame or in the background.
+fn shaded(ed: &Editor) -> bool {
+    !ed.dirty.shade && !kage_editor::systems::shading(ed)
 }
 
 /// Renders the window and keeps a copy; returns the pixels.
@@ -429,6 +435,32 @@ fn touching_the_scene_file_reimports_it_and_rebakes_only_what_changed() {
     step_until(&mut h, "the re-bake after the mesh edit", |ed| settled(ed) && !ed.bakes.bspvt_stale);
     let edit = h.state().editor.stats.runs[0].unwrap();
     assert!(edit.cold > 0 && edit.warm > 0, "the new mesh bakes cold, the ground warm: {edit:?}");
+}
+
+/// A scene above the background threshold (here every scene: 0) shades on the CPU off the UI
+/// thread and lands exactly what shading within the frame gives, for every CPU method.
+#[test]
+fn large_scenes_shade_in_the_background_to_the_same_values() {
+    let d = scratch("background");
+    let shade = |threshold: usize| {
+        let mut o = options(&d, None, None);
+        (o.shade_on, o.background_shading) = (ShadeOn::Cpu, threshold);
+        let mut h = harness(import::import(&asset("scenes/cube_on_plane.gltf"), Default::default()).unwrap(), o);
+        step_until(&mut h, "the first bakes", settled);
+        let mut out = Vec::new();
+        for (label, method) in
+            [("bspvt", Method::Bspvt), ("ltc-unshadowed", Method::LtcUnshadowed), ("baked", Method::Baked)]
+        {
+            h.get_by_label(label).click();
+            step_until(&mut h, label, |ed| ed.method == method && shaded(ed));
+            out.push(values(&h));
+        }
+        out
+    };
+    let (background, in_frame) = (shade(0), shade(usize::MAX));
+    assert!(background.iter().all(|v| v.iter().any(|x| x.max_element() > 0.01)), "lit");
+    assert!(changed(&background[0], &background[1]) > 100, "shadowed differs from unshadowed");
+    assert_eq!(background, in_frame);
 }
 
 /// The editor bakes PRT with the parameters `kage bake` chose for the scene: it reads the

@@ -1,7 +1,9 @@
-//! `cargo xtask`: developer tasks that regenerate the tables kage ships as source or bytes.
+//! `cargo xtask`: developer tasks that regenerate the tables kage ships as source or bytes,
+//! and generate the large benchmark scene.
 //!
-//! They are not part of the user's `kage` binary: their output is committed, and a test beside
-//! each table checks the committed data against its generator.
+//! They are not part of the user's `kage` binary. The tables' output is committed, and a test
+//! beside each table checks the committed data against its generator; the level is generated
+//! where a benchmark needs it (`docs/benchmarks.md#a-million-vertices`), never committed.
 
 use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
@@ -9,6 +11,8 @@ use indicatif::{ProgressBar, ProgressStyle};
 use kage_engine::math::{ggx, ltc};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
+
+mod level;
 
 /// Developer tasks for the kage workspace.
 #[derive(Parser)]
@@ -25,6 +29,20 @@ enum Task {
         /// Where to write the table source.
         #[arg(short, long, default_value = "engine/src/math/ltc/table.rs")]
         output: PathBuf,
+    },
+    /// Generate the scaling benchmark's level: a terrain with instanced rocks and four quad
+    /// lights, of about VERTICES receiver vertices (glTF and a .bin).
+    Level {
+        /// Receiver vertices to aim for (the level's area grows with them).
+        #[arg(long, default_value_t = 1_000_000)]
+        vertices: usize,
+        /// Where to write the .gltf (the .bin goes beside it).
+        #[arg(short, long, default_value = "target/level/level.gltf")]
+        output: PathBuf,
+        /// Each light declares it stays within this many metres of where it is (without: the
+        /// lights may go anywhere, and BSPVT bakes every direction).
+        #[arg(long, value_name = "METRES")]
+        light_reach: Option<f32>,
     },
     /// Integrate the GGX directional-albedo tables and write them as little-endian f32.
     GgxAlbedo {
@@ -46,6 +64,14 @@ fn main() -> Result<()> {
             pb.finish_and_clear();
             write(&output, ltc::fit::table_source(&table).as_bytes())?;
             (output, format!("{} LTC entries", table.len()))
+        }
+        Task::Level { vertices, output, light_reach } => {
+            let made = level::write(&output, vertices, light_reach)?;
+            let what = format!(
+                "a {:.0} m level of {} receiver vertices ({} terrain, {} instances)",
+                made.side, made.vertices, made.terrain, made.instances
+            );
+            (output, what)
         }
         Task::GgxAlbedo { output } => {
             write(&output, &ggx::albedo_table_bytes())?;

@@ -493,24 +493,6 @@ impl Store {
         })
     }
 
-    /// Measured seconds per vertex of cold bakes of `kind` with exactly `params` (single
-    /// worker time), from the artefacts' metadata; `None` before any such bake.
-    pub fn seconds_per_vertex(&self, kind: &str, params: &str) -> Result<Option<f64>> {
-        let (seconds, vertices) = self.read(|t| {
-            let (mut s, mut v) = (0.0, 0u64);
-            for item in t.open_table(INFO)?.iter()? {
-                let (_, json) = item?;
-                let Ok(info) = serde_json::from_str::<serde_json::Value>(json.value()) else { continue };
-                if info["kind"] == kind && info["params"] == params {
-                    s += info["seconds"].as_f64().unwrap_or(0.0);
-                    v += info["vertices"].as_u64().unwrap_or(0);
-                }
-            }
-            Ok((s, v))
-        })?;
-        Ok((vertices > 0).then(|| seconds / vertices as f64))
-    }
-
     /// Every artefact's key, metadata and size, by key (unreadable metadata reads as empty).
     pub fn artefacts(&self) -> Result<Vec<(Key, Info, usize)>> {
         self.read(|t| {

@@ -173,13 +173,14 @@ fn bake_once(args: &Args, store: &Store) -> Result<()> {
     Ok(())
 }
 
-/// Per instance and technique: chunks, cached, vertices to bake, estimated seconds.
+/// Per instance and technique: chunks, cached, vertices to bake, estimated seconds (from a
+/// sample of the misses baked on this machine, see `kage_bake_db::estimate`).
 pub fn print_plan(store: &Store, scene: &Scene, flat: &FlatScene, plan: &Plan, planning_s: f64) -> Result<()> {
-    let threads = rayon::current_num_threads() as f64;
+    let threads = rayon::current_num_threads();
     // (chunks, cached, vertices to bake, their work in full-vertex units).
-    let mut rows: BTreeMap<(usize, &str), (usize, usize, usize, f64)> = BTreeMap::new();
+    let mut rows: BTreeMap<(usize, Kind), (usize, usize, usize, f64)> = BTreeMap::new();
     for j in &plan.jobs {
-        let r = rows.entry((j.instance, j.kind.name())).or_default();
+        let r = rows.entry((j.instance, j.kind)).or_default();
         r.0 += 1;
         r.1 += usize::from(j.cached);
         if !j.cached {
@@ -187,18 +188,7 @@ pub fn print_plan(store: &Store, scene: &Scene, flat: &FlatScene, plan: &Plan, p
             r.3 += plan.work(flat, j);
         }
     }
-    // Seconds per vertex on one worker: measured by earlier bakes with the same parameters in
-    // this database, else the defaults.
-    let mut rate = std::collections::HashMap::new();
-    for kind in [Kind::Bspvt, Kind::Prt] {
-        let measured = store.seconds_per_vertex(kind.name(), &plan.params(kind))?;
-        rate.insert(kind.name(), (measured.unwrap_or(plan.default_seconds_per_vertex(kind)), measured.is_some()));
-    }
-    // Measured rates already hold the reach's savings (the same parameters, reach included).
-    let cost = |kind: &str, vertices: usize, work: f64| {
-        let (rate, measured) = rate[kind];
-        rate * if measured { vertices as f64 } else { work }
-    };
+    let estimate = kage_bake_db::estimate::estimate(store, scene, flat, plan)?;
     let mut out = format!("plan for {} ({:.0} ms):\n", scene.source, planning_s * 1e3);
     if let Some(s) = plan.bspvt {
         out += &format!("  bspvt: {}² faces, ε {}, {} (polygonal lights present)\n", s.res, s.epsilon, plan.reach);
@@ -215,20 +205,21 @@ pub fn print_plan(store: &Store, scene: &Scene, flat: &FlatScene, plan: &Plan, p
     if plan.jobs.is_empty() {
         out += "  nothing to bake: no polygonal light and no environment\n";
     }
-    let mut total = 0.0;
     for ((i, kind), (chunks, cached, vertices, work)) in &rows {
-        let est = cost(kind, *vertices, *work) / threads;
-        total += est;
+        let est = estimate.rate(*kind) * work / threads as f64;
+        let kind = kind.name();
         out += &format!(
             "  instance {i:3} {kind:5}: {chunks:3} chunks, {cached:3} cached, {vertices:6} vertices to bake, ~{est:.1} s\n"
         );
     }
     let misses = plan.misses().count();
-    let basis = if rate.values().any(|r| r.1) { "rates measured by earlier bakes" } else { "default rates" };
     out += &format!(
-        "  {} of {} chunks cached; {misses} to bake, estimated {total:.1} s on {threads} threads ({basis})\n",
+        "  {} of {} chunks cached; {misses} to bake, estimated {:.1} s on {threads} threads (a sample of {} vertices baked in {:.2} s)\n",
         plan.jobs.len() - misses,
-        plan.jobs.len()
+        plan.jobs.len(),
+        estimate.total(threads),
+        estimate.sampled,
+        estimate.seconds
     );
     crate::emit(&out);
     Ok(())

@@ -34,6 +34,10 @@ pub struct Args {
     /// Where polygonal lights shade: auto (the GPU unless it is a CPU emulation), gpu, cpu.
     #[arg(long, value_enum, default_value = "auto")]
     shade_on: state::ShadeOn,
+    /// Scenes with more receiver vertices than this re-shade on the CPU in the background,
+    /// keeping the last shading on screen meanwhile (the UI stays responsive on large levels).
+    #[arg(long, value_name = "VERTICES", default_value_t = 200_000)]
+    background_shading: usize,
     /// Window size as WxH.
     #[arg(long, default_value = "1280x800", value_parser = super::render::parse_size)]
     size: (usize, usize),
@@ -61,6 +65,7 @@ impl Args {
             bake_on_start: !self.no_bake,
             indirect: !self.no_indirect,
             shade_on: self.shade_on,
+            background_shading: self.background_shading,
         })
     }
 }
