@@ -214,7 +214,7 @@ pub fn print_plan(store: &Store, scene: &Scene, flat: &FlatScene, plan: &Plan, p
     }
     let misses = plan.misses().count();
     out += &format!(
-        "  {} of {} chunks cached; {misses} to bake, estimated {:.1} s on {threads} threads (a sample of {} vertices baked in {:.2} s)\n",
+        "  {} of {} chunks cached; {misses} to bake, estimated {:.1} s on {threads} threads (timed on a sample of {} vertices: {:.2} s)\n",
         plan.jobs.len() - misses,
         plan.jobs.len(),
         estimate.total(threads),
