@@ -24,6 +24,7 @@ use crate::scene::refine::Adaptive;
 use crate::scene::{FlatLight, MeshRef, PrimitiveId, Scene, flatten};
 use glam::Vec3;
 use rayon::prelude::*;
+use std::collections::HashMap;
 use std::sync::Arc;
 
 /// How far to refine.
@@ -71,6 +72,9 @@ pub fn refine(scene: &mut Scene, settings: &Settings) -> crate::Result<Report> {
             }
         }
     }
+    // A vertex keeps its place and normal, and an edge its ends, from round to round: what
+    // was probed once is looked up, so a round probes only what the last one added.
+    let mut memos: Vec<Memo> = meshes.iter().map(|_| Memo::default()).collect();
     for _ in 0..settings.rounds {
         let used: usize = meshes.iter().map(Adaptive::vertices).sum();
         if used >= total {
@@ -79,7 +83,8 @@ pub fn refine(scene: &mut Scene, settings: &Settings) -> crate::Result<Report> {
         let marks: Vec<Vec<(f32, [u32; 2])>> = meshes
             .iter()
             .zip(&flat.instances)
-            .map(|(m, inst)| marked(m, &inst.world, &probe, settings.tolerance))
+            .zip(&mut memos)
+            .map(|((m, inst), memo)| marked(m, &inst.world, &probe, settings.tolerance, memo))
             .collect();
         if marks.iter().all(Vec::is_empty) {
             break;
@@ -134,25 +139,51 @@ fn replace_meshes(
     Ok(report)
 }
 
-/// The edges of `mesh` whose visibility interpolates badly, with their error × world length.
-fn marked(mesh: &Adaptive, world: &glam::Affine3A, probe: &Probe, tolerance: f32) -> Vec<(f32, [u32; 2])> {
+/// What earlier rounds probed on one mesh: per vertex its lights' visibility, per edge its
+/// interpolation error.
+#[derive(Default)]
+struct Memo {
+    vertex: Vec<Vec<f32>>,
+    edge: HashMap<[u32; 2], f32>,
+}
+
+/// The edges of `mesh` whose visibility interpolates badly, with their error × world length;
+/// probes only the vertices and edges `memo` lacks, and keeps them there.
+fn marked(
+    mesh: &Adaptive,
+    world: &glam::Affine3A,
+    probe: &Probe,
+    tolerance: f32,
+    memo: &mut Memo,
+) -> Vec<(f32, [u32; 2])> {
     let (p, n) = (mesh.positions(), mesh.normals());
     let at = |a: Vec3, na: Vec3| {
         probe.visibility(world.transform_point3(a), world.transform_vector3(na).normalize_or_zero())
     };
-    let vertex: Vec<Vec<f32>> = (0..p.len()).into_par_iter().map(|i| at(p[i], n[i])).collect();
+    let new: Vec<Vec<f32>> = (memo.vertex.len()..p.len()).into_par_iter().map(|i| at(p[i], n[i])).collect();
+    memo.vertex.extend(new);
+    let vertex = &memo.vertex;
     let edges = mesh.edges();
-    edges
+    let fresh: Vec<([u32; 2], f32)> = edges
         .par_iter()
-        .filter_map(|&[a, b]| {
+        .filter(|e| !memo.edge.contains_key(*e))
+        .map(|&[a, b]| {
             let (va, vb) = (&vertex[a as usize], &vertex[b as usize]);
             let (a_, b_) = (a as usize, b as usize);
             let mid = at(0.5 * (p[a_] + p[b_]), (n[a_] + n[b_]).normalize_or_zero());
             let error = (0..va.len())
                 .map(|l| (va[l] - vb[l]).abs().max((mid[l] - 0.5 * (va[l] + vb[l])).abs()))
                 .fold(0.0, f32::max);
-            let length = world.transform_point3(p[a_]).distance(world.transform_point3(p[b_]));
-            (error > tolerance).then_some((error * length, [a, b]))
+            ([a, b], error)
+        })
+        .collect();
+    memo.edge.extend(fresh);
+    let length = |a: u32, b: u32| world.transform_point3(p[a as usize]).distance(world.transform_point3(p[b as usize]));
+    edges
+        .into_iter()
+        .filter_map(|[a, b]| {
+            let error = memo.edge[&[a, b]];
+            (error > tolerance).then(|| (error * length(a, b), [a, b]))
         })
         .collect()
 }

@@ -332,15 +332,7 @@ impl Cache {
         }
         let basis = |f: &crate::math::frame::Frame| DMat3::from_cols(f.t.as_dvec3(), f.b.as_dvec3(), f.n.as_dvec3());
         // Receiver-local from record-local: g(d_recv) = f(d_rec), d_rec = Bᵢᵀ B_r d_recv.
-        let rot = basis(to).transpose() * basis(&r.frame);
-        let mut out = vec![DVec3::ZERO; c.len()];
-        for ch in 0..3 {
-            let channel: Vec<f64> = c.iter().map(|v| v[ch]).collect();
-            for (o, v) in out.iter_mut().zip(self.conversion.rotate(&channel, rot)) {
-                o[ch] = v;
-            }
-        }
-        out
+        self.conversion.rotate_rgb(c, basis(to).transpose() * basis(&r.frame))
     }
 
     /// Radiance leaving toward local `wo` for a BSDF, from incoming-radiance coefficients in the

@@ -203,7 +203,21 @@ impl Conversion {
     /// Rotates HSH coefficients by `r` through SH: HSH → SH → rotate → HSH. Exact only in the
     /// limit of a high SH order (the zero-extended function is not band-limited).
     pub fn rotate(&self, c: &[f64], r: DMat3) -> Vec<f64> {
+        self.rotate_by(&sh::Rotation::new(self.sh_order, r), c)
+    }
+
+    /// [`Self::rotate`] of each channel of RGB coefficients, building the rotation once.
+    pub fn rotate_rgb(&self, c: &[DVec3], r: DMat3) -> Vec<DVec3> {
         let rot = sh::Rotation::new(self.sh_order, r);
+        let mut out = vec![DVec3::ZERO; c.len()];
+        for ch in 0..3 {
+            let channel: Vec<f64> = c.iter().map(|v| v[ch]).collect();
+            out.iter_mut().zip(self.rotate_by(&rot, &channel)).for_each(|(o, v)| o[ch] = v);
+        }
+        out
+    }
+
+    fn rotate_by(&self, rot: &sh::Rotation, c: &[f64]) -> Vec<f64> {
         self.sh_to_hsh(&rot.apply(&self.hsh_to_sh(c)))
     }
 }
@@ -308,5 +322,13 @@ mod tests {
         let err = back.iter().zip(&c).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
         eprintln!("HSH(5) → SH(16) → HSH: max coefficient error {err:e}");
         assert!(err < 1e-2, "HSH→SH(16)→HSH loses {err}");
+        // RGB rotates each channel as `rotate` does, bit for bit, with one rotation.
+        let turn = DMat3::from_axis_angle(DVec3::new(0.3, 0.4, 0.5).normalize(), 0.7);
+        let rgb: Vec<DVec3> = c.iter().enumerate().map(|(k, &v)| DVec3::new(v, -v, k as f64)).collect();
+        let by_channel: Vec<Vec<f64>> =
+            (0..3).map(|ch| conv.rotate(&rgb.iter().map(|v| v[ch]).collect::<Vec<_>>(), turn)).collect();
+        let together = conv.rotate_rgb(&rgb, turn);
+        assert!(together.iter().enumerate().all(|(k, v)| (0..3).all(|ch| v[ch] == by_channel[ch][k])));
+        assert!(together.iter().zip(&rgb).any(|(a, b)| (*a - *b).length() > 1e-3), "the turn changes them");
     }
 }
