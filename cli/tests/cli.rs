@@ -452,6 +452,8 @@ fn a_bake_killed_at_random_points_resumes_to_a_clean_bakes_result() {
     // `--watch` holds the database: another process gets a clear error.
     let mut holder = Command::new(env!("CARGO_BIN_EXE_kage"))
         .args(["bake", &scene, "--face-res", "32", "--watch"])
+        // As `kage()` does: refined receivers would follow the moved slab and bake cold.
+        .env("KAGE_REFINE_RECEIVERS", "0")
         .stdout(std::process::Stdio::piped())
         .stderr(std::process::Stdio::null())
         .spawn()
@@ -489,8 +491,9 @@ fn a_bake_killed_at_random_points_resumes_to_a_clean_bakes_result() {
     let _ = holder.kill();
     let _ = holder.wait();
     let summary = after.last().unwrap();
+    let warm = summary.split(" cold and ").nth(1).and_then(|r| r.split(' ').next()?.parse::<usize>().ok());
     assert!(
-        after.iter().any(|l| l.contains("plan for")) && summary.contains(" warm"),
+        after.iter().any(|l| l.contains("plan for")) && warm.is_some_and(|n| n > 0),
         "--watch re-planned after the save:\n{}",
         after.join("\n")
     );
