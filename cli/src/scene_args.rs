@@ -43,8 +43,9 @@ pub struct SceneArgs {
     /// longest-edge bisection on its Phong surface, e.g. `--refine teapot=17000`; repeatable.
     #[arg(long = "refine", value_name = "NODE=VERTICES", value_parser = parse_refine)]
     pub refinements: Vec<(String, usize)>,
-    /// Refine every receiver where the polygonal lights' shadows need vertices, adding at most
-    /// VERTICES over the scene (adaptive, for the lights as placed; docs/receivers.md). Default
+    /// Refine every receiver where the lights' and the environment's shadows need vertices,
+    /// adding at most VERTICES over the scene (adaptive: for each light where it is, or over
+    /// its declared reach; docs/receivers.md). Default
     /// 6000 (0 turns it off; the editor does not refine unless asked).
     #[arg(long, value_name = "VERTICES", env = "KAGE_REFINE_RECEIVERS")]
     pub refine_receivers: Option<usize>,

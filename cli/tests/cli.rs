@@ -1,7 +1,7 @@
 //! The `kage` binary as a user runs it: outputs, exit codes, error messages, determinism.
 
 use kage_engine::output::read_vertex_csv;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::Command;
 
 mod common;
@@ -604,26 +604,58 @@ fn export_writes_valid_packs_that_render_like_the_database() {
     std::fs::remove_dir_all(d).unwrap();
 }
 
-/// Overwrites the face lengths of the first BSPVT record in `pack` (a GLB), keeping its offsets.
-/// Declares the node 'light' of glTF file `scene` fixed (`extras.kage.light_reach`).
-fn declare_fixed_light(scene: &str) {
-    let mut doc: serde_json::Value = serde_json::from_slice(&std::fs::read(scene).unwrap()).unwrap();
-    let lamp =
-        doc["nodes"].as_array_mut().unwrap().iter_mut().find(|n| n.get("mesh").is_some() && n["name"] == "light");
-    lamp.expect("the scene has a node 'light'")["extras"] = serde_json::json!({"kage": {"light_reach": "fixed"}});
-    std::fs::write(scene, serde_json::to_vec(&doc).unwrap()).unwrap();
-}
-
-/// The plan's cost estimate counts only the tiles a declared light reach leaves to cast.
-#[test]
-fn the_plan_estimate_shrinks_with_a_declared_light_reach() {
-    let d = scratch("reach-estimate");
+/// A scratch folder for test `name` holding a copy of the teapot scene: (folder, scene, database).
+fn teapot_copy(name: &str) -> (PathBuf, String, String) {
+    let d = scratch(name);
     for ext in ["gltf", "bin"] {
         let file = format!("teapot_quad_light.{ext}");
         std::fs::copy(asset(&format!("scenes/{file}")), d.join(file)).unwrap();
     }
     let scene = d.join("teapot_quad_light.gltf").to_str().unwrap().to_string();
-    let db = d.join("bake.redb").to_str().unwrap().to_string();
+    (d.clone(), scene, d.join("bake.redb").to_str().unwrap().to_string())
+}
+
+/// Declares the node 'light' of glTF file `scene` fixed (`extras.kage.light_reach`).
+fn declare_fixed_light(scene: &str) {
+    edit_light(scene, |lamp| lamp["extras"] = serde_json::json!({"kage": {"light_reach": "fixed"}}));
+}
+
+/// Edits the node 'light' of glTF file `scene` in place.
+fn edit_light(scene: &str, edit: impl FnOnce(&mut serde_json::Value)) {
+    let mut doc: serde_json::Value = serde_json::from_slice(&std::fs::read(scene).unwrap()).unwrap();
+    let lamp =
+        doc["nodes"].as_array_mut().unwrap().iter_mut().find(|n| n.get("mesh").is_some() && n["name"] == "light");
+    edit(lamp.expect("the scene has a node 'light'"));
+    std::fs::write(scene, serde_json::to_vec(&doc).unwrap()).unwrap();
+}
+
+/// A light with a declared reach box is refined for the whole box: moved inside it, the
+/// refined receivers and every bake key stay the same, so nothing is baked again.
+#[test]
+fn a_light_moved_within_its_reach_bakes_nothing_again() {
+    let (d, scene, db) = teapot_copy("reach-move");
+    // The light (at 1.5, 4, 0; ±0.43 × ±0.25 × ±1 m) may move within 2 × 1 × 3 m.
+    let reach = serde_json::json!({"kage": {"light_reach": {"min": [0.5, 3.5, -1.5], "max": [2.5, 4.5, 1.5]}}});
+    edit_light(&scene, |lamp| lamp["extras"] = reach);
+    let bake = || {
+        let o = kage(&["bake", &scene, "--db", &db, "--refine-receivers", "1500"]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let refined = stderr(&o).lines().find(|l| l.starts_with("refined receivers")).map(str::to_string);
+        (refined.expect("refinement ran"), String::from_utf8_lossy(&o.stdout).into_owned())
+    };
+    let (before, first) = bake();
+    assert!(!first.contains("; 0 to bake"), "{first}");
+    edit_light(&scene, |lamp| lamp["translation"] = serde_json::json!([1.9, 4.1, 0.3]));
+    let (after, second) = bake();
+    assert_eq!(before, after);
+    assert!(second.contains("; 0 to bake"), "the moved light re-baked something: {second}");
+    std::fs::remove_dir_all(d).unwrap();
+}
+
+/// The plan's cost estimate counts only the tiles a declared light reach leaves to cast.
+#[test]
+fn the_plan_estimate_shrinks_with_a_declared_light_reach() {
+    let (_, scene, db) = teapot_copy("reach-estimate");
     let estimate = || {
         let o = kage(&["bake", &scene, "--db", &db, "--dry-run"]);
         assert!(o.status.success(), "{}", stderr(&o));
@@ -638,6 +670,7 @@ fn the_plan_estimate_shrinks_with_a_declared_light_reach() {
     assert!(fixed > 0.0 && fixed * 5.0 < roaming, "fixed {fixed} s, roaming {roaming} s");
 }
 
+/// Overwrites the face lengths of the first BSPVT record in `pack` (a GLB), keeping its offsets.
 fn damage_first_tree_record(pack: &Path) {
     use serde_json::Value;
     let mut bytes = std::fs::read(pack).unwrap();

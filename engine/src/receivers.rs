@@ -8,20 +8,26 @@
 //!    triangle unseen. The seed length is chosen so that seeding all receivers costs a quarter
 //!    of the vertex budget (spacing ∝ √(area / budget)).
 //! 2. **Refine**: each edge's ends and midpoint are tested for the visibility `V` of every
-//!    light — the share of a fixed set of points on the light (its centre and three rings
-//!    through its corners and edge midpoints) that the point sees in front of both. An
-//!    edge is split when, for some light, `|V(a) − V(b)|` or `|V(mid) − (V(a) + V(b)) / 2|`
-//!    exceeds the tolerance: where linear interpolation along the edge misrepresents the
-//!    shadow. The marks of a round are split largest error × world length first (an edge's
-//!    error spreads over its length) until the budget is spent.
+//!    view of what lights the scene (see [`View`]): a light where it is (the share of a fixed
+//!    set of points on it — its centre and three rings through its corners and edge midpoints —
+//!    that the point sees in front of both), every placement a light's declared reach box
+//!    allows, and the environment (the radiance-weighted share of fixed directions drawn by its
+//!    luminance). An edge is split when, for some view, `|V(a) − V(b)|` or
+//!    `|V(mid) − (V(a) + V(b)) / 2|` exceeds the tolerance: where linear interpolation along
+//!    the edge misrepresents the shadow. The marks of a round are split largest error × world
+//!    length first (an edge's error spreads over its length) until the budget is spent.
 //!
-//! Scope today: the lights as placed (a light moved far goes stale until refined again) and
-//! polygonal lights only (the environment's PRT shadows do not drive it). Deterministic: the
-//! same scene and settings give the same meshes on any thread count.
+//! Lights without a declared reach are refined for where they are: moved, they are refined
+//! again when the scene is next loaded (and the changed receivers re-baked). Lights with one
+//! are refined for the whole box, so moving them inside it changes nothing. Groups are refined
+//! as posed. Deterministic: the same scene and settings give the same meshes on any thread
+//! count.
 
 use crate::accel::SceneBvh;
+use crate::math::color::luminance;
+use crate::math::sampling::{hammersley, uniform_sphere};
 use crate::scene::refine::Adaptive;
-use crate::scene::{FlatLight, MeshRef, PrimitiveId, Scene, flatten};
+use crate::scene::{EnvironmentLight, FlatLight, FlatScene, MeshRef, NO_LIGHT, PrimitiveId, Scene, flatten};
 use glam::Vec3;
 use rayon::prelude::*;
 use std::collections::HashMap;
@@ -47,31 +53,19 @@ impl Default for Settings {
 /// What refinement did, per instance in snapshot order: (vertices before, after).
 pub type Report = Vec<(usize, usize)>;
 
-/// Refines every mesh instance of `scene` for its polygonal lights (nothing without any),
-/// replacing each instance's mesh by its refined copy.
+/// Refines every mesh instance of `scene` for its polygonal lights and its environment (nothing
+/// without either), replacing each instance's mesh by its refined copy.
 pub fn refine(scene: &mut Scene, settings: &Settings) -> crate::Result<Report> {
     let flat = flatten(scene);
-    if flat.lights.is_empty() || settings.budget == 0 {
+    if (flat.lights.is_empty() && flat.environment.is_none()) || settings.budget == 0 {
         let unchanged = |i: &crate::scene::Instance| flat.meshes[i.mesh as usize].positions.len();
         return Ok(flat.instances.iter().map(|i| (unchanged(i), unchanged(i))).collect());
     }
-    let probe = Probe::new(&flat.triangles, &flat.lights);
-    let mut meshes: Vec<Adaptive> =
-        flat.instances.iter().map(|i| Adaptive::new(&flat.meshes[i.mesh as usize])).collect();
-    let before: Vec<usize> = meshes.iter().map(Adaptive::vertices).collect();
+    let probe = Probe::new(&flat);
+    let source: Vec<Adaptive> = flat.instances.iter().map(|i| Adaptive::new(&flat.meshes[i.mesh as usize])).collect();
+    let before: Vec<usize> = source.iter().map(Adaptive::vertices).collect();
     let total = before.iter().sum::<usize>() + settings.budget;
-    let area: f32 = flat.instances.iter().enumerate().map(|(i, inst)| world_area(&meshes[i], &inst.world)).sum();
-    // Bisection leaves right triangles whose legs are ~1/√2 of the longest edge allowed.
-    let seed = (2.0 * area / (settings.budget as f32 / 4.0)).sqrt();
-    for (mesh, inst) in meshes.iter_mut().zip(&flat.instances) {
-        loop {
-            let long: Vec<[u32; 2]> =
-                mesh.edges().into_iter().filter(|e| world_length(mesh, &inst.world, e) > seed).collect();
-            if long.is_empty() || mesh.split(&long, usize::MAX) == 0 {
-                break;
-            }
-        }
-    }
+    let mut meshes = seeded(&source, &flat.instances, settings.budget / 4);
     // A vertex keeps its place and normal, and an edge its ends, from round to round: what
     // was probed once is looked up, so a round probes only what the last one added.
     let mut memos: Vec<Memo> = meshes.iter().map(|_| Memo::default()).collect();
@@ -80,26 +74,58 @@ pub fn refine(scene: &mut Scene, settings: &Settings) -> crate::Result<Report> {
         if used >= total {
             break;
         }
-        let marks: Vec<Vec<(f32, [u32; 2])>> = meshes
+        let mut marks: Vec<Vec<Mark>> = meshes
             .iter()
             .zip(&flat.instances)
             .zip(&mut memos)
-            .map(|((m, inst), memo)| marked(m, &inst.world, &probe, settings.tolerance, memo))
+            .enumerate()
+            .map(|(i, ((m, inst), memo))| marked(m, (i, &inst.world), &probe, settings.tolerance, memo))
             .collect();
         if marks.iter().all(Vec::is_empty) {
             break;
+        }
+        if marks.iter().flatten().any(|m| m.0 == Tier::Lights) {
+            marks.iter_mut().for_each(|m| m.retain(|m| m.0 == Tier::Lights));
         }
         split_worst(&mut meshes, marks, total - used);
     }
     replace_meshes(scene, &flat.instances, meshes, before)
 }
 
+/// The meshes seeded: every edge longer than the seed length split, so that no shadow fits
+/// inside a triangle unseen by the midpoint test. Bisection halves a triangle's area per
+/// level, so the vertices a seed length costs jump by about 2× between levels: the length
+/// starts where seeding costs about `share` vertices and grows by √2 until it costs at most
+/// that (or no edge is split), so the rounds keep the rest of the budget.
+fn seeded(source: &[Adaptive], instances: &[crate::scene::Instance], share: usize) -> Vec<Adaptive> {
+    let area: f32 = source.iter().zip(instances).map(|(m, inst)| world_area(m, &inst.world)).sum();
+    // Bisection leaves right triangles whose legs are ~1/√2 of the longest edge allowed.
+    let mut seed = (2.0 * area / share.max(1) as f32).sqrt();
+    let before: usize = source.iter().map(Adaptive::vertices).sum();
+    loop {
+        let mut meshes = source.to_vec();
+        for (mesh, inst) in meshes.iter_mut().zip(instances) {
+            loop {
+                let long: Vec<[u32; 2]> =
+                    mesh.edges().into_iter().filter(|e| world_length(mesh, &inst.world, e) > seed).collect();
+                if long.is_empty() || mesh.split(&long, usize::MAX) == 0 {
+                    break;
+                }
+            }
+        }
+        if meshes.iter().map(Adaptive::vertices).sum::<usize>() - before <= share {
+            return meshes;
+        }
+        seed *= std::f32::consts::SQRT_2;
+    }
+}
+
 /// Splits the marked edges of every instance, the largest errors first, within `budget` new
 /// vertices (a split adds one vertex per side of a seam; counted as one, so the budget may be
 /// exceeded by the seams' extra vertices).
-fn split_worst(meshes: &mut [Adaptive], marks: Vec<Vec<(f32, [u32; 2])>>, budget: usize) {
+fn split_worst(meshes: &mut [Adaptive], marks: Vec<Vec<Mark>>, budget: usize) {
     let mut all: Vec<(f32, usize, [u32; 2])> =
-        marks.into_iter().enumerate().flat_map(|(i, m)| m.into_iter().map(move |(e, edge)| (e, i, edge))).collect();
+        marks.into_iter().enumerate().flat_map(|(i, m)| m.into_iter().map(move |(_, e, edge)| (e, i, edge))).collect();
     all.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)));
     all.truncate(budget);
     let mut per: Vec<Vec<[u32; 2]>> = vec![Vec::new(); meshes.len()];
@@ -144,37 +170,39 @@ fn replace_meshes(
 #[derive(Default)]
 struct Memo {
     vertex: Vec<Vec<f32>>,
-    edge: HashMap<[u32; 2], f32>,
+    /// The largest error over the lights' views, and over the environment's.
+    edge: HashMap<[u32; 2], [f32; 2]>,
 }
 
-/// The edges of `mesh` whose visibility interpolates badly, with their error × world length;
-/// probes only the vertices and edges `memo` lacks, and keeps them there.
+/// The edges of `mesh` (instance `index`, placed by `world`) whose visibility interpolates
+/// badly, with their error × world length; probes only the vertices and edges `memo` lacks,
+/// and keeps them there.
 fn marked(
     mesh: &Adaptive,
-    world: &glam::Affine3A,
+    (index, world): (usize, &glam::Affine3A),
     probe: &Probe,
     tolerance: f32,
     memo: &mut Memo,
-) -> Vec<(f32, [u32; 2])> {
+) -> Vec<Mark> {
     let (p, n) = (mesh.positions(), mesh.normals());
     let at = |a: Vec3, na: Vec3| {
-        probe.visibility(world.transform_point3(a), world.transform_vector3(na).normalize_or_zero())
+        probe.visibility(world.transform_point3(a), world.transform_vector3(na).normalize_or_zero(), index)
     };
     let new: Vec<Vec<f32>> = (memo.vertex.len()..p.len()).into_par_iter().map(|i| at(p[i], n[i])).collect();
     memo.vertex.extend(new);
     let vertex = &memo.vertex;
     let edges = mesh.edges();
-    let fresh: Vec<([u32; 2], f32)> = edges
+    let fresh: Vec<([u32; 2], [f32; 2])> = edges
         .par_iter()
         .filter(|e| !memo.edge.contains_key(*e))
         .map(|&[a, b]| {
             let (va, vb) = (&vertex[a as usize], &vertex[b as usize]);
             let (a_, b_) = (a as usize, b as usize);
             let mid = at(0.5 * (p[a_] + p[b_]), (n[a_] + n[b_]).normalize_or_zero());
-            let error = (0..va.len())
-                .map(|l| (va[l] - vb[l]).abs().max((mid[l] - 0.5 * (va[l] + vb[l])).abs()))
-                .fold(0.0, f32::max);
-            ([a, b], error)
+            let error = |views: std::ops::Range<usize>| {
+                views.map(|l| (va[l] - vb[l]).abs().max((mid[l] - 0.5 * (va[l] + vb[l])).abs())).fold(0.0, f32::max)
+            };
+            ([a, b], [error(0..probe.lights), error(probe.lights..va.len())])
         })
         .collect();
     memo.edge.extend(fresh);
@@ -182,55 +210,164 @@ fn marked(
     edges
         .into_iter()
         .filter_map(|[a, b]| {
-            let error = memo.edge[&[a, b]];
-            (error > tolerance).then(|| (error * length(a, b), [a, b]))
+            let [lights, environment] = memo.edge[&[a, b]];
+            let (tier, error) =
+                if lights > tolerance { (Tier::Lights, lights) } else { (Tier::Environment, environment) };
+            (error > tolerance).then(|| (tier, error * length(a, b), [a, b]))
         })
         .collect()
 }
 
-/// Shadow rays from receiver points to fixed points on every light.
+/// Which views marked an edge. The environment's marks are split only once no light marks
+/// any edge: measured, they lower the environment term's error by 1–2 % of itself (PRT's
+/// transfer is band-limited by its order, so its shadows vary smoothly between vertices),
+/// where the lights' marks take shadows from 34 % to 3.5 % (`docs/receivers.md`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+enum Tier {
+    Lights,
+    Environment,
+}
+
+/// An edge to split: its tier, its error × world length, and its ends.
+type Mark = (Tier, f32, [u32; 2]);
+
+/// What the probe measures the visibility of.
+enum View {
+    /// Points on a light, or in one cell of a light's reach box. A point counts only from in
+    /// front of `facing` (a light that may move and turn within its box has none).
+    Points { points: Vec<Vec3>, facing: Option<Vec3> },
+    /// Directions towards the environment, each with its weight (the radiance's luminance),
+    /// against the receiver's own group only (see [`Probe::groups`]).
+    Directions(Vec<(Vec3, f32)>),
+}
+
+/// Most cells a light's reach box is split into, per axis.
+const MAX_CELLS_PER_AXIS: f32 = 3.0;
+
+/// Directions the environment is probed in (a Hammersley set on the sphere).
+const ENVIRONMENT_DIRECTIONS: u32 = 64;
+
+/// Shadow rays from receiver points to what lights them: fixed points on every light where it
+/// is, or in every cell of its reach box, and fixed directions of the environment.
 struct Probe {
+    /// What casts the polygonal lights' shadows (as BSPVT bakes them): every instance, no light.
     bvh: SceneBvh,
-    /// Per light: its sample points and its emitting normal.
-    lights: Vec<(Vec<Vec3>, Vec3)>,
+    /// Per group, its instances' triangles: per vertex, PRT bakes only the shadows a group casts
+    /// on itself (other groups' shadows and the sun are shaded per pixel, `docs/baked.md`).
+    groups: Vec<SceneBvh>,
+    /// Per instance, its group's index in `groups`.
+    group_of: Vec<usize>,
+    /// The lights' views, then the environment's (if any).
+    views: Vec<View>,
+    /// How many of `views` are the lights'.
+    lights: usize,
 }
 
 impl Probe {
-    fn new(triangles: &[[Vec3; 3]], lights: &[FlatLight]) -> Self {
-        let lights = lights.iter().map(|l| (sample_points(&l.points), l.normal)).collect();
-        Self { bvh: SceneBvh::new(triangles), lights }
+    fn new(flat: &FlatScene) -> Self {
+        let owned: Vec<(&[Vec3; 3], usize)> = flat
+            .triangles
+            .iter()
+            .zip(&flat.refs)
+            .filter(|(_, r)| r.light == NO_LIGHT)
+            .map(|(t, r)| (t, r.owner as usize))
+            .collect();
+        let mut entities: Vec<hecs::Entity> = flat.instances.iter().map(|i| i.group).collect();
+        entities.sort();
+        entities.dedup();
+        let group_of: Vec<usize> =
+            flat.instances.iter().map(|i| entities.binary_search(&i.group).expect("listed")).collect();
+        let mut per_group: Vec<Vec<[Vec3; 3]>> = vec![Vec::new(); entities.len()];
+        for &(t, owner) in &owned {
+            per_group[group_of[owner]].push(*t);
+        }
+        let mut views: Vec<View> = flat.lights.iter().flat_map(light_views).collect();
+        let lights = views.len();
+        views.extend(flat.environment.as_ref().map(environment_view));
+        let all: Vec<[Vec3; 3]> = owned.iter().map(|(t, _)| **t).collect();
+        let groups = per_group.iter().map(|t| SceneBvh::new(t)).collect();
+        Self { bvh: SceneBvh::new(&all), groups, group_of, views, lights }
     }
 
-    /// Per light, the share of its points that `p` (normal `n`) sees, in front of both.
-    fn visibility(&self, p: Vec3, n: Vec3) -> Vec<f32> {
+    /// Per view, the share of it that `p` (normal `n`) on instance `instance` sees.
+    fn visibility(&self, p: Vec3, n: Vec3, instance: usize) -> Vec<f32> {
         let origin = p + n * 1e-4 * (1.0 + p.abs().max_element());
-        self.lights
+        let own = &self.groups[self.group_of[instance]];
+        self.views
             .iter()
-            .map(|(points, normal)| {
-                let seen = points
-                    .iter()
-                    .filter(|&&s| {
+            .map(|view| match view {
+                View::Points { points, facing } => {
+                    let lit = points.iter().filter(|&&s| {
                         let d = s - origin;
                         let dist = d.length();
                         let dir = d / dist;
                         dir.dot(n) > 0.0
-                            && dir.dot(*normal) < 0.0
+                            && facing.is_none_or(|f| dir.dot(f) < 0.0)
                             && !self.bvh.occluded(origin, dir, dist * (1.0 - 1e-4))
-                    })
-                    .count();
-                seen as f32 / points.len() as f32
+                    });
+                    lit.count() as f32 / points.len() as f32
+                }
+                View::Directions(dirs) => {
+                    let (mut lit, mut all) = (0.0, 0.0);
+                    for &(dir, w) in dirs.iter().filter(|(d, _)| d.dot(n) > 0.0) {
+                        let w = w * dir.dot(n);
+                        all += w;
+                        lit += if own.occluded(origin, dir, f32::MAX) { 0.0 } else { w };
+                    }
+                    if all > 0.0 { lit / all } else { 1.0 }
+                }
             })
             .collect()
     }
 }
 
-/// A light polygon's probe points: its centre, and three rings (30, 60 and 90 % of the way
-/// out) through its corners and edge midpoints — 25 points on a quad.
-fn sample_points(polygon: &[Vec3]) -> Vec<Vec3> {
+/// A light's views: where it is (25 points, seen from its front), or, with a declared reach,
+/// each cell of its box (the box split into cells about the light's size, at most 3 per axis;
+/// 9 points each, from any side). The cells depend on the box alone, so moving the light
+/// inside it changes no refined mesh and no bake key.
+fn light_views(light: &FlatLight) -> Vec<View> {
+    let Some([lo, hi]) = light.reach else {
+        return vec![View::Points {
+            points: sample_points(&light.points, &[0.3, 0.6, 0.9]),
+            facing: Some(light.normal),
+        }];
+    };
+    // The box grown to hold the light where it is, as the bake's reach is (`bspvt::reach`).
+    let (lo, hi) = light.points.iter().fold((lo, hi), |(a, b), p| (a.min(*p), b.max(*p)));
+    let cells = ((hi - lo) / light.area.sqrt()).round().clamp(Vec3::ONE, Vec3::splat(MAX_CELLS_PER_AXIS));
+    let (nx, ny, nz) = (cells.x as usize, cells.y as usize, cells.z as usize);
+    let half = (hi - lo) / (2.0 * cells);
+    let mut views = Vec::new();
+    for (i, j, k) in (0..nx).flat_map(|i| (0..ny).flat_map(move |j| (0..nz).map(move |k| (i, j, k)))) {
+        let centre = lo + half * (2.0 * Vec3::new(i as f32, j as f32, k as f32) + 1.0);
+        let corners = (0..8).map(|c| {
+            let sign = Vec3::new([-1.0, 1.0][c & 1], [-1.0, 1.0][(c >> 1) & 1], [-1.0, 1.0][c >> 2]);
+            centre + 0.9 * half * sign
+        });
+        views.push(View::Points { points: std::iter::once(centre).chain(corners).collect(), facing: None });
+    }
+    views
+}
+
+/// The environment's view: fixed directions spread evenly over the sphere, weighted by the
+/// radiance's luminance. A small bright source (a sun) is rarely among them: the look shades
+/// it per pixel, not per vertex.
+fn environment_view(env: &EnvironmentLight) -> View {
+    let dirs = (0..ENVIRONMENT_DIRECTIONS)
+        .map(|i| uniform_sphere(hammersley(i, ENVIRONMENT_DIRECTIONS)))
+        .map(|d| (d, luminance(env.radiance(d))))
+        .filter(|(_, w)| w.is_finite() && *w > 0.0)
+        .collect();
+    View::Directions(dirs)
+}
+
+/// A light polygon's probe points: its centre, and a ring through its corners and edge
+/// midpoints at each of `rings` (share of the way out) — 25 points on a quad with three rings.
+fn sample_points(polygon: &[Vec3], rings: &[f32]) -> Vec<Vec3> {
     let c = polygon.iter().copied().sum::<Vec3>() / polygon.len() as f32;
     let n = polygon.len();
     let mut out = vec![c];
-    for t in [0.3, 0.6, 0.9] {
+    for &t in rings {
         for k in 0..n {
             out.push(c + t * (polygon[k] - c));
             out.push(c + t * (0.5 * (polygon[k] + polygon[(k + 1) % n]) - c));

@@ -80,6 +80,16 @@ pub fn uniform_sphere_inverse(w: Vec3) -> Vec2 {
     Vec2::new((1.0 - w.z) * 0.5, phi / (2.0 * PI))
 }
 
+/// Van der Corput's radical inverse of `i` in base 2.
+pub fn radical_inverse(i: u32) -> f32 {
+    (i.reverse_bits() as f64 / 4_294_967_296.0) as f32
+}
+
+/// Point `i` of the `n`-point Hammersley set in the unit square: `((i + ½) / n, radical_inverse(i))`.
+pub fn hammersley(i: u32, n: u32) -> Vec2 {
+    Vec2::new((i as f32 + 0.5) / n as f32, radical_inverse(i))
+}
+
 /// Veach's power heuristic (β = 2) for one sample of strategy `a` against strategy `b`.
 pub fn power_heuristic(pdf_a: f32, pdf_b: f32) -> f32 {
     let (a, b) = (pdf_a * pdf_a, pdf_b * pdf_b);
@@ -97,6 +107,12 @@ mod tests {
     use super::*;
     use crate::math::rng;
     use rand::Rng;
+
+    #[test]
+    fn radical_inverse_is_van_der_corput() {
+        assert_eq!([0, 1, 2, 3].map(radical_inverse), [0.0, 0.5, 0.25, 0.75]);
+        assert_eq!(hammersley(1, 4), Vec2::new(0.375, 0.5));
+    }
 
     fn points(n: usize) -> Vec<Vec2> {
         let mut r = rng::seeded(7);

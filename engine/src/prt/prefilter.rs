@@ -156,16 +156,11 @@ impl Prefiltered {
 /// Corput's sequence in y (a Hammersley set), the same for every reflection.
 static DISK: std::sync::LazyLock<[(f32, f32, f32); SAMPLES]> = std::sync::LazyLock::new(|| {
     std::array::from_fn(|s| {
-        let u = Vec2::new((s as f32 + 0.5) / SAMPLES as f32, radical_inverse(s as u32));
+        let u = crate::math::sampling::hammersley(s as u32, SAMPLES as u32);
         let phi = 2.0 * PI * u.y;
         (u.x.sqrt(), phi.cos(), phi.sin())
     })
 });
-
-/// Van der Corput's radical inverse in base 2 (the Hammersley set's second coordinate).
-fn radical_inverse(i: u32) -> f32 {
-    (i.reverse_bits() as f64 / 4_294_967_296.0) as f32
-}
 
 #[cfg(test)]
 mod tests {
@@ -242,10 +237,5 @@ mod tests {
         texels[cy * w + cx] = Vec3::splat(1e5);
         let p = Prefiltered::new(&light(EnvMap::new(w, h, texels, "sun".into()).unwrap()));
         assert!((p.lookup(sun, 0.0) - Vec3::splat(0.1)).abs().max_element() < 1e-6, "{}", p.lookup(sun, 0.0));
-    }
-
-    #[test]
-    fn radical_inverse_is_van_der_corput() {
-        assert_eq!([0, 1, 2, 3].map(radical_inverse), [0.0, 0.5, 0.25, 0.75]);
     }
 }

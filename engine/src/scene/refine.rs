@@ -32,6 +32,7 @@ fn edge(a: u32, b: u32) -> Edge {
 }
 
 /// A mesh being refined: its arrays, which triangles use each edge, and edges by length.
+#[derive(Clone)]
 struct Refiner {
     positions: Vec<Vec3>,
     normals: Vec<Vec3>,
@@ -221,6 +222,7 @@ fn welded(positions: &[Vec3]) -> Vec<u32> {
 
 /// A mesh refined where a criterion asks, in rounds: list the edges, split the ones it marks.
 /// Edges are named by position (see the module documentation).
+#[derive(Clone)]
 pub struct Adaptive(Refiner);
 
 impl Adaptive {
