@@ -10,9 +10,9 @@
 //! 2. **Refine**: each edge's ends and midpoint are tested for the visibility `V` of every
 //!    view of what lights the scene (see [`View`]): a light where it is (the share of a fixed
 //!    set of points on it — its centre and three rings through its corners and edge midpoints —
-//!    that the point sees in front of both), every placement a light's declared reach box
-//!    allows, and the environment (the radiance-weighted share of fixed directions drawn by its
-//!    luminance). An edge is split when, for some view, `|V(a) − V(b)|` or
+//!    that the point sees in front of both), every cell of a light's declared reach box,
+//!    and the environment (the luminance-weighted share of fixed directions that the point sees
+//!    past its own group). An edge is split when, for some view and side, `|V(a) − V(b)|` or
 //!    `|V(mid) − (V(a) + V(b)) / 2|` exceeds the tolerance: where linear interpolation along
 //!    the edge misrepresents the shadow. The marks of a round are split largest error × world
 //!    length first (an edge's error spreads over its length) until the budget is spent.
@@ -195,14 +195,16 @@ fn marked(
     let fresh: Vec<([u32; 2], [f32; 2])> = edges
         .par_iter()
         .filter(|e| !memo.edge.contains_key(*e))
-        .map(|&[a, b]| {
-            let (va, vb) = (&vertex[a as usize], &vertex[b as usize]);
-            let (a_, b_) = (a as usize, b as usize);
-            let mid = at(0.5 * (p[a_] + p[b_]), (n[a_] + n[b_]).normalize_or_zero());
-            let error = |views: std::ops::Range<usize>| {
-                views.map(|l| (va[l] - vb[l]).abs().max((mid[l] - 0.5 * (va[l] + vb[l])).abs())).fold(0.0, f32::max)
-            };
-            ([a, b], [error(0..probe.lights), error(probe.lights..va.len())])
+        .map(|&e| {
+            let named = side_error(e, p, n, vertex, &at, probe.lights);
+            // Across a hard crease the named ends carry one side's normal each, and the
+            // environment's share dips at the mixed midpoint (the other face is below its
+            // horizon): it is judged on each side's own vertices instead.
+            let environment = mesh
+                .sides(e)
+                .into_iter()
+                .map(|side| if side == e { named[1] } else { side_error(side, p, n, vertex, &at, probe.lights)[1] });
+            (e, [named[0], environment.fold(0.0, f32::max)])
         })
         .collect();
     memo.edge.extend(fresh);
@@ -218,10 +220,30 @@ fn marked(
         .collect()
 }
 
+/// One side of an edge (`[a, b]`, the vertices one triangle uses): how far linear
+/// interpolation between its ends misses the visibility along it — the ends' difference and
+/// the midpoint's departure from their mean — over the lights' views (the first `lights`) and
+/// over the environment's.
+fn side_error(
+    [a, b]: [u32; 2],
+    p: &[Vec3],
+    n: &[Vec3],
+    vertex: &[Vec<f32>],
+    at: &impl Fn(Vec3, Vec3) -> Vec<f32>,
+    lights: usize,
+) -> [f32; 2] {
+    let (a, b) = (a as usize, b as usize);
+    let (va, vb) = (&vertex[a], &vertex[b]);
+    let mid = at(0.5 * (p[a] + p[b]), (n[a] + n[b]).normalize_or_zero());
+    let error = |views: std::ops::Range<usize>| {
+        views.map(|l| (va[l] - vb[l]).abs().max((mid[l] - 0.5 * (va[l] + vb[l])).abs())).fold(0.0, f32::max)
+    };
+    [error(0..lights), error(lights..va.len())]
+}
+
 /// Which views marked an edge. The environment's marks are split only once no light marks
-/// any edge: measured, they lower the environment term's error by 1–2 % of itself (PRT's
-/// transfer is band-limited by its order, so its shadows vary smoothly between vertices),
-/// where the lights' marks take shadows from 34 % to 3.5 % (`docs/receivers.md`).
+/// any edge: measured, they lower the environment term's error by 1–2 % of itself, where the
+/// lights' marks take shadows from 34 % to 3.5 % (`docs/receivers.md`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
 enum Tier {
     Lights,
@@ -284,15 +306,17 @@ impl Probe {
         let mut views: Vec<View> = flat.lights.iter().flat_map(light_views).collect();
         let lights = views.len();
         views.extend(flat.environment.as_ref().map(environment_view));
-        let all: Vec<[Vec3; 3]> = owned.iter().map(|(t, _)| **t).collect();
-        let groups = per_group.iter().map(|t| SceneBvh::new(t)).collect();
+        // Only what some view casts rays against is built.
+        let all: Vec<[Vec3; 3]> = if lights > 0 { owned.iter().map(|(t, _)| **t).collect() } else { Vec::new() };
+        let groups =
+            if views.len() > lights { per_group.iter().map(|t| SceneBvh::new(t)).collect() } else { Vec::new() };
         Self { bvh: SceneBvh::new(&all), groups, group_of, views, lights }
     }
 
     /// Per view, the share of it that `p` (normal `n`) on instance `instance` sees.
     fn visibility(&self, p: Vec3, n: Vec3, instance: usize) -> Vec<f32> {
         let origin = p + n * 1e-4 * (1.0 + p.abs().max_element());
-        let own = &self.groups[self.group_of[instance]];
+        let own = self.groups.get(self.group_of[instance]);
         self.views
             .iter()
             .map(|view| match view {
@@ -312,7 +336,7 @@ impl Probe {
                     for &(dir, w) in dirs.iter().filter(|(d, _)| d.dot(n) > 0.0) {
                         let w = w * dir.dot(n);
                         all += w;
-                        lit += if own.occluded(origin, dir, f32::MAX) { 0.0 } else { w };
+                        lit += if own.is_some_and(|g| g.occluded(origin, dir, f32::MAX)) { 0.0 } else { w };
                     }
                     if all > 0.0 { lit / all } else { 1.0 }
                 }

@@ -220,6 +220,22 @@ fn the_environment_drives_refinement() {
     assert!(after < 0.75 * before, "refined {after:.4} against coarse {before:.4}");
 }
 
+/// A convex object alone under the sky casts no shadow on itself: past the seed, nothing is
+/// refined, though its hard creases pair vertices of different faces (each side is judged on
+/// its own normals).
+#[test]
+fn a_convex_object_under_the_sky_is_only_seeded() {
+    let mut s = Scene::new("test:box-under-the-sky");
+    s.add_object("box", shapes::cuboid(Vec3::splat(0.5)), Material::lambertian(Vec3::ONE), Affine3A::IDENTITY);
+    let s = s.with_environment(EnvironmentLight::new(EnvMap::procedural_sky(64, 32, Vec3::new(-0.5, 0.6, -0.4))));
+    let budget = 6000;
+    let mut seeded = s.duplicate();
+    receivers::refine(&mut seeded, &Settings { budget, rounds: 0, ..Settings::default() }).unwrap();
+    let (seeded, refined) = (vertices(&seeded), vertices(&refined(s, budget)));
+    assert!(seeded <= 24 + budget / 4, "{seeded}");
+    assert_eq!(refined, seeded, "the rounds refined a convex box under the sky");
+}
+
 /// Hard cases: a budget smaller than one round stops inside it; a receiver of a single
 /// triangle is refined like any other; a scene without lights or an environment is left alone.
 #[test]

@@ -295,6 +295,28 @@ impl Adaptive {
             .collect()
     }
 
+    /// Edge `e` (as [`Adaptive::edges`] names it) as each triangle using it has it: its own
+    /// two vertices, in `e`'s order, each pair once. Across a hard crease the sides' vertices
+    /// differ in normal, which the canonical pair carries for one side only.
+    pub fn sides(&self, e: [u32; 2]) -> Vec<[u32; 2]> {
+        let r = &self.0;
+        let mut sides: Vec<[u32; 2]> = r
+            .users
+            .get(&(e[0], e[1]))
+            .into_iter()
+            .flatten()
+            .flat_map(|&t| {
+                let tri = r.triangles[t as usize];
+                (0..3).map(move |k| (tri[k], tri[(k + 1) % 3]))
+            })
+            .filter(|&(a, b)| r.named(a, b) == (e[0], e[1]))
+            .map(|(a, b)| if r.canon[a as usize] == e[0] { [a, b] } else { [b, a] })
+            .collect();
+        sides.sort_unstable();
+        sides.dedup();
+        sides
+    }
+
     /// Vertices so far.
     pub fn vertices(&self) -> usize {
         self.0.positions.len()
@@ -502,6 +524,25 @@ mod tests {
         let at_seam: Vec<glam::Vec2> =
             (0..fine.positions.len()).filter(|&i| fine.positions[i].x == 0.0).map(|i| fine.uvs[i]).collect();
         assert!(at_seam.iter().any(|uv| uv.x == 1.0) && at_seam.iter().any(|uv| uv.x == 10.0));
+    }
+
+    /// A box's crease edges have two sides, each with its own face's vertices (so normals) at
+    /// the edge's ends, in the edge's order; an edge inside a face has one.
+    #[test]
+    fn sides_give_each_face_its_own_ends() {
+        let a = Adaptive::new(&shapes::cuboid(Vec3::splat(0.5)));
+        let (p, n) = (a.positions(), a.normals());
+        for e in a.edges() {
+            let sides = a.sides(e);
+            // A box edge changes one coordinate; a face's diagonal, two.
+            let d = p[e[0] as usize] - p[e[1] as usize];
+            let crease = d.to_array().iter().filter(|c| c.abs() > 1e-6).count() == 1;
+            assert_eq!(sides.len(), if crease { 2 } else { 1 }, "{e:?}: {sides:?}");
+            for [x, y] in sides {
+                assert_eq!((p[x as usize], p[y as usize]), (p[e[0] as usize], p[e[1] as usize]));
+                assert_eq!(n[x as usize], n[y as usize], "a side's ends lie on one face");
+            }
+        }
     }
 
     /// A box's hard edges (per-face normals) stay closed and sharp: new vertices on a crease sit
