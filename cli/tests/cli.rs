@@ -791,6 +791,11 @@ fn receivers_are_refined_by_default_and_say_by_how_much() {
     let off = text(kage_as_shipped(&["info", "--refine-receivers", "0"]));
     assert!(!off.contains("refined receivers") && off.contains("totals: 4555 vertices"), "{off}");
     assert!(text(kage(&["info"])).contains("totals: 4555 vertices"), "the tests' helper turns it off");
+    // The repository's coarse-receiver scene: its floor of two triangles gets the vertices.
+    let floor = text(kage_as_shipped(&["info", &asset("scenes/two_triangle_floor.gltf")]));
+    let added = floor.lines().find_map(|l| l.strip_prefix("  instance   0: 4 → ")).unwrap_or_else(|| panic!("{floor}"));
+    let added: usize = added.split(' ').next().unwrap().parse().unwrap();
+    assert!(floor.contains("refined receivers: 205 → ") && added > 2000, "{floor}");
     std::fs::remove_dir_all(d).unwrap();
 }
 
