@@ -34,11 +34,11 @@ if [ ${#scene[@]} -gt 0 ]; then
   # middle of the 1280×800 window (outliner left, inspector right, log below).
   DISPLAY=$display xdotool windowfocus --sync "$(DISPLAY=$display xdotool search --name kage | head -1)"
   DISPLAY=$display xdotool mousemove 570 390 click 1
-  sleep 1
+  sleep 2
   DISPLAY=$display xdotool key Delete
-  sleep 1
+  sleep 2
   DISPLAY=$display xdotool key ctrl+s
-  sleep 3
+  sleep 4
   python3 - "$work/scene.gltf" <<'PY'
 import json, sys
 path = sys.argv[1]

@@ -93,9 +93,6 @@ impl App {
 impl eframe::App for App {
     fn ui(&mut self, ui: &mut egui::Ui, frame: &mut eframe::Frame) {
         self.step();
-        if shortcuts(ui, &mut self.editor) {
-            self.status = super::files::save(&mut self.editor);
-        }
         self.window(ui.ctx());
         // A gesture (one drag) ends when every button is up: it was one undo step, and the
         // re-bake it asks for starts then.
@@ -118,6 +115,11 @@ impl eframe::App for App {
         });
         egui::Panel::bottom("log").resizable(true).default_size(120.0).show(ui, |ui| log(ui, &self.editor));
         egui::CentralPanel::default().show(ui, |ui| self.view(ui, frame));
+        // After the viewport: a click and a key that arrive in one (slow) frame act in the order
+        // the user gave them — the click selects, then Delete deletes.
+        if shortcuts(ui, &mut self.editor) {
+            self.status = super::files::save(&mut self.editor);
+        }
         if self.editor.job.is_some() || self.editor.dirty.shade || super::systems::gathering(&self.editor) {
             ui.ctx().request_repaint_after(std::time::Duration::from_millis(100));
         }
