@@ -69,7 +69,7 @@ fn fs_main(v: VertexOut) -> @location(0) vec4<f32> {
 }
 
 // The environment behind the geometry (editor/src/sky.rs): one full-screen triangle, each pixel
-// the map's nearest texel along its view ray (dir_to_uv's mapping: u = atan2(x, −z)/2π,
+// the map filtered bilinearly along its view ray (dir_to_uv's mapping: u = atan2(x, −z)/2π,
 // v = acos(y)/π in the map's frame, the light's rotation about +Y undone first).
 
 struct Sky {
@@ -105,10 +105,25 @@ fn fs_sky(v: SkyOut) -> @location(0) vec4<f32> {
     let pi = 3.14159265358979;
     let u = fract(atan2(m.x, -m.z) / (2.0 * pi));
     let w = acos(clamp(m.y, -1.0, 1.0)) / pi;
-    let size = textureDimensions(sky_map);
-    let i = min(u32(u * f32(size.x)), size.x - 1u);
-    let j = min(u32(w * f32(size.y)), size.y - 1u);
-    return display(textureLoad(sky_map, vec2<u32>(i, j), 0).rgb * sky.rotation_intensity.z);
+    return display(sky_bilinear(vec2<f32>(u, w)) * sky.rotation_intensity.z);
+}
+
+// EnvMap::bilinear: between texel centres, wrapping in u and clamped at the poles (the map is
+// unfilterable 32-bit float, so the four texels are loaded and blended here).
+fn sky_bilinear(uv: vec2<f32>) -> vec3<f32> {
+    let size = vec2<i32>(textureDimensions(sky_map));
+    let x = uv.x * f32(size.x) - 0.5;
+    let y = clamp(uv.y * f32(size.y) - 0.5, 0.0, f32(size.y - 1));
+    let x0 = floor(x);
+    let y0 = floor(y);
+    let f = vec2<f32>(x - x0, y - y0);
+    let i0 = ((i32(x0) % size.x) + size.x) % size.x;
+    let i1 = (i0 + 1) % size.x;
+    let j0 = i32(y0);
+    let j1 = min(j0 + 1, size.y - 1);
+    let top = mix(textureLoad(sky_map, vec2<i32>(i0, j0), 0).rgb, textureLoad(sky_map, vec2<i32>(i1, j0), 0).rgb, f.x);
+    let bottom = mix(textureLoad(sky_map, vec2<i32>(i0, j1), 0).rgb, textureLoad(sky_map, vec2<i32>(i1, j1), 0).rgb, f.x);
+    return mix(top, bottom, f.y);
 }
 
 // Per-pixel PRT (engine/src/prt/mod.rs, Frame::shade_hit):

@@ -1,6 +1,6 @@
 //! The environment behind the geometry in the viewport, as `kage render`'s images show it: a
 //! full-screen pass (`vs_sky`/`fs_sky` in preview.wgsl) that looks the view ray up in the
-//! equirectangular map — nearest texel, the light's rotation and intensity applied, the
+//! equirectangular map — filtered bilinearly (`EnvMap::bilinear`), the light's rotation and intensity applied, the
 //! mapping of `kage_engine::scene::environment::dir_to_uv`.
 
 use bytemuck::{Pod, Zeroable};

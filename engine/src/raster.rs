@@ -73,6 +73,12 @@ pub fn primary_grid(r: &Renderer, camera: &Camera, width: usize, height: usize, 
     (grid, side)
 }
 
+/// Per pixel of a `width × height` image: whether the ray through its centre meets a receiver
+/// (not the environment, nor a light) — the pixels an exposure is metered on.
+pub fn surface_pixels(r: &Renderer, camera: &Camera, width: usize, height: usize) -> Vec<bool> {
+    primary_grid(r, camera, width, height, 1).0.iter().map(|p| matches!(p, Primary::Surface(_))).collect()
+}
+
 /// Averages `side × side` blocks of a grid of `width · side` columns into pixels.
 pub fn downsample(grid: &[Vec3], width: usize, height: usize, side: usize) -> Vec<Vec3> {
     let gw = width * side;
@@ -114,7 +120,7 @@ pub fn shade_image(
 
 fn primary(r: &Renderer, o: Vec3, d: Vec3) -> Primary {
     let Some(hit) = r.bvh.closest_hit(o, d, f32::INFINITY) else {
-        return Primary::Miss(r.flat.environment.as_ref().map_or(Vec3::ZERO, |e| e.radiance(d)));
+        return Primary::Miss(r.flat.environment.as_ref().map_or(Vec3::ZERO, |e| e.background(d)));
     };
     let tref = r.flat.refs[hit.triangle as usize];
     if tref.light != NO_LIGHT {

@@ -163,7 +163,7 @@ impl Renderer {
             Found::Surface(sp) => self.surface_path(sp, -d, bounces, r),
             Found::Emitter { radiance, .. } if bounces.0 == 0 => radiance,
             Found::Environment if bounces.0 == 0 => {
-                self.flat.environment.as_ref().map_or(Vec3::ZERO, |e| e.radiance(d))
+                self.flat.environment.as_ref().map_or(Vec3::ZERO, |e| e.background(d))
             }
             _ => Vec3::ZERO,
         }

@@ -3,7 +3,9 @@
 //!
 //! Mapping (docs/conventions.md): `u = frac(atan2(d.x, −d.z) / 2π)`, `v = acos(d.y) / π`, row 0 = +Y;
 //! the user rotation turns the map by `rotation` radians about +Y (counter-clockwise seen from above).
-//! Lookups are nearest-texel so that the sampling pdf is exact.
+//! Lighting lookups are nearest-texel so that the sampling pdf is exact; what a camera sees
+//! behind the geometry is filtered bilinearly ([`EnvironmentLight::background`]), as a texture
+//! is, so a 512-texel map does not show its texels as blocks.
 
 use crate::math::distribution::Distribution2D;
 use crate::math::luminance;
@@ -153,6 +155,20 @@ impl EnvMap {
         self.texels[j * self.width + i]
     }
 
+    /// Radiance at `uv` interpolated bilinearly between texel centres, wrapping around in u
+    /// and clamped at the poles in v.
+    pub fn bilinear(&self, uv: Vec2) -> Vec3 {
+        let x = uv.x * self.width as f32 - 0.5;
+        let y = (uv.y * self.height as f32 - 0.5).clamp(0.0, (self.height - 1) as f32);
+        let (x0, y0) = (x.floor(), y.floor());
+        let (fx, fy) = (x - x0, y - y0);
+        let column = |i: f32| (i as i64).rem_euclid(self.width as i64) as usize;
+        let (i0, i1) = (column(x0), column(x0 + 1.0));
+        let (j0, j1) = (y0 as usize, (y0 as usize + 1).min(self.height - 1));
+        let row = |j: usize| self.texels[j * self.width + i0].lerp(self.texels[j * self.width + i1], fx);
+        row(j0).lerp(row(j1), fy)
+    }
+
     /// Solid-angle pdf of sampling `uv`'s direction: pdf_uv / (2π² sin θ).
     fn pdf_uv(&self, uv: Vec2) -> f32 {
         let sin_theta = (PI * uv.y).sin();
@@ -198,6 +214,12 @@ impl EnvironmentLight {
     /// Radiance arriving from world direction `dir`.
     pub fn radiance(&self, dir: Vec3) -> Vec3 {
         self.map.lookup(dir_to_uv(self.to_map(dir))) * self.intensity
+    }
+
+    /// What a camera sees along world direction `dir`: the map filtered bilinearly
+    /// ([`EnvMap::bilinear`]); lighting uses [`Self::radiance`].
+    pub fn background(&self, dir: Vec3) -> Vec3 {
+        self.map.bilinear(dir_to_uv(self.to_map(dir))) * self.intensity
     }
 
     /// Solid-angle pdf of [`Self::sample`] producing `dir`.
@@ -258,6 +280,23 @@ mod tests {
         assert!(disagree < n / 1000, "pdf disagrees with the sample {disagree} times");
         let (a, b) = (by_importance / n as f64, by_uniform / n as f64);
         assert!(((a - b).length() / b.length()) < 0.01, "{a} vs {b}");
+    }
+
+    #[test]
+    fn the_background_is_the_texel_at_its_centre_and_blends_between_centres() {
+        let texels = (0..8).map(|k| Vec3::splat(k as f32)).collect();
+        let map = EnvMap::new(4, 2, texels, "test".into()).unwrap();
+        let centre = |i: f32, j: f32| Vec2::new((i + 0.5) / 4.0, (j + 0.5) / 2.0);
+        for j in 0..2 {
+            for i in 0..4 {
+                let uv = centre(i as f32, j as f32);
+                assert_eq!(map.bilinear(uv), map.lookup(uv), "texel ({i}, {j})");
+            }
+        }
+        assert_eq!(map.bilinear(centre(1.5, 0.0)), Vec3::splat(1.5), "halfway along a row");
+        assert_eq!(map.bilinear(centre(0.0, 0.5)), Vec3::splat(2.0), "halfway down a column");
+        assert_eq!(map.bilinear(centre(3.5, 1.0)), Vec3::splat(5.5), "across the seam at u = 1");
+        assert_eq!(map.bilinear(Vec2::new(0.125, 0.0)), Vec3::splat(0.0), "clamped at the pole");
     }
 
     #[test]
