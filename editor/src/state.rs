@@ -265,6 +265,8 @@ pub(super) struct Memo {
     pub(super) silhouettes: prt::SilhouetteMemo,
     /// The environment prefiltered for the specular term (method `baked`), kept while its map is.
     pub(super) prefiltered: Option<prt::prefilter::Prefiltered>,
+    /// The environment's part of the look per vertex (method `baked`), kept while a light moves.
+    pub(super) environment: kage_engine::shading::baked::EnvironmentMemo,
     /// Picking's BVH of the current snapshot, built on the first pick after it changed.
     pub(super) picker: Option<super::pick::Picker>,
 }

@@ -16,7 +16,7 @@ use kage_engine::reference::{Renderer, Settings};
 use kage_engine::scene::VertexValues;
 use kage_engine::scene::{EnvMap, EnvironmentLight, flatten, import};
 use kage_engine::shading::Method;
-use kage_engine::shading::baked::{Environment, Look, Polygonal};
+use kage_engine::shading::baked::{Look, Polygonal};
 use kage_engine::{bspvt, prt};
 use kage_gpu::bspvt::{BspvtShader, Mode};
 use kage_gpu::prt::PrtShader;
@@ -590,13 +590,10 @@ fn baked(ed: &mut Editor, eye: Vec3) -> VertexValues {
     if !fits(ed, &bake.instances, |t| t.len() / n) {
         return Look::new(&ed.flat, eye, polygonal, None).into_direct();
     }
-    let shadows = prt::Shadows::WithOthers;
-    // The look shades the map's sun apart: PRT carries the rest.
-    let rest = light.split_sun().1;
-    let posed =
-        prt::Posed::new(&ed.scene, &ed.flat, bake.order, rest, shadows, &ed.options.prt, &mut ed.memo.silhouettes);
-    let frame = prt::Frame::from_posed(&ed.flat, bake, posed, eye);
-    Look::new(&ed.flat, eye, polygonal, Some(Environment::new(frame, bake, light, Some(pre)))).into_direct()
+    // A light moved and nothing else: the environment's part is reused.
+    let parts = prt::Parts { bake, lighting: light, settings: &ed.options.prt };
+    let (environment, silhouettes) = (&mut ed.memo.environment, &mut ed.memo.silhouettes);
+    Look::direct_reusing(&ed.scene, &ed.flat, eye, polygonal, Some((parts, Some(pre))), environment, silhouettes)
 }
 
 /// The exact-visibility comparison casts cube maps per vertex: in the background.

@@ -1,9 +1,11 @@
 //! Re-shading the baked look after a light or camera change on the paper's teapot
 //! configuration (`teapot_quad_light.gltf`, teapot refined to 17 000 vertices, 64² faces) under
 //! a procedural sky, on all cores:
-//! - `relight_vertices`: the light moved — per-vertex BSPVT shading, the lobes' visibility
-//!   pairs for per-pixel highlights, the PRT frame (lighting posed, other groups' silhouettes
-//!   reused) and the look's per-vertex values with the environment's specular term;
+//! - `relight_vertices`: the light moved — per-vertex BSPVT shading and the sun, the
+//!   environment's part reused from the memo (nothing it reads changed), as the editor shades;
+//! - `camera_moved`: the eye moved — everything view-dependent again: per-vertex BSPVT shading,
+//!   the PRT frame (lighting posed, other groups' silhouettes reused) and the environment's
+//!   specular term;
 //! - `polygonal_part`, `environment_part`: the same for each light alone;
 //! - `resolve_640x360`: the per-pixel resolve of one frame at 640×360, 1 sample per pixel
 //!   (primary rays included).
@@ -16,7 +18,7 @@ use kage_engine::bspvt;
 use kage_engine::prt::{self, Lighting, SilhouetteMemo, prefilter::Prefiltered};
 use kage_engine::reference::Renderer;
 use kage_engine::scene::{EnvMap, EnvironmentLight, InGroup, PolygonLight, Scene, flatten, import};
-use kage_engine::shading::baked::{Bakes, Look};
+use kage_engine::shading::baked::{Bakes, EnvironmentMemo, Look, Polygonal};
 
 const PAPER_SCENE: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../assets/scenes/teapot_quad_light.gltf");
 
@@ -46,22 +48,34 @@ fn bench(c: &mut Criterion) {
     let pre = Prefiltered::new(flat.environment.as_ref().expect("sky"));
     let camera = scene.first_camera().expect("camera");
     let mut memo = SilhouetteMemo::default();
+    let mut environment = EnvironmentMemo::default();
     let mut g = c.benchmark_group("baked_teapot_17k");
     g.sample_size(10);
+    let parts = prt::Parts { bake: &transfer, lighting: &light, settings: &s };
+    // Per-vertex direct values as the editor shades them: polygonal lights from the trees, the
+    // environment's part through the memo.
+    let mut shade = |scene: &Scene, eye: Vec3| {
+        let flat = flatten(scene);
+        let (lobes, values) = bspvt::pixel::Lobes::at_vertices(&flat, Some(&trees), eye);
+        let polygonal = Polygonal { bake: Some(&trees), values, lobes: Some(lobes) };
+        Look::direct_reusing(scene, &flat, eye, Some(polygonal), Some((parts, Some(&pre))), &mut environment, &mut memo)
+            .len()
+    };
     let mut step = 0.01;
     g.bench_function("relight_vertices", |b| {
         b.iter(|| {
             step = -step;
             nudge_light(&mut scene, step);
-            let flat = flatten(&scene);
-            let bakes = Bakes {
-                bspvt: Some(&trees),
-                prt: Some(prt::Parts { bake: &transfer, lighting: &light, settings: &s }),
-                prefiltered: Some(&pre),
-            };
-            Look::prepare(&scene, &flat, bakes, camera.eye(), &mut memo).vertex_values().len()
+            shade(&scene, camera.eye())
         })
     });
+    g.bench_function("camera_moved", |b| {
+        b.iter(|| {
+            step = -step;
+            shade(&scene, camera.eye() + Vec3::new(step, 0.0, 0.0))
+        })
+    });
+    let mut memo = SilhouetteMemo::default();
     // The two parts alone (after the light move above).
     let flat = flatten(&scene);
     g.bench_function("polygonal_part", |b| {

@@ -3,10 +3,11 @@
 //! Tolerances are stated where they are used.
 
 use glam::{Affine3A, Quat, Vec3};
+use kage_engine::bspvt;
 use kage_engine::prt::{self, prefilter::Prefiltered};
 use kage_engine::reference::{Renderer, Settings};
 use kage_engine::scene::{EnvMap, EnvironmentLight, Material, Scene, VertexValues, flatten, shapes};
-use kage_engine::shading::baked::{Bakes, Look};
+use kage_engine::shading::baked::{Bakes, EnvironmentMemo, Look, Polygonal};
 use kage_tests::asset;
 
 const EYE: Vec3 = Vec3::new(0.0, 2.5, 4.0);
@@ -166,4 +167,87 @@ fn a_bright_sun_is_shaded_apart_with_its_shadow() {
         assert!(e < bound, "metallic {metallic}, roughness {roughness}: {e}\n{table}");
     }
     println!("{table}");
+}
+
+/// What one frame's environment part is shaded from.
+struct EnvironmentBakes {
+    bake: prt::Bake,
+    lighting: prt::Lighting,
+    settings: prt::Settings,
+    prefiltered: Prefiltered,
+}
+
+impl EnvironmentBakes {
+    fn parts(&self) -> prt::Parts<'_> {
+        prt::Parts { bake: &self.bake, lighting: &self.lighting, settings: &self.settings }
+    }
+}
+
+/// Shades `scene` from `eye` through `memo` and checks the result equals a fresh
+/// `Look::prepare` byte for byte; true when the memo's environment part was reused.
+fn shade_through(
+    scene: &Scene,
+    eye: Vec3,
+    trees: &bspvt::Bake,
+    env: &EnvironmentBakes,
+    memo: &mut EnvironmentMemo,
+    silhouettes: &mut prt::SilhouetteMemo,
+) -> bool {
+    let flat = flatten(scene);
+    let bakes = Bakes { bspvt: Some(trees), prt: Some(env.parts()), prefiltered: Some(&env.prefiltered) };
+    let fresh = Look::prepare(scene, &flat, bakes, eye, &mut prt::SilhouetteMemo::default()).into_direct();
+    let (lobes, values) = bspvt::pixel::Lobes::at_vertices(&flat, Some(trees), eye);
+    let polygonal = Polygonal { bake: Some(trees), values, lobes: Some(lobes) };
+    let before = memo.reused();
+    let environment = Some((env.parts(), Some(&env.prefiltered)));
+    let got = Look::direct_reusing(scene, &flat, eye, Some(polygonal), environment, memo, silhouettes);
+    assert!(got == fresh, "the memo's frame differs from a fresh one");
+    memo.reused() > before
+}
+
+/// The environment's part of the look is reused while only a polygonal light moves (the
+/// light's own shading and the sun's shadow, which the light's quad may cast, are shaded
+/// again), and shaded again when the eye, a material, a group's pose or the environment's
+/// rotation changes; every frame equals a fresh one byte for byte.
+#[test]
+fn the_environment_part_is_reused_while_only_a_light_moves() {
+    let gold = Material { base_color: Vec3::new(0.95, 0.7, 0.35), metallic: 1.0, roughness: 0.3, specular: 1.0 };
+    let mut scene = sphere_over_ground(gold, sky_with_sun(1e3));
+    let quad = vec![
+        Vec3::new(-0.5, 0.0, -0.5),
+        Vec3::new(0.5, 0.0, -0.5),
+        Vec3::new(0.5, 0.0, 0.5),
+        Vec3::new(-0.5, 0.0, 0.5),
+    ];
+    let light = scene.add_light("light", quad, Vec3::splat(20.0), Affine3A::from_translation(Vec3::new(1.5, 3.0, 0.5)));
+    let flat = flatten(&scene);
+    let trees = bspvt::bake(&flat, &bspvt::Settings { res: 16, ..Default::default() }, &|_| {});
+    let settings = prt::Settings { order: 4, regions: 8, directions: 256, ..prt::Settings::default() };
+    let bake = prt::bake(&scene, &flat, &settings, &|_| {});
+    let lighting = prt::Lighting::new(&scene, &settings).unwrap();
+    let prefiltered = Prefiltered::new(flat.environment.as_ref().unwrap());
+    let env = EnvironmentBakes { bake, lighting, settings, prefiltered };
+    let (mut memo, mut silhouettes) = (EnvironmentMemo::default(), prt::SilhouetteMemo::default());
+    let mut shade = |scene: &Scene, eye: Vec3, env: &EnvironmentBakes| {
+        shade_through(scene, eye, &trees, env, &mut memo, &mut silhouettes)
+    };
+    assert!(!shade(&scene, EYE, &env), "the first frame");
+    scene.pose_group(light, Quat::IDENTITY, Vec3::new(-1.0, 0.0, 0.3));
+    assert!(shade(&scene, EYE, &env), "the light moved");
+    assert!(!shade(&scene, EYE + Vec3::X, &env), "the eye moved");
+    assert!(shade(&scene, EYE + Vec3::X, &env), "nothing changed");
+    for m in scene.world.query_mut::<&mut Material>() {
+        m.roughness = 0.6;
+    }
+    assert!(!shade(&scene, EYE + Vec3::X, &env), "a material changed");
+    let sphere = flatten(&scene).instances[1].group;
+    scene.pose_group(sphere, Quat::IDENTITY, Vec3::new(0.4, 0.0, 0.0));
+    assert!(!shade(&scene, EYE + Vec3::X, &env), "a group moved");
+    let mut turned = flatten(&scene).environment.unwrap();
+    turned.rotation = 0.5;
+    scene.set_environment(turned.clone());
+    let lighting = prt::Lighting::new(&scene, &env.settings).unwrap();
+    let prefiltered = env.prefiltered.for_light(&turned);
+    let env = EnvironmentBakes { lighting, prefiltered, ..env };
+    assert!(!shade(&scene, EYE + Vec3::X, &env), "the environment turned");
 }

@@ -120,6 +120,16 @@ impl<'a> Look<'a> {
         polygonal: Option<Polygonal<'a>>,
         environment: Option<Environment<'a>>,
     ) -> Self {
+        Self::with_environment_direct(flat, eye, polygonal, environment).0
+    }
+
+    /// [`Look::new`], and the environment's part per vertex (the sun apart) it summed.
+    fn with_environment_direct(
+        flat: &'a FlatScene,
+        eye: Vec3,
+        polygonal: Option<Polygonal<'a>>,
+        environment: Option<Environment<'a>>,
+    ) -> (Self, Option<VertexValues>) {
         let environment_vertices = environment.as_ref().map(|e| {
             let both = e.frame.vertex_values_open(flat);
             let radiance = both.iter().map(|v| v.iter().map(|x| x.0).collect()).collect();
@@ -128,8 +138,51 @@ impl<'a> Look<'a> {
         let sun = environment.as_ref().and_then(|e| e.sun).map(|sun| (sun, SceneBvh::quick(&flat.triangles)));
         let mut look =
             Self { flat, eye, polygonal, environment, environment_vertices, direct: Vec::new(), indirect: None, sun };
-        look.direct = look.shade_direct();
-        look
+        let environment = look.environment.as_ref().map(|_| look.environment_direct());
+        look.direct = look.shade_direct(environment.as_ref());
+        (look, environment)
+    }
+
+    /// [`Look::new`]'s direct radiance per vertex ([`Look::into_direct`]), the environment's
+    /// part taken from `memo` when nothing it reads changed since the frame that kept it (a
+    /// polygonal light moved: PRT is not posed nor the lobes sampled again), else shaded
+    /// (reusing `silhouettes`) and kept. `environment`: the transfer, its lighting and the
+    /// prefiltered map, where the scene has an environment.
+    pub fn direct_reusing(
+        scene: &crate::scene::Scene,
+        flat: &'a FlatScene,
+        eye: Vec3,
+        polygonal: Option<Polygonal<'a>>,
+        environment: Option<(prt::Parts<'a>, Option<&'a Prefiltered>)>,
+        memo: &mut EnvironmentMemo,
+        silhouettes: &mut prt::SilhouetteMemo,
+    ) -> VertexValues {
+        let Some((parts, prefiltered)) = environment else {
+            return Self::new(flat, eye, polygonal, None).into_direct();
+        };
+        let key = EnvironmentMemo::key(flat, eye, parts, prefiltered);
+        if let Some(kept) = memo.kept.as_ref().filter(|k| k.key == key) {
+            memo.reused += 1;
+            let sun = parts.lighting.split_sun().0.map(|sun| (sun, SceneBvh::quick(&flat.triangles)));
+            let look = Self {
+                flat,
+                eye,
+                polygonal,
+                environment: None,
+                environment_vertices: None,
+                direct: Vec::new(),
+                indirect: None,
+                sun,
+            };
+            return look.shade_direct(Some(&kept.values));
+        }
+        let rest = prt::Parts { lighting: parts.lighting.split_sun().1, ..parts };
+        let frame = prt::Frame::prepare_cached(scene, flat, rest, prt::Shadows::WithOthers, eye, silhouettes);
+        let environment = Environment::new(frame, parts.bake, parts.lighting, prefiltered);
+        let (look, values) = Self::with_environment_direct(flat, eye, polygonal, Some(environment));
+        let values = values.expect("an environment part was given");
+        memo.kept = Some(Kept { key, _prefiltered: prefiltered.cloned(), values });
+        look.into_direct()
     }
 
     /// Adds one bounce of indirect light per vertex.
@@ -149,15 +202,34 @@ impl<'a> Look<'a> {
         self.direct
     }
 
-    fn shade_direct(&self) -> VertexValues {
+    /// Per vertex: the polygonal part plus `environment`'s (diffuse and specular) and the sun's.
+    fn shade_direct(&self, environment: Option<&VertexValues>) -> VertexValues {
+        (0..self.flat.instances.len())
+            .map(|i| {
+                (0..self.flat.vertex_count(i))
+                    .into_par_iter()
+                    .map(|v| {
+                        let poly = self.polygonal.as_ref().map_or(Vec3::ZERO, |poly| poly.values[i][v]);
+                        let env = environment.map_or(Vec3::ZERO, |e| {
+                            let (p, _) = self.flat.vertex(i, v);
+                            e[i][v] + self.sun_at(i, [v; 3], [1.0, 0.0, 0.0], p, self.eye)
+                        });
+                        poly + env
+                    })
+                    .collect()
+            })
+            .collect()
+    }
+
+    /// Per vertex: the environment's diffuse and specular terms toward the eye, the sun apart.
+    fn environment_direct(&self) -> VertexValues {
         (0..self.flat.instances.len())
             .map(|i| {
                 (0..self.flat.vertex_count(i))
                     .into_par_iter()
                     .map(|v| {
                         let (p, _) = self.flat.vertex(i, v);
-                        let poly = self.polygonal.as_ref().map_or(Vec3::ZERO, |poly| poly.values[i][v]);
-                        poly + self.environment_at(i, [v; 3], [1.0, 0.0, 0.0], p, self.eye)
+                        self.environment_without_sun(i, [v; 3], [1.0, 0.0, 0.0], p, self.eye)
                     })
                     .collect()
             })
@@ -185,15 +257,23 @@ impl<'a> Look<'a> {
         poly + self.environment_at(i, corners, bary, p, to)
     }
 
-    /// The environment's diffuse term (interpolated) and specular term (at `p`, toward `to`).
+    /// The environment's diffuse term (interpolated), specular term (at `p`, toward `to`) and
+    /// sun.
     fn environment_at(&self, i: usize, corners: [usize; 3], bary: [f32; 3], p: Vec3, to: Vec3) -> Vec3 {
+        if self.environment.is_none() {
+            return Vec3::ZERO;
+        }
+        self.environment_without_sun(i, corners, bary, p, to) + self.sun_at(i, corners, bary, p, to)
+    }
+
+    /// [`Self::environment_at`] without the sun.
+    fn environment_without_sun(&self, i: usize, corners: [usize; 3], bary: [f32; 3], p: Vec3, to: Vec3) -> Vec3 {
         let (Some(env), Some((diffuse, open))) = (&self.environment, &self.environment_vertices) else {
             return Vec3::ZERO;
         };
         let o = (0..3).map(|c| open[i][corners[c]] * bary[c]).sum::<f32>();
         let d = (0..3).map(|c| diffuse[i][corners[c]] * bary[c]).sum::<Vec3>();
         d + env.specular(self.flat).map_or(Vec3::ZERO, |s| s.at(i, corners, bary, p, to, o))
-            + self.sun_at(i, corners, bary, p, to)
     }
 
     /// The sun's light leaving a point toward `to`: the material's BSDF times the sun's
@@ -268,6 +348,58 @@ impl<'a> Look<'a> {
         let mu = n.normalize_or_zero().dot((self.eye - hit.position).normalize_or_zero());
         let material = self.flat.material_at(hit.instance, hit.corners, hit.weights);
         crate::shading::Bsdf::new(&material, Vec3::new(0.0, 0.0, mu)).diffuse_albedo()
+    }
+}
+
+/// The environment's per-vertex terms (diffuse and specular, the sun apart) of the last frame
+/// [`Look::direct_reusing`] shaded, with a hash of everything they read: the eye; every
+/// vertex's position, normal and material (textures and vertex colours as sampled there) and
+/// group; the occluders' triangles; the transfer, its lighting and settings; the prefiltered map
+/// (by identity, which the memo holds on to so that no other map can take its address).
+#[derive(Default)]
+pub struct EnvironmentMemo {
+    kept: Option<Kept>,
+    reused: u64,
+}
+
+struct Kept {
+    key: blake3::Hash,
+    /// Held so that the map's address, which the key names, stays its own.
+    _prefiltered: Option<Prefiltered>,
+    values: VertexValues,
+}
+
+impl EnvironmentMemo {
+    /// How many frames reused the kept values (the editor's statistics; tests).
+    pub fn reused(&self) -> u64 {
+        self.reused
+    }
+
+    fn key(flat: &FlatScene, eye: Vec3, parts: prt::Parts, prefiltered: Option<&Prefiltered>) -> blake3::Hash {
+        let mut h = blake3::Hasher::new();
+        h.update(bytemuck::bytes_of(&eye));
+        for (i, instance) in flat.instances.iter().enumerate() {
+            h.update(&instance.group.to_bits().get().to_le_bytes());
+            h.update(&(flat.vertex_count(i) as u64).to_le_bytes());
+            for v in 0..flat.vertex_count(i) {
+                let ((p, n), m) = (flat.vertex(i, v), flat.vertex_material(i, v));
+                h.update(bytemuck::cast_slice(&[p, n, m.base_color]));
+                h.update(bytemuck::cast_slice(&[m.metallic, m.roughness, m.specular]));
+            }
+        }
+        for (t, r) in flat.triangles.iter().zip(&flat.refs).filter(|(_, r)| r.light == crate::scene::NO_LIGHT) {
+            h.update(bytemuck::cast_slice(t));
+            h.update(&r.owner.to_le_bytes());
+        }
+        h.update(&(parts.bake.order as u64).to_le_bytes());
+        for t in &parts.bake.instances {
+            h.update(bytemuck::cast_slice(t));
+        }
+        h.update(format!("{:?} {:?}", parts.lighting, parts.settings).as_bytes());
+        if let Some(p) = prefiltered {
+            p.hash_into(&mut h);
+        }
+        h.finalize()
     }
 }
 
