@@ -1,7 +1,7 @@
 //! `--exposure`: stops, or `auto` to meter the result (the default).
 
 use glam::Vec3;
-use kage_engine::math::color::metered_exposure;
+use kage_engine::math::color::{metered_exposure, metered_exposure_keeping};
 
 /// How bright displayed results are: a fixed number of stops, or metered from the values.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -31,11 +31,26 @@ impl Exposure {
     pub fn stops(self, values: impl IntoIterator<Item = Vec3>) -> f32 {
         match self {
             Self::Stops(ev) => ev,
+            Self::Auto => printed(metered_exposure(values)),
+        }
+    }
+
+    /// The stops to apply to an image's `pixels`: metered on all of them, with at most 5 % of
+    /// those that show a surface (`surfaces`, asked only when metering; every pixel when none
+    /// does) clipping — a small bright object under a dark sky is not blown out.
+    pub fn image_stops(self, pixels: &[Vec3], surfaces: impl FnOnce() -> Vec<bool>) -> f32 {
+        match self {
+            Self::Stops(ev) => ev,
             Self::Auto => {
-                let ev = metered_exposure(values);
-                crate::emit(&format!("exposure: {ev:+.2} stops (metered; --exposure sets it)\n"));
-                ev
+                let on: Vec<Vec3> = pixels.iter().zip(surfaces()).filter(|(_, s)| *s).map(|(p, _)| *p).collect();
+                printed(metered_exposure_keeping(pixels, if on.is_empty() { pixels } else { &on }))
             }
         }
     }
+}
+
+/// Prints metered stops so that a run can be repeated with them.
+fn printed(ev: f32) -> f32 {
+    crate::emit(&format!("exposure: {ev:+.2} stops (metered; --exposure sets it)\n"));
+    ev
 }

@@ -20,6 +20,47 @@ fn info_describes_the_default_scene() {
     }
 }
 
+/// A small object under a dark studio map: the metered exposure keeps its highlights (at most
+/// 5 % of the pixels showing it clip), where metering all pixels alike would let the black
+/// around it push the object into white.
+#[test]
+fn a_small_object_under_a_dark_sky_keeps_its_highlights() {
+    use kage_engine::math::color::{metered_exposure, metered_exposure_keeping};
+    let d = scratch("exposure");
+    let (png, exr, db) = (d.join("box.png"), d.join("box.exr"), d.join("bake.redb"));
+    let (gltf, env) = (asset("khronos/BoxTextured/BoxTextured.gltf"), asset("envmaps/studio.hdr"));
+    let path = |p: &Path| p.to_str().unwrap().to_owned();
+    let mut printed = String::new();
+    for out in [&png, &exr] {
+        let args = ["render", gltf.as_str(), "--env", env.as_str(), "--eye", "2.5,1.5,3.5", "--target", "0,0,0"];
+        let o = kage(&[&args[..], &["--size", "64x48", "-o", &path(out), "--db", &path(&db)]].concat());
+        assert!(o.status.success(), "{}", stderr(&o));
+        printed += &String::from_utf8(o.stdout).unwrap();
+    }
+    let metered = printed.lines().find_map(|l| l.strip_prefix("exposure: ")).expect("metered exposure printed");
+    let stops: f32 = metered.split_whitespace().next().unwrap().parse().unwrap();
+    let all: Vec<glam::Vec3> =
+        image::open(&exr).unwrap().into_rgb32f().pixels().map(|p| glam::Vec3::from(p.0)).collect();
+    let mut scene = kage_engine::scene::import::import(Path::new(&gltf), Default::default()).unwrap();
+    scene.set_environment(kage_engine::scene::EnvironmentLight::new(
+        kage_engine::scene::EnvMap::load(Path::new(&env)).unwrap(),
+    ));
+    let renderer = kage_engine::reference::Renderer::new(&scene);
+    let camera =
+        kage_engine::scene::Camera::look_at(glam::Vec3::new(2.5, 1.5, 3.5), glam::Vec3::ZERO, 45f32.to_radians());
+    let surfaces = kage_engine::raster::surface_pixels(&renderer, &camera, 64, 48);
+    let on: Vec<glam::Vec3> = all.iter().zip(&surfaces).filter(|(_, s)| **s).map(|(p, _)| *p).collect();
+    let (keeping, alike) = (metered_exposure_keeping(&all, &on), metered_exposure(all.iter().copied()));
+    assert!((stops - keeping).abs() < 0.006, "printed {stops}, the EXR meters {keeping}");
+    assert!(
+        alike > keeping + 0.5,
+        "metering all pixels alike: {alike} stops, keeping the object's highlights: {keeping}"
+    );
+    let luminance = kage_engine::math::color::luminance;
+    let clipped = on.iter().filter(|p| luminance(**p) * stops.exp2() > 1.0).count();
+    assert!(clipped as f32 <= 0.05 * on.len() as f32 + 1.0, "{clipped} of the object's {} pixels clip", on.len());
+}
+
 #[test]
 fn render_writes_png_exr_and_vertex_csv() {
     let d = scratch("render");
@@ -36,12 +77,19 @@ fn render_writes_png_exr_and_vertex_csv() {
     }
     let exr_img = image::open(&exr).unwrap().into_rgb32f();
     assert!(exr_img.pixels().any(|p| p.0[0] > 1.0), "EXR keeps linear radiance above 1 (the light)");
-    // The PNG's exposure is metered (and printed); an EXR is never exposed.
+    // The PNG's exposure is metered on the pixels that show a surface (and printed); an EXR
+    // is never exposed.
     let metered = printed[0].lines().find_map(|l| l.strip_prefix("exposure: ")).expect("metered exposure printed");
     let stops: f32 = metered.split_whitespace().next().unwrap().parse().unwrap();
     assert!(!printed[1].contains("exposure:"));
-    let expected = kage_engine::math::color::metered_exposure(exr_img.pixels().map(|p| glam::Vec3::from(p.0)));
-    assert!((stops - expected).abs() < 0.006, "printed {stops}, EXR meters {expected}");
+    let scene = kage_engine::scene::default_scene();
+    let renderer = kage_engine::reference::Renderer::new(&scene);
+    let surfaces = kage_engine::raster::surface_pixels(&renderer, &scene.first_camera().unwrap(), 40, 24);
+    assert!(surfaces.iter().any(|s| !s) && surfaces.iter().any(|s| *s), "the view shows the sky and the scene");
+    let all: Vec<glam::Vec3> = exr_img.pixels().map(|p| glam::Vec3::from(p.0)).collect();
+    let on: Vec<glam::Vec3> = all.iter().zip(&surfaces).filter(|(_, s)| **s).map(|(p, _)| *p).collect();
+    let expected = kage_engine::math::color::metered_exposure_keeping(&all, &on);
+    assert!((stops - expected).abs() < 0.006, "printed {stops}, the EXR meters {expected}");
     let png_img = image::open(&png).unwrap().into_rgb8();
     assert_eq!(png_img.dimensions(), (40, 24));
     for (p, e) in png_img.pixels().zip(exr_img.pixels()) {

@@ -29,13 +29,24 @@ const HEADROOM: f32 = 0.9;
 /// al. 2002's key of 0.18), lowered so that at most the brightest 5 % clip. Non-finite and
 /// negative values are ignored; 0 stops when nothing is lit.
 pub fn metered_exposure(values: impl IntoIterator<Item = Vec3>) -> f32 {
-    let mut lum: Vec<f32> = values.into_iter().map(luminance).filter(|l| l.is_finite() && *l > 0.0).collect();
-    if lum.is_empty() {
+    let values: Vec<Vec3> = values.into_iter().collect();
+    metered_exposure_keeping(&values, &values)
+}
+
+/// [`metered_exposure`] with the clipping judged on part of the values: `values`' log-average
+/// luminance maps to middle grey, lowered so that at most the brightest 5 % of `kept` clip (an
+/// image's surfaces among its pixels: a small object under a dark sky keeps its highlights).
+pub fn metered_exposure_keeping(values: &[Vec3], kept: &[Vec3]) -> f32 {
+    let lit = |values: &[Vec3]| -> Vec<f32> {
+        values.iter().copied().map(luminance).filter(|l| l.is_finite() && *l > 0.0).collect()
+    };
+    let (values, mut kept) = (lit(values), lit(kept));
+    if values.is_empty() || kept.is_empty() {
         return 0.0;
     }
-    let log_average = (lum.iter().map(|l| f64::from(*l).ln()).sum::<f64>() / lum.len() as f64).exp() as f32;
-    let k = ((lum.len() - 1) as f32 * (1.0 - CLIPPED)).round() as usize;
-    let bright = *lum.select_nth_unstable_by(k, f32::total_cmp).1;
+    let log_average = (values.iter().map(|l| f64::from(*l).ln()).sum::<f64>() / values.len() as f64).exp() as f32;
+    let k = ((kept.len() - 1) as f32 * (1.0 - CLIPPED)).round() as usize;
+    let bright = *kept.select_nth_unstable_by(k, f32::total_cmp).1;
     (KEY / log_average).log2().min((HEADROOM / bright).log2()).clamp(-32.0, 32.0)
 }
 
@@ -50,6 +61,18 @@ mod tests {
             assert!((radiance * ev.exp2() - KEY).abs() < 1e-4, "{radiance}: {ev}");
         }
         assert_eq!(metered_exposure(vec![Vec3::ZERO, Vec3::NAN, Vec3::splat(-1.0)]), 0.0);
+    }
+
+    /// A bright object on 6 % of a dark image: metered alike, most of it clips; keeping it,
+    /// 5 % of it at most; keeping everything is plain metering.
+    #[test]
+    fn metering_keeps_the_kept_values_highlights() {
+        let object: Vec<Vec3> = (0..60).map(|k| Vec3::splat(1.0 + k as f32 / 60.0)).collect();
+        let image: Vec<Vec3> = object.iter().copied().chain(std::iter::repeat_n(Vec3::splat(0.01), 940)).collect();
+        let clipped = |ev: f32| object.iter().filter(|v| luminance(**v) * ev.exp2() > 1.0).count();
+        assert!(clipped(metered_exposure(image.iter().copied())) > 30);
+        assert!(clipped(metered_exposure_keeping(&image, &object)) <= 3);
+        assert_eq!(metered_exposure_keeping(&image, &image), metered_exposure(image.iter().copied()));
     }
 
     #[test]

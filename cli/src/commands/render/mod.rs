@@ -230,8 +230,9 @@ pub fn run(args: &Args) -> Result<()> {
         direct.iter_mut().flatten().zip(extra.iter().flatten()).for_each(|(d, e)| *d += *e);
     }
     if let (Some(path), Some(pixels)) = (&output, image) {
+        let surfaces = || raster::surface_pixels(&renderer, &camera, args.size.0, args.size.1);
         let stops =
-            if ImageFormat::of(path)? == ImageFormat::Png { args.exposure.stops(pixels.iter().copied()) } else { 0.0 };
+            if ImageFormat::of(path)? == ImageFormat::Png { args.exposure.image_stops(&pixels, surfaces) } else { 0.0 };
         write_image(path, args.size.0, args.size.1, &pixels, stops)?;
         crate::emit(&format!("wrote {}\n", path.display()));
     }
