@@ -6,7 +6,9 @@ use kage_engine::math::relative_rmse;
 use kage_engine::raster;
 use kage_engine::receivers::{self, Settings};
 use kage_engine::reference::{self, Renderer};
-use kage_engine::scene::{Camera, EnvMap, EnvironmentLight, Material, Mesh, PolygonLight, Scene, flatten, shapes};
+use kage_engine::scene::{
+    Camera, EnvMap, EnvironmentLight, Material, Mesh, NO_LIGHT, PolygonLight, Scene, flatten, shapes,
+};
 use kage_engine::shading::baked::{Bakes, Look};
 use kage_engine::{bspvt, prt};
 
@@ -290,4 +292,80 @@ fn environment_error_against_vertices() {
             eprintln!("{map} (reference noise {noise:.4}), budget {budget}, {rounds} rounds: {e:.4} ({n} vertices)");
         }
     }
+}
+
+/// Areas of instance `i`'s world triangles.
+fn areas(s: &Scene, i: usize) -> Vec<f32> {
+    let flat = flatten(s);
+    let own = flat.triangles.iter().zip(&flat.refs).filter(|(_, r)| r.owner as usize == i && r.light == NO_LIGHT);
+    own.map(|(t, _)| 0.5 * (t[1] - t[0]).cross(t[2] - t[0]).length()).collect()
+}
+
+/// Hard case: a receiver of one sliver triangle, 8 m long and 8 mm wide (1:1000), crossed by
+/// the box's shadow. Refinement stays within its budget, splits it where the shadow crosses,
+/// and leaves a sound mesh: every triangle of positive area, the total area kept.
+#[test]
+fn a_sliver_receiver_is_refined_soundly() {
+    let mut s = Scene::new("test:sliver");
+    let corners = vec![Vec3::new(-4.0, 0.0, 0.0), Vec3::new(4.0, 0.0, 0.004), Vec3::new(4.0, 0.0, -0.004)];
+    let (sliver, _) = Mesh::new(corners, None, vec![], vec![[0, 1, 2]], false).unwrap();
+    s.add_object("sliver", sliver, Material::lambertian(Vec3::splat(0.7)), Affine3A::IDENTITY);
+    let pose = Affine3A::from_translation(Vec3::new(0.5, 0.6, 0.0));
+    s.add_object("box", shapes::cuboid(Vec3::new(0.3, 0.3, 0.3)), Material::lambertian(Vec3::ONE), pose);
+    let q = 0.3;
+    let quad = vec![Vec3::new(-q, 0.0, -q), Vec3::new(q, 0.0, -q), Vec3::new(q, 0.0, q), Vec3::new(-q, 0.0, q)];
+    s.add_light("light", quad, Vec3::splat(10.0), Affine3A::from_translation(Vec3::new(0.0, 3.0, 0.0)));
+    let before: f32 = areas(&s, 0).iter().sum();
+    let report = receivers::refine(&mut s, &Settings { budget: 400, ..Settings::default() }).unwrap();
+    let after = areas(&s, 0);
+    eprintln!("sliver: {:?} vertices, {} triangles", report[0], after.len());
+    assert!(report[0].1 > 20 && report[0].1 <= 3 + 400, "the sliver: {report:?}");
+    assert!(after.iter().all(|a| *a > 0.0 && a.is_finite()), "a degenerate triangle among {} triangles", after.len());
+    let total: f32 = after.iter().sum();
+    assert!((total / before - 1.0).abs() < 1e-4, "area {before} → {total}");
+}
+
+/// Hard case: a light whose declared reach crosses the floor's plane (from below the floor to
+/// above the objects). The views below the floor see its back; refinement still resolves the
+/// shadows the light casts where it is, within the budget.
+#[test]
+fn a_reach_crossing_the_floor_still_resolves_the_shadows() {
+    let reach = [Vec3::new(-3.0, -1.0, -3.0), Vec3::new(3.0, 3.5, 3.0)];
+    let coarse = with_reach(two_triangle_floor(), reach);
+    let (before, n0) = error(&coarse);
+    let (after, n1) = error(&refined(coarse, 4000));
+    eprintln!("reach crossing the floor: {before:.4} with {n0} vertices, {after:.4} with {n1}");
+    assert!(n1 <= n0 + 4000 + 100, "within the budget: {n1}");
+    assert!(after < 0.5 * before && after < 0.08, "refined {after:.4}, coarse {before:.4}");
+}
+
+/// Hard case: a mesh instanced twice with different shadows — the repository's two-triangle
+/// floor with a second node showing the floor's mesh 20 m away, where nothing shades it. Each
+/// instance is refined on its own (a shared refinement would spend vertices on the far floor
+/// for shadows it never receives, or leave the near one's coarse): the near floor gets its
+/// shadows' vertices, the far one only the seed, and they no longer share a mesh.
+#[test]
+fn a_mesh_instanced_twice_is_refined_per_instance() {
+    let dir = kage_tests::scratch("instanced-twice");
+    let mut doc: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(kage_tests::asset("scenes/two_triangle_floor.gltf")).unwrap()).unwrap();
+    let far = doc["nodes"].as_array().unwrap().len();
+    doc["nodes"]
+        .as_array_mut()
+        .unwrap()
+        .push(serde_json::json!({"name": "far floor", "mesh": 0, "translation": [20, 0, 0]}));
+    doc["scenes"][0]["nodes"].as_array_mut().unwrap().push(far.into());
+    let path = dir.join("instanced_twice.gltf");
+    std::fs::write(&path, serde_json::to_vec(&doc).unwrap()).unwrap();
+    let mut s = kage_engine::scene::import::import(&path, Default::default()).unwrap();
+    let flat = flatten(&s);
+    let floors: Vec<usize> =
+        (0..flat.instances.len()).filter(|&i| flat.instances[i].mesh == flat.instances[0].mesh).collect();
+    assert_eq!(floors.len(), 2, "the two nodes share the floor's mesh");
+    let report = receivers::refine(&mut s, &Settings { budget: 3000, ..Settings::default() }).unwrap();
+    let flat = flatten(&s);
+    let (near, far) = (floors[0], floors[1]);
+    eprintln!("instanced twice: near floor {:?}, far floor {:?} vertices", report[near], report[far]);
+    assert_ne!(flat.instances[near].mesh, flat.instances[far].mesh, "{report:?}");
+    assert!(report[near].1 > 3 * report[far].1, "near floor {:?}, far floor {:?}", report[near], report[far]);
 }
