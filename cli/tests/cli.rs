@@ -20,6 +20,25 @@ fn info_describes_the_default_scene() {
     }
 }
 
+/// A scene nothing lights (no emissive quad, no environment) renders black with a warning
+/// that says why and how to light it; with `--env` it renders without one.
+#[test]
+fn an_unlit_scene_is_warned_about() {
+    let d = scratch("unlit");
+    let (scene, sky) = (asset("scenes/bunny_two_groups.gltf"), asset("envmaps/sky.hdr"));
+    let (png, db) = (d.join("a.png"), d.join("bake.redb"));
+    let args = ["render", scene.as_str(), "--size", "16x9", "-o", png.to_str().unwrap(), "--db", db.to_str().unwrap()];
+    let o = kage(&args);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let warned = stderr(&o);
+    assert!(
+        warned.contains("warning:") && warned.contains("nothing lights it") && warned.contains("--env"),
+        "{warned}"
+    );
+    let o = kage(&[&args[..], &["--env", sky.as_str()]].concat());
+    assert!(o.status.success() && !stderr(&o).contains("nothing lights it"), "{}", stderr(&o));
+}
+
 /// A small object under a dark studio map: the metered exposure keeps its highlights (at most
 /// 5 % of the pixels showing it clip), where metering all pixels alike would let the black
 /// around it push the object into white.

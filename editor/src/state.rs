@@ -343,6 +343,9 @@ impl Editor {
         };
         let where_ = if ed.polygonal_on_gpu() { "GPU" } else { "CPU" };
         ed.info(format!("{}: GPU {}; polygonal lights shade on the {where_}", ed.scene.source, ed.gpu.describe()));
+        if let Some(why) = ed.flat.unlit() {
+            ed.error(format!("{}: {why}; Add > Quad light adds one (or open it with --env MAP.hdr)", ed.scene.source));
+        }
         ed.open_store();
         ed.choose_prt();
         ed.start_watching();

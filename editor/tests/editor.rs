@@ -774,3 +774,19 @@ fn lights_are_added_groups_duplicated_deleted_and_dropped_files_added_each_one_u
     assert_eq!(counts(&h), (start.0 + 1, start.1 + 1));
     assert!(errors(&h.state().editor).is_empty());
 }
+
+/// A scene nothing lights opens with an error in the log that says why its view is black and
+/// how to light it.
+#[test]
+fn an_unlit_scene_says_why_it_is_black() {
+    let d = scratch("unlit");
+    let mut o = options(&d, None, None);
+    o.bake_on_start = false;
+    let mut scene = kage_engine::scene::Scene::new("test:unlit");
+    let mesh = kage_engine::scene::shapes::cuboid(Vec3::splat(0.5));
+    let grey = kage_engine::scene::Material::lambertian(Vec3::splat(0.5));
+    scene.add_object("box", mesh, grey, glam::Affine3A::IDENTITY);
+    let h = harness(scene, o);
+    let errors = errors(&h.state().editor);
+    assert!(errors.iter().any(|e| e.contains("nothing lights it") && e.contains("Quad light")), "{errors:?}");
+}

@@ -229,6 +229,13 @@ impl FlatScene {
         &self.meshes[self.instances[inst].mesh as usize]
     }
 
+    /// Why every image of this snapshot is black, when nothing lights it (no polygonal light
+    /// and no environment): front ends warn with it and say how to light the scene.
+    pub fn unlit(&self) -> Option<&'static str> {
+        let unlit = self.lights.is_empty() && self.environment.is_none();
+        unlit.then_some("nothing lights it: it has no emissive quad (polygonal light) and no environment")
+    }
+
     /// Vertices of instance `inst`.
     pub fn vertex_count(&self, inst: usize) -> usize {
         self.mesh(inst).positions.len()

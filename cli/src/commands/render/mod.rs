@@ -196,6 +196,9 @@ pub fn run(args: &Args) -> Result<()> {
         scene.clear_environment();
     }
     let renderer = Renderer::new(&scene);
+    if let Some(why) = renderer.flat.unlit() {
+        eprintln!("warning: {}: {why}; `--env MAP.hdr` lights it with an environment map", scene.source);
+    }
     let camera = camera(args, scene.first_camera(), &renderer.flat)?;
     let output = args.output.clone().or_else(|| args.vertices_out.is_none().then(|| PathBuf::from("render.png")));
     if let Some(path) = &output {
