@@ -96,11 +96,18 @@ pub struct Viewport {
     sky: Option<Sky>,
     meshes: Vec<Mesh>,
     prt: Option<PrtDraw>,
-    /// Flat-coloured light polygons.
-    lights: Vec<Mesh>,
+    /// Flat-coloured light polygons, each with its emitting side.
+    lights: Vec<(Mesh, LightSide)>,
     target: Option<Target>,
     /// The shader generation the pipeline was built from.
     pub generation: u64,
+}
+
+/// Where a light polygon emits: its centre, the normal of its emitting side and its radiance.
+struct LightSide {
+    centre: Vec3,
+    normal: Vec3,
+    radiance: Vec3,
 }
 
 impl Viewport {
@@ -212,7 +219,8 @@ impl Viewport {
                 let n = l.points.len();
                 let look =
                     Look { radiance: &vec![l.radiance; n], detail: &vec![detail::PLAIN; n], texture: plain.clone() };
-                mesh_buffers(gpu, &l.points, look, &idx)
+                let centre = l.points.iter().sum::<Vec3>() / n as f32;
+                (mesh_buffers(gpu, &l.points, look, &idx), LightSide { centre, normal: l.normal, radiance: l.radiance })
             })
             .collect();
     }
@@ -320,7 +328,14 @@ impl Viewport {
                 _ => &self.meshes[..],
             };
             pass.set_pipeline(&self.pipelines.main);
-            for m in per_vertex.iter().chain(&self.lights) {
+            // A light is one-sided: its back is dark, as in `kage render`'s images. The eye is on
+            // one side of a flat polygon for all of it, so the side is chosen per light.
+            let eye = orbit.eye();
+            for (m, side) in &self.lights {
+                let shown = if (eye - side.centre).dot(side.normal) > 0.0 { side.radiance } else { Vec3::ZERO };
+                gpu.queue.write_buffer(&m.radiance, 0, bytemuck::cast_slice(&vec![shown; m.vertices]));
+            }
+            for m in per_vertex.iter().chain(self.lights.iter().map(|(m, _)| m)) {
                 pass.set_bind_group(1, &m.texture, &[]);
                 pass.set_vertex_buffer(0, m.positions.slice(..));
                 pass.set_vertex_buffer(1, m.radiance.slice(..));

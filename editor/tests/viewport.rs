@@ -156,3 +156,26 @@ fn the_environment_shows_behind_the_geometry() {
     let plain = vp.render_image(&gpu, [w, h], &orbit, 0.0).unwrap();
     assert!(plain.pixels().all(|p| p.0[..3] == [0, 0, 0]), "without an environment the background is black");
 }
+
+/// A light polygon is one-sided, as in `kage render`'s images: seen from its emitting side it
+/// shows its radiance, from behind it is dark.
+#[test]
+fn a_light_is_dark_from_behind() {
+    let gpu = Gpu::new().expect("a wgpu device (lavapipe without a GPU)");
+    let mut scene = kage_engine::scene::Scene::new("test:one-sided");
+    let q = 0.5;
+    let quad = vec![Vec3::new(-q, 0.0, -q), Vec3::new(q, 0.0, -q), Vec3::new(q, 0.0, q), Vec3::new(-q, 0.0, q)];
+    // Counter-clockwise seen from below: it emits downwards.
+    scene.add_light("light", quad, Vec3::splat(4.0), glam::Affine3A::from_translation(Vec3::Y));
+    let flat = flatten(&scene);
+    assert!(flat.lights[0].normal.y < 0.0, "the light faces down");
+    let mut vp = Viewport::new(&gpu, &Shaders::embedded()).unwrap();
+    vp.upload_geometry(&gpu, &flat);
+    let orbits = [0.8, -0.8].map(|pitch| Orbit { target: Vec3::Y, distance: 3.0, yaw: 0.3, pitch, yfov: 0.8 });
+    let [below, above] = [1.0f32, -1.0].map(|side| {
+        let orbit = orbits.iter().find(|o| (o.eye().y - 1.0) * side < 0.0).expect("one orbit on each side");
+        vp.render_image(&gpu, [32, 32], orbit, 0.0).unwrap().get_pixel(16, 16).0
+    });
+    assert_eq!(below[..3], [255, 255, 255], "from its emitting side: {below:?}");
+    assert_eq!(above[..3], [0, 0, 0], "from behind: {above:?}");
+}
