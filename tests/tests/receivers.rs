@@ -369,3 +369,32 @@ fn a_mesh_instanced_twice_is_refined_per_instance() {
     assert_ne!(flat.instances[near].mesh, flat.instances[far].mesh, "{report:?}");
     assert!(report[near].1 > 3 * report[far].1, "near floor {:?}, far floor {:?}", report[near], report[far]);
 }
+
+/// Hard case: a shadow boundary exactly along an existing edge — a thin slab's shadow whose
+/// edge falls on the floor's diagonal (x = z) under a small light, so the diagonal's ends and
+/// midpoint all sit on the boundary. The edges crossing the shadow's band still mark it, and
+/// refinement resolves it.
+#[test]
+fn a_shadow_boundary_along_an_existing_edge_is_resolved() {
+    let mut s = Scene::new("test:boundary-on-edge");
+    let h = 4.0;
+    let corners = vec![Vec3::new(-h, 0.0, -h), Vec3::new(-h, 0.0, h), Vec3::new(h, 0.0, h), Vec3::new(h, 0.0, -h)];
+    let (floor, _) = Mesh::new(corners, None, vec![], vec![[0, 1, 2], [0, 2, 3]], false).unwrap();
+    s.add_object("floor", floor, Material::lambertian(Vec3::splat(0.7)), Affine3A::IDENTITY);
+    // The light's centre L = (1, 3, −1); the slab's underside at 1.5 m, its long axis along
+    // (1, 0, 1) and its lower edge nearest the light above the line x − z = 1, which L projects
+    // onto x − z = 0 (that edge bounds the shadow: the upper one projects inside it).
+    let (half_width, bottom) = (0.3, 1.5);
+    let centre_offset = 1.0 - std::f32::consts::SQRT_2 * half_width;
+    let centre = Vec3::new(0.5 * centre_offset, bottom + 0.005, -0.5 * centre_offset);
+    let pose = Affine3A::from_rotation_translation(Quat::from_rotation_y(-std::f32::consts::FRAC_PI_4), centre);
+    s.add_object("slab", shapes::cuboid(Vec3::new(2.5, 0.005, half_width)), Material::lambertian(Vec3::ONE), pose);
+    let q = 0.05;
+    let quad = vec![Vec3::new(-q, 0.0, -q), Vec3::new(q, 0.0, -q), Vec3::new(q, 0.0, q), Vec3::new(-q, 0.0, q)];
+    s.add_light("light", quad, Vec3::splat(2000.0), Affine3A::from_translation(Vec3::new(1.0, 3.0, -1.0)));
+    s.add_camera(Camera::look_at(Vec3::new(0.0, 6.5, 6.5), Vec3::new(0.0, 0.0, 0.3), 45f32.to_radians()));
+    let (before, n0) = error(&s);
+    let (after, n1) = error(&refined(s, 3000));
+    eprintln!("boundary along the diagonal: {before:.4} with {n0} vertices, {after:.4} with {n1}");
+    assert!(after < 0.5 * before && after < 0.08, "refined {after:.4}, coarse {before:.4}");
+}
