@@ -11,7 +11,7 @@
 use crate::math::frame::Frame;
 use crate::math::{ggx, trig};
 use crate::scene::EnvironmentLight;
-use crate::scene::environment::{EnvMap, dir_to_uv};
+use crate::scene::environment::{self, EnvMap, dir_to_uv};
 use glam::{Quat, Vec2, Vec3};
 use std::f32::consts::PI;
 use std::sync::Arc;
@@ -32,16 +32,7 @@ struct Image {
 
 impl Image {
     fn bilinear(&self, uv: Vec2) -> Vec3 {
-        let x = uv.x * self.width as f32 - 0.5;
-        let y = (uv.y * self.height as f32 - 0.5).clamp(0.0, (self.height - 1) as f32);
-        let (x0, y0) = (x.floor(), y.floor());
-        let (fx, fy) = (x - x0, y - y0);
-        let col = |i: f32| (i as i64).rem_euclid(self.width as i64) as usize;
-        let row = |j: f32| (j as usize).min(self.height - 1);
-        let at = |i: f32, j: f32| self.texels[row(j) * self.width + col(i)];
-        let top = at(x0, y0).lerp(at(x0 + 1.0, y0), fx);
-        let bottom = at(x0, y0 + 1.0).lerp(at(x0 + 1.0, y0 + 1.0), fx);
-        top.lerp(bottom, fy)
+        environment::bilinear(self.width, self.height, &self.texels, uv)
     }
 
     /// Half the size: each texel the mean radiance over its four children, weighted by their

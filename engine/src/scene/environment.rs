@@ -50,6 +50,20 @@ pub fn uv_to_dir(uv: Vec2) -> Vec3 {
     Vec3::new(theta.sin() * phi.sin(), theta.cos(), -theta.sin() * phi.cos())
 }
 
+/// An equirectangular `width × height` image (row-major, row 0 = +Y) at `uv`, interpolated
+/// bilinearly between texel centres, wrapping around in u and clamped at the poles in v.
+pub fn bilinear(width: usize, height: usize, texels: &[Vec3], uv: Vec2) -> Vec3 {
+    let x = uv.x * width as f32 - 0.5;
+    let y = (uv.y * height as f32 - 0.5).clamp(0.0, (height - 1) as f32);
+    let (x0, y0) = (x.floor(), y.floor());
+    let (fx, fy) = (x - x0, y - y0);
+    let column = |i: f32| (i as i64).rem_euclid(width as i64) as usize;
+    let (i0, i1) = (column(x0), column(x0 + 1.0));
+    let (j0, j1) = (y0 as usize, (y0 as usize + 1).min(height - 1));
+    let row = |j: usize| texels[j * width + i0].lerp(texels[j * width + i1], fx);
+    row(j0).lerp(row(j1), fy)
+}
+
 /// The most texels an environment map may have (8192 × 4096): a file's header is checked
 /// against it before decoding, so that a few bytes cannot claim gigabytes.
 pub const MAX_TEXELS: u64 = 8192 * 4096;
@@ -158,15 +172,7 @@ impl EnvMap {
     /// Radiance at `uv` interpolated bilinearly between texel centres, wrapping around in u
     /// and clamped at the poles in v.
     pub fn bilinear(&self, uv: Vec2) -> Vec3 {
-        let x = uv.x * self.width as f32 - 0.5;
-        let y = (uv.y * self.height as f32 - 0.5).clamp(0.0, (self.height - 1) as f32);
-        let (x0, y0) = (x.floor(), y.floor());
-        let (fx, fy) = (x - x0, y - y0);
-        let column = |i: f32| (i as i64).rem_euclid(self.width as i64) as usize;
-        let (i0, i1) = (column(x0), column(x0 + 1.0));
-        let (j0, j1) = (y0 as usize, (y0 as usize + 1).min(self.height - 1));
-        let row = |j: usize| self.texels[j * self.width + i0].lerp(self.texels[j * self.width + i1], fx);
-        row(j0).lerp(row(j1), fy)
+        bilinear(self.width, self.height, &self.texels, uv)
     }
 
     /// Solid-angle pdf of sampling `uv`'s direction: pdf_uv / (2π² sin θ).
