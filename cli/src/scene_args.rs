@@ -46,7 +46,7 @@ pub struct SceneArgs {
     /// Refine every receiver where the lights' and the environment's shadows need vertices,
     /// adding at most VERTICES over the scene (adaptive: for each light where it is, or over
     /// its declared reach; docs/receivers.md). Default
-    /// 6000 (0 turns it off; the editor does not refine unless asked).
+    /// 6000 (0 turns it off; the editor refines again before each bake).
     #[arg(long, value_name = "VERTICES", env = "KAGE_REFINE_RECEIVERS")]
     pub refine_receivers: Option<usize>,
     /// Largest visibility error (0–1) linear interpolation may make along an edge after
@@ -101,16 +101,27 @@ impl SceneArgs {
     /// Loads the scene, applies the environment options and refines receivers (by default
     /// with [`DEFAULT_RECEIVER_BUDGET`]).
     pub fn load(&self) -> Result<Scene> {
-        self.load_refined(self.refine_receivers.unwrap_or(DEFAULT_RECEIVER_BUDGET))
+        self.load_refined(true)
     }
 
-    /// As [`Self::load`], refining receivers only when asked (the editor edits and saves the
-    /// source meshes, which refinement would replace).
+    /// As [`Self::load`] without receiver refinement (the editor refines the scene itself,
+    /// and again after edits: [`Self::receiver_settings`]).
     pub fn load_unrefined(&self) -> Result<Scene> {
-        self.load_refined(self.refine_receivers.unwrap_or(0))
+        self.load_refined(false)
     }
 
-    fn load_refined(&self, budget: usize) -> Result<Scene> {
+    /// Receiver refinement as asked for (`None`: off).
+    pub fn receiver_settings(&self) -> Result<Option<kage_engine::receivers::Settings>> {
+        let budget = self.refine_receivers.unwrap_or(DEFAULT_RECEIVER_BUDGET);
+        let tolerance = self.refine_tolerance;
+        anyhow::ensure!(
+            tolerance > 0.0 && tolerance < 1.0,
+            "--refine-tolerance is a visibility error in (0, 1), got {tolerance}"
+        );
+        Ok((budget > 0).then(|| kage_engine::receivers::Settings { budget, tolerance, ..Default::default() }))
+    }
+
+    fn load_refined(&self, refine: bool) -> Result<Scene> {
         let mut scene = match &self.scene {
             Some(path) => scene::import::import(path, self.import_options())?,
             None => scene::default_scene(),
@@ -146,10 +157,8 @@ impl SceneArgs {
             let g = scene.find_group(node)?;
             scene.pose_group(g, Quat::IDENTITY, *offset);
         }
-        if budget > 0 {
-            let t = self.refine_tolerance;
-            anyhow::ensure!(t > 0.0 && t < 1.0, "--refine-tolerance is a visibility error in (0, 1), got {t}");
-            let settings = kage_engine::receivers::Settings { budget, tolerance: t, ..Default::default() };
+        if let Some(settings) = self.receiver_settings()?.filter(|_| refine) {
+            let (budget, t) = (settings.budget, settings.tolerance);
             let report = kage_engine::receivers::refine(&mut scene, &settings)?;
             let (before, after) = report.iter().fold((0, 0), |(b, a), (x, y)| (b + x, a + y));
             eprintln!("refined receivers: {before} → {after} vertices (budget {budget}, tolerance {t})");

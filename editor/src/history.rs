@@ -182,7 +182,8 @@ impl Editor {
                 Stored::Light(e, w.get::<&InGroup>(e).ok()?.local, (*w.get::<&PolygonLight>(e).ok()?).clone())
             }
             Target::Material(e) => Stored::Material(e, *w.get::<&Material>(e).ok()?),
-            Target::Mesh(e) => Stored::Mesh(e, *w.get::<&MeshRef>(e).ok()?),
+            // The source: a refinement is redone from it by the bake that follows.
+            Target::Mesh(e) => Stored::Mesh(e, self.scene.source_mesh(e)?),
             Target::Environment => {
                 let env = w.query::<&EnvironmentLight>().iter().next().map(|e| (e.intensity, e.rotation))?;
                 Stored::Environment(env.0, env.1)
@@ -232,7 +233,7 @@ impl Editor {
             }
             Stored::Material(e, m) => *w.get::<&mut Material>(e).ok()? = m,
             Stored::Mesh(e, m) => {
-                *w.get::<&mut MeshRef>(e).ok()? = m;
+                self.scene.set_source_mesh(e, m);
                 self.dirty.geometry = true;
                 self.dirty.meshes = true;
             }

@@ -122,8 +122,27 @@ pub struct Bakes {
     pub prt: Option<prt::Bake>,
     /// PRT's lighting for the current environment.
     pub lighting: Option<prt::Lighting>,
-    /// Frames in which streamed chunks refined the preview.
-    pub refinements: usize,
+    /// Frames in which streamed chunks updated the preview.
+    pub streamed: usize,
+    /// What receiver refinement last did (`None`: not refined).
+    pub receivers: Option<Refined>,
+}
+
+/// What receiver refinement last did, for the bake panel.
+#[derive(Clone, Debug)]
+pub struct Refined {
+    /// Receiver vertices over the scene before and after.
+    pub vertices: (usize, usize),
+    /// Seconds it took.
+    pub seconds: f64,
+    /// The lights with no declared reach, as they were placed: refinement follows them there,
+    /// so moving one leaves it stale until refined again.
+    pub placed: Vec<Vec<Vec3>>,
+}
+
+/// The polygons of the lights that receiver refinement follows (those with no declared reach).
+pub fn placed_lights(flat: &FlatScene) -> Vec<Vec<Vec3>> {
+    flat.lights.iter().filter(|l| l.reach.is_none()).map(|l| l.points.clone()).collect()
 }
 
 /// Options `kage edit` starts with.
@@ -149,6 +168,10 @@ pub struct Options {
     pub prt_budget: Option<f64>,
     /// Radiance-cache parameters (the indirect term).
     pub cache: kage_engine::cache::Settings,
+    /// Refine receivers before each bake, from their source meshes, for the lights and the
+    /// environment as placed then (as `kage bake` refines when it loads a scene); `None`: the
+    /// source meshes are baked as they are.
+    pub refine: Option<kage_engine::receivers::Settings>,
     /// Start baking at once.
     pub bake_on_start: bool,
     /// Start with the indirect term on (the baked look's one bounce).
@@ -625,10 +648,19 @@ impl Editor {
         let index = self.scene.meshes.len() as u32;
         let hash = mesh.hash;
         self.scene.meshes.push(Arc::new(mesh));
-        if let Ok(mut r) = self.scene.world.get::<&mut kage_engine::scene::MeshRef>(instance) {
-            *r = kage_engine::scene::MeshRef { index, hash };
-        }
+        self.scene.set_source_mesh(instance, kage_engine::scene::MeshRef { index, hash });
         self.geometry_edited();
+    }
+
+    /// True when a light that refinement follows (no declared reach) moved since the receivers
+    /// were refined: its shadows are as fine as the refinement where they now fall.
+    pub fn refinement_stale(&self) -> bool {
+        self.bakes.receivers.as_ref().is_some_and(|r| r.placed != placed_lights(&self.flat))
+    }
+
+    /// Refines the receivers again for the lights as they are now, and bakes what that changed.
+    pub fn refine_again(&mut self) {
+        self.dirty.geometry = true;
     }
 
     /// Stops a running bake after its chunks in flight (finished batches stay in the database).

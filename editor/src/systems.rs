@@ -171,6 +171,7 @@ pub fn environment_system(ed: &mut Editor) {
 pub fn bake_system(ed: &mut Editor) {
     if ed.dirty.geometry && !ed.dragging {
         ed.dirty.geometry = false;
+        refine_receivers(ed);
         start_bake(ed);
     }
     let Some(job) = &mut ed.job else { return };
@@ -187,7 +188,7 @@ pub fn bake_system(ed: &mut Editor) {
         upload_prt(ed);
     }
     if patched.contains(&true) {
-        ed.bakes.refinements += 1;
+        ed.bakes.streamed += 1;
         ed.dirty.shade = true;
     }
     if !running {
@@ -257,6 +258,45 @@ fn upload_prt(ed: &mut Editor) {
         Ok(s) => ed.prt_gpu = Some(s),
         Err(e) => ed.error(format!("PRT on the GPU: {e}")),
     }
+}
+
+/// Refines the receivers again from their source meshes for the lights and the environment as
+/// they are now, as `kage bake` does when it loads a scene, so the editor bakes the CLI's
+/// artefacts. Large levels (more receiver vertices than `background_shading`) stay as they
+/// are: refining them would hold the window for minutes.
+fn refine_receivers(ed: &mut Editor) {
+    let Some(settings) = ed.options.refine else { return };
+    let vertices =
+        |flat: &kage_engine::scene::FlatScene| (0..flat.instances.len()).map(|i| flat.vertex_count(i)).sum::<usize>();
+    if vertices(&ed.flat) > ed.options.background_shading {
+        ed.info(format!(
+            "receivers not refined: {} vertices is a large level (refining it takes minutes); `kage bake` refines it",
+            vertices(&ed.flat)
+        ));
+        return;
+    }
+    let started = Instant::now();
+    let report = match kage_engine::receivers::refine(&mut ed.scene, &settings) {
+        Ok(r) => r,
+        Err(e) => return ed.error(format!("refining receivers: {e}")),
+    };
+    let before: usize = report.iter().map(|r| r.0).sum();
+    ed.dirty.pose = true;
+    ed.dirty.meshes = true;
+    pose_system(ed);
+    let refined = super::state::Refined {
+        vertices: (before, vertices(&ed.flat)),
+        seconds: started.elapsed().as_secs_f64(),
+        placed: super::state::placed_lights(&ed.flat),
+    };
+    if ed.bakes.receivers.as_ref().map(|r| r.vertices) != Some(refined.vertices) {
+        ed.restart_reference();
+    }
+    ed.info(format!(
+        "receivers refined: {} to {} vertices in {:.2} s (budget {}, tolerance {})",
+        refined.vertices.0, refined.vertices.1, refined.seconds, settings.budget, settings.tolerance
+    ));
+    ed.bakes.receivers = Some(refined);
 }
 
 fn start_bake(ed: &mut Editor) {

@@ -478,6 +478,7 @@ fn environment_inspector(ui: &mut egui::Ui, ed: &mut Editor) {
 
 fn bake_panel(ui: &mut egui::Ui, ed: &mut Editor) {
     ui.heading("Bake");
+    receivers(ui, ed);
     if let Some(job) = &ed.job {
         for (name, t) in [("BSPVT", &job.bspvt), ("PRT", &job.prt)] {
             let Some(t) = t else { continue };
@@ -492,7 +493,7 @@ fn bake_panel(ui: &mut egui::Ui, ed: &mut Editor) {
             ui.label(format!("{name}: {} chunks cached, {done} / {} vertices{eta}", t.cached, t.total));
             ui.add(egui::ProgressBar::new(fraction).show_percentage());
         }
-        ui.label(format!("preview refined {} times as chunks landed", ed.bakes.refinements));
+        ui.label(format!("preview updated {} times as chunks landed", ed.bakes.streamed));
         if ui.button("Cancel bake").clicked() {
             ed.cancel_bake();
         }
@@ -505,6 +506,19 @@ fn bake_panel(ui: &mut egui::Ui, ed: &mut Editor) {
         ui.label(format!("{state}; PRT {}", if ed.bakes.prt.is_some() { "baked" } else { "not baked" }));
         if ui.button("Bake").clicked() {
             ed.bake_now();
+        }
+    }
+}
+
+/// What receiver refinement did, and a way to redo it after lights moved.
+fn receivers(ui: &mut egui::Ui, ed: &mut Editor) {
+    let Some(r) = &ed.bakes.receivers else { return };
+    let (before, after) = r.vertices;
+    ui.label(format!("receivers refined: {before} to {after} vertices ({:.2} s)", r.seconds));
+    if ed.refinement_stale() {
+        ui.label("a light moved since: its shadows are as fine as the refinement where they fall");
+        if ui.button("Refine again").clicked() {
+            ed.refine_again();
         }
     }
 }

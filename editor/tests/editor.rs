@@ -42,6 +42,7 @@ fn options(dir: &Path, scene_path: Option<PathBuf>, shader_dir: Option<PathBuf>)
         prt: prt::Settings { order: 4, directions: 256, regions: 16, ..prt::Settings::default() },
         cache: Default::default(),
         prt_budget: None,
+        refine: None,
         bake_on_start: true,
         // Tests that need the bounce turn it on as a user would (the toggle).
         indirect: false,
@@ -263,7 +264,7 @@ fn the_preview_refines_batch_by_batch_while_the_bakes_stream_in() {
         assert!(w[1] <= w[0] * (1.0 + 1e-4), "each landed batch only adds shadows: {sums:?}");
     }
     assert!(sums[sums.len() - 1] < 0.99 * sums[0], "the shadows landed: {sums:?}");
-    assert!(ed.bakes.refinements >= previews.len(), "{} refinements", ed.bakes.refinements);
+    assert!(ed.bakes.streamed >= previews.len(), "{} preview updates", ed.bakes.streamed);
 }
 
 #[test]
@@ -789,4 +790,73 @@ fn an_unlit_scene_says_why_it_is_black() {
     let h = harness(scene, o);
     let errors = errors(&h.state().editor);
     assert!(errors.iter().any(|e| e.contains("nothing lights it") && e.contains("Quad light")), "{errors:?}");
+}
+
+/// Receivers are refined before each bake, from the file's meshes, as `kage bake` refines them
+/// (the same refined meshes, so the same bake keys); a light move leaves the refinement stale
+/// until "Refine again"; a group move refines again by itself; undo returns to the first
+/// refinement's cached bakes; Save writes the file's own meshes, never the refined ones.
+#[test]
+fn receivers_are_refined_as_kage_bake_refines_them_and_again_after_edits() {
+    let dir = scratch("refine");
+    let path = dir.join("two_triangle_floor.gltf");
+    std::fs::copy(asset("scenes/two_triangle_floor.gltf"), &path).unwrap();
+    let settings = kage_engine::receivers::Settings { budget: 1500, ..Default::default() };
+    let cold = |light_by: Vec3| {
+        let mut s = import::import(&path, Default::default()).unwrap();
+        s.pose_group(s.find_group("light").unwrap(), Quat::IDENTITY, light_by);
+        kage_engine::receivers::refine(&mut s, &settings).unwrap();
+        s
+    };
+    let hashes = |s: &kage_engine::scene::Scene| {
+        let flat = kage_engine::scene::flatten(s);
+        flat.instances.iter().map(|i| flat.meshes[i.mesh as usize].hash).collect::<Vec<_>>()
+    };
+    let mut opts = options(&dir, Some(path.clone()), None);
+    opts.refine = Some(settings);
+    let mut h = harness(import::import(&path, Default::default()).unwrap(), opts);
+    step_until(&mut h, "the first bakes", settled);
+    let ed = &h.state().editor;
+    let first = hashes(&ed.scene);
+    assert_eq!(first, hashes(&cold(Vec3::ZERO)), "the editor refined differently from the engine");
+    let (before, after) = ed.bakes.receivers.as_ref().expect("refined").vertices;
+    assert!(before == 205 && after > 1500, "{before} → {after}");
+    assert_eq!(ed.flat.vertex_count(0), ed.bakes.bspvt.as_ref().unwrap().instances[0].vertices());
+    assert!(!ed.refinement_stale());
+
+    // A light move re-shades at once and leaves the refinement stale; Refine again follows it.
+    let by = Vec3::new(1.0, 0.0, -0.5);
+    let light = ed.flat.lights[0].entity;
+    h.state_mut().editor.move_light(light, by, Quat::IDENTITY);
+    h.step();
+    assert!(h.state().editor.refinement_stale() && h.state().editor.job.is_none());
+    h.get_by_label("Refine again").click();
+    step_until(&mut h, "the refinement for the moved light", |ed| settled(ed) && !ed.refinement_stale());
+    let moved = cold(by);
+    assert_eq!(kage_engine::scene::flatten(&moved).lights[0].points, h.state().editor.flat.lights[0].points);
+    assert_eq!(hashes(&h.state().editor.scene), hashes(&moved), "refined again unlike a cold refinement");
+    h.state_mut().editor.undo();
+    step_until(&mut h, "the light back", settled);
+
+    // A group move refines again by itself; undo returns to the first refinement, all cached.
+    let ball = h.state().editor.scene.find_group("ball").unwrap();
+    h.state_mut().editor.move_group(ball, Vec3::new(-1.5, 0.0, 0.0), Quat::IDENTITY);
+    step_until(&mut h, "the re-bake after the move", settled);
+    assert_ne!(hashes(&h.state().editor.scene), first, "the move refined nothing again");
+    h.state_mut().editor.undo();
+    step_until(&mut h, "the re-bake after undo", settled);
+    let ed = &h.state().editor;
+    assert_eq!(hashes(&ed.scene), first, "undo came back to another refinement");
+    let b = ed.stats.runs[0].unwrap();
+    assert!(b.cold == 0 && b.warm == 0, "undo re-baked: {b:?}");
+
+    // Save writes the file's own meshes (a moved ball, the floor still two triangles).
+    h.state_mut().editor.move_group(ball, Vec3::new(0.0, 0.0, 0.4), Quat::IDENTITY);
+    h.step();
+    kage_editor::files::save(&mut h.state_mut().editor);
+    let ed = &h.state().editor;
+    assert!(!ed.unsaved() && errors(ed).is_empty(), "{:?}", errors(ed));
+    let saved = import::import(&path, Default::default()).unwrap();
+    let flat = kage_engine::scene::flatten(&saved);
+    assert_eq!(flat.vertex_count(0), 4, "the saved floor is the file's two triangles");
 }

@@ -2,11 +2,13 @@
 //! configuration (`teapot_quad_light.gltf`, teapot refined to 17 000 vertices, 64² faces) under
 //! a procedural sky, on all cores:
 //! - `relight_vertices`: the light moved — per-vertex BSPVT shading and the sun, the
-//!   environment's part reused from the memo (nothing it reads changed), as the editor shades;
+//!   environment's part reused from the memo (nothing it reads changed), as the editor's
+//!   `baked` view shades on the CPU;
 //! - `camera_moved`: the eye moved — everything view-dependent again: per-vertex BSPVT shading,
 //!   the PRT frame (lighting posed, other groups' silhouettes reused) and the environment's
 //!   specular term;
-//! - `polygonal_part`, `environment_part`: the same for each light alone;
+//! - `polygonal_part`, `environment_part`: each light alone as `kage render` prepares it for
+//!   the per-pixel resolve (the polygonal part with the lobes' shadowed/unshadowed pairs);
 //! - `resolve_640x360`: the per-pixel resolve of one frame at 640×360, 1 sample per pixel
 //!   (primary rays included).
 //!
@@ -52,12 +54,13 @@ fn bench(c: &mut Criterion) {
     let mut g = c.benchmark_group("baked_teapot_17k");
     g.sample_size(10);
     let parts = prt::Parts { bake: &transfer, lighting: &light, settings: &s };
-    // Per-vertex direct values as the editor shades them: polygonal lights from the trees, the
+    // Per-vertex direct values as the editor's `baked` view shades them on the CPU: polygonal
+    // lights from the trees (no lobe pairs: those serve the per-pixel resolve), the
     // environment's part through the memo.
     let mut shade = |scene: &Scene, eye: Vec3| {
         let flat = flatten(scene);
-        let (lobes, values) = bspvt::pixel::Lobes::at_vertices(&flat, Some(&trees), eye);
-        let polygonal = Polygonal { bake: Some(&trees), values, lobes: Some(lobes) };
+        let values = bspvt::shade_vertices(&flat, bspvt::Shadows::Trees(&trees), eye);
+        let polygonal = Polygonal { bake: Some(&trees), values, lobes: None };
         Look::direct_reusing(scene, &flat, eye, Some(polygonal), Some((parts, Some(&pre))), &mut environment, &mut memo)
             .len()
     };

@@ -27,11 +27,10 @@ use crate::accel::SceneBvh;
 use crate::math::color::luminance;
 use crate::math::sampling::{hammersley, uniform_sphere};
 use crate::scene::refine::Adaptive;
-use crate::scene::{EnvironmentLight, FlatLight, FlatScene, MeshRef, NO_LIGHT, PrimitiveId, Scene, flatten};
+use crate::scene::{EnvironmentLight, FlatLight, FlatScene, NO_LIGHT, PrimitiveId, Scene, flatten};
 use glam::Vec3;
 use rayon::prelude::*;
 use std::collections::HashMap;
-use std::sync::Arc;
 
 /// How far to refine.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -54,8 +53,11 @@ impl Default for Settings {
 pub type Report = Vec<(usize, usize)>;
 
 /// Refines every mesh instance of `scene` for its polygonal lights and its environment (nothing
-/// without either), replacing each instance's mesh by its refined copy.
+/// without either), replacing each instance's mesh by its refined copy. Starts from the source
+/// meshes ([`crate::scene::SourceMesh`]), so refining a refined scene again equals refining it
+/// once.
 pub fn refine(scene: &mut Scene, settings: &Settings) -> crate::Result<Report> {
+    scene.restore_source_meshes();
     let flat = flatten(scene);
     if (flat.lights.is_empty() && flat.environment.is_none()) || settings.budget == 0 {
         let unchanged = |i: &crate::scene::Instance| flat.meshes[i.mesh as usize].positions.len();
@@ -156,11 +158,7 @@ fn replace_meshes(
             .map_err(|why| crate::Error::Invalid(format!("{}: refining a receiver: {why}", scene.source)))?;
         let entity =
             scene.world.query::<(hecs::Entity, &PrimitiveId)>().iter().find(|(_, id)| **id == inst.id).map(|(e, _)| e);
-        let entity = entity.expect("the snapshot's instances are the world's");
-        let index = scene.meshes.len() as u32;
-        let hash = mesh.hash;
-        scene.meshes.push(Arc::new(mesh));
-        *scene.world.get::<&mut MeshRef>(entity).expect("an instance has a mesh") = MeshRef { index, hash };
+        scene.set_refined_mesh(entity.expect("the snapshot's instances are the world's"), mesh);
     }
     Ok(report)
 }

@@ -7,7 +7,7 @@ use kage_engine::raster;
 use kage_engine::receivers::{self, Settings};
 use kage_engine::reference::{self, Renderer};
 use kage_engine::scene::{
-    Camera, EnvMap, EnvironmentLight, Material, Mesh, NO_LIGHT, PolygonLight, Scene, flatten, shapes,
+    Camera, EnvMap, EnvironmentLight, Material, Mesh, MeshRef, NO_LIGHT, PolygonLight, Scene, flatten, shapes,
 };
 use kage_engine::shading::baked::{Bakes, Look};
 use kage_engine::{bspvt, prt};
@@ -185,6 +185,37 @@ fn a_light_moved_within_its_reach_keeps_its_refinement() {
         "the box's refinement {reach_error:.4} serves the moved light better than a stale one {stale:.4}"
     );
     assert!(reach_error < 0.04, "{reach_error:.4}");
+}
+
+/// Refinement starts from the source meshes: refining a refined scene again changes nothing
+/// and adds no mesh, and after the light moves it equals a cold refinement of the moved scene
+/// (the editor refines the scene it edits again this way).
+#[test]
+fn refining_again_starts_from_the_source_meshes() {
+    let budget = 1500;
+    let mut scene = refined(two_triangle_floor(), budget);
+    let (first, meshes) = (mesh_hashes(&scene), scene.meshes.len());
+    let floor = scene
+        .world
+        .query::<(hecs::Entity, &kage_engine::scene::Name, &MeshRef)>()
+        .iter()
+        .find(|(_, n, _)| n.0 == "floor")
+        .map(|(e, ..)| e);
+    let floor = floor.unwrap();
+    let source = scene.source_mesh(floor).unwrap();
+    assert_eq!(scene.meshes[source.index as usize].positions.len(), 4, "the source is the file's two triangles");
+    receivers::refine(&mut scene, &Settings { budget, ..Settings::default() }).unwrap();
+    assert_eq!(mesh_hashes(&scene), first, "refining again changed a mesh");
+    assert_eq!(scene.meshes.len(), meshes, "refining again added meshes");
+    let by = Vec3::new(1.5, 0.0, -1.0);
+    let mut again = moved(scene, by);
+    receivers::refine(&mut again, &Settings { budget, ..Settings::default() }).unwrap();
+    let cold = refined(moved(two_triangle_floor(), by), budget);
+    assert_eq!(mesh_hashes(&again), mesh_hashes(&cold), "a refinement after the move differs from a cold one");
+    assert_ne!(mesh_hashes(&again), first, "the move changed no refined mesh");
+    assert_eq!(again.source_mesh(floor), Some(source), "the source mesh was lost");
+    receivers::refine(&mut again, &Settings { budget: 0, ..Settings::default() }).unwrap();
+    assert_eq!(mesh_hashes(&again)[0], source.hash, "a zero budget restores the source meshes");
 }
 
 /// What refining a light without a declared reach for every place it could go would cost: the

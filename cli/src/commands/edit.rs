@@ -62,6 +62,7 @@ impl Args {
             prt: prt::Settings::default(),
             cache: Default::default(),
             prt_budget: Some(crate::prt_args::DEFAULT_BUDGET),
+            refine: self.scene.receiver_settings()?,
             bake_on_start: !self.no_bake,
             indirect: !self.no_indirect,
             shade_on: self.shade_on,

@@ -80,15 +80,15 @@ impl Plan<'_> {
                 let key = emitter.map_or((u32::MAX, e.to_bits().get()), |x| (x.id.node, 0));
                 (key, Member::Light { file: emitter.map(|x| x.id), light: (*light).clone() })
             } else {
-                let (Ok(id), Ok(mesh), Ok(material)) =
-                    (w.get::<&PrimitiveId>(e), w.get::<&MeshRef>(e), w.get::<&Material>(e))
+                // The mesh as given, not as refinement left it: refinement is redone on load.
+                let (Ok(id), Some(mesh), Ok(material)) =
+                    (w.get::<&PrimitiveId>(e), self.scene.source_mesh(e), w.get::<&Material>(e))
                 else {
                     continue;
                 };
-                let from_file = self.baseline.primitives.get(&(id.mesh, id.primitive)) == Some(&*mesh);
+                let from_file = self.baseline.primitives.get(&(id.mesh, id.primitive)) == Some(&mesh);
                 let textured = w.get::<&MaterialMaps>(e).is_ok_and(|m| !m.is_empty());
-                let member =
-                    Member::Instance { file: from_file.then_some(*id), mesh: *mesh, material: *material, textured };
+                let member = Member::Instance { file: from_file.then_some(*id), mesh, material: *material, textured };
                 ((id.node, 0), member)
             };
             nodes.entry(key).or_insert_with(|| (m.local, Vec::new())).1.push(member);

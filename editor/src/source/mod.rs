@@ -53,13 +53,17 @@ impl Baseline {
         for (e, l, m) in w.query::<(hecs::Entity, &PolygonLight, &InGroup)>().iter() {
             keep(Stored::Light(e, m.local, l.clone()));
         }
-        for (e, m, r) in w.query::<(hecs::Entity, &Material, &MeshRef)>().iter() {
+        for (e, m) in w.query::<(hecs::Entity, &Material)>().with::<&MeshRef>().iter() {
             keep(Stored::Material(e, *m));
-            keep(Stored::Mesh(e, *r));
+            keep(Stored::Mesh(e, scene.source_mesh(e).expect("queried with a mesh")));
         }
         let nodes = w.query::<(hecs::Entity, &NodeId)>().iter().map(|(e, n)| (e, n.0 as usize)).collect();
-        let primitives =
-            w.query::<(&PrimitiveId, &MeshRef)>().iter().map(|(id, r)| ((id.mesh, id.primitive), *r)).collect();
+        let primitives = w
+            .query::<(hecs::Entity, &PrimitiveId)>()
+            .with::<&MeshRef>()
+            .iter()
+            .map(|(e, id)| ((id.mesh, id.primitive), scene.source_mesh(e).expect("queried with a mesh")))
+            .collect();
         Self { values, nodes, primitives }
     }
 
@@ -371,8 +375,9 @@ impl Plan<'_> {
     }
 
     fn replaced_meshes(&mut self) {
-        for (e, r, id) in self.scene.world.query::<(hecs::Entity, &MeshRef, &PrimitiveId)>().iter() {
-            if matches!(self.baseline.get(Target::Mesh(e)), Some(Stored::Mesh(_, b)) if b != r) {
+        for (e, id) in self.scene.world.query::<(hecs::Entity, &PrimitiveId)>().with::<&MeshRef>().iter() {
+            let source = self.scene.source_mesh(e);
+            if matches!(self.baseline.get(Target::Mesh(e)), Some(Stored::Mesh(_, b)) if Some(*b) != source) {
                 self.problems.push(format!(
                     "{}: its mesh was replaced, and kage never rewrites buffers (export a pack to keep the result)",
                     self.node_name(id.node as usize)

@@ -3,7 +3,7 @@
 
 use crate::scene::{
     Camera, Emitter, EnvironmentLight, InGroup, Material, MaterialMaps, Mesh, MeshRef, Name, NodeId, PolygonLight,
-    PrimitiveId, RigidGroup, Scene, Transform, propagate_transforms,
+    PrimitiveId, RigidGroup, Scene, SourceMesh, Transform, propagate_transforms,
 };
 use glam::{Affine3A, Vec3};
 use std::sync::Arc;
@@ -92,6 +92,46 @@ impl Scene {
         propagate_transforms(&mut self.world);
     }
 
+    /// The mesh instance `e` was given (by the file or an edit), before any receiver
+    /// refinement.
+    pub fn source_mesh(&self, e: hecs::Entity) -> Option<MeshRef> {
+        let refined = self.world.get::<&SourceMesh>(e).ok().map(|s| s.0);
+        refined.or_else(|| self.world.get::<&MeshRef>(e).ok().map(|r| *r))
+    }
+
+    /// Gives instance `e` the mesh `mesh` as its source (an edit: any refinement of the old
+    /// one is dropped).
+    pub fn set_source_mesh(&mut self, e: hecs::Entity, mesh: MeshRef) {
+        if let Ok(mut r) = self.world.get::<&mut MeshRef>(e) {
+            *r = mesh;
+        }
+        let _ = self.world.remove_one::<SourceMesh>(e);
+    }
+
+    /// Every refined instance back on its source mesh.
+    pub fn restore_source_meshes(&mut self) {
+        let refined: Vec<(hecs::Entity, MeshRef)> =
+            self.world.query::<(hecs::Entity, &SourceMesh)>().iter().map(|(e, s)| (e, s.0)).collect();
+        for (e, mesh) in refined {
+            self.set_source_mesh(e, mesh);
+        }
+    }
+
+    /// Puts `mesh` in place of instance `e`'s mesh as a refinement of its source (a mesh
+    /// already held with the same content is shared, so refining again adds nothing).
+    pub fn set_refined_mesh(&mut self, e: hecs::Entity, mesh: Mesh) {
+        let Some(source) = self.source_mesh(e) else { return };
+        let index = match self.meshes.iter().position(|m| m.hash == mesh.hash) {
+            Some(i) => i,
+            None => {
+                self.meshes.push(Arc::new(mesh));
+                self.meshes.len() - 1
+            }
+        };
+        let refined = MeshRef { index: index as u32, hash: self.meshes[index].hash };
+        let _ = self.world.insert(e, (refined, SourceMesh(source)));
+    }
+
     /// An independent copy with the same entity ids (a snapshot for a background bake while the
     /// original keeps being edited); meshes and textures are shared.
     pub fn duplicate(&self) -> Self {
@@ -131,6 +171,7 @@ fn clone_components(e: &hecs::EntityRef) -> hecs::BuiltEntityClone {
     copy::<InGroup>(e, &mut b);
     copy::<PrimitiveId>(e, &mut b);
     copy::<MeshRef>(e, &mut b);
+    copy::<SourceMesh>(e, &mut b);
     copy::<Material>(e, &mut b);
     copy::<MaterialMaps>(e, &mut b);
     copy::<PolygonLight>(e, &mut b);

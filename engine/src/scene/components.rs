@@ -152,6 +152,11 @@ pub struct MeshRef {
     pub hash: crate::scene::MeshHash,
 }
 
+/// The mesh an instance had before receiver refinement replaced it: refinement always starts
+/// again from it, and a saved file still refers to it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SourceMesh(pub MeshRef);
+
 /// glTF metallic-roughness material (factors only; see `docs/conventions.md` for the BRDF).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Material {
