@@ -42,6 +42,7 @@ pub mod pilot;
 pub mod plan;
 pub mod prt_budget;
 pub mod records;
+pub mod refinement;
 pub mod run;
 pub mod shard;
 pub mod store;

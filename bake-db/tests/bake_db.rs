@@ -764,3 +764,55 @@ fn merges_refuse_conflicting_foreign_and_damaged_artefacts() {
         }
     }
 }
+
+/// Receiver refinement is kept in the memos: read back, it is the computed refinement byte for
+/// byte (the same refined meshes); a changed scene has its own entry; a damaged entry is
+/// refined again and replaced; a read-only store reads but keeps nothing.
+#[test]
+fn a_kept_refinement_equals_the_computed_one_and_a_damaged_entry_is_refined_again() {
+    use kage_bake_db::refinement::refine;
+    use kage_engine::receivers::{self, Settings};
+    let path = scratch("refinement");
+    let store = Store::open(&path).unwrap();
+    let settings = Settings { budget: 800, ..Settings::default() };
+    let hashes = |s: &Scene| {
+        let flat = flatten(s);
+        flat.instances.iter().map(|i| flat.meshes[i.mesh as usize].hash).collect::<Vec<_>>()
+    };
+    let entries =
+        || store.memos().unwrap().into_iter().filter(|(n, _)| n.starts_with("receiver refinement")).collect::<Vec<_>>();
+    let mut computed = scene("");
+    let report = receivers::refine(&mut computed, &settings).unwrap();
+    assert!(report.iter().any(|(b, a)| a > b), "the scene is refined: {report:?}");
+    let mut first = scene("");
+    assert_eq!(refine(&store, &mut first, &settings).unwrap(), (report.clone(), false), "refined and kept");
+    let mut again = scene("");
+    assert_eq!(refine(&store, &mut again, &settings).unwrap(), (report.clone(), true), "read back");
+    assert!(hashes(&first) == hashes(&computed) && hashes(&again) == hashes(&computed));
+    assert_eq!(entries().len(), 1);
+    // Refining a refined scene through the store reads the same entry.
+    assert!(refine(&store, &mut again, &settings).unwrap().1, "a refined scene reads the same entry");
+    assert_eq!(hashes(&again), hashes(&computed));
+
+    let mut moved = scene("move");
+    assert!(!refine(&store, &mut moved, &settings).unwrap().1, "a moved box is refined anew");
+    assert_eq!(entries().len(), 2);
+
+    let (name, _) = entries().into_iter().min_by_key(|(n, _)| n.clone()).unwrap();
+    let mut damaged = store.memo(&name).unwrap().unwrap();
+    damaged[40] ^= 1;
+    store.put_memos(&[(name.clone(), damaged.clone())]).unwrap();
+    let (mut a, mut b) = (scene(""), scene("move"));
+    let kept = [refine(&store, &mut a, &settings).unwrap().1, refine(&store, &mut b, &settings).unwrap().1];
+    assert_eq!(kept.iter().filter(|k| !**k).count(), 1, "the damaged entry is refined again: {kept:?}");
+    assert!(hashes(&a) == hashes(&computed), "and equals the computed one");
+    assert!(store.memo(&name).unwrap().unwrap() != damaged, "and replaced");
+
+    drop(store);
+    let read_only = Store::open_read_only(&path).unwrap();
+    let mut c = scene("");
+    c.pose_group(c.find_group("box b").unwrap(), Quat::IDENTITY, Vec3::new(0.2, 0.0, 0.0));
+    assert!(!refine(&read_only, &mut c, &settings).unwrap().1, "a new scene is refined");
+    let kept = read_only.memos().unwrap().into_iter().filter(|(n, _)| n.starts_with("receiver refinement")).count();
+    assert_eq!(kept, 2, "a read-only store keeps nothing");
+}

@@ -101,13 +101,19 @@ impl SceneArgs {
     /// Loads the scene, applies the environment options and refines receivers (by default
     /// with [`DEFAULT_RECEIVER_BUDGET`]).
     pub fn load(&self) -> Result<Scene> {
-        self.load_refined(true)
+        self.load_refined(true, None)
+    }
+
+    /// As [`Self::load`], the receivers' refinement read from `store`'s memos when it holds it
+    /// and kept there otherwise (`kage_bake_db::refinement`).
+    pub fn load_kept(&self, store: Option<&kage_bake_db::Store>) -> Result<Scene> {
+        self.load_refined(true, store)
     }
 
     /// As [`Self::load`] without receiver refinement (the editor refines the scene itself,
     /// and again after edits: [`Self::receiver_settings`]).
     pub fn load_unrefined(&self) -> Result<Scene> {
-        self.load_refined(false)
+        self.load_refined(false, None)
     }
 
     /// Receiver refinement as asked for (`None`: off).
@@ -121,7 +127,7 @@ impl SceneArgs {
         Ok((budget > 0).then(|| kage_engine::receivers::Settings { budget, tolerance, ..Default::default() }))
     }
 
-    fn load_refined(&self, refine: bool) -> Result<Scene> {
+    fn load_refined(&self, refine: bool, store: Option<&kage_bake_db::Store>) -> Result<Scene> {
         let mut scene = match &self.scene {
             Some(path) => scene::import::import(path, self.import_options())?,
             None => scene::default_scene(),
@@ -159,9 +165,13 @@ impl SceneArgs {
         }
         if let Some(settings) = self.receiver_settings()?.filter(|_| refine) {
             let (budget, t) = (settings.budget, settings.tolerance);
-            let report = kage_engine::receivers::refine(&mut scene, &settings)?;
+            let (report, kept) = match store {
+                Some(store) => kage_bake_db::refinement::refine(store, &mut scene, &settings)?,
+                None => (kage_engine::receivers::refine(&mut scene, &settings)?, false),
+            };
             let (before, after) = report.iter().fold((0, 0), |(b, a), (x, y)| (b + x, a + y));
-            eprintln!("refined receivers: {before} → {after} vertices (budget {budget}, tolerance {t})");
+            let from = if kept { ", kept in the bake database" } else { "" };
+            eprintln!("refined receivers: {before} → {after} vertices (budget {budget}, tolerance {t}{from})");
             for (i, (b, a)) in report.iter().enumerate().filter(|(_, (b, a))| a > b) {
                 eprintln!("  instance {i:3}: {b} → {a} vertices (+{})", a - b);
             }

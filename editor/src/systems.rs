@@ -276,7 +276,11 @@ fn refine_receivers(ed: &mut Editor) {
         return;
     }
     let started = Instant::now();
-    let report = match kage_engine::receivers::refine(&mut ed.scene, &settings) {
+    let refined = match ed.store.clone() {
+        Some(store) => kage_bake_db::refinement::refine(&store, &mut ed.scene, &settings).map_err(|e| e.to_string()),
+        None => kage_engine::receivers::refine(&mut ed.scene, &settings).map(|r| (r, false)).map_err(|e| e.to_string()),
+    };
+    let (report, kept) = match refined {
         Ok(r) => r,
         Err(e) => return ed.error(format!("refining receivers: {e}")),
     };
@@ -293,8 +297,13 @@ fn refine_receivers(ed: &mut Editor) {
         ed.restart_reference();
     }
     ed.info(format!(
-        "receivers refined: {} to {} vertices in {:.2} s (budget {}, tolerance {})",
-        refined.vertices.0, refined.vertices.1, refined.seconds, settings.budget, settings.tolerance
+        "receivers refined: {} to {} vertices in {:.2} s (budget {}, tolerance {}{})",
+        refined.vertices.0,
+        refined.vertices.1,
+        refined.seconds,
+        settings.budget,
+        settings.tolerance,
+        if kept { ", kept in the bake database" } else { "" }
     ));
     ed.bakes.receivers = Some(refined);
 }

@@ -58,40 +58,220 @@ pub type Report = Vec<(usize, usize)>;
 /// once.
 pub fn refine(scene: &mut Scene, settings: &Settings) -> crate::Result<Report> {
     scene.restore_source_meshes();
+    let refinement = Refinement::of(scene, settings)?;
+    Ok(refinement.apply(scene))
+}
+
+/// Bumped whenever refinement would refine the same scene differently: it names kept
+/// refinements ([`key`]).
+pub const VERSION: u32 = 1;
+
+/// What refinement reads of `scene` (its source meshes, as [`Scene::restore_source_meshes`]
+/// leaves it) and `settings`, hashed: the instances' meshes and placements, every occluding
+/// triangle, the lights' polygons and reach boxes, and the environment's probe directions'
+/// weights. Equal keys refine to the same meshes.
+pub fn key(scene: &Scene, settings: &Settings) -> blake3::Hash {
     let flat = flatten(scene);
-    if (flat.lights.is_empty() && flat.environment.is_none()) || settings.budget == 0 {
-        let unchanged = |i: &crate::scene::Instance| flat.meshes[i.mesh as usize].positions.len();
-        return Ok(flat.instances.iter().map(|i| (unchanged(i), unchanged(i))).collect());
+    let mut h = blake3::Hasher::new();
+    h.update(b"kage receiver refinement\0");
+    h.update(&VERSION.to_le_bytes());
+    h.update(&(settings.budget as u64).to_le_bytes());
+    h.update(&settings.tolerance.to_le_bytes());
+    h.update(&(settings.rounds as u64).to_le_bytes());
+    for inst in &flat.instances {
+        h.update(&flat.meshes[inst.mesh as usize].hash.0);
+        h.update(bytemuck::cast_slice(&inst.world.to_cols_array()));
+        h.update(&inst.group.to_bits().get().to_le_bytes());
     }
-    let probe = Probe::new(&flat);
-    let source: Vec<Adaptive> = flat.instances.iter().map(|i| Adaptive::new(&flat.meshes[i.mesh as usize])).collect();
-    let before: Vec<usize> = source.iter().map(Adaptive::vertices).collect();
-    let total = before.iter().sum::<usize>() + settings.budget;
-    let mut meshes = seeded(&source, &flat.instances, settings.budget / 4);
-    // A vertex keeps its place and normal, and an edge its ends, from round to round: what
-    // was probed once is looked up, so a round probes only what the last one added.
-    let mut memos: Vec<Memo> = meshes.iter().map(|_| Memo::default()).collect();
-    for _ in 0..settings.rounds {
-        let used: usize = meshes.iter().map(Adaptive::vertices).sum();
-        if used >= total {
-            break;
-        }
-        let mut marks: Vec<Vec<Mark>> = meshes
-            .iter()
-            .zip(&flat.instances)
-            .zip(&mut memos)
-            .enumerate()
-            .map(|(i, ((m, inst), memo))| marked(m, (i, &inst.world), &probe, settings.tolerance, memo))
-            .collect();
-        if marks.iter().all(Vec::is_empty) {
-            break;
-        }
-        if marks.iter().flatten().any(|m| m.0 == Tier::Lights) {
-            marks.iter_mut().for_each(|m| m.retain(|m| m.0 == Tier::Lights));
-        }
-        split_worst(&mut meshes, marks, total - used);
+    for (t, r) in flat.triangles.iter().zip(&flat.refs) {
+        h.update(bytemuck::cast_slice(t));
+        h.update(&r.owner.to_le_bytes());
+        h.update(&r.light.to_le_bytes());
     }
-    replace_meshes(scene, &flat.instances, meshes, before)
+    for light in &flat.lights {
+        h.update(&(light.points.len() as u64).to_le_bytes());
+        h.update(bytemuck::cast_slice(&light.points));
+        h.update(bytemuck::bytes_of(&light.normal));
+        h.update(bytemuck::cast_slice(&light.reach.unwrap_or([Vec3::NAN; 2])));
+    }
+    if let Some(View::Directions(d)) = flat.environment.as_ref().map(environment_view) {
+        h.update(bytemuck::cast_slice(&d.iter().map(|(_, w)| *w).collect::<Vec<f32>>()));
+    }
+    h.finalize()
+}
+
+/// A refinement of a scene, not yet applied: per instance (snapshot order), its vertices
+/// before, and its refined mesh where refinement changed it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Refinement {
+    instances: Vec<(usize, Option<crate::scene::Mesh>)>,
+}
+
+impl Refinement {
+    /// Refines `scene` as it stands (call [`Scene::restore_source_meshes`] first to start from
+    /// the source meshes).
+    pub fn of(scene: &Scene, settings: &Settings) -> crate::Result<Self> {
+        let flat = flatten(scene);
+        let source_count = |i: &crate::scene::Instance| flat.meshes[i.mesh as usize].positions.len();
+        if (flat.lights.is_empty() && flat.environment.is_none()) || settings.budget == 0 {
+            return Ok(Self { instances: flat.instances.iter().map(|i| (source_count(i), None)).collect() });
+        }
+        let probe = Probe::new(&flat);
+        let source: Vec<Adaptive> =
+            flat.instances.iter().map(|i| Adaptive::new(&flat.meshes[i.mesh as usize])).collect();
+        let before: Vec<usize> = source.iter().map(Adaptive::vertices).collect();
+        let total = before.iter().sum::<usize>() + settings.budget;
+        let mut meshes = seeded(&source, &flat.instances, settings.budget / 4);
+        // A vertex keeps its place and normal, and an edge its ends, from round to round: what
+        // was probed once is looked up, so a round probes only what the last one added.
+        let mut memos: Vec<Memo> = meshes.iter().map(|_| Memo::default()).collect();
+        for _ in 0..settings.rounds {
+            let used: usize = meshes.iter().map(Adaptive::vertices).sum();
+            if used >= total {
+                break;
+            }
+            let mut marks: Vec<Vec<Mark>> = meshes
+                .iter()
+                .zip(&flat.instances)
+                .zip(&mut memos)
+                .enumerate()
+                .map(|(i, ((m, inst), memo))| marked(m, (i, &inst.world), &probe, settings.tolerance, memo))
+                .collect();
+            if marks.iter().all(Vec::is_empty) {
+                break;
+            }
+            if marks.iter().flatten().any(|m| m.0 == Tier::Lights) {
+                marks.iter_mut().for_each(|m| m.retain(|m| m.0 == Tier::Lights));
+            }
+            split_worst(&mut meshes, marks, total - used);
+        }
+        let instances = meshes
+            .into_iter()
+            .zip(before)
+            .map(|(mesh, n)| {
+                let refined = (mesh.vertices() != n).then(|| mesh.finish()).transpose();
+                refined
+                    .map(|m| (n, m))
+                    .map_err(|why| crate::Error::Invalid(format!("{}: refining a receiver: {why}", scene.source)))
+            })
+            .collect::<crate::Result<_>>()?;
+        Ok(Self { instances })
+    }
+
+    /// True when this refinement is of `scene`'s instances as they stand: as many, with their
+    /// vertex counts (a kept refinement read back is checked so before it is applied).
+    pub fn fits(&self, scene: &Scene) -> bool {
+        let flat = flatten(scene);
+        let counts = flat.instances.iter().map(|i| flat.meshes[i.mesh as usize].positions.len());
+        self.instances.len() == flat.instances.len() && self.instances.iter().map(|r| r.0).eq(counts)
+    }
+
+    /// Puts each instance's refined mesh in place of its source mesh and says what changed.
+    /// `scene` must be the one refined (with its source meshes).
+    pub fn apply(self, scene: &mut Scene) -> Report {
+        let flat = flatten(scene);
+        let mut report = Vec::new();
+        for (inst, (before, mesh)) in flat.instances.iter().zip(self.instances) {
+            let Some(mesh) = mesh else {
+                report.push((before, before));
+                continue;
+            };
+            report.push((before, mesh.positions.len()));
+            let entity = scene
+                .world
+                .query::<(hecs::Entity, &PrimitiveId)>()
+                .iter()
+                .find(|(_, id)| **id == inst.id)
+                .map(|(e, _)| e);
+            scene.set_refined_mesh(entity.expect("the snapshot's instances are the world's"), mesh);
+        }
+        report
+    }
+
+    /// The refinement as bytes (little-endian), ending in a blake3 hash of the rest.
+    pub fn to_bytes(&self) -> Vec<u8> {
+        let mut out = Vec::new();
+        let word = |out: &mut Vec<u8>, n: usize| out.extend((n as u32).to_le_bytes());
+        word(&mut out, self.instances.len());
+        for (before, mesh) in &self.instances {
+            word(&mut out, *before);
+            let Some(m) = mesh else {
+                word(&mut out, 0);
+                continue;
+            };
+            word(&mut out, 1);
+            for n in [m.positions.len(), m.uvs.len(), m.uvs1.len(), m.colors.len(), m.triangles.len()] {
+                word(&mut out, n);
+            }
+            out.extend_from_slice(bytemuck::cast_slice(&m.positions));
+            out.extend_from_slice(bytemuck::cast_slice(&m.normals));
+            out.extend_from_slice(bytemuck::cast_slice(&m.uvs));
+            out.extend_from_slice(bytemuck::cast_slice(&m.uvs1));
+            out.extend_from_slice(bytemuck::cast_slice(&m.colors));
+            out.extend_from_slice(bytemuck::cast_slice(&m.triangles));
+        }
+        let hash = *blake3::hash(&out).as_bytes();
+        out.extend(hash);
+        out
+    }
+
+    /// The refinement in `bytes` when its hash holds and its meshes are sound; `None` otherwise
+    /// (a damaged entry is refined again).
+    pub fn from_bytes(bytes: &[u8]) -> Option<Self> {
+        let (body, hash) = bytes.split_at_checked(bytes.len().checked_sub(32)?)?;
+        if blake3::hash(body).as_bytes() != hash {
+            return None;
+        }
+        let mut r = Reader { body, at: 0 };
+        let count = r.word()?;
+        let mut instances = Vec::new();
+        for _ in 0..count {
+            let (before, refined) = (r.word()?, r.word()?);
+            if refined == 0 {
+                instances.push((before, None));
+                continue;
+            }
+            let [p, uv, uv1, c, t] = [r.word()?, r.word()?, r.word()?, r.word()?, r.word()?];
+            let mut mesh = crate::scene::Mesh {
+                positions: r.pods(p)?,
+                normals: r.pods(p)?,
+                uvs: r.pods(uv)?,
+                uvs1: r.pods(uv1)?,
+                colors: r.pods(c)?,
+                triangles: r.pods(t)?,
+                hash: crate::scene::MeshHash([0; 32]),
+            };
+            if mesh.triangles.iter().flatten().any(|&i| i as usize >= p) {
+                return None;
+            }
+            mesh.hash = mesh.compute_hash();
+            instances.push((before, Some(mesh)));
+        }
+        (r.at == body.len()).then_some(Self { instances })
+    }
+}
+
+/// Reads [`Refinement::to_bytes`]'s fields in order; `None` past the end.
+struct Reader<'a> {
+    body: &'a [u8],
+    at: usize,
+}
+
+impl Reader<'_> {
+    fn bytes(&mut self, n: usize) -> Option<&[u8]> {
+        let s = self.body.get(self.at..self.at.checked_add(n)?)?;
+        self.at += n;
+        Some(s)
+    }
+
+    fn word(&mut self) -> Option<usize> {
+        self.bytes(4).map(|w| u32::from_le_bytes([w[0], w[1], w[2], w[3]]) as usize)
+    }
+
+    /// `n` values of `T`, copied (the bytes need not be aligned).
+    fn pods<T: bytemuck::Pod>(&mut self, n: usize) -> Option<Vec<T>> {
+        self.bytes(n.checked_mul(std::mem::size_of::<T>())?).map(bytemuck::pod_collect_to_vec)
+    }
 }
 
 /// The meshes seeded: every edge longer than the seed length split, so that no shadow fits
@@ -137,30 +317,6 @@ fn split_worst(meshes: &mut [Adaptive], marks: Vec<Vec<Mark>>, budget: usize) {
     for (mesh, edges) in meshes.iter_mut().zip(per) {
         mesh.split(&edges, usize::MAX);
     }
-}
-
-/// Puts each instance's refined mesh in place of its source mesh.
-fn replace_meshes(
-    scene: &mut Scene,
-    instances: &[crate::scene::Instance],
-    meshes: Vec<Adaptive>,
-    before: Vec<usize>,
-) -> crate::Result<Report> {
-    let mut report = Vec::new();
-    for ((inst, mesh), n) in instances.iter().zip(meshes).zip(before) {
-        let after = mesh.vertices();
-        report.push((n, after));
-        if after == n {
-            continue;
-        }
-        let mesh = mesh
-            .finish()
-            .map_err(|why| crate::Error::Invalid(format!("{}: refining a receiver: {why}", scene.source)))?;
-        let entity =
-            scene.world.query::<(hecs::Entity, &PrimitiveId)>().iter().find(|(_, id)| **id == inst.id).map(|(e, _)| e);
-        scene.set_refined_mesh(entity.expect("the snapshot's instances are the world's"), mesh);
-    }
-    Ok(report)
 }
 
 /// What earlier rounds probed on one mesh: per vertex its lights' visibility, per edge its

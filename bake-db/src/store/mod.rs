@@ -252,6 +252,11 @@ impl Store {
         &self.path
     }
 
+    /// True when opened with [`Store::open_read_only`].
+    pub fn read_only(&self) -> bool {
+        matches!(self.db.0, Some(Db::ReadOnly(_)))
+    }
+
     /// Creates the tables and the schema version, or checks the version.
     fn init(&self) -> Result<()> {
         let found = self.read(|t| {

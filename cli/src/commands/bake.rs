@@ -110,7 +110,7 @@ pub fn run(args: &Args) -> Result<()> {
 fn bake_shard(args: &Args, shard: Shard) -> Result<()> {
     let store = args.db.open(&args.scene)?;
     let base = args.base.as_deref().map(Store::open_read_only).transpose()?;
-    let scene = args.scene.load()?;
+    let scene = args.scene.load_kept(Some(&store))?;
     let flat = flatten(&scene);
     let start = Instant::now();
     let plan = args.options.shard_plan(&store, base.as_ref(), &scene, &flat)?;
@@ -147,7 +147,7 @@ fn bake_shard(args: &Args, shard: Shard) -> Result<()> {
 
 /// Loads, plans, prints and (unless --dry-run) bakes.
 fn bake_once(args: &Args, store: &Store) -> Result<()> {
-    let scene = args.scene.load()?;
+    let scene = args.scene.load_kept(Some(store))?;
     let flat = flatten(&scene);
     let start = Instant::now();
     let plan = args.options.plan(store, &scene, &flat)?;

@@ -37,7 +37,7 @@ pub struct Args {
 /// Runs the command.
 pub fn run(args: &Args) -> Result<()> {
     let store = args.db.open(&args.scene)?;
-    let scene = args.scene.load()?;
+    let scene = args.scene.load_kept(Some(&store))?;
     let flat = flatten(&scene);
     let start = std::time::Instant::now();
     let plan = args.options.plan(&store, &scene, &flat)?;

@@ -190,7 +190,15 @@ pub fn run(args: &Args) -> Result<()> {
             let (scene, contents) = kage_bake_db::pack::read(path)?;
             (scene, Some(contents))
         }
-        None => (args.scene.load()?, None),
+        None => {
+            // The refinement is kept in the database the bakes use; it is closed again after
+            // loading (the bake opens it once more).
+            let store = match args.method {
+                Method::Baked => Some(args.db.open(&args.scene)?),
+                _ => args.db.open_if_used(&args.scene)?,
+            };
+            (args.scene.load_kept(store.as_ref())?, None)
+        }
     };
     if args.no_env {
         scene.clear_environment();
