@@ -714,7 +714,7 @@ fn a_light_moved_within_its_reach_bakes_nothing_again() {
     assert!(!first.contains("; 0 to bake"), "{first}");
     edit_light(&scene, |lamp| lamp["translation"] = serde_json::json!([1.9, 4.1, 0.3]));
     let (after, second) = bake();
-    assert_eq!(before, after);
+    assert_eq!(before.replace(")", ", kept in the bake database)"), after, "the refinement is read back");
     assert!(second.contains("; 0 to bake"), "the moved light re-baked something: {second}");
     std::fs::remove_dir_all(d).unwrap();
 }

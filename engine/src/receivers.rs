@@ -68,8 +68,8 @@ pub const VERSION: u32 = 1;
 
 /// What refinement reads of `scene` (its source meshes, as [`Scene::restore_source_meshes`]
 /// leaves it) and `settings`, hashed: the instances' meshes and placements, every occluding
-/// triangle, the lights' polygons and reach boxes, and the environment's probe directions'
-/// weights. Equal keys refine to the same meshes.
+/// triangle, and the views of the lights and the environment it probes (a light moved within
+/// its reach box keeps its views, so its key). Equal keys refine to the same meshes.
 pub fn key(scene: &Scene, settings: &Settings) -> blake3::Hash {
     let flat = flatten(scene);
     let mut h = blake3::Hasher::new();
@@ -83,19 +83,26 @@ pub fn key(scene: &Scene, settings: &Settings) -> blake3::Hash {
         h.update(bytemuck::cast_slice(&inst.world.to_cols_array()));
         h.update(&inst.group.to_bits().get().to_le_bytes());
     }
-    for (t, r) in flat.triangles.iter().zip(&flat.refs) {
+    for (t, r) in flat.triangles.iter().zip(&flat.refs).filter(|(_, r)| r.light == NO_LIGHT) {
         h.update(bytemuck::cast_slice(t));
         h.update(&r.owner.to_le_bytes());
-        h.update(&r.light.to_le_bytes());
     }
-    for light in &flat.lights {
-        h.update(&(light.points.len() as u64).to_le_bytes());
-        h.update(bytemuck::cast_slice(&light.points));
-        h.update(bytemuck::bytes_of(&light.normal));
-        h.update(bytemuck::cast_slice(&light.reach.unwrap_or([Vec3::NAN; 2])));
-    }
-    if let Some(View::Directions(d)) = flat.environment.as_ref().map(environment_view) {
-        h.update(bytemuck::cast_slice(&d.iter().map(|(_, w)| *w).collect::<Vec<f32>>()));
+    let views = flat.lights.iter().flat_map(light_views).chain(flat.environment.as_ref().map(environment_view));
+    for view in views {
+        match view {
+            View::Points { points, facing } => {
+                h.update(&(points.len() as u64).to_le_bytes());
+                h.update(bytemuck::cast_slice(&points));
+                h.update(bytemuck::bytes_of(&facing.unwrap_or(Vec3::ZERO)));
+            }
+            View::Directions(d) => {
+                h.update(&(d.len() as u64).to_le_bytes());
+                d.iter().for_each(|(dir, w)| {
+                    h.update(bytemuck::bytes_of(dir));
+                    h.update(&w.to_le_bytes());
+                });
+            }
+        }
     }
     h.finalize()
 }

@@ -218,6 +218,24 @@ fn refining_again_starts_from_the_source_meshes() {
     assert_eq!(mesh_hashes(&again)[0], source.hash, "a zero budget restores the source meshes");
 }
 
+/// A kept refinement is named by what refinement reads: a light moved within its reach keeps
+/// the key (and the refined meshes), a light without a reach moved, a box moved or another
+/// budget does not.
+#[test]
+fn the_refinement_key_follows_what_refinement_reads() {
+    let reach = [Vec3::new(-3.0, 2.5, -3.0), Vec3::new(3.0, 3.5, 3.0)];
+    let (by, budget) = (Vec3::new(2.0, 0.3, -2.2), Settings { budget: 1000, ..Settings::default() });
+    let key = |s: &Scene| receivers::key(s, &budget);
+    let boxed = with_reach(two_triangle_floor(), reach);
+    assert_eq!(key(&boxed), key(&moved(with_reach(two_triangle_floor(), reach), by)));
+    let free = two_triangle_floor();
+    assert_ne!(key(&free), key(&moved(two_triangle_floor(), by)), "a free light's move");
+    assert_ne!(key(&free), receivers::key(&free, &Settings { budget: 1001, ..budget }), "another budget");
+    let mut pushed = two_triangle_floor();
+    pushed.pose_group(pushed.find_group("box").unwrap(), Quat::IDENTITY, Vec3::new(0.1, 0.0, 0.0));
+    assert_ne!(key(&free), key(&pushed), "a moved box");
+}
+
 /// What refining a light without a declared reach for every place it could go would cost: the
 /// floor scene's light declared free to go anywhere above the floor, against refinement for
 /// where it is, by budget (error at the light's place), as `docs/receivers.md` reports it.
