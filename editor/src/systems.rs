@@ -276,6 +276,10 @@ fn refine_receivers(ed: &mut Editor) {
         return;
     }
     let started = Instant::now();
+    let meshes = |flat: &kage_engine::scene::FlatScene| {
+        flat.instances.iter().map(|i| flat.meshes[i.mesh as usize].hash).collect::<Vec<_>>()
+    };
+    let was = meshes(&ed.flat);
     let refined = match ed.store.clone() {
         Some(store) => kage_bake_db::refinement::refine(&store, &mut ed.scene, &settings).map_err(|e| e.to_string()),
         None => kage_engine::receivers::refine(&mut ed.scene, &settings).map(|r| (r, false)).map_err(|e| e.to_string()),
@@ -293,7 +297,8 @@ fn refine_receivers(ed: &mut Editor) {
         seconds: started.elapsed().as_secs_f64(),
         placed: super::state::placed_lights(&ed.flat),
     };
-    if ed.bakes.receivers.as_ref().map(|r| r.vertices) != Some(refined.vertices) {
+    // The reference's samples are per vertex: they do not carry over to other meshes.
+    if meshes(&ed.flat) != was {
         ed.restart_reference();
     }
     ed.info(format!(
