@@ -5,15 +5,13 @@
 // no visibility (`ltc-unshadowed`).
 //
 // The per-vertex LTC setup (shading frame, M⁻¹, albedos — view-dependent table lookups) comes
-// from the CPU; this shader does the clipping, descent and integration, in f32.
+// from the CPU; this shader does the clipping, descent and integration, in f32 (the polygon
+// code shared with the viewport's per-pixel lights is in ltc.wgsl).
 
-const MAX_VERTS: u32 = 16u;
+// #include "ltc.wgsl"
+
 const MAX_DEPTH: u32 = 32u;
-const PI: f32 = 3.14159265358979;
 const SQRT_2: f32 = 1.41421356237310;
-// Relative distance below which a point counts as on a plane (f32's counterpart of
-// polygon::ON_PLANE).
-const ON_PLANE: f32 = 1e-6;
 
 struct Params {
     vertex_count: u32,
@@ -38,19 +36,6 @@ struct Vertex {
     spec: vec4<f32>,
 }
 
-struct Light {
-    points: array<vec4<f32>, 8>,
-    normal: vec3<f32>,
-    count: u32,
-    radiance: vec3<f32>,
-    pad: u32,
-}
-
-struct Poly {
-    v: array<vec3<f32>, 16>,
-    n: u32,
-}
-
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read> vertices: array<Vertex>;
 @group(0) @binding(2) var<storage, read> lights: array<Light>;
@@ -60,48 +45,12 @@ struct Poly {
 // Polygons that outgrew MAX_VERTS or trees deeper than MAX_DEPTH: the host reports them.
 @group(0) @binding(6) var<storage, read_write> overflow: atomic<u32>;
 
+fn overflowed() {
+    atomicAdd(&overflow, 1u);
+}
+
 fn byte_at(i: u32) -> u32 {
     return (records[i >> 2u] >> (8u * (i & 3u))) & 0xffu;
-}
-
-fn push(p: ptr<function, Poly>, q: vec3<f32>) {
-    if ((*p).n < MAX_VERTS) {
-        (*p).v[(*p).n] = q;
-        (*p).n = (*p).n + 1u;
-    } else {
-        atomicAdd(&overflow, 1u);
-    }
-}
-
-fn side(pl: vec3<f32>, q: vec3<f32>) -> f32 {
-    let d = dot(pl, q);
-    if (abs(d) <= ON_PLANE * length(pl) * length(q)) {
-        return 0.0;
-    }
-    return d;
-}
-
-// Keeps the part of the convex polygon where dot(pl, q) >= 0 (Sutherland–Hodgman).
-fn clip(src: ptr<function, Poly>, pl: vec3<f32>) -> Poly {
-    var out: Poly;
-    out.n = 0u;
-    let n = (*src).n;
-    for (var i = 0u; i < n; i = i + 1u) {
-        let a = (*src).v[i];
-        let b = (*src).v[(i + 1u) % n];
-        let da = side(pl, a);
-        let db = side(pl, b);
-        if (da >= 0.0) {
-            push(&out, a);
-        }
-        if ((da > 0.0 && db < 0.0) || (da < 0.0 && db > 0.0)) {
-            push(&out, a + (b - a) * (da / (da - db)));
-        }
-    }
-    if (out.n < 3u) {
-        out.n = 0u;
-    }
-    return out;
 }
 
 // (C, S, T) of cube face f: the point (s, t) is the direction C + s S + t T.
@@ -127,47 +76,6 @@ fn clip_frustum(src: ptr<function, Poly>, f: u32) -> Poly {
     p = clip(&p, line_plane(f, 1.0, 0.0, 1.0));
     p = clip(&p, line_plane(f, 0.0, -1.0, 1.0));
     return clip(&p, line_plane(f, 0.0, 1.0, 1.0));
-}
-
-// ∫ max(0, z)/π over the polygon (cosine space, relative to the shading point): horizon clip,
-// then the sum over edges; edge-on and back-facing polygons give 0 (ltc::integrate).
-fn cosine_integral(p: ptr<function, Poly>) -> f32 {
-    let n = (*p).n;
-    if (n < 3u) {
-        return 0.0;
-    }
-    var newell = vec3<f32>(0.0);
-    var scale = 0.0;
-    for (var i = 0u; i < n; i = i + 1u) {
-        newell = newell + cross((*p).v[i], (*p).v[(i + 1u) % n]);
-        scale = max(scale, length((*p).v[i]));
-    }
-    let len = length(newell);
-    if (len == 0.0 || abs(dot(newell / len, (*p).v[0])) <= ON_PLANE * scale) {
-        return 0.0;
-    }
-    var c = clip(p, vec3<f32>(0.0, 0.0, 1.0));
-    var z = 0.0;
-    for (var i = 0u; i < c.n; i = i + 1u) {
-        let a = c.v[i];
-        let b = c.v[(i + 1u) % c.n];
-        let e = cross(a, b);
-        let l = length(e);
-        if (l > 0.0) {
-            z = z + e.z * (atan2(l, dot(a, b)) / l);
-        }
-    }
-    return max(-z / (2.0 * PI), 0.0);
-}
-
-fn transformed(p: ptr<function, Poly>, r0: vec3<f32>, r1: vec3<f32>, r2: vec3<f32>) -> Poly {
-    var out: Poly;
-    out.n = (*p).n;
-    for (var i = 0u; i < (*p).n; i = i + 1u) {
-        let q = (*p).v[i];
-        out.v[i] = vec3<f32>(dot(r0, q), dot(r1, q), dot(r2, q));
-    }
-    return out;
 }
 
 // Outgoing radiance per unit light radiance from one piece of a light.
@@ -204,7 +112,7 @@ fn walk(at: u32, f: u32, start: ptr<function, Poly>, vx: Vertex) -> vec3<f32> {
             cur = stack[sp];
         } else {
             if (sp >= MAX_DEPTH) {
-                atomicAdd(&overflow, 1u);
+                overflowed();
                 break;
             }
             let bits = (b << 16u) | (byte_at(i + 1u) << 8u) | byte_at(i + 2u);
@@ -255,17 +163,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     var total = vec3<f32>(0.0);
     for (var l = 0u; l < params.light_count; l = l + 1u) {
         let light = lights[l];
-        var rel: Poly;
-        rel.n = light.count;
-        for (var k = 0u; k < light.count; k = k + 1u) {
-            rel.v[k] = light.points[k].xyz - vx.p.xyz;
-        }
-        // One-sided lights contribute nothing, nor does light from below the horizon (the
-        // specular LTC, clipped at its own transformed horizon, would gather some: shade.rs).
-        if (dot(light.normal, -rel.v[0]) <= 0.0) {
-            continue;
-        }
-        rel = clip(&rel, vx.frame2.xyz);
+        var rel = relative(light, vx.p.xyz, vx.frame2.xyz);
         if (rel.n == 0u) {
             continue;
         }

@@ -1,7 +1,9 @@
 // The editor's viewport: meshes drawn with per-vertex radiance (the shading methods' results)
 // and the base-colour texture's detail per pixel (editor/src/detail.rs), exposed and clamped
 // like `kage render`'s PNGs (vs_main, fs_main); and PRT with the shadows between groups
-// evaluated per pixel (vs_prt, fs_prt), as `kage render` images do.
+// evaluated per pixel (vs_prt, fs_prt), as `kage render` images do; and the polygonal lights
+// per pixel (vs_lit, fs_lit): LTC at each pixel's point, normal and view, the trees' visibility
+// carried from the vertices, as engine/src/bspvt/pixel.rs does for `kage render`.
 
 struct View {
     view_proj: mat4x4<f32>,
@@ -9,6 +11,8 @@ struct View {
     exposure: vec4<f32>,
     // World from clip space, for the sky's view rays.
     inverse_view_proj: mat4x4<f32>,
+    // xyz: the eye, for the per-pixel lights' view direction.
+    eye: vec4<f32>,
 }
 
 @group(0) @binding(0) var<uniform> view: View;
@@ -62,10 +66,12 @@ fn fs_main(v: VertexOut) -> @location(0) vec4<f32> {
     if (view.exposure.y > 0.5) {
         return display(v.radiance); // the overlay's colours, as they are
     }
-    let here = textureSample(base_color, base_sampler, v.uv).rgb;
-    let lit = v.at_vertex > vec3<f32>(1e-6);
-    let ratio = select(vec3<f32>(0.0), here / max(v.at_vertex, vec3<f32>(1e-6)), lit);
-    return display(v.radiance * ratio);
+    return display(v.radiance * detail(textureSample(base_color, base_sampler, v.uv).rgb, v.at_vertex));
+}
+
+// The texture here over its value interpolated from the vertices, per channel (0 where that is 0).
+fn detail(here: vec3<f32>, at_vertex: vec3<f32>) -> vec3<f32> {
+    return select(vec3<f32>(0.0), here / max(at_vertex, vec3<f32>(1e-6)), at_vertex > vec3<f32>(1e-6));
 }
 
 // The environment behind the geometry (editor/src/sky.rs): one full-screen triangle, each pixel
@@ -156,29 +162,39 @@ struct PrtVertex {
 @group(1) @binding(5) var<storage, read> silhouettes: array<Silhouette>;
 @group(1) @binding(6) var<storage, read> tables: array<f32>;
 
-struct PrtOut {
+// A corner of a triangle drawn unindexed from storage (vs_prt, vs_lit): the fragment gets the
+// point, its barycentrics and the three corners' vertex indices.
+struct CornerOut {
     @builtin(position) clip: vec4<f32>,
     @location(0) position: vec3<f32>,
     @location(1) bary: vec3<f32>,
     @location(2) @interpolate(flat) corners: vec3<u32>,
 }
 
-@vertex
-fn vs_prt(@builtin(vertex_index) vi: u32) -> PrtOut {
+// Draw vertex vi's triangle corners (from the indices at group 1, binding 1) and corner number.
+fn triangle_of(vi: u32) -> vec4<u32> {
     let base = vi - vi % 3u;
-    let corners = vec3<u32>(indices[base], indices[base + 1u], indices[base + 2u]);
-    let k = vi % 3u;
-    let p = prt_vertices[corners[k]].p.xyz;
-    var out: PrtOut;
+    return vec4<u32>(indices[base], indices[base + 1u], indices[base + 2u], vi % 3u);
+}
+
+fn corner_out(t: vec4<u32>, p: vec3<f32>) -> CornerOut {
+    let k = t.w;
+    var out: CornerOut;
     out.clip = view.view_proj * vec4<f32>(p, 1.0);
     out.position = p;
     out.bary = vec3<f32>(select(0.0, 1.0, k == 0u), select(0.0, 1.0, k == 1u), select(0.0, 1.0, k == 2u));
-    out.corners = corners;
+    out.corners = t.xyz;
     return out;
 }
 
+@vertex
+fn vs_prt(@builtin(vertex_index) vi: u32) -> CornerOut {
+    let t = triangle_of(vi);
+    return corner_out(t, prt_vertices[t[t.w]].p.xyz);
+}
+
 @fragment
-fn fs_prt(v: PrtOut) -> @location(0) vec4<f32> {
+fn fs_prt(v: CornerOut) -> @location(0) vec4<f32> {
     let a = prt_vertices[v.corners.x];
     let b = prt_vertices[v.corners.y];
     let c = prt_vertices[v.corners.z];
@@ -202,3 +218,181 @@ fn fs_prt(v: PrtOut) -> @location(0) vec4<f32> {
 }
 
 // #include "silhouette.wgsl"
+// #include "ltc.wgsl"
+
+// The polygonal lights per pixel (engine/src/bspvt/pixel.rs, Lobes::shade): at each pixel the
+// LTC setup (shading frame, M⁻¹ and albedos from the tables) and every light's diffuse and
+// specular integrals, each scaled by its visible fraction — the ratio of the shadowed to the
+// unshadowed integral, both interpolated from the triangle's corners. Where the corners'
+// specular lobes all miss the light, the diffuse fraction stands in; where that is undefined
+// too, the light is unshadowed. Everything else (environment, bounce) comes from the vertices
+// as `rest`. The material is interpolated from the vertices, its base colour given the
+// texture's detail as fs_main does.
+
+struct LitParams {
+    lights: u32,
+    pad: vec3<u32>,
+}
+
+struct LitVertex {
+    // xyz position; w = 0.
+    p: vec4<f32>,
+    // xyz unit normal.
+    n: vec4<f32>,
+    // rgb base colour at the vertex; w metallic.
+    base: vec4<f32>,
+    // x roughness, y specular factor, zw the base-colour UV.
+    surface: vec4<f32>,
+    // rgb the base-colour texture's value at the vertex.
+    at_vertex: vec4<f32>,
+}
+
+@group(1) @binding(0) var<uniform> lit: LitParams;
+// Binding 1 is `indices`, as for PRT.
+@group(1) @binding(2) var<storage, read> lit_vertices: array<LitVertex>;
+// Per vertex: the radiance of everything but the polygonal lights (rgb).
+@group(1) @binding(3) var<storage, read> rest: array<vec4<f32>>;
+// Per vertex and light (vertex-major): diffuse shadowed, unshadowed; specular shadowed,
+// unshadowed.
+@group(1) @binding(4) var<storage, read> lobes: array<vec4<f32>>;
+@group(1) @binding(5) var<storage, read> lights: array<Light>;
+// The LTC table (64×64 entries of 6: a, b, c, d, magnitude, fresnel; index roughness row +
+// 64 · view column), then the GGX directional albedo's A and B tables (32×32 each, index
+// μ column + 32 · roughness row).
+@group(1) @binding(6) var<storage, read> lit_tables: array<f32>;
+@group(2) @binding(0) var lit_texture: texture_2d<f32>;
+@group(2) @binding(1) var lit_sampler: sampler;
+
+const LTC_N: u32 = 64u;
+const ALBEDO_N: u32 = 32u;
+// Integrals below this count as "the lobe misses the light" (pixel.rs's MISSES).
+const MISSES: f32 = 1e-9;
+
+fn overflowed() {}
+
+@vertex
+fn vs_lit(@builtin(vertex_index) vi: u32) -> CornerOut {
+    let t = triangle_of(vi);
+    return corner_out(t, lit_vertices[t[t.w]].p.xyz);
+}
+
+// The LTC table's bilinear lookup (ltc::Table::lookup): (a, b, c, d) of M⁻¹, magnitude, fresnel.
+fn ltc_lookup(roughness: f32, cos_theta: f32) -> array<f32, 6> {
+    let n = f32(LTC_N - 1u);
+    let x = clamp(roughness, 0.0, 1.0) * n;
+    let y = sqrt(1.0 - clamp(cos_theta, 0.0, 1.0)) * n;
+    let a0 = min(u32(x), LTC_N - 2u);
+    let t0 = min(u32(y), LTC_N - 2u);
+    let fa = x - f32(a0);
+    let ft = y - f32(t0);
+    var e: array<f32, 6>;
+    for (var k = 0u; k < 6u; k = k + 1u) {
+        let at = (a0 + t0 * LTC_N) * 6u + k;
+        let top = lit_tables[at] * (1.0 - fa) + lit_tables[at + 6u] * fa;
+        let bottom = lit_tables[at + LTC_N * 6u] * (1.0 - fa) + lit_tables[at + LTC_N * 6u + 6u] * fa;
+        e[k] = top * (1.0 - ft) + bottom * ft;
+    }
+    return e;
+}
+
+// The GGX directional albedo F0 A(μ, r) + F90 B(μ, r) (ggx::directional_albedo).
+fn directional_albedo(mu: f32, roughness: f32, f0: vec3<f32>, f90: vec3<f32>) -> vec3<f32> {
+    let n = f32(ALBEDO_N - 1u);
+    let x = clamp(mu, 0.0, 1.0) * n;
+    let y = clamp(roughness, 0.0, 1.0) * n;
+    let x0 = min(u32(x), ALBEDO_N - 2u);
+    let y0 = min(u32(y), ALBEDO_N - 2u);
+    let f = vec2<f32>(x - f32(x0), y - f32(y0));
+    var ab: array<f32, 2>;
+    for (var t = 0u; t < 2u; t = t + 1u) {
+        let at = LTC_N * LTC_N * 6u + t * ALBEDO_N * ALBEDO_N + y0 * ALBEDO_N + x0;
+        let top = lit_tables[at] * (1.0 - f.x) + lit_tables[at + 1u] * f.x;
+        let bottom = lit_tables[at + ALBEDO_N] * (1.0 - f.x) + lit_tables[at + ALBEDO_N + 1u] * f.x;
+        ab[t] = top * (1.0 - f.y) + bottom * f.y;
+    }
+    return f0 * ab[0] + f90 * ab[1];
+}
+
+// A lobe's visible fraction at the pixel from the corners' (shadowed, unshadowed) integrals;
+// -1 where the corners' lobes all miss the light.
+fn fraction(shut: vec3<f32>, open: vec3<f32>, w: vec3<f32>) -> f32 {
+    let o = dot(open, w);
+    if (o <= MISSES) {
+        return -1.0;
+    }
+    return clamp(dot(shut, w) / o, 0.0, 1.0);
+}
+
+// The radiance from every polygonal light at point p (normal n) of a material, toward the eye.
+fn lights_at(p: vec3<f32>, n: vec3<f32>, base: vec3<f32>, metallic_in: f32, roughness: f32, specular: f32,
+             corners: vec3<u32>, w: vec3<f32>) -> vec3<f32> {
+    let to_eye = view.eye.xyz - p;
+    let v = select(n, normalize(to_eye), length(to_eye) > 0.0);
+    // The shading frame (ltc::view_frame): x toward the view in the tangent plane.
+    var t1 = v - n * dot(v, n);
+    if (length(t1) <= 1e-7) {
+        t1 = select(vec3<f32>(1.0, 0.0, 0.0), vec3<f32>(0.0, 1.0, 0.0), abs(n.x) > 0.9);
+        t1 = t1 - n * dot(t1, n);
+    }
+    t1 = normalize(t1);
+    let t2 = cross(n, t1);
+    // The BSDF's albedos (Bsdf::new).
+    let metallic = clamp(metallic_in, 0.0, 1.0);
+    let s = max(specular, 0.0);
+    let f0 = mix(vec3<f32>(0.04 * s), base, metallic);
+    let f90 = mix(vec3<f32>(s), vec3<f32>(1.0), metallic);
+    let mu = dot(v, n);
+    let e_dielectric = directional_albedo(abs(mu), roughness, vec3<f32>(0.04 * s), vec3<f32>(s));
+    let diffuse = base * (1.0 - metallic) * max(vec3<f32>(1.0) - e_dielectric, vec3<f32>(0.0));
+    let e = ltc_lookup(roughness, mu);
+    var spec = vec3<f32>(0.0);
+    if (mu > 0.0 && max(max(f0.x, f0.y), max(max(f0.z, f90.x), max(f90.y, f90.z))) > 0.0) {
+        spec = f0 * (e[4] - e[5]) + f90 * e[5];
+    }
+    // Rows of world → the specular LTC's space: M⁻¹ (columns (a, 0, b), (0, 1, 0), (c, 0, d))
+    // times the frame.
+    let s0 = e[0] * t1 + e[2] * n;
+    let s2 = e[1] * t1 + e[3] * n;
+    var total = vec3<f32>(0.0);
+    for (var l = 0u; l < lit.lights; l = l + 1u) {
+        let light = lights[l];
+        var rel = relative(light, p, n);
+        if (rel.n == 0u) {
+            continue;
+        }
+        let a = lobes[corners.x * lit.lights + l];
+        let b = lobes[corners.y * lit.lights + l];
+        let c = lobes[corners.z * lit.lights + l];
+        var d = fraction(vec3<f32>(a.x, b.x, c.x), vec3<f32>(a.y, b.y, c.y), w);
+        d = select(d, 1.0, d < 0.0);
+        var sf = fraction(vec3<f32>(a.z, b.z, c.z), vec3<f32>(a.w, b.w, c.w), w);
+        sf = select(sf, d, sf < 0.0);
+        var local = transformed(&rel, t1, t2, n);
+        var out = d * diffuse * cosine_integral(&local);
+        if (any(spec > vec3<f32>(0.0))) {
+            var moved = transformed(&rel, s0, t2, s2);
+            out = out + sf * spec * cosine_integral(&moved);
+        }
+        total = total + light.radiance * out;
+    }
+    return total;
+}
+
+@fragment
+fn fs_lit(v: CornerOut) -> @location(0) vec4<f32> {
+    let a = lit_vertices[v.corners.x];
+    let b = lit_vertices[v.corners.y];
+    let c = lit_vertices[v.corners.z];
+    let w = v.bary;
+    let uv = a.surface.zw * w.x + b.surface.zw * w.y + c.surface.zw * w.z;
+    let at_vertex = a.at_vertex.xyz * w.x + b.at_vertex.xyz * w.y + c.at_vertex.xyz * w.z;
+    let ratio = detail(textureSample(lit_texture, lit_sampler, uv).rgb, at_vertex);
+    let others = (rest[v.corners.x].xyz * w.x + rest[v.corners.y].xyz * w.y + rest[v.corners.z].xyz * w.z) * ratio;
+    let n = normalize(a.n.xyz * w.x + b.n.xyz * w.y + c.n.xyz * w.z);
+    let base = (a.base.xyz * w.x + b.base.xyz * w.y + c.base.xyz * w.z) * ratio;
+    let metallic = a.base.w * w.x + b.base.w * w.y + c.base.w * w.z;
+    let roughness = a.surface.x * w.x + b.surface.x * w.y + c.surface.x * w.z;
+    let specular = a.surface.y * w.x + b.surface.y * w.y + c.surface.y * w.z;
+    let direct = lights_at(v.position, n, base, metallic, roughness, specular, v.corners, w);
+    return display(others + direct);
+}

@@ -17,8 +17,10 @@ use kage_gpu::buffers::texture_2d;
 #[repr(C)]
 #[derive(Clone, Copy, Pod, Zeroable)]
 pub struct Detail {
-    uv: [f32; 2],
-    at_vertex: [f32; 3],
+    /// The base-colour UV (the slot's texture transform applied).
+    pub uv: [f32; 2],
+    /// The texture's value at the vertex (linear RGB).
+    pub at_vertex: [f32; 3],
 }
 
 /// A texture with nothing to modulate: one white texel, value one at every vertex.

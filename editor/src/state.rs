@@ -267,6 +267,9 @@ pub struct Editor {
     pub reference: ReferenceSum,
     /// PRT's per-vertex terms when the viewport shades PRT per pixel (method `prt`, no overlay).
     pub per_pixel: Option<prt::Frame>,
+    /// The lobes the viewport draws the polygonal lights with per pixel
+    /// ([`Editor::lights_per_pixel`]).
+    pub pixel_lights: Option<crate::viewport::PixelLights>,
     pub(super) gpu: Gpu,
     pub(super) shaders: Shaders,
     pub(super) bspvt_gpu: Option<BspvtShader>,
@@ -352,6 +355,7 @@ impl Editor {
             dirty: Dirty { shade: true, environment: true, meshes: true, ..Dirty::default() },
             reference: ReferenceSum::default(),
             per_pixel: None,
+            pixel_lights: None,
             gpu,
             shaders,
             bspvt_gpu: None,
@@ -364,8 +368,9 @@ impl Editor {
             edited_at: None,
             options,
         };
-        let where_ = if ed.polygonal_on_gpu() { "GPU" } else { "CPU" };
-        ed.info(format!("{}: GPU {}; polygonal lights shade on the {where_}", ed.scene.source, ed.gpu.describe()));
+        let where_ = if ed.polygonal_on_gpu() { "on the GPU" } else { "on the CPU" };
+        let lights = if ed.lights_per_pixel() { "per pixel (their vertex lobes on the CPU)" } else { where_ };
+        ed.info(format!("{}: GPU {}; polygonal lights shade {lights}", ed.scene.source, ed.gpu.describe()));
         if let Some(why) = ed.flat.unlit() {
             ed.error(format!("{}: {why}; Add > Quad light adds one (or open it with --env MAP.hdr)", ed.scene.source));
         }
@@ -464,6 +469,19 @@ impl Editor {
             ShadeOn::Cpu => false,
             ShadeOn::Auto => self.gpu.info.device_type != wgpu::DeviceType::Cpu,
         }
+    }
+
+    /// True when the viewport draws the polygonal lights per pixel, as `kage render` does: for
+    /// the methods that shade them with LTC (`baked`, `bspvt`, `ltc-unshadowed`), without the
+    /// overlay, with lights the shader takes (untextured, at most 8 corners), and for scenes
+    /// whose lobes are shaded within the frame (at most `background_shading` vertices).
+    pub fn lights_per_pixel(&self) -> bool {
+        let vertices: usize = (0..self.flat.instances.len()).map(|k| self.flat.vertex_count(k)).sum();
+        matches!(self.method, Method::Baked | Method::Bspvt | Method::LtcUnshadowed)
+            && !self.overlay
+            && !self.flat.lights.is_empty()
+            && self.flat.lights.iter().all(|l| kage_gpu::bspvt::gpu_light(l).is_ok())
+            && vertices <= self.options.background_shading
     }
 
     /// Where shaders come from.

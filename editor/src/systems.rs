@@ -6,9 +6,11 @@ use super::bake_job::{BakeJob, ChunkData, Landed};
 use super::indirect::{Indirect, Job};
 use super::reload::Change;
 use super::state::Editor;
+use super::viewport::PixelLights;
 use super::worker::Worker;
 use glam::Vec3;
 use kage_bake_db::DbError;
+use kage_engine::bspvt::pixel::Lobes;
 use kage_engine::cache::record::GlossyDirect;
 use kage_engine::math::color::metered_exposure;
 use kage_engine::prt::prefilter::Prefiltered;
@@ -419,6 +421,7 @@ pub fn shade_system(ed: &mut Editor) {
     if ed.method != Method::Prt || ed.overlay {
         ed.per_pixel = None;
     }
+    ed.pixel_lights = None;
     ed.dirty.per_pixel = true;
     if let Some(job) = Background::of(ed) {
         let wake = ed.wake.clone();
@@ -599,9 +602,16 @@ fn fits<T>(ed: &Editor, instances: &[T], vertices: impl Fn(&T) -> usize) -> bool
         && instances.iter().enumerate().all(|(k, b)| vertices(b) == ed.flat.vertex_count(k))
 }
 
-/// BSPVT or unshadowed LTC: on the GPU, or on the CPU when chosen (see
-/// [`super::state::ShadeOn`]) or when the GPU path refuses the scene.
+/// BSPVT or unshadowed LTC: with the lobes the viewport draws per pixel when it does (on the
+/// CPU), else on the GPU, or on the CPU when chosen (see [`super::state::ShadeOn`]) or when the
+/// GPU path refuses the scene.
 fn polygonal(ed: &mut Editor, mode: Mode, eye: Vec3) -> VertexValues {
+    if ed.lights_per_pixel() {
+        let bake = ed.bakes.bspvt.as_deref().filter(|_| mode == Mode::Trees);
+        let (lobes, values) = Lobes::at_vertices(&ed.flat, bake, eye);
+        ed.pixel_lights = Some(PixelLights { lobes, values: values.clone() });
+        return values;
+    }
     let gpu = ed.gpu.clone();
     if ed.bspvt_gpu.is_none() && ed.polygonal_on_gpu() {
         match BspvtShader::new(&gpu, &ed.shaders, None) {

@@ -85,6 +85,7 @@ impl App {
         vp.set_environment(ed.gpu(), ed.flat.environment.as_ref());
         if ed.dirty.per_pixel {
             vp.upload_prt(ed.gpu(), &ed.flat, ed.per_pixel.as_ref());
+            vp.upload_lights(ed.gpu(), &ed.flat, ed.pixel_lights.as_ref());
             ed.dirty.per_pixel = false;
         }
     }

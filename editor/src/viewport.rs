@@ -2,7 +2,9 @@
 //! `shaders/preview.wgsl` into an offscreen texture that egui shows as an image, the base-colour
 //! texture's detail added per pixel ([`crate::detail`]). PRT is drawn per pixel instead when a
 //! frame's terms are given ([`Viewport::upload_prt`]): the shadows between groups are looked up
-//! at every pixel, not interpolated between vertices.
+//! at every pixel, not interpolated between vertices. The polygonal lights are drawn per pixel
+//! when their lobes are given ([`Viewport::upload_lights`]): LTC at every pixel, the trees'
+//! visibility carried from the vertices, as `kage render` does.
 
 use super::camera::Orbit;
 use super::detail::{self, Detail};
@@ -10,8 +12,10 @@ use super::sky::{self, Sky};
 use bytemuck::{Pod, Zeroable};
 use eframe::{egui, egui_wgpu};
 use glam::Vec3;
+use kage_engine::bspvt::pixel::Lobes;
+use kage_engine::math::{ggx, ltc};
 use kage_engine::prt;
-use kage_engine::scene::{EnvironmentLight, FlatScene};
+use kage_engine::scene::{EnvironmentLight, FlatScene, VertexValues};
 use kage_gpu::buffers::{storage, uniform};
 use kage_gpu::prt::ShadowArrays;
 use kage_gpu::{Gpu, Shaders};
@@ -26,6 +30,7 @@ struct View {
     view_proj: [[f32; 4]; 4],
     exposure: [f32; 4],
     inverse_view_proj: [[f32; 4]; 4],
+    eye: [f32; 4],
 }
 
 /// One drawable: world positions, radiance and texture detail per vertex, triangle indices,
@@ -64,6 +69,47 @@ struct PrtVertex {
     albedo: [f32; 4],
 }
 
+/// The polygonal lights per pixel: one unindexed draw per instance (each with its base-colour
+/// texture) of the triangles in storage.
+struct LitDraw {
+    bind: wgpu::BindGroup,
+    /// Per vertex, the radiance of everything but the polygonal lights (rewritten with every
+    /// [`Viewport::upload_radiance`]).
+    rest: wgpu::Buffer,
+    /// The polygonal lights' per-vertex radiance, which `rest` leaves out, flattened.
+    polygonal: Vec<Vec3>,
+    /// Per instance, its range of the unindexed draw.
+    ranges: Vec<std::ops::Range<u32>>,
+}
+
+/// What the viewport needs to draw the polygonal lights per pixel: the lobes' integrals at
+/// every vertex toward the eye and the per-vertex radiance computed with them.
+pub struct PixelLights {
+    /// Per vertex and light, the shadowed and unshadowed integrals of both lobes.
+    pub lobes: Lobes,
+    /// The polygonal lights' radiance per vertex (part of what `upload_radiance` is given).
+    pub values: VertexValues,
+}
+
+/// `LitParams` of preview.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct LitParams {
+    lights: u32,
+    pad: [u32; 7],
+}
+
+/// `LitVertex` of preview.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct LitVertex {
+    p: [f32; 4],
+    n: [f32; 4],
+    base: [f32; 4],
+    surface: [f32; 4],
+    at_vertex: [f32; 4],
+}
+
 /// The offscreen target.
 struct Target {
     size: [u32; 2],
@@ -79,6 +125,8 @@ struct Pipelines {
     /// Per-pixel PRT; `None` where the device cannot bind its storage buffers in the fragment
     /// stage (e.g. a GL adapter), which then interpolates PRT per vertex.
     prt: Option<wgpu::RenderPipeline>,
+    /// The polygonal lights per pixel; `None` as for `prt`.
+    lit: Option<wgpu::RenderPipeline>,
     /// The environment behind the geometry.
     sky: wgpu::RenderPipeline,
 }
@@ -96,6 +144,7 @@ pub struct Viewport {
     sky: Option<Sky>,
     meshes: Vec<Mesh>,
     prt: Option<PrtDraw>,
+    lit: Option<LitDraw>,
     /// Flat-coloured light polygons, each with its emitting side.
     lights: Vec<(Mesh, LightSide)>,
     target: Option<Target>,
@@ -137,7 +186,7 @@ impl Viewport {
             layout: &layout,
             entries: &[wgpu::BindGroupEntry { binding: 0, resource: uniform.as_entire_binding() }],
         });
-        let prt_layout = prt_layout(gpu);
+        let prt_layout = storage_layout(gpu);
         let (detail_layout, sky_layout) = (detail::layout(gpu), sky::layout(gpu));
         let layouts = Layouts { view: &layout, detail: &detail_layout, sky: &sky_layout, prt: prt_layout.as_ref() };
         let pipelines = build_pipelines(gpu, shaders, layouts)?;
@@ -152,6 +201,7 @@ impl Viewport {
             sky: None,
             meshes: Vec::new(),
             prt: None,
+            lit: None,
             lights: Vec::new(),
             target: None,
             generation: 0,
@@ -188,6 +238,16 @@ impl Viewport {
     pub fn upload_prt(&mut self, gpu: &Gpu, flat: &FlatScene, frame: Option<&prt::Frame>) {
         self.prt = match (frame, &self.prt_layout) {
             (Some(f), Some(layout)) => Some(prt_draw(gpu, layout, flat, f)),
+            _ => None,
+        };
+    }
+
+    /// Draws the polygonal lights per pixel from `lights` (`None`, a device that cannot, or a
+    /// light the shader does not take — textured, more than 8 corners: per-vertex radiance).
+    /// Call after [`Viewport::upload_geometry`] of the same snapshot.
+    pub fn upload_lights(&mut self, gpu: &Gpu, flat: &FlatScene, lights: Option<&PixelLights>) {
+        self.lit = match (lights, &self.prt_layout) {
+            (Some(l), Some(layout)) if self.meshes.len() == flat.instances.len() => lit_draw(gpu, layout, flat, l),
             _ => None,
         };
     }
@@ -230,6 +290,13 @@ impl Viewport {
     pub fn upload_radiance(&mut self, gpu: &Gpu, values: &[Vec<Vec3>]) {
         if values.len() != self.meshes.len() {
             return;
+        }
+        if let Some(lit) = &self.lit {
+            let rest: Vec<[f32; 4]> =
+                values.iter().flatten().zip(&lit.polygonal).map(|(v, p)| (*v - *p).extend(0.0).into()).collect();
+            if rest.len() == lit.polygonal.len() {
+                gpu.queue.write_buffer(&lit.rest, 0, bytemuck::cast_slice(&rest));
+            }
         }
         for (m, v) in self.meshes.iter().zip(values) {
             if v.len() == m.vertices {
@@ -292,6 +359,7 @@ impl Viewport {
             view_proj: view_proj.to_cols_array_2d(),
             exposure: [exposure.exp2(), if raw { 1.0 } else { 0.0 }, 0.0, 0.0],
             inverse_view_proj: view_proj.inverse().to_cols_array_2d(),
+            eye: orbit.eye().extend(1.0).into(),
         };
         gpu.queue.write_buffer(&self.uniform, 0, bytemuck::bytes_of(&view));
         let mut encoder = gpu.device.create_command_encoder(&Default::default());
@@ -318,8 +386,17 @@ impl Viewport {
                 pass.set_bind_group(1, &sky.bind, &[]);
                 pass.draw(0..3, 0..1);
             }
-            let per_vertex = match (&self.prt, &self.pipelines.prt) {
-                (Some(prt), Some(pipeline)) => {
+            let per_vertex = match (&self.lit, &self.pipelines.lit, &self.prt, &self.pipelines.prt) {
+                (Some(lit), Some(pipeline), _, _) => {
+                    pass.set_pipeline(pipeline);
+                    pass.set_bind_group(1, &lit.bind, &[]);
+                    for (range, mesh) in lit.ranges.iter().zip(&self.meshes) {
+                        pass.set_bind_group(2, &mesh.texture, &[]);
+                        pass.draw(range.clone(), 0..1);
+                    }
+                    &self.meshes[..0]
+                }
+                (_, _, Some(prt), Some(pipeline)) => {
                     pass.set_pipeline(pipeline);
                     pass.set_bind_group(1, &prt.bind, &[]);
                     pass.draw(0..prt.count, 0..1);
@@ -416,22 +493,77 @@ fn prt_draw(gpu: &Gpu, layout: &wgpu::BindGroupLayout, flat: &FlatScene, frame: 
         storage(gpu, "preview silhouettes", &shadows.silhouettes),
         storage(gpu, "preview tables", &shadows.tables),
     ];
+    PrtDraw { bind: bind_buffers(gpu, layout, &buffers), count: indices.len() as u32 }
+}
+
+/// A bind group of `buffers` at bindings 0, 1, … of `layout`.
+fn bind_buffers(gpu: &Gpu, layout: &wgpu::BindGroupLayout, buffers: &[wgpu::Buffer]) -> wgpu::BindGroup {
     let entries: Vec<wgpu::BindGroupEntry> = buffers
         .iter()
         .enumerate()
         .map(|(k, b)| wgpu::BindGroupEntry { binding: k as u32, resource: b.as_entire_binding() })
         .collect();
-    let bind = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
-        label: Some("preview prt"),
+    gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("preview storage"),
         layout,
         entries: &entries,
-    });
-    PrtDraw { bind, count: indices.len() as u32 }
+    })
 }
 
-/// Group 1 of the per-pixel PRT pipeline: parameters, then six storage arrays (see preview.wgsl);
+/// The per-pixel lights' draw of every instance, bound to `layout`; `None` when a light is one
+/// the shader does not take.
+fn lit_draw(gpu: &Gpu, layout: &wgpu::BindGroupLayout, flat: &FlatScene, lights: &PixelLights) -> Option<LitDraw> {
+    let gpu_lights = flat.lights.iter().map(kage_gpu::bspvt::gpu_light).collect::<Result<Vec<_>, _>>().ok()?;
+    let (mut vertices, mut indices, mut lobes, mut ranges) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    for i in 0..flat.instances.len() {
+        let mesh = flat.mesh(i);
+        let base = vertices.len() as u32;
+        let start = indices.len() as u32;
+        indices.extend(mesh.triangles.iter().flatten().map(|k| base + k));
+        ranges.push(start..indices.len() as u32);
+        let detail = detail::vertices(flat, i);
+        vertices.extend((0..mesh.positions.len()).zip(&detail).map(|(v, d)| lit_vertex(flat, i, v, d)));
+        for v in 0..mesh.positions.len() {
+            lobes.extend(lights.lobes.vertex(i, v).iter().map(|[d, s]| [d[0], d[1], s[0], s[1]]));
+        }
+    }
+    let polygonal: Vec<Vec3> = lights.values.iter().flatten().copied().collect();
+    if polygonal.len() != vertices.len() || lobes.len() != vertices.len() * flat.lights.len() {
+        return None;
+    }
+    let tables: Vec<f32> =
+        ltc::table().entries().iter().flatten().chain(ggx::albedo_tables().concat().iter()).copied().collect();
+    let params = LitParams { lights: flat.lights.len() as u32, pad: [0; 7] };
+    let rest = storage(gpu, "preview rest", &vec![[0.0f32; 4]; vertices.len()]);
+    let buffers = [
+        uniform(gpu, "preview lit params", &params),
+        storage(gpu, "preview indices", &indices),
+        storage(gpu, "preview lit vertices", &vertices),
+        rest.clone(),
+        storage(gpu, "preview lobes", &lobes),
+        storage(gpu, "preview lights", &gpu_lights),
+        storage(gpu, "preview ltc tables", &tables),
+    ];
+    Some(LitDraw { bind: bind_buffers(gpu, layout, &buffers), rest, polygonal, ranges })
+}
+
+/// Vertex `v` of instance `i` as the per-pixel lights read it (`d`: its texture detail).
+fn lit_vertex(flat: &FlatScene, i: usize, v: usize, d: &Detail) -> LitVertex {
+    let (p, n) = flat.vertex(i, v);
+    let m = flat.vertex_material(i, v);
+    LitVertex {
+        p: p.extend(0.0).into(),
+        n: n.normalize_or_zero().extend(0.0).into(),
+        base: m.base_color.extend(m.metallic).into(),
+        surface: [m.roughness, m.specular, d.uv[0], d.uv[1]],
+        at_vertex: Vec3::from(d.at_vertex).extend(0.0).into(),
+    }
+}
+
+/// Group 1 of the per-pixel PRT and lights pipelines: parameters, then six storage arrays —
+/// indices read by the vertex stage, vertices by both, four by the fragment (see preview.wgsl);
 /// `None` when the device allows fewer storage buffers per stage than the fragment stage binds.
-fn prt_layout(gpu: &Gpu) -> Option<wgpu::BindGroupLayout> {
+fn storage_layout(gpu: &Gpu) -> Option<wgpu::BindGroupLayout> {
     use wgpu::ShaderStages as S;
     if gpu.device.limits().max_storage_buffers_per_shader_stage < 5 {
         return None;
@@ -455,17 +587,15 @@ fn prt_layout(gpu: &Gpu) -> Option<wgpu::BindGroupLayout> {
             count: None,
         })
         .collect();
-    Some(
-        gpu.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("preview prt"),
-            entries: &entries,
-        }),
-    )
+    Some(gpu.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some("preview storage"),
+        entries: &entries,
+    }))
 }
 
 /// The bind group layouts the pipelines use: the view (group 0), then the base-colour texture
-/// (per-vertex pipeline), the environment map (sky) or the PRT arrays (per-pixel PRT) as
-/// group 1.
+/// (per-vertex pipeline), the environment map (sky) or the storage arrays (per-pixel PRT and
+/// lights, the latter with the base-colour texture as group 2) as group 1.
 #[derive(Clone, Copy)]
 struct Layouts<'a> {
     view: &'a wgpu::BindGroupLayout,
@@ -500,8 +630,11 @@ fn build_pipelines(gpu: &Gpu, shaders: &Shaders, layouts: Layouts) -> Result<Pip
         };
         let main = pipeline(&[view, Some(layouts.detail)], ("vs_main", "fs_main"), &per_vertex, Depth::Tested);
         let prt = layouts.prt.map(|prt| pipeline(&[view, Some(prt)], ("vs_prt", "fs_prt"), &[], Depth::Tested));
+        let lit = layouts.prt.map(|storage| {
+            pipeline(&[view, Some(storage), Some(layouts.detail)], ("vs_lit", "fs_lit"), &[], Depth::Tested)
+        });
         let sky = pipeline(&[view, Some(layouts.sky)], ("vs_sky", "fs_sky"), &[], Depth::Behind);
-        Pipelines { main, prt, sky }
+        Pipelines { main, prt, lit, sky }
     })
     .map_err(|e| kage_gpu::ShaderError {
         file: "preview.wgsl".into(),

@@ -118,6 +118,8 @@ fn the_default_scene_bakes_in_the_background_and_every_method_shades() {
     assert!(errors(ed).is_empty(), "{:?}", errors(ed));
     // The editor opens on the complete baked look.
     assert_eq!(ed.method, Method::Baked);
+    let lit = ed.pixel_lights.as_ref().expect("the baked view draws the polygonal lights per pixel");
+    assert_eq!(lit.values.len(), ed.flat.instances.len());
     let baked = values(&h);
     assert!(baked.iter().any(|v| v.max_element() > 0.01) && baked.iter().all(|v| v.is_finite()));
     // The exposure was metered from the first lit result, as `kage render` meters its PNGs.
@@ -135,6 +137,9 @@ fn the_default_scene_bakes_in_the_background_and_every_method_shades() {
         step_until(&mut h, label, |ed| ed.method == method && !ed.dirty.shade);
         let v = values(&h);
         assert!(v.iter().all(|x| x.is_finite() && x.min_element() >= 0.0), "{label}");
+        // The methods that shade the polygonal lights with LTC draw them per pixel.
+        let per_pixel = matches!(method, Method::Bspvt | Method::LtcUnshadowed);
+        assert_eq!(h.state().editor.pixel_lights.is_some(), per_pixel, "{label}");
         assert!(seen.iter().all(|s| changed(s, &v) > 100), "{label} shades differently from the others");
         snapshot(&mut h, &format!("default-{label}"));
         seen.push(v);
@@ -153,6 +158,7 @@ fn the_default_scene_bakes_in_the_background_and_every_method_shades() {
     let img = snapshot(&mut h, "default-overlay");
     assert!(viewport_colours(&img) > 20);
     let ed = &h.state().editor;
+    assert!(ed.pixel_lights.is_none(), "the overlay's colours are per vertex");
     assert!(errors(ed).is_empty(), "{:?}", errors(ed));
 }
 

@@ -74,6 +74,57 @@ fn per_pixel_prt_matches_the_cpu_per_pixel_render_and_beats_per_vertex_shading()
     );
 }
 
+/// The polygonal lights per pixel (`vs_lit`/`fs_lit`) match `kage render`'s per-pixel resolve
+/// (`bspvt::pixel::Lobes::shade`) and show what per-vertex shading of a floor of two triangles
+/// cannot: the pool of light, the shadows and the highlight on it. The materials are made
+/// glossy (a gold floor, glossy dielectric objects) so the specular lobes are exercised.
+#[test]
+fn polygonal_lights_per_pixel_match_the_cpu_render_and_beat_per_vertex_shading() {
+    use kage_editor::viewport::PixelLights;
+    use kage_engine::bspvt::{self, pixel::Lobes};
+    use kage_engine::raster::shade_image;
+    use kage_engine::scene::Material;
+    let gpu = Gpu::new().expect("a wgpu device (lavapipe without a GPU)");
+    let scene = import::import(&asset("scenes/two_triangle_floor.gltf"), Default::default()).unwrap();
+    let mut flat = flatten(&scene);
+    assert_eq!(flat.vertex_count(0), 4, "instance 0 is the floor of two triangles");
+    for (i, inst) in flat.instances.iter_mut().enumerate() {
+        inst.material = match i {
+            0 => Material { base_color: Vec3::new(1.0, 0.78, 0.34), metallic: 1.0, roughness: 0.35, specular: 1.0 },
+            _ => Material { roughness: 0.25, specular: 1.0, ..inst.material },
+        };
+    }
+    let bake = bspvt::bake(&flat, &bspvt::Settings { res: 16, epsilon: 2.0 }, &|_| {});
+    let orbit = Orbit { target: Vec3::new(0.0, 0.3, 0.0), distance: 6.5, yaw: 0.3, pitch: 0.55, yfov: 0.8 };
+    let eye = orbit.eye();
+    let (lobes, values) = Lobes::at_vertices(&flat, Some(&bake), eye);
+    let (w, h) = (240, 160);
+    let camera = Camera::look_at(eye, orbit.target, orbit.yfov);
+    let renderer = Renderer::new(&scene);
+    let exposure = -1.0f32;
+    let cpu = shade_image(&renderer, &camera, w, h, 1, &|hit| lobes.shade(&flat, hit, eye));
+    let reference: Vec<[u8; 3]> =
+        cpu.iter().map(|p| (*p * exposure.exp2()).to_array().map(|c| (display_srgb(c) * 255.0 + 0.5) as u8)).collect();
+
+    let mut vp = Viewport::new(&gpu, &Shaders::embedded()).unwrap();
+    vp.upload_geometry(&gpu, &flat);
+    vp.upload_lights(&gpu, &flat, Some(&PixelLights { lobes, values: values.clone() }));
+    vp.upload_radiance(&gpu, &values);
+    let per_pixel = vp.render_image(&gpu, [w as u32, h as u32], &orbit, exposure).unwrap();
+    vp.upload_lights(&gpu, &flat, None);
+    let per_vertex = vp.render_image(&gpu, [w as u32, h as u32], &orbit, exposure).unwrap();
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../target/editor-snapshots");
+    std::fs::create_dir_all(&dir).unwrap();
+    per_pixel.save(dir.join("lights-per-pixel.png")).unwrap();
+    per_vertex.save(dir.join("lights-per-vertex.png")).unwrap();
+
+    // Edges differ by a pixel, f32 against f64 by a level.
+    let (pixel, vertex) = (within(&per_pixel, &reference, 3), within(&per_vertex, &reference, 3));
+    eprintln!("within 3 levels of the CPU render: per pixel {pixel:.4}, per vertex {vertex:.4}");
+    assert!(pixel >= 0.98, "per-pixel lights match the CPU render on {:.1} % of pixels", 100.0 * pixel);
+    assert!(vertex < pixel - 0.2, "per vertex {:.1} %, per pixel {:.1} %", 100.0 * vertex, 100.0 * pixel);
+}
+
 /// The viewport's texture detail matches its CPU statement (`kage_editor::detail`): per-vertex
 /// radiance times the base-colour texture at the pixel over its value interpolated from the
 /// vertices. The textured scene's poster has 4 vertices and its floor 121, so the detail is

@@ -1,10 +1,10 @@
 //! Re-shading the baked look after a light or camera change on the paper's teapot
 //! configuration (`teapot_quad_light.gltf`, teapot refined to 17 000 vertices, 64² faces) under
 //! a procedural sky, on all cores:
-//! - `relight_vertices`: the light moved — per-vertex BSPVT shading and the sun, the
-//!   environment's part reused from the memo (nothing it reads changed), as the editor's
-//!   `baked` view shades on the CPU;
-//! - `camera_moved`: the eye moved — everything view-dependent again: per-vertex BSPVT shading,
+//! - `relight_vertices`: the light moved — per-vertex BSPVT shading with the lobes' pairs the
+//!   viewport's per-pixel lights read, and the sun, the environment's part reused from the memo
+//!   (nothing it reads changed), as the editor's `baked` view shades on the CPU;
+//! - `camera_moved`: the eye moved — everything view-dependent again: BSPVT shading and lobes,
 //!   the PRT frame (lighting posed, other groups' silhouettes reused) and the environment's
 //!   specular term;
 //! - `polygonal_part`, `environment_part`: each light alone as `kage render` prepares it for
@@ -55,11 +55,11 @@ fn bench(c: &mut Criterion) {
     g.sample_size(10);
     let parts = prt::Parts { bake: &transfer, lighting: &light, settings: &s };
     // Per-vertex direct values as the editor's `baked` view shades them on the CPU: polygonal
-    // lights from the trees (no lobe pairs: those serve the per-pixel resolve), the
+    // lights from the trees with the lobes' pairs its viewport draws them with per pixel, the
     // environment's part through the memo.
     let mut shade = |scene: &Scene, eye: Vec3| {
         let flat = flatten(scene);
-        let values = bspvt::shade_vertices(&flat, bspvt::Shadows::Trees(&trees), eye);
+        let (_lobes, values) = bspvt::pixel::Lobes::at_vertices(&flat, Some(&trees), eye);
         let polygonal = Polygonal { bake: Some(&trees), values, lobes: None };
         Look::direct_reusing(scene, &flat, eye, Some(polygonal), Some((parts, Some(&pre))), &mut environment, &mut memo)
             .len()

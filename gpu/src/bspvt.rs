@@ -33,9 +33,10 @@ struct GpuVertex {
     spec: [f32; 4],
 }
 
+/// A light polygon as `ltc.wgsl`'s `Light` reads it.
 #[repr(C)]
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
-struct GpuLight {
+pub struct GpuLight {
     points: [[f32; 4]; MAX_LIGHT_POINTS],
     normal: [f32; 3],
     count: u32,
@@ -171,7 +172,9 @@ fn gpu_vertex(s: &PointShader) -> GpuVertex {
     }
 }
 
-fn gpu_light(l: &FlatLight) -> Result<GpuLight, GpuError> {
+/// `l` as the shaders read it; an error for what they cannot shade (more than
+/// [`MAX_LIGHT_POINTS`] corners, a texture).
+pub fn gpu_light(l: &FlatLight) -> Result<GpuLight, GpuError> {
     if l.points.len() > MAX_LIGHT_POINTS {
         return Err(GpuError::Unsupported(format!(
             "a light polygon with {} corners (the GPU path takes at most {MAX_LIGHT_POINTS})",

@@ -8,16 +8,17 @@
 //!
 //! WGSL has no includes; kage's loader has one: a line `// #include "name.wgsl"` is replaced by
 //! that file's text (one level deep), so shaders share code (the silhouette lookups of
-//! `silhouette.wgsl`) without copies. Errors are mapped back to the file and line they are in.
+//! `silhouette.wgsl`, the polygon clipping and LTC integral of `ltc.wgsl`) without copies. Errors are mapped back to the file and line they are in.
 
 use std::path::{Path, PathBuf};
 
 /// The shaders kage ships, with their embedded sources.
-const EMBEDDED: [(&str, &str); 4] = [
+const EMBEDDED: [(&str, &str); 5] = [
     ("bspvt.wgsl", include_str!("../../shaders/bspvt.wgsl")),
     ("prt.wgsl", include_str!("../../shaders/prt.wgsl")),
     ("preview.wgsl", include_str!("../../shaders/preview.wgsl")),
     ("silhouette.wgsl", include_str!("../../shaders/silhouette.wgsl")),
+    ("ltc.wgsl", include_str!("../../shaders/ltc.wgsl")),
 ];
 
 /// The include directive, up to the quoted file name.

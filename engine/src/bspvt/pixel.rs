@@ -61,6 +61,11 @@ impl Lobes {
         (Self { lights, integrals }, values)
     }
 
+    /// Vertex `v` of instance `i`: per light, `[[shadowed, unshadowed]; 2 lobes]`.
+    pub fn vertex(&self, i: usize, v: usize) -> &[[[f32; 2]; 2]] {
+        &self.integrals[i][v * self.lights..(v + 1) * self.lights]
+    }
+
     /// Radiance toward `eye` from the polygonal lights at a primary-ray `hit`.
     pub fn shade(&self, flat: &FlatScene, hit: &SurfaceHit, eye: Vec3) -> Vec3 {
         let i = hit.instance;

@@ -165,6 +165,13 @@ pub fn directional_albedo(mu: f32, roughness: f32, f0: Vec3, f90: Vec3) -> Vec3 
     f0 * lerp2(&t.a) + f90 * lerp2(&t.b)
 }
 
+/// The A and B tables of [`directional_albedo`], each indexed `roughness row · ALBEDO_N + μ
+/// column` (for upload to the GPU).
+pub fn albedo_tables() -> [&'static [f32]; 2] {
+    let t = albedo_table();
+    [&t.a, &t.b]
+}
+
 /// ∫ f cos over the hemisphere for `cos θo = mu`, with F split into (1 − w) and w (the A and B
 /// terms), by stratified visible-normal sampling: the generator of the shipped tables.
 pub fn integrate_albedo(mu: f32, alpha: f32) -> (f32, f32) {

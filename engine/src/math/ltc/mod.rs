@@ -70,6 +70,11 @@ impl<'a> Table<'a> {
         Self { entries }
     }
 
+    /// The entries, indexed `a + t·64` (for upload to the GPU).
+    pub fn entries(&self) -> &[Entry] {
+        self.entries
+    }
+
     /// Bilinear lookup (NaN or out-of-range input is clamped to the table).
     pub fn lookup(&self, roughness: f64, cos_theta: f64) -> Lookup {
         let (x, y) = table_coords(roughness, cos_theta);
