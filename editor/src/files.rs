@@ -3,8 +3,9 @@
 //! glTF file.
 
 use super::state::Editor;
+use glam::Vec3;
 use kage_bake_db::pack::{self, Export};
-use kage_engine::scene::VertexValues;
+use kage_engine::scene::{FlatScene, VertexValues, flatten};
 use std::path::{Path, PathBuf};
 
 /// `SCENE_DIR/<stem><suffix>`, or `kage-default<suffix>` in the working folder.
@@ -18,14 +19,18 @@ fn beside_scene(ed: &Editor, suffix: &str) -> PathBuf {
     }
 }
 
+/// Writes `path` through the pack writer: an export (`with_bakes`) writes what was baked — the
+/// refined meshes the bakes belong to — and a save the scene as it was made, on its source
+/// meshes (refinement is the bake's business: reopening the file refines again from them).
 fn write(ed: &mut Editor, path: PathBuf, with_bakes: bool) -> String {
-    let zeros: VertexValues;
-    let radiance = if ed.radiance.len() == ed.flat.instances.len() {
-        &ed.radiance
-    } else {
-        zeros = ed.flat.zeros();
-        &zeros
-    };
+    let source = (!with_bakes).then(|| {
+        let mut s = ed.scene.duplicate();
+        s.restore_source_meshes();
+        let flat = flatten(&s);
+        (s, flat)
+    });
+    let (scene, flat) = source.as_ref().map_or((&ed.scene, &ed.flat), |(s, f)| (s, f));
+    let radiance = preview(ed, flat);
     let prt = match (&ed.bakes.prt, &ed.bakes.lighting) {
         (Some(bake), Some(lighting)) if with_bakes => {
             Some(kage_engine::prt::Parts { bake, lighting, settings: &ed.options.prt })
@@ -33,11 +38,11 @@ fn write(ed: &mut Editor, path: PathBuf, with_bakes: bool) -> String {
         _ => None,
     };
     let export = Export {
-        scene: &ed.scene,
-        flat: &ed.flat,
+        scene,
+        flat,
         bspvt: ed.bakes.bspvt.as_deref().filter(|_| with_bakes && !ed.bakes.bspvt_stale),
         prt,
-        radiance,
+        radiance: &radiance,
         exposure: ed.exposure,
     };
     let message = match pack::write(&path, &export) {
@@ -50,6 +55,24 @@ fn write(ed: &mut Editor, path: PathBuf, with_bakes: bool) -> String {
         ed.error(message.clone())
     }
     message
+}
+
+/// The preview radiance per vertex of `flat` (the snapshot or its source meshes): a refined
+/// mesh starts with its source's vertices (refinement appends), so a source vertex keeps its
+/// refined twin's value; zeros where the shapes do not fit (a result still on its way).
+fn preview(ed: &Editor, flat: &FlatScene) -> VertexValues {
+    let fits = ed.radiance.len() == flat.instances.len();
+    (0..flat.instances.len())
+        .map(|i| {
+            let n = flat.vertex_count(i);
+            let shown = ed.radiance.get(i).filter(|r| fits && r.len() >= n && ed.flat.vertex_count(i) >= n);
+            let same = |k: usize| flat.vertex(i, k).0 == ed.flat.vertex(i, k).0;
+            match shown {
+                Some(r) if (0..n).all(same) => r[..n].to_vec(),
+                _ => vec![Vec3::ZERO; n],
+            }
+        })
+        .collect()
 }
 
 /// Saves the edits into the scene file that was opened ([`super::source::save`]); the built-in

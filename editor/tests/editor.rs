@@ -865,4 +865,12 @@ fn receivers_are_refined_as_kage_bake_refines_them_and_again_after_edits() {
     let saved = import::import(&path, Default::default()).unwrap();
     let flat = kage_engine::scene::flatten(&saved);
     assert_eq!(flat.vertex_count(0), 4, "the saved floor is the file's two triangles");
+    // So does saving a scene that has no file (the built-in one), through the pack writer.
+    let ed = &mut h.state_mut().editor;
+    ed.options.scene_path = None;
+    let glb = dir.join("no-file.glb");
+    let message = kage_editor::files::save_as(ed, &glb);
+    assert!(message.starts_with("wrote"), "{message}");
+    let saved = kage_engine::scene::flatten(&import::import(&glb, Default::default()).unwrap());
+    assert_eq!(saved.vertex_count(0), 4, "a save without a file writes the floor's two triangles too");
 }
