@@ -5,6 +5,7 @@
 use super::state::{Editor, Selection};
 use glam::{Vec2, Vec3};
 use kage_engine::accel::SceneBvh;
+use kage_engine::raster::SurfaceHit;
 use kage_engine::scene::{FlatScene, Instance, NO_LIGHT, PrimitiveId, Scene};
 
 /// A BVH over one snapshot, for picking.
@@ -21,14 +22,36 @@ impl Picker {
     /// The group (for a mesh) or light the ray from `origin` along `dir` (unit) meets first in
     /// `flat`, the snapshot the picker was built from.
     pub fn pick(&self, flat: &FlatScene, origin: Vec3, dir: Vec3) -> Selection {
-        let Some(hit) = self.bvh.closest_hit(origin, dir, f32::INFINITY) else { return Selection::None };
-        let owner = flat.refs[hit.triangle as usize];
-        if owner.light != NO_LIGHT {
-            Selection::Light(flat.lights[owner.light as usize].entity)
-        } else {
-            Selection::Group(flat.instances[owner.owner as usize].group)
+        match self.seen(flat, origin, dir) {
+            Seen::Nothing => Selection::None,
+            Seen::Light(l) => Selection::Light(flat.lights[l].entity),
+            Seen::Surface(hit) => Selection::Group(flat.instances[hit.instance].group),
         }
     }
+
+    /// What the ray from `origin` along `dir` (unit) meets first in `flat`.
+    pub fn seen(&self, flat: &FlatScene, origin: Vec3, dir: Vec3) -> Seen {
+        let Some(hit) = self.bvh.closest_hit(origin, dir, f32::INFINITY) else { return Seen::Nothing };
+        let owner = flat.refs[hit.triangle as usize];
+        if owner.light != NO_LIGHT {
+            return Seen::Light(owner.light as usize);
+        }
+        let (i, mesh) = (owner.owner as usize, flat.mesh(owner.owner as usize));
+        let corners = mesh.triangles[owner.local as usize].map(|k| k as usize);
+        let weights = [1.0 - hit.bary.x - hit.bary.y, hit.bary.x, hit.bary.y];
+        let position = origin + dir * hit.t;
+        Seen::Surface(SurfaceHit { instance: i, corners, weights, position })
+    }
+}
+
+/// What a view ray meets.
+pub enum Seen {
+    /// Nothing: the background.
+    Nothing,
+    /// A light polygon (by index in the snapshot's lights).
+    Light(usize),
+    /// A mesh.
+    Surface(SurfaceHit),
 }
 
 impl Editor {

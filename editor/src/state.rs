@@ -189,9 +189,10 @@ pub enum ShadeOn {
     /// The GPU, unless the adapter is a CPU emulation (lavapipe), where the native CPU path
     /// is faster (measured on the teapot: 5 ms on the CPU against 365 ms on lavapipe per re-shade).
     Auto,
-    /// The WGSL compute shaders.
+    /// The GPU: the viewport draws the lights per pixel ([`Editor::lights_per_pixel`]), or the
+    /// WGSL compute shaders shade them per vertex.
     Gpu,
-    /// The engine's CPU path (rayon).
+    /// The engine's CPU path (rayon), per vertex.
     Cpu,
 }
 
@@ -247,6 +248,8 @@ pub struct Editor {
     pub exposure: f32,
     /// Meter the exposure from the next lit result (set when a scene opens).
     pub metering: bool,
+    /// The viewport's width over its height (the view exposure is metered through).
+    pub aspect: f32,
     /// Everything that happened, errors included.
     pub log: Vec<LogLine>,
     /// Timings.
@@ -356,6 +359,7 @@ impl Editor {
             reference: ReferenceSum::default(),
             per_pixel: None,
             pixel_lights: None,
+            aspect: 16.0 / 9.0,
             gpu,
             shaders,
             bspvt_gpu: None,
@@ -471,13 +475,16 @@ impl Editor {
         }
     }
 
-    /// True when the viewport draws the polygonal lights per pixel, as `kage render` does: for
-    /// the methods that shade them with LTC (`baked`, `bspvt`, `ltc-unshadowed`), without the
-    /// overlay, with lights the shader takes (untextured, at most 8 corners), and for scenes
-    /// whose lobes are shaded within the frame (at most `background_shading` vertices).
+    /// True when the viewport draws the polygonal lights per pixel, as `kage render` does: when
+    /// they shade on the GPU ([`ShadeOn`]: a CPU emulation draws an 800×600 view per pixel in
+    /// 330 ms, per vertex in 7 ms), for the methods that shade them with LTC (`baked`, `bspvt`,
+    /// `ltc-unshadowed`), without the overlay, with lights the shader takes (untextured, at
+    /// most 8 corners), and for scenes whose lobes are shaded within the frame (at most
+    /// `background_shading` vertices).
     pub fn lights_per_pixel(&self) -> bool {
         let vertices: usize = (0..self.flat.instances.len()).map(|k| self.flat.vertex_count(k)).sum();
-        matches!(self.method, Method::Baked | Method::Bspvt | Method::LtcUnshadowed)
+        self.polygonal_on_gpu()
+            && matches!(self.method, Method::Baked | Method::Bspvt | Method::LtcUnshadowed)
             && !self.overlay
             && !self.flat.lights.is_empty()
             && self.flat.lights.iter().all(|l| kage_gpu::bspvt::gpu_light(l).is_ok())

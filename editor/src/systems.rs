@@ -4,6 +4,7 @@
 
 use super::bake_job::{BakeJob, ChunkData, Landed};
 use super::indirect::{Indirect, Job};
+use super::pick::Seen;
 use super::reload::Change;
 use super::state::Editor;
 use super::viewport::PixelLights;
@@ -12,7 +13,7 @@ use glam::Vec3;
 use kage_bake_db::DbError;
 use kage_engine::bspvt::pixel::Lobes;
 use kage_engine::cache::record::GlossyDirect;
-use kage_engine::math::color::metered_exposure;
+use kage_engine::math::color::metered_exposure_keeping;
 use kage_engine::prt::prefilter::Prefiltered;
 use kage_engine::reference::{Renderer, Settings};
 use kage_engine::scene::VertexValues;
@@ -506,14 +507,49 @@ fn compose(ed: &mut Editor) {
     }
 }
 
-/// Sets the exposure from the displayed radiance as `kage render --exposure auto` does (within
-/// the slider's range); waits, metering on, while nothing is lit yet.
+/// Sets the exposure as `kage render --exposure auto` meters its image (within the slider's
+/// range), from [`view_samples`]: their log-average to middle grey, at most 5 % of those on a
+/// surface clipping. Metering the vertices instead weighed a refined shadow's many vertices as
+/// much as a whole wall. Waits, metering on, while nothing is lit yet, and meters every result
+/// again while a bake runs: the first results (unshadowed, or one light's part) are not the look.
 pub fn meter_exposure(ed: &mut Editor) {
     let lit = ed.radiance.iter().flatten().any(|c| c.max_element() > 0.0);
     if lit {
-        ed.exposure = metered_exposure(ed.radiance.iter().flatten().copied()).clamp(-6.0, 6.0);
-        ed.metering = false;
+        let (all, surfaces) = view_samples(ed);
+        let kept = if surfaces.is_empty() { &all } else { &surfaces };
+        ed.exposure = metered_exposure_keeping(&all, kept).clamp(-6.0, 6.0);
+        ed.metering = ed.job.is_some();
     }
+}
+
+/// View rays through a grid over the viewport: the radiance each meets — the vertex radiance
+/// interpolated on a mesh, a light's own on its emitting side, the environment where nothing
+/// is hit — for all of them and for those on a surface.
+pub fn view_samples(ed: &mut Editor) -> (Vec<Vec3>, Vec<Vec3>) {
+    const ACROSS: usize = 96;
+    let down = ((ACROSS as f32 / ed.aspect.max(0.1)).round() as usize).clamp(1, 4 * ACROSS);
+    let picker = ed.memo.picker.get_or_insert_with(|| super::pick::Picker::new(&ed.flat));
+    let fits = ed.radiance.len() == ed.flat.instances.len();
+    let (mut all, mut surfaces) = (Vec::new(), Vec::new());
+    for k in 0..ACROSS * down {
+        let uv =
+            glam::Vec2::new(((k % ACROSS) as f32 + 0.5) / ACROSS as f32, ((k / ACROSS) as f32 + 0.5) / down as f32);
+        let (eye, dir) = ed.orbit.ray(uv, ed.aspect);
+        match picker.seen(&ed.flat, eye, dir) {
+            Seen::Surface(hit) if fits && ed.radiance[hit.instance].len() == ed.flat.vertex_count(hit.instance) => {
+                let l = hit.interpolate(&ed.radiance[hit.instance]);
+                surfaces.push(l);
+                all.push(l);
+            }
+            Seen::Surface(_) => {}
+            Seen::Light(l) => {
+                let light = &ed.flat.lights[l];
+                all.push(if dir.dot(light.normal) < 0.0 { light.radiance } else { Vec3::ZERO });
+            }
+            Seen::Nothing => all.push(ed.flat.environment.as_ref().map_or(Vec3::ZERO, |e| e.background(dir))),
+        }
+    }
+    (all, surfaces)
 }
 
 /// One bounce of indirect light from the HSH radiance cache, lit by the current direct result:

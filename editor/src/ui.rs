@@ -219,6 +219,7 @@ impl App {
         };
         let ppp = ui.ctx().pixels_per_point();
         let px = [(rect.width() * ppp) as u32, (rect.height() * ppp) as u32];
+        self.editor.aspect = rect.width() / rect.height().max(1.0);
         let ed = &self.editor;
         let id = vp.paint(ed.gpu(), &mut rs.renderer.write(), px, &ed.orbit, ed.exposure, ed.overlay);
         let uv = egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0));
@@ -356,7 +357,9 @@ fn methods(ui: &mut egui::Ui, ed: &mut Editor) {
         ui.label(format!("reference: {} samples per vertex", ed.reference.passes * 4));
     }
     ui.horizontal(|ui| {
-        ui.add(egui::Slider::new(&mut ed.exposure, -6.0..=6.0).text("exposure (stops)"));
+        if ui.add(egui::Slider::new(&mut ed.exposure, -6.0..=6.0).text("exposure (stops)")).changed() {
+            ed.metering = false; // the user's choice stands
+        }
         if ui.button("meter").on_hover_text("meter the exposure from the current result").clicked() {
             super::systems::meter_exposure(ed);
         }

@@ -31,7 +31,8 @@ pub struct Args {
     /// the view's "Indirect light" toggle turns it on).
     #[arg(long)]
     no_indirect: bool,
-    /// Where polygonal lights shade: auto (the GPU unless it is a CPU emulation), gpu, cpu.
+    /// Where polygonal lights shade: auto (the GPU unless it is a CPU emulation), gpu (per
+    /// pixel in the viewport), cpu (per vertex).
     #[arg(long, value_enum, default_value = "auto")]
     shade_on: state::ShadeOn,
     /// Scenes with more receiver vertices than this re-shade on the CPU in the background,
