@@ -367,15 +367,71 @@ fn lights_at(p: vec3<f32>, n: vec3<f32>, base: vec3<f32>, metallic_in: f32, roug
         d = select(d, 1.0, d < 0.0);
         var sf = fraction(vec3<f32>(a.z, b.z, c.z), vec3<f32>(a.w, b.w, c.w), w);
         sf = select(sf, d, sf < 0.0);
-        var local = transformed(&rel, t1, t2, n);
-        var out = d * diffuse * cosine_integral(&local);
+        if (edge_on(&rel)) {
+            continue;
+        }
+        var out = d * diffuse * lobe_integral(&rel, t1, t2, n);
         if (any(spec > vec3<f32>(0.0))) {
-            var moved = transformed(&rel, s0, t2, s2);
-            out = out + sf * spec * cosine_integral(&moved);
+            out = out + sf * spec * lobe_integral(&rel, s0, t2, s2);
         }
         total = total + light.radiance * out;
     }
     return total;
+}
+
+// True when the polygon's plane passes through the shading point (cosine_integral's test,
+// made once in world space: a linear map keeps a plane through the origin through it).
+fn edge_on(p: ptr<function, Poly>) -> bool {
+    let n = (*p).n;
+    var newell = vec3<f32>(0.0);
+    var scale = 0.0;
+    for (var i = 0u; i < n; i = i + 1u) {
+        newell = newell + cross((*p).v[i], (*p).v[(i + 1u) % n]);
+        scale = max(scale, length((*p).v[i]));
+    }
+    let len = length(newell);
+    return len == 0.0 || abs(dot(newell / len, (*p).v[0])) <= ON_PLANE * scale;
+}
+
+// cosine_integral of the polygon mapped by rows (r0, r1, r2), clipped at z = 0 edge by edge as
+// it goes — no mapped or clipped copy of the polygon is built (private arrays are what a CPU
+// device pays for most, per pixel). A convex polygon leaves the upper half-space at most once
+// and comes back once: the clipped polygon closes with the edge from the exit to the entry.
+fn lobe_integral(p: ptr<function, Poly>, r0: vec3<f32>, r1: vec3<f32>, r2: vec3<f32>) -> f32 {
+    let n = (*p).n;
+    var z = 0.0;
+    var exit = vec3<f32>(0.0);
+    var entry = vec3<f32>(0.0);
+    var crossings = 0u;
+    var q = (*p).v[0];
+    var a = vec3<f32>(dot(r0, q), dot(r1, q), dot(r2, q));
+    for (var i = 0u; i < n; i = i + 1u) {
+        q = (*p).v[(i + 1u) % n];
+        let b = vec3<f32>(dot(r0, q), dot(r1, q), dot(r2, q));
+        if (a.z >= 0.0 && b.z >= 0.0) {
+            z = z + edge_z(a, b);
+        } else if (a.z >= 0.0) {
+            exit = a + (b - a) * (a.z / (a.z - b.z));
+            z = z + edge_z(a, exit);
+            crossings = crossings + 1u;
+        } else if (b.z >= 0.0) {
+            entry = a + (b - a) * (a.z / (a.z - b.z));
+            z = z + edge_z(entry, b);
+            crossings = crossings + 1u;
+        }
+        a = b;
+    }
+    if (crossings == 2u) {
+        z = z + edge_z(exit, entry);
+    }
+    return max(-z / (2.0 * PI), 0.0);
+}
+
+// The z component of one edge's θ · n (ltc::edge_integral).
+fn edge_z(a: vec3<f32>, b: vec3<f32>) -> f32 {
+    let e = cross(a, b);
+    let l = length(e);
+    return select(0.0, e.z * (atan2(l, dot(a, b)) / l), l > 0.0);
 }
 
 @fragment

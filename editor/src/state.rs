@@ -477,7 +477,7 @@ impl Editor {
 
     /// True when the viewport draws the polygonal lights per pixel, as `kage render` does: when
     /// they shade on the GPU ([`ShadeOn`]: a CPU emulation draws an 800×600 view per pixel in
-    /// 330 ms, per vertex in 7 ms), for the methods that shade them with LTC (`baked`, `bspvt`,
+    /// 120 ms, per vertex in 7 ms), for the methods that shade them with LTC (`baked`, `bspvt`,
     /// `ltc-unshadowed`), without the overlay, with lights the shader takes (untextured, at
     /// most 8 corners), and for scenes whose lobes are shaded within the frame (at most
     /// `background_shading` vertices).
