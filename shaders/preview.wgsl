@@ -117,19 +117,28 @@ fn fs_sky(v: SkyOut) -> @location(0) vec4<f32> {
 // EnvMap::bilinear: between texel centres, wrapping in u and clamped at the poles (the map is
 // unfilterable 32-bit float, so the four texels are loaded and blended here).
 fn sky_bilinear(uv: vec2<f32>) -> vec3<f32> {
-    let size = vec2<i32>(textureDimensions(sky_map));
+    let t = bilinear_taps(uv, vec2<i32>(textureDimensions(sky_map)));
+    let top = mix(textureLoad(sky_map, vec2<i32>(t.i.x, t.j.x), 0).rgb, textureLoad(sky_map, vec2<i32>(t.i.y, t.j.x), 0).rgb, t.f.x);
+    let bottom = mix(textureLoad(sky_map, vec2<i32>(t.i.x, t.j.y), 0).rgb, textureLoad(sky_map, vec2<i32>(t.i.y, t.j.y), 0).rgb, t.f.x);
+    return mix(top, bottom, t.f.y);
+}
+
+// environment::bilinear's four texels (columns i, rows j) and weights for `uv` on a map of
+// `size`: between texel centres, wrapping in u, clamped at the poles.
+struct Taps {
+    i: vec2<i32>,
+    j: vec2<i32>,
+    f: vec2<f32>,
+}
+
+fn bilinear_taps(uv: vec2<f32>, size: vec2<i32>) -> Taps {
     let x = uv.x * f32(size.x) - 0.5;
     let y = clamp(uv.y * f32(size.y) - 0.5, 0.0, f32(size.y - 1));
     let x0 = floor(x);
     let y0 = floor(y);
-    let f = vec2<f32>(x - x0, y - y0);
     let i0 = ((i32(x0) % size.x) + size.x) % size.x;
-    let i1 = (i0 + 1) % size.x;
     let j0 = i32(y0);
-    let j1 = min(j0 + 1, size.y - 1);
-    let top = mix(textureLoad(sky_map, vec2<i32>(i0, j0), 0).rgb, textureLoad(sky_map, vec2<i32>(i1, j0), 0).rgb, f.x);
-    let bottom = mix(textureLoad(sky_map, vec2<i32>(i0, j1), 0).rgb, textureLoad(sky_map, vec2<i32>(i1, j1), 0).rgb, f.x);
-    return mix(top, bottom, f.y);
+    return Taps(vec2<i32>(i0, (i0 + 1) % size.x), vec2<i32>(j0, min(j0 + 1, size.y - 1)), vec2<f32>(x - x0, y - y0));
 }
 
 // Per-pixel PRT (engine/src/prt/mod.rs, Frame::shade_hit):
@@ -231,11 +240,18 @@ fn fs_prt(v: CornerOut) -> @location(0) vec4<f32> {
 
 struct LitParams {
     lights: u32,
-    pad: vec3<u32>,
+    // Levels of the environment's mip chain (0: no environment).
+    levels: u32,
+    pad: vec2<u32>,
+    // Rows of map-from-world; row 0's w the intensity, row 1's the solid angle of a level-0
+    // texel.
+    to_map: array<vec4<f32>, 3>,
+    // Per level: width, height, offset in `mips`.
+    level: array<vec4<u32>, 12>,
 }
 
 struct LitVertex {
-    // xyz position; w = 0.
+    // xyz position; w the environment's specular weight V_lobe · O.
     p: vec4<f32>,
     // xyz unit normal.
     n: vec4<f32>,
@@ -260,6 +276,8 @@ struct LitVertex {
 // 64 · view column), then the GGX directional albedo's A and B tables (32×32 each, index
 // μ column + 32 · roughness row).
 @group(1) @binding(6) var<storage, read> lit_tables: array<f32>;
+// The environment's mip chain (prt::prefilter::Prefiltered), level after level.
+@group(1) @binding(7) var<storage, read> mips: array<vec4<f32>>;
 @group(2) @binding(0) var lit_texture: texture_2d<f32>;
 @group(2) @binding(1) var lit_sampler: sampler;
 
@@ -323,20 +341,32 @@ fn fraction(shut: vec3<f32>, open: vec3<f32>, w: vec3<f32>) -> f32 {
     return clamp(dot(shut, w) / o, 0.0, 1.0);
 }
 
-// The radiance from every polygonal light at point p (normal n) of a material, toward the eye.
-fn lights_at(p: vec3<f32>, n: vec3<f32>, base: vec3<f32>, metallic_in: f32, roughness: f32, specular: f32,
-             corners: vec3<u32>, w: vec3<f32>) -> vec3<f32> {
+// A pixel's shading point: the LTC frame (ltc::view_frame: x toward the view in the tangent
+// plane), its view, and the BSDF's terms (Bsdf::new, PointShader::new).
+struct Surface {
+    p: vec3<f32>,
+    n: vec3<f32>,
+    v: vec3<f32>,
+    t1: vec3<f32>,
+    t2: vec3<f32>,
+    mu: f32,
+    roughness: f32,
+    diffuse: vec3<f32>,
+    f0: vec3<f32>,
+    f90: vec3<f32>,
+    has_spec: bool,
+}
+
+fn surface_at(p: vec3<f32>, n: vec3<f32>, base: vec3<f32>, metallic_in: f32, roughness: f32, specular: f32)
+    -> Surface {
     let to_eye = view.eye.xyz - p;
     let v = select(n, normalize(to_eye), length(to_eye) > 0.0);
-    // The shading frame (ltc::view_frame): x toward the view in the tangent plane.
     var t1 = v - n * dot(v, n);
     if (length(t1) <= 1e-7) {
         t1 = select(vec3<f32>(1.0, 0.0, 0.0), vec3<f32>(0.0, 1.0, 0.0), abs(n.x) > 0.9);
         t1 = t1 - n * dot(t1, n);
     }
     t1 = normalize(t1);
-    let t2 = cross(n, t1);
-    // The BSDF's albedos (Bsdf::new).
     let metallic = clamp(metallic_in, 0.0, 1.0);
     let s = max(specular, 0.0);
     let f0 = mix(vec3<f32>(0.04 * s), base, metallic);
@@ -344,20 +374,23 @@ fn lights_at(p: vec3<f32>, n: vec3<f32>, base: vec3<f32>, metallic_in: f32, roug
     let mu = dot(v, n);
     let e_dielectric = directional_albedo(abs(mu), roughness, vec3<f32>(0.04 * s), vec3<f32>(s));
     let diffuse = base * (1.0 - metallic) * max(vec3<f32>(1.0) - e_dielectric, vec3<f32>(0.0));
-    let e = ltc_lookup(roughness, mu);
-    var spec = vec3<f32>(0.0);
-    if (mu > 0.0 && max(max(f0.x, f0.y), max(max(f0.z, f90.x), max(f90.y, f90.z))) > 0.0) {
-        spec = f0 * (e[4] - e[5]) + f90 * e[5];
-    }
+    let has_spec = mu > 0.0 && max(max(f0.x, f0.y), max(max(f0.z, f90.x), max(f90.y, f90.z))) > 0.0;
+    return Surface(p, n, v, t1, cross(n, t1), mu, roughness, diffuse, f0, f90, has_spec);
+}
+
+// The radiance from every polygonal light at a surface point, toward the eye.
+fn lights_at(s: Surface, corners: vec3<u32>, w: vec3<f32>) -> vec3<f32> {
+    let e = ltc_lookup(s.roughness, s.mu);
+    let spec = select(vec3<f32>(0.0), s.f0 * (e[4] - e[5]) + s.f90 * e[5], s.has_spec);
     // Rows of world → the specular LTC's space: M⁻¹ (columns (a, 0, b), (0, 1, 0), (c, 0, d))
     // times the frame.
-    let s0 = e[0] * t1 + e[2] * n;
-    let s2 = e[1] * t1 + e[3] * n;
+    let s0 = e[0] * s.t1 + e[2] * s.n;
+    let s2 = e[1] * s.t1 + e[3] * s.n;
     var total = vec3<f32>(0.0);
     for (var l = 0u; l < lit.lights; l = l + 1u) {
         let light = lights[l];
-        var rel = relative(light, p, n);
-        if (rel.n == 0u) {
+        var rel = relative(light, s.p, s.n);
+        if (rel.n == 0u || edge_on(&rel)) {
             continue;
         }
         let a = lobes[corners.x * lit.lights + l];
@@ -367,16 +400,121 @@ fn lights_at(p: vec3<f32>, n: vec3<f32>, base: vec3<f32>, metallic_in: f32, roug
         d = select(d, 1.0, d < 0.0);
         var sf = fraction(vec3<f32>(a.z, b.z, c.z), vec3<f32>(a.w, b.w, c.w), w);
         sf = select(sf, d, sf < 0.0);
-        if (edge_on(&rel)) {
-            continue;
-        }
-        var out = d * diffuse * lobe_integral(&rel, t1, t2, n);
-        if (any(spec > vec3<f32>(0.0))) {
-            out = out + sf * spec * lobe_integral(&rel, s0, t2, s2);
+        var out = d * s.diffuse * lobe_integral(&rel, s.t1, s.t2, s.n);
+        if (s.has_spec) {
+            out = out + sf * spec * lobe_integral(&rel, s0, s.t2, s2);
         }
         total = total + light.radiance * out;
     }
     return total;
+}
+
+// GGX samples per reflection (prefilter::SAMPLES).
+const FIS_SAMPLES: u32 = 32u;
+
+// The environment's specular term at a surface point: the reflection R by filtered importance
+// sampling (Prefiltered::reflect) times `weight`, the lobe's visible fraction and the other
+// groups' open one interpolated from the vertices.
+fn environment_at(s: Surface, weight: f32) -> vec3<f32> {
+    if (lit.levels == 0u || weight <= 0.0 || !s.has_spec) {
+        return vec3<f32>(0.0);
+    }
+    return reflect_environment(s.n, s.v, ggx_alpha(s.roughness), s.f0, s.f90) * weight;
+}
+
+fn ggx_alpha(roughness: f32) -> f32 {
+    let r = clamp(roughness, 0.0, 1.0);
+    return max(r * r, 1e-4);
+}
+
+fn ggx_d(h: vec3<f32>, alpha: f32) -> f32 {
+    if (h.z <= 0.0) {
+        return 0.0;
+    }
+    let a2 = alpha * alpha;
+    let t = (h.x * h.x + h.y * h.y) + h.z * h.z * a2;
+    return a2 / (PI * t * t);
+}
+
+fn ggx_lambda(w: vec3<f32>, alpha: f32) -> f32 {
+    let cos2 = w.z * w.z;
+    let tan2 = max((1.0 - cos2) / max(cos2, 1e-30), 0.0);
+    return 0.5 * (sqrt(1.0 + alpha * alpha * tan2) - 1.0);
+}
+
+// ∫ L f cos over the GGX lobe (unshadowed): FIS_SAMPLES stratified visible normals (Heitz
+// 2018), each weighted F · G2 / G1 and reading the mip of its solid angle.
+fn reflect_environment(n: vec3<f32>, wo_world: vec3<f32>, alpha: f32, f0: vec3<f32>, f90: vec3<f32>) -> vec3<f32> {
+    // Frame::from_normal (Duff et al. 2017).
+    let sign = select(1.0, -1.0, n.z < 0.0);
+    let fa = -1.0 / (sign + n.z);
+    let fb = n.x * n.y * fa;
+    let t = vec3<f32>(1.0 + sign * n.x * n.x * fa, sign * fb, -sign * n.x);
+    let bt = vec3<f32>(fb, sign + n.y * n.y * fa, -n.y);
+    let wo = vec3<f32>(dot(wo_world, t), dot(wo_world, bt), dot(wo_world, n));
+    if (wo.z <= 0.0) {
+        return vec3<f32>(0.0);
+    }
+    let g1 = 1.0 / (1.0 + ggx_lambda(wo, alpha));
+    let vh = normalize(vec3<f32>(alpha * wo.x, alpha * wo.y, wo.z));
+    let lensq = vh.x * vh.x + vh.y * vh.y;
+    let t1 = select(vec3<f32>(1.0, 0.0, 0.0), vec3<f32>(-vh.y, vh.x, 0.0) / sqrt(lensq), lensq > 0.0);
+    let t2 = cross(vh, t1);
+    var sum = vec3<f32>(0.0);
+    for (var k = 0u; k < FIS_SAMPLES; k = k + 1u) {
+        // Hammersley: (k + ½)/N and the radical inverse of k.
+        let r = sqrt((f32(k) + 0.5) / f32(FIS_SAMPLES));
+        let phi = 2.0 * PI * f32(reverseBits(k)) * 2.3283064365386963e-10;
+        let p1 = r * cos(phi);
+        let sv = 0.5 * (1.0 + vh.z);
+        let p2 = (1.0 - sv) * sqrt(max(1.0 - p1 * p1, 0.0)) + sv * r * sin(phi);
+        let nh = t1 * p1 + t2 * p2 + vh * sqrt(max(1.0 - p1 * p1 - p2 * p2, 0.0));
+        let h = normalize(vec3<f32>(alpha * nh.x, alpha * nh.y, max(nh.z, 1e-7)));
+        let wi = 2.0 * dot(wo, h) * h - wo;
+        if (wi.z <= 0.0) {
+            continue;
+        }
+        let pdf = g1 * ggx_d(h, alpha) / (4.0 * wo.z);
+        let lod = 0.5 * log2(1.0 / (f32(FIS_SAMPLES) * max(pdf, 1e-12) * lit.to_map[1].w)) + 1.0;
+        let g2 = 1.0 / (1.0 + ggx_lambda(wo, alpha) + ggx_lambda(wi, alpha));
+        let fresnel = f0 + (f90 - f0) * pow(1.0 - clamp(dot(wo, h), 0.0, 1.0), 5.0);
+        let world = t * wi.x + bt * wi.y + n * wi.z;
+        sum = sum + fresnel * (g2 / g1) * mip_lookup(world, lod);
+    }
+    return sum / f32(FIS_SAMPLES);
+}
+
+// Prefiltered::lookup: level `lod` (linear between levels) along world `dir`; level 0 by nearest
+// texel as the reference reads the map, the others bilinearly.
+fn mip_lookup(dir: vec3<f32>, lod_in: f32) -> vec3<f32> {
+    let lod = clamp(lod_in, 0.0, f32(lit.levels - 1u));
+    let k = min(u32(floor(lod)), lit.levels - 1u);
+    let f = lod - f32(k);
+    let d = vec3<f32>(dot(lit.to_map[0].xyz, dir), dot(lit.to_map[1].xyz, dir), dot(lit.to_map[2].xyz, dir));
+    let uv = vec2<f32>(
+        min(fract(atan2(d.x, -d.z) / (2.0 * PI)), 0.99999994),
+        atan2(sqrt(d.x * d.x + d.z * d.z), d.y) / PI,
+    );
+    var value = mip_level(k, uv);
+    if (f > 0.0) {
+        value = mix(value, mip_level(k + 1u, uv), f);
+    }
+    return value * lit.to_map[0].w;
+}
+
+fn mip_level(k: u32, uv: vec2<f32>) -> vec3<f32> {
+    let info = lit.level[k];
+    let size = vec2<i32>(i32(info.x), i32(info.y));
+    let at = i32(info.z);
+    if (k == 0u) {
+        let i = min(i32(uv.x * f32(size.x)), size.x - 1);
+        let j = min(i32(uv.y * f32(size.y)), size.y - 1);
+        return mips[at + j * size.x + i].xyz;
+    }
+    let t = bilinear_taps(uv, size);
+    let top = mix(mips[at + t.j.x * size.x + t.i.x].xyz, mips[at + t.j.x * size.x + t.i.y].xyz, t.f.x);
+    let bottom = mix(mips[at + t.j.y * size.x + t.i.x].xyz, mips[at + t.j.y * size.x + t.i.y].xyz, t.f.x);
+    return mix(top, bottom, t.f.y);
 }
 
 // True when the polygon's plane passes through the shading point (cosine_integral's test,
@@ -449,6 +587,7 @@ fn fs_lit(v: CornerOut) -> @location(0) vec4<f32> {
     let metallic = a.base.w * w.x + b.base.w * w.y + c.base.w * w.z;
     let roughness = a.surface.x * w.x + b.surface.x * w.y + c.surface.x * w.z;
     let specular = a.surface.y * w.x + b.surface.y * w.y + c.surface.y * w.z;
-    let direct = lights_at(v.position, n, base, metallic, roughness, specular, v.corners, w);
-    return display(others + direct);
+    let s = surface_at(v.position, n, base, metallic, roughness, specular);
+    let weight = a.p.w * w.x + b.p.w * w.y + c.p.w * w.z;
+    return display(others + lights_at(s, v.corners, w) + environment_at(s, weight));
 }

@@ -475,7 +475,8 @@ impl Editor {
         }
     }
 
-    /// True when the viewport draws the polygonal lights per pixel, as `kage render` does: when
+    /// True when the viewport draws the polygonal lights (and in `baked`, the environment's
+    /// specular term) per pixel, as `kage render` does: when
     /// they shade on the GPU ([`ShadeOn`]: a CPU emulation draws an 800×600 view per pixel in
     /// 120 ms, per vertex in 7 ms), for the methods that shade them with LTC (`baked`, `bspvt`,
     /// `ltc-unshadowed`), without the overlay, with lights the shader takes (untextured, at
@@ -486,7 +487,6 @@ impl Editor {
         self.polygonal_on_gpu()
             && matches!(self.method, Method::Baked | Method::Bspvt | Method::LtcUnshadowed)
             && !self.overlay
-            && !self.flat.lights.is_empty()
             && self.flat.lights.iter().all(|l| kage_gpu::bspvt::gpu_light(l).is_ok())
             && vertices <= self.options.background_shading
     }

@@ -7,7 +7,7 @@ use super::indirect::{Indirect, Job};
 use super::pick::Seen;
 use super::reload::Change;
 use super::state::Editor;
-use super::viewport::PixelLights;
+use super::viewport::{PixelEnvironment, PixelLights};
 use super::worker::Worker;
 use glam::Vec3;
 use kage_bake_db::DbError;
@@ -645,7 +645,7 @@ fn polygonal(ed: &mut Editor, mode: Mode, eye: Vec3) -> VertexValues {
     if ed.lights_per_pixel() {
         let bake = ed.bakes.bspvt.as_deref().filter(|_| mode == Mode::Trees);
         let (lobes, values) = Lobes::at_vertices(&ed.flat, bake, eye);
-        ed.pixel_lights = Some(PixelLights { lobes, values: values.clone() });
+        ed.pixel_lights = Some(PixelLights { lobes, values: values.clone(), environment: None });
         return values;
     }
     let gpu = ed.gpu.clone();
@@ -693,7 +693,25 @@ fn baked(ed: &mut Editor, eye: Vec3) -> VertexValues {
     // A light moved and nothing else: the environment's part is reused.
     let parts = prt::Parts { bake, lighting: light, settings: &ed.options.prt };
     let (environment, silhouettes) = (&mut ed.memo.environment, &mut ed.memo.silhouettes);
-    Look::direct_reusing(&ed.scene, &ed.flat, eye, polygonal, Some((parts, Some(pre))), environment, silhouettes)
+    let direct =
+        Look::direct_reusing(&ed.scene, &ed.flat, eye, polygonal, Some((parts, Some(pre))), environment, silhouettes);
+    specular_per_pixel(ed, eye);
+    direct
+}
+
+/// Adds the environment's specular term of the frame just shaded to what the viewport draws
+/// per pixel (with no polygonal light, the lights' part is empty).
+fn specular_per_pixel(ed: &mut Editor, eye: Vec3) {
+    let (Some(specular), Some(pre)) = (ed.memo.environment.specular(), &ed.memo.prefiltered) else { return };
+    if !ed.lights_per_pixel() {
+        return;
+    }
+    let environment = Some(PixelEnvironment { specular: specular.clone(), prefiltered: pre.clone() });
+    let lights = ed.pixel_lights.get_or_insert_with(|| {
+        let (lobes, values) = Lobes::at_vertices(&ed.flat, None, eye);
+        PixelLights { lobes, values, environment: None }
+    });
+    lights.environment = environment;
 }
 
 /// The exact-visibility comparison casts cube maps per vertex: in the background.

@@ -15,7 +15,9 @@ use glam::Vec3;
 use kage_engine::bspvt::pixel::Lobes;
 use kage_engine::math::{ggx, ltc};
 use kage_engine::prt;
+use kage_engine::prt::prefilter::Prefiltered;
 use kage_engine::scene::{EnvironmentLight, FlatScene, VertexValues};
+use kage_engine::shading::baked::SpecularVertices;
 use kage_gpu::buffers::{storage, uniform};
 use kage_gpu::prt::ShadowArrays;
 use kage_gpu::{Gpu, Shaders};
@@ -73,30 +75,58 @@ struct PrtVertex {
 /// texture) of the triangles in storage.
 struct LitDraw {
     bind: wgpu::BindGroup,
-    /// Per vertex, the radiance of everything but the polygonal lights (rewritten with every
+    /// Per vertex, the radiance of everything not drawn per pixel (rewritten with every
     /// [`Viewport::upload_radiance`]).
     rest: wgpu::Buffer,
-    /// The polygonal lights' per-vertex radiance, which `rest` leaves out, flattened.
-    polygonal: Vec<Vec3>,
+    /// The per-vertex radiance of what is drawn per pixel (the polygonal lights, the
+    /// environment's specular term), which `rest` leaves out, flattened.
+    per_pixel: Vec<Vec3>,
     /// Per instance, its range of the unindexed draw.
     ranges: Vec<std::ops::Range<u32>>,
 }
 
 /// What the viewport needs to draw the polygonal lights per pixel: the lobes' integrals at
-/// every vertex toward the eye and the per-vertex radiance computed with them.
+/// every vertex toward the eye and the per-vertex radiance computed with them; and the
+/// environment's specular term, where the look has one.
 pub struct PixelLights {
     /// Per vertex and light, the shadowed and unshadowed integrals of both lobes.
     pub lobes: Lobes,
     /// The polygonal lights' radiance per vertex (part of what `upload_radiance` is given).
     pub values: VertexValues,
+    /// The environment's specular term per vertex and the chain it reflects.
+    pub environment: Option<PixelEnvironment>,
 }
+
+/// The environment's specular term, drawn per pixel: the reflection `R` by filtered importance
+/// sampling of `prefiltered` at each pixel, times the weight interpolated from the vertices.
+pub struct PixelEnvironment {
+    /// Per vertex: the term (part of what `upload_radiance` is given) and its weight.
+    pub specular: SpecularVertices,
+    /// The environment's mip chain.
+    pub prefiltered: Prefiltered,
+}
+
+/// Most mip levels the shader reads.
+const MAX_LEVELS: usize = 12;
 
 /// `LitParams` of preview.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, Pod, Zeroable)]
 struct LitParams {
     lights: u32,
-    pad: [u32; 7],
+    levels: u32,
+    pad: [u32; 2],
+    /// Rows of map-from-world; row 0's w the intensity, row 1's the solid angle of a level-0
+    /// texel.
+    to_map: [[f32; 4]; 3],
+    /// Per level: width, height, offset in the chain's texels.
+    level: [[u32; 4]; MAX_LEVELS],
+}
+
+/// A mip chain on the device, and the chain it was uploaded from.
+struct Mips {
+    source: Prefiltered,
+    buffer: wgpu::Buffer,
 }
 
 /// `LitVertex` of preview.wgsl.
@@ -145,6 +175,10 @@ pub struct Viewport {
     meshes: Vec<Mesh>,
     prt: Option<PrtDraw>,
     lit: Option<LitDraw>,
+    /// The environment's mip chain for the per-pixel lights, uploaded once per chain.
+    mips: Option<Mips>,
+    /// Group 1 of the per-pixel lights: the storage arrays and the mip chain.
+    lit_layout: Option<wgpu::BindGroupLayout>,
     /// Flat-coloured light polygons, each with its emitting side.
     lights: Vec<(Mesh, LightSide)>,
     target: Option<Target>,
@@ -186,9 +220,15 @@ impl Viewport {
             layout: &layout,
             entries: &[wgpu::BindGroupEntry { binding: 0, resource: uniform.as_entire_binding() }],
         });
-        let prt_layout = storage_layout(gpu);
+        let (prt_layout, lit_layout) = (storage_layout(gpu, 4), storage_layout(gpu, 5));
         let (detail_layout, sky_layout) = (detail::layout(gpu), sky::layout(gpu));
-        let layouts = Layouts { view: &layout, detail: &detail_layout, sky: &sky_layout, prt: prt_layout.as_ref() };
+        let layouts = Layouts {
+            view: &layout,
+            detail: &detail_layout,
+            sky: &sky_layout,
+            prt: prt_layout.as_ref(),
+            lit: lit_layout.as_ref(),
+        };
         let pipelines = build_pipelines(gpu, shaders, layouts)?;
         Ok(Self {
             pipelines,
@@ -202,6 +242,8 @@ impl Viewport {
             meshes: Vec::new(),
             prt: None,
             lit: None,
+            mips: None,
+            lit_layout,
             lights: Vec::new(),
             target: None,
             generation: 0,
@@ -216,6 +258,7 @@ impl Viewport {
             detail: &self.detail_layout,
             sky: &self.sky_layout,
             prt: self.prt_layout.as_ref(),
+            lit: self.lit_layout.as_ref(),
         };
         self.pipelines = build_pipelines(gpu, shaders, layouts)?;
         Ok(())
@@ -246,8 +289,15 @@ impl Viewport {
     /// light the shader does not take — textured, more than 8 corners: per-vertex radiance).
     /// Call after [`Viewport::upload_geometry`] of the same snapshot.
     pub fn upload_lights(&mut self, gpu: &Gpu, flat: &FlatScene, lights: Option<&PixelLights>) {
-        self.lit = match (lights, &self.prt_layout) {
-            (Some(l), Some(layout)) if self.meshes.len() == flat.instances.len() => lit_draw(gpu, layout, flat, l),
+        let chain = lights.and_then(|l| l.environment.as_ref()).map(|e| &e.prefiltered);
+        if let Some(chain) = chain.filter(|c| self.mips.as_ref().is_none_or(|m| !m.source.same_chain(c))) {
+            self.mips = Some(Mips { source: chain.clone(), buffer: mip_buffer(gpu, chain) });
+        }
+        let mips = chain.and(self.mips.as_ref()).map(|m| &m.buffer);
+        self.lit = match (lights, &self.lit_layout) {
+            (Some(l), Some(layout)) if self.meshes.len() == flat.instances.len() => {
+                lit_draw(gpu, layout, flat, l, mips)
+            }
             _ => None,
         };
     }
@@ -293,8 +343,8 @@ impl Viewport {
         }
         if let Some(lit) = &self.lit {
             let rest: Vec<[f32; 4]> =
-                values.iter().flatten().zip(&lit.polygonal).map(|(v, p)| (*v - *p).extend(0.0).into()).collect();
-            if rest.len() == lit.polygonal.len() {
+                values.iter().flatten().zip(&lit.per_pixel).map(|(v, p)| (*v - *p).extend(0.0).into()).collect();
+            if rest.len() == lit.per_pixel.len() {
                 gpu.queue.write_buffer(&lit.rest, 0, bytemuck::cast_slice(&rest));
             }
         }
@@ -510,10 +560,24 @@ fn bind_buffers(gpu: &Gpu, layout: &wgpu::BindGroupLayout, buffers: &[wgpu::Buff
     })
 }
 
-/// The per-pixel lights' draw of every instance, bound to `layout`; `None` when a light is one
-/// the shader does not take.
-fn lit_draw(gpu: &Gpu, layout: &wgpu::BindGroupLayout, flat: &FlatScene, lights: &PixelLights) -> Option<LitDraw> {
+/// The per-pixel lights' draw of every instance, bound to `layout` with the environment's
+/// chain `mips` (uploaded from `lights.environment`); `None` when a light is one the shader
+/// does not take or the terms do not fit the snapshot.
+fn lit_draw(
+    gpu: &Gpu,
+    layout: &wgpu::BindGroupLayout,
+    flat: &FlatScene,
+    lights: &PixelLights,
+    mips: Option<&wgpu::Buffer>,
+) -> Option<LitDraw> {
     let gpu_lights = flat.lights.iter().map(kage_gpu::bspvt::gpu_light).collect::<Result<Vec<_>, _>>().ok()?;
+    let environment = lights.environment.as_ref().filter(|_| mips.is_some());
+    let specular = environment.map(|e| &e.specular);
+    let shape = |v: &[Vec<f32>]| v.iter().map(Vec::len).eq((0..flat.instances.len()).map(|i| flat.vertex_count(i)));
+    let fits = |v: &VertexValues| v.iter().map(Vec::len).eq((0..flat.instances.len()).map(|i| flat.vertex_count(i)));
+    if !fits(&lights.values) || specular.is_some_and(|s| !fits(&s.values) || !shape(&s.weights)) {
+        return None;
+    }
     let (mut vertices, mut indices, mut lobes, mut ranges) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     for i in 0..flat.instances.len() {
         let mesh = flat.mesh(i);
@@ -522,19 +586,24 @@ fn lit_draw(gpu: &Gpu, layout: &wgpu::BindGroupLayout, flat: &FlatScene, lights:
         indices.extend(mesh.triangles.iter().flatten().map(|k| base + k));
         ranges.push(start..indices.len() as u32);
         let detail = detail::vertices(flat, i);
-        vertices.extend((0..mesh.positions.len()).zip(&detail).map(|(v, d)| lit_vertex(flat, i, v, d)));
+        let weight = |v: usize| specular.map_or(0.0, |s| s.weights[i][v]);
+        vertices.extend((0..mesh.positions.len()).zip(&detail).map(|(v, d)| lit_vertex(flat, i, v, d, weight(v))));
         for v in 0..mesh.positions.len() {
             lobes.extend(lights.lobes.vertex(i, v).iter().map(|[d, s]| [d[0], d[1], s[0], s[1]]));
         }
     }
-    let polygonal: Vec<Vec3> = lights.values.iter().flatten().copied().collect();
-    if polygonal.len() != vertices.len() || lobes.len() != vertices.len() * flat.lights.len() {
+    if lobes.len() != vertices.len() * flat.lights.len() {
         return None;
+    }
+    let mut per_pixel: Vec<Vec3> = lights.values.iter().flatten().copied().collect();
+    if let Some(s) = specular {
+        per_pixel.iter_mut().zip(s.values.iter().flatten()).for_each(|(p, s)| *p += *s);
     }
     let tables: Vec<f32> =
         ltc::table().entries().iter().flatten().chain(ggx::albedo_tables().concat().iter()).copied().collect();
-    let params = LitParams { lights: flat.lights.len() as u32, pad: [0; 7] };
+    let params = lit_params(flat.lights.len(), environment.map(|e| &e.prefiltered));
     let rest = storage(gpu, "preview rest", &vec![[0.0f32; 4]; vertices.len()]);
+    let mips = mips.cloned().unwrap_or_else(|| storage(gpu, "preview no mips", &[[0.0f32; 4]]));
     let buffers = [
         uniform(gpu, "preview lit params", &params),
         storage(gpu, "preview indices", &indices),
@@ -543,16 +612,45 @@ fn lit_draw(gpu: &Gpu, layout: &wgpu::BindGroupLayout, flat: &FlatScene, lights:
         storage(gpu, "preview lobes", &lobes),
         storage(gpu, "preview lights", &gpu_lights),
         storage(gpu, "preview ltc tables", &tables),
+        mips,
     ];
-    Some(LitDraw { bind: bind_buffers(gpu, layout, &buffers), rest, polygonal, ranges })
+    Some(LitDraw { bind: bind_buffers(gpu, layout, &buffers), rest, per_pixel, ranges })
+}
+
+/// The per-pixel lights' parameters: the light count and where the chain's levels are (none
+/// without an environment).
+fn lit_params(lights: usize, chain: Option<&Prefiltered>) -> LitParams {
+    let mut params =
+        LitParams { lights: lights as u32, levels: 0, pad: [0; 2], to_map: [[0.0; 4]; 3], level: [[0; 4]; MAX_LEVELS] };
+    let Some(chain) = chain else { return params };
+    let (rotation, intensity) = chain.placement();
+    let m = glam::Mat3::from_quat(rotation).transpose();
+    let (mut offset, mut texel) = (0u32, 0.0f32);
+    for (k, (w, h, texels)) in chain.levels().take(MAX_LEVELS).enumerate() {
+        params.level[k] = [w as u32, h as u32, offset, 0];
+        offset += texels.len() as u32;
+        if k == 0 {
+            texel = 4.0 * std::f32::consts::PI / (w * h) as f32;
+        }
+        params.levels = k as u32 + 1;
+    }
+    params.to_map = [m.x_axis.extend(intensity).into(), m.y_axis.extend(texel).into(), m.z_axis.extend(0.0).into()];
+    params
+}
+
+/// The chain's levels, one after another, as a storage array.
+fn mip_buffer(gpu: &Gpu, chain: &Prefiltered) -> wgpu::Buffer {
+    let texels: Vec<[f32; 4]> =
+        chain.levels().take(MAX_LEVELS).flat_map(|(_, _, t)| t.iter().map(|c| c.extend(0.0).into())).collect();
+    storage(gpu, "preview mips", &texels)
 }
 
 /// Vertex `v` of instance `i` as the per-pixel lights read it (`d`: its texture detail).
-fn lit_vertex(flat: &FlatScene, i: usize, v: usize, d: &Detail) -> LitVertex {
+fn lit_vertex(flat: &FlatScene, i: usize, v: usize, d: &Detail, weight: f32) -> LitVertex {
     let (p, n) = flat.vertex(i, v);
     let m = flat.vertex_material(i, v);
     LitVertex {
-        p: p.extend(0.0).into(),
+        p: p.extend(weight).into(),
         n: n.normalize_or_zero().extend(0.0).into(),
         base: m.base_color.extend(m.metallic).into(),
         surface: [m.roughness, m.specular, d.uv[0], d.uv[1]],
@@ -560,19 +658,20 @@ fn lit_vertex(flat: &FlatScene, i: usize, v: usize, d: &Detail) -> LitVertex {
     }
 }
 
-/// Group 1 of the per-pixel PRT and lights pipelines: parameters, then six storage arrays —
-/// indices read by the vertex stage, vertices by both, four by the fragment (see preview.wgsl);
-/// `None` when the device allows fewer storage buffers per stage than the fragment stage binds.
-fn storage_layout(gpu: &Gpu) -> Option<wgpu::BindGroupLayout> {
+/// Group 1 of the per-pixel PRT and lights pipelines: parameters, then storage arrays —
+/// indices read by the vertex stage, vertices by both, `fragment` more by the fragment (see
+/// preview.wgsl); `None` when the device allows fewer storage buffers per stage than the
+/// fragment stage binds.
+fn storage_layout(gpu: &Gpu, fragment: usize) -> Option<wgpu::BindGroupLayout> {
     use wgpu::ShaderStages as S;
-    if gpu.device.limits().max_storage_buffers_per_shader_stage < 5 {
+    if (gpu.device.limits().max_storage_buffers_per_shader_stage as usize) < fragment + 1 {
         return None;
     }
-    let visibility = [S::FRAGMENT, S::VERTEX, S::VERTEX_FRAGMENT, S::FRAGMENT, S::FRAGMENT, S::FRAGMENT, S::FRAGMENT];
+    let visibility =
+        [S::FRAGMENT, S::VERTEX, S::VERTEX_FRAGMENT].into_iter().chain(std::iter::repeat_n(S::FRAGMENT, fragment));
     let entries: Vec<wgpu::BindGroupLayoutEntry> = visibility
-        .iter()
         .enumerate()
-        .map(|(k, &visibility)| wgpu::BindGroupLayoutEntry {
+        .map(|(k, visibility)| wgpu::BindGroupLayoutEntry {
             binding: k as u32,
             visibility,
             ty: wgpu::BindingType::Buffer {
@@ -602,6 +701,7 @@ struct Layouts<'a> {
     detail: &'a wgpu::BindGroupLayout,
     sky: &'a wgpu::BindGroupLayout,
     prt: Option<&'a wgpu::BindGroupLayout>,
+    lit: Option<&'a wgpu::BindGroupLayout>,
 }
 
 /// The pipelines of preview.wgsl.
@@ -630,7 +730,7 @@ fn build_pipelines(gpu: &Gpu, shaders: &Shaders, layouts: Layouts) -> Result<Pip
         };
         let main = pipeline(&[view, Some(layouts.detail)], ("vs_main", "fs_main"), &per_vertex, Depth::Tested);
         let prt = layouts.prt.map(|prt| pipeline(&[view, Some(prt)], ("vs_prt", "fs_prt"), &[], Depth::Tested));
-        let lit = layouts.prt.map(|storage| {
+        let lit = layouts.lit.map(|storage| {
             pipeline(&[view, Some(storage), Some(layouts.detail)], ("vs_lit", "fs_lit"), &[], Depth::Tested)
         });
         let sky = pipeline(&[view, Some(layouts.sky)], ("vs_sky", "fs_sky"), &[], Depth::Behind);

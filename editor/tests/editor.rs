@@ -143,6 +143,7 @@ fn the_default_scene_bakes_in_the_background_and_every_method_shades() {
     assert_eq!(ed.method, Method::Baked);
     let lit = ed.pixel_lights.as_ref().expect("the baked view draws the polygonal lights per pixel");
     assert_eq!(lit.values.len(), ed.flat.instances.len());
+    assert!(lit.environment.is_some(), "and the environment's reflection");
     let baked = values(&h);
     assert!(baked.iter().any(|v| v.max_element() > 0.01) && baked.iter().all(|v| v.is_finite()));
     // The exposure was metered from the first lit result, as `kage render` meters its PNGs.

@@ -109,13 +109,29 @@ impl<'a> Specular<'a> {
     /// Radiance the specular lobe of instance `i`'s surface at `p` (barycentrics `weights` of
     /// the triangle `corners`) reflects toward `toward`, times the other groups' `open` fraction.
     pub fn at(&self, i: usize, corners: [usize; 3], weights: [f32; 3], p: Vec3, toward: Vec3, open: f32) -> Vec3 {
+        let (reflected, weight) = self.parts(i, corners, weights, p, toward, open);
+        reflected * weight
+    }
+
+    /// [`Self::at`] as its two factors: the unshadowed reflection `R` and the weight
+    /// `V_lobe · O` (0 where the lobe reflects nothing) — what the editor's viewport carries
+    /// from the vertices to evaluate `R` per pixel.
+    pub fn parts(
+        &self,
+        i: usize,
+        corners: [usize; 3],
+        weights: [f32; 3],
+        p: Vec3,
+        toward: Vec3,
+        open: f32,
+    ) -> (Vec3, f32) {
         let n = (0..3).map(|c| self.flat.vertex(i, corners[c]).1 * weights[c]).sum::<Vec3>().normalize_or_zero();
         let wo = (toward - p).normalize_or_zero();
         let mu = n.dot(wo);
         let m = &self.flat.material_at(i, corners, weights);
         let bsdf = Bsdf::new(m, Vec3::new(0.0, 0.0, mu));
         if mu <= 0.0 || !bsdf.has_specular() {
-            return Vec3::ZERO;
+            return (Vec3::ZERO, 0.0);
         }
         let alpha = ggx::alpha_from_roughness(m.roughness);
         let d = dominant_direction(n, 2.0 * mu * n - wo, alpha);
@@ -133,7 +149,7 @@ impl<'a> Specular<'a> {
             if mirrored { DVec3::new(g.x, g.y, -g.z) } else { g }
         };
         let vis = self.lobe.visible_fraction(t, local(n), local(d), alpha);
-        self.env.reflect(n, wo, alpha, bsdf.f0(), bsdf.f90()) * (vis * open)
+        (self.env.reflect(n, wo, alpha, bsdf.f0(), bsdf.f90()), vis * open)
     }
 }
 

@@ -101,6 +101,22 @@ impl Prefiltered {
         }
     }
 
+    /// The chain's levels as (width, height, texels), level 0 the map itself (for upload to the
+    /// GPU; [`Self::lookup`] reads level 0 by nearest texel, the others bilinearly).
+    pub fn levels(&self) -> impl Iterator<Item = (usize, usize, &[Vec3])> {
+        self.mips.iter().map(|m| (m.width, m.height, m.texels.as_slice()))
+    }
+
+    /// Map-from-world rotation and intensity (applied at lookup).
+    pub fn placement(&self) -> (Quat, f32) {
+        (self.to_map, self.intensity)
+    }
+
+    /// True when `other` holds the same chain (built once, shared by clones).
+    pub fn same_chain(&self, other: &Self) -> bool {
+        Arc::ptr_eq(&self.mips, &other.mips)
+    }
+
     /// Names this chain for a memo's key: the map it was built from (by identity: hold a
     /// clone of `self` while the key is kept) with its intensity and rotation.
     pub fn hash_into(&self, h: &mut blake3::Hasher) {

@@ -129,7 +129,7 @@ impl<'a> Look<'a> {
         eye: Vec3,
         polygonal: Option<Polygonal<'a>>,
         environment: Option<Environment<'a>>,
-    ) -> (Self, Option<VertexValues>) {
+    ) -> (Self, Option<EnvironmentVertices>) {
         let environment_vertices = environment.as_ref().map(|e| {
             let both = e.frame.vertex_values_open(flat);
             let radiance = both.iter().map(|v| v.iter().map(|x| x.0).collect()).collect();
@@ -139,7 +139,7 @@ impl<'a> Look<'a> {
         let mut look =
             Self { flat, eye, polygonal, environment, environment_vertices, direct: Vec::new(), indirect: None, sun };
         let environment = look.environment.as_ref().map(|_| look.environment_direct());
-        look.direct = look.shade_direct(environment.as_ref());
+        look.direct = look.shade_direct(environment.as_ref().map(|e| &e.values));
         (look, environment)
     }
 
@@ -174,14 +174,14 @@ impl<'a> Look<'a> {
                 indirect: None,
                 sun,
             };
-            return look.shade_direct(Some(&kept.values));
+            return look.shade_direct(Some(&kept.environment.values));
         }
         let rest = prt::Parts { lighting: parts.lighting.split_sun().1, ..parts };
         let frame = prt::Frame::prepare_cached(scene, flat, rest, prt::Shadows::WithOthers, eye, silhouettes);
         let environment = Environment::new(frame, parts.bake, parts.lighting, prefiltered);
-        let (look, values) = Self::with_environment_direct(flat, eye, polygonal, Some(environment));
-        let values = values.expect("an environment part was given");
-        memo.kept = Some(Kept { key, _prefiltered: prefiltered.cloned(), values });
+        let (look, environment) = Self::with_environment_direct(flat, eye, polygonal, Some(environment));
+        let environment = environment.expect("an environment part was given");
+        memo.kept = Some(Kept { key, _prefiltered: prefiltered.cloned(), environment });
         look.into_direct()
     }
 
@@ -221,19 +221,25 @@ impl<'a> Look<'a> {
             .collect()
     }
 
-    /// Per vertex: the environment's diffuse and specular terms toward the eye, the sun apart.
-    fn environment_direct(&self) -> VertexValues {
-        (0..self.flat.instances.len())
-            .map(|i| {
-                (0..self.flat.vertex_count(i))
-                    .into_par_iter()
-                    .map(|v| {
-                        let (p, _) = self.flat.vertex(i, v);
-                        self.environment_without_sun(i, [v; 3], [1.0, 0.0, 0.0], p, self.eye)
-                    })
-                    .collect()
-            })
-            .collect()
+    /// Per vertex: the environment's diffuse and specular terms toward the eye, the sun apart,
+    /// and the specular term's factors.
+    fn environment_direct(&self) -> EnvironmentVertices {
+        let (mut values, mut specular, mut weights) = (Vec::new(), Vec::new(), Vec::new());
+        for i in 0..self.flat.instances.len() {
+            let parts: Vec<(Vec3, Vec3, f32)> = (0..self.flat.vertex_count(i))
+                .into_par_iter()
+                .map(|v| {
+                    let (p, _) = self.flat.vertex(i, v);
+                    let (diffuse, (reflected, weight)) =
+                        self.environment_parts(i, [v; 3], [1.0, 0.0, 0.0], p, self.eye);
+                    (diffuse + reflected * weight, reflected * weight, weight)
+                })
+                .collect();
+            values.push(parts.iter().map(|x| x.0).collect());
+            specular.push(parts.iter().map(|x| x.1).collect());
+            weights.push(parts.iter().map(|x| x.2).collect());
+        }
+        EnvironmentVertices { values, specular: SpecularVertices { values: specular, weights } }
     }
 
     /// Per instance and vertex: direct plus indirect radiance toward the eye.
@@ -268,12 +274,26 @@ impl<'a> Look<'a> {
 
     /// [`Self::environment_at`] without the sun.
     fn environment_without_sun(&self, i: usize, corners: [usize; 3], bary: [f32; 3], p: Vec3, to: Vec3) -> Vec3 {
+        let (diffuse, (reflected, weight)) = self.environment_parts(i, corners, bary, p, to);
+        diffuse + reflected * weight
+    }
+
+    /// [`Self::environment_without_sun`] as the diffuse term and the specular term's factors
+    /// ([`prt::glossy::Specular::parts`]).
+    fn environment_parts(
+        &self,
+        i: usize,
+        corners: [usize; 3],
+        bary: [f32; 3],
+        p: Vec3,
+        to: Vec3,
+    ) -> (Vec3, (Vec3, f32)) {
         let (Some(env), Some((diffuse, open))) = (&self.environment, &self.environment_vertices) else {
-            return Vec3::ZERO;
+            return (Vec3::ZERO, (Vec3::ZERO, 0.0));
         };
         let o = (0..3).map(|c| open[i][corners[c]] * bary[c]).sum::<f32>();
         let d = (0..3).map(|c| diffuse[i][corners[c]] * bary[c]).sum::<Vec3>();
-        d + env.specular(self.flat).map_or(Vec3::ZERO, |s| s.at(i, corners, bary, p, to, o))
+        (d, env.specular(self.flat).map_or((Vec3::ZERO, 0.0), |s| s.parts(i, corners, bary, p, to, o)))
     }
 
     /// The sun's light leaving a point toward `to`: the material's BSDF times the sun's
@@ -366,10 +386,34 @@ struct Kept {
     key: blake3::Hash,
     /// Held so that the map's address, which the key names, stays its own.
     _prefiltered: Option<Prefiltered>,
+    environment: EnvironmentVertices,
+}
+
+/// The environment's part per vertex, the sun apart.
+struct EnvironmentVertices {
+    /// Diffuse plus specular radiance toward the eye.
     values: VertexValues,
+    /// The specular term and its factors.
+    specular: SpecularVertices,
+}
+
+/// The environment's specular term per vertex (`R · w`) and its weight `w = V_lobe · O`
+/// ([`prt::glossy::Specular::parts`]): the editor draws `R` per pixel times the interpolated `w`.
+#[derive(Clone, Debug, Default)]
+pub struct SpecularVertices {
+    /// Per instance and vertex: the specular radiance toward the eye.
+    pub values: VertexValues,
+    /// Per instance and vertex: the lobe's visible fraction times the other groups' open one.
+    pub weights: Vec<Vec<f32>>,
 }
 
 impl EnvironmentMemo {
+    /// The specular term of the frame [`Look::direct_reusing`] shaded or reused last (read it
+    /// right after that call, which keeps it only where the scene has an environment).
+    pub fn specular(&self) -> Option<&SpecularVertices> {
+        self.kept.as_ref().map(|k| &k.environment.specular)
+    }
+
     /// How many frames reused the kept values (the editor's statistics; tests).
     pub fn reused(&self) -> u64 {
         self.reused
