@@ -255,12 +255,14 @@ struct LitVertex {
     p: vec4<f32>,
     // xyz unit normal.
     n: vec4<f32>,
-    // rgb base colour at the vertex; w metallic.
+    // rgb base colour at the vertex; w the metallic factor.
     base: vec4<f32>,
-    // x roughness, y specular factor, zw the base-colour UV.
+    // x the roughness factor, y specular factor, zw the base-colour UV.
     surface: vec4<f32>,
     // rgb the base-colour texture's value at the vertex.
     at_vertex: vec4<f32>,
+    // xy the metallic-roughness texture's UV (read per pixel: G roughness, B metalness).
+    mr_uv: vec4<f32>,
 }
 
 @group(1) @binding(0) var<uniform> lit: LitParams;
@@ -280,6 +282,8 @@ struct LitVertex {
 @group(1) @binding(7) var<storage, read> mips: array<vec4<f32>>;
 @group(2) @binding(0) var lit_texture: texture_2d<f32>;
 @group(2) @binding(1) var lit_sampler: sampler;
+@group(2) @binding(2) var mr_texture: texture_2d<f32>;
+@group(2) @binding(3) var mr_sampler: sampler;
 
 const LTC_N: u32 = 64u;
 const ALBEDO_N: u32 = 32u;
@@ -584,8 +588,9 @@ fn fs_lit(v: CornerOut) -> @location(0) vec4<f32> {
     let others = (rest[v.corners.x].xyz * w.x + rest[v.corners.y].xyz * w.y + rest[v.corners.z].xyz * w.z) * ratio;
     let n = normalize(a.n.xyz * w.x + b.n.xyz * w.y + c.n.xyz * w.z);
     let base = (a.base.xyz * w.x + b.base.xyz * w.y + c.base.xyz * w.z) * ratio;
-    let metallic = a.base.w * w.x + b.base.w * w.y + c.base.w * w.z;
-    let roughness = a.surface.x * w.x + b.surface.x * w.y + c.surface.x * w.z;
+    let mr = textureSample(mr_texture, mr_sampler, a.mr_uv.xy * w.x + b.mr_uv.xy * w.y + c.mr_uv.xy * w.z).rgb;
+    let metallic = (a.base.w * w.x + b.base.w * w.y + c.base.w * w.z) * mr.b;
+    let roughness = (a.surface.x * w.x + b.surface.x * w.y + c.surface.x * w.z) * mr.g;
     let specular = a.surface.y * w.x + b.surface.y * w.y + c.surface.y * w.z;
     let s = surface_at(v.position, n, base, metallic, roughness, specular);
     let weight = a.p.w * w.x + b.p.w * w.y + c.p.w * w.z;

@@ -26,7 +26,9 @@ pub struct Detail {
 /// A texture with nothing to modulate: one white texel, value one at every vertex.
 pub const PLAIN: Detail = Detail { uv: [0.0; 2], at_vertex: [1.0; 3] };
 
-/// Group 1 of the per-vertex pipeline: the base-colour texture and its sampler.
+/// Group 1 of the per-vertex pipeline (group 2 of the per-pixel lights): the base-colour
+/// texture and its sampler, then the metallic-roughness texture and its sampler (read per pixel
+/// by the per-pixel lights only).
 pub fn layout(gpu: &Gpu) -> wgpu::BindGroupLayout {
     let entry =
         |binding, ty| wgpu::BindGroupLayoutEntry { binding, visibility: wgpu::ShaderStages::FRAGMENT, ty, count: None };
@@ -37,13 +39,25 @@ pub fn layout(gpu: &Gpu) -> wgpu::BindGroupLayout {
     };
     gpu.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
         label: Some("preview base colour"),
-        entries: &[entry(0, texture), entry(1, wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering))],
+        entries: &[
+            entry(0, texture),
+            entry(1, wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering)),
+            entry(2, texture),
+            entry(3, wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering)),
+        ],
     })
 }
 
 /// The base-colour slot of instance `i` (`None`: untextured).
 pub fn slot(flat: &FlatScene, i: usize) -> Option<TextureSlot> {
     flat.instances[i].maps.base_color
+}
+
+/// The metallic-roughness texture's UV at vertex `v` of instance `i` (zero without one).
+pub fn metallic_roughness_uv(flat: &FlatScene, i: usize, v: usize) -> [f32; 2] {
+    let (mesh, slot) = (flat.mesh(i), flat.instances[i].maps.metallic_roughness);
+    let uv = |set: &[glam::Vec2]| set.get(v).copied().unwrap_or_default();
+    slot.map_or([0.0; 2], |s| s.uv(uv(&mesh.uvs), uv(&mesh.uvs1)).into())
 }
 
 /// Per vertex of instance `i`: the slot's UV and the texture's value there ([`PLAIN`] without
@@ -61,21 +75,45 @@ pub fn vertices(flat: &FlatScene, i: usize) -> Vec<Detail> {
         .collect()
 }
 
-/// The bind group of `texture` (`None`: one white texel) with its wrap modes and linear
-/// filtering, as the CPU's bilinear lookup.
-pub fn bind_group(gpu: &Gpu, layout: &wgpu::BindGroupLayout, texture: Option<&Texture>) -> wgpu::BindGroup {
+/// The bind group of the base-colour and metallic-roughness textures (`None`: one white texel)
+/// with their wrap modes and linear filtering, as the CPU's bilinear lookup.
+pub fn bind_group(
+    gpu: &Gpu,
+    layout: &wgpu::BindGroupLayout,
+    base: Option<&Texture>,
+    metallic_roughness: Option<&Texture>,
+) -> wgpu::BindGroup {
+    let (base, base_sampler) = view(gpu, base, true);
+    let (mr, mr_sampler) = view(gpu, metallic_roughness, false);
+    gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("preview textures"),
+        layout,
+        entries: &[
+            wgpu::BindGroupEntry { binding: 0, resource: wgpu::BindingResource::TextureView(&base) },
+            wgpu::BindGroupEntry { binding: 1, resource: wgpu::BindingResource::Sampler(&base_sampler) },
+            wgpu::BindGroupEntry { binding: 2, resource: wgpu::BindingResource::TextureView(&mr) },
+            wgpu::BindGroupEntry { binding: 3, resource: wgpu::BindingResource::Sampler(&mr_sampler) },
+        ],
+    })
+}
+
+/// `texture` (one white texel without one) on the device, sRGB-encoded (`srgb`: a colour
+/// texture) or linear (data), with its sampler.
+fn view(gpu: &Gpu, texture: Option<&Texture>, srgb: bool) -> (wgpu::TextureView, wgpu::Sampler) {
     let white = Texture::new(1, 1, vec![Vec3::ONE], [Wrap::Repeat; 2]);
     let t = texture.unwrap_or(&white);
-    let srgb: Vec<u8> = t
+    let encode = |x: f32| if srgb { linear_to_srgb(x.clamp(0.0, 1.0)) } else { x.clamp(0.0, 1.0) };
+    let bytes: Vec<u8> = t
         .texels
         .iter()
         .flat_map(|c| {
-            let [r, g, b] = c.to_array().map(|x| (linear_to_srgb(x.clamp(0.0, 1.0)) * 255.0).round() as u8);
+            let [r, g, b] = c.to_array().map(|x| (encode(x) * 255.0).round() as u8);
             [r, g, b, 255]
         })
         .collect();
     let size = [t.width as u32, t.height as u32];
-    let view = texture_2d(gpu, "preview base colour", size, wgpu::TextureFormat::Rgba8UnormSrgb, &srgb);
+    let format = if srgb { wgpu::TextureFormat::Rgba8UnormSrgb } else { wgpu::TextureFormat::Rgba8Unorm };
+    let view = texture_2d(gpu, "preview texture", size, format, &bytes);
     let address = |w: Wrap| match w {
         Wrap::Clamp => wgpu::AddressMode::ClampToEdge,
         Wrap::Repeat => wgpu::AddressMode::Repeat,
@@ -89,12 +127,5 @@ pub fn bind_group(gpu: &Gpu, layout: &wgpu::BindGroupLayout, texture: Option<&Te
         min_filter: wgpu::FilterMode::Linear,
         ..Default::default()
     });
-    gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
-        label: Some("preview base colour"),
-        layout,
-        entries: &[
-            wgpu::BindGroupEntry { binding: 0, resource: wgpu::BindingResource::TextureView(&view) },
-            wgpu::BindGroupEntry { binding: 1, resource: wgpu::BindingResource::Sampler(&sampler) },
-        ],
-    })
+    (view, sampler)
 }

@@ -138,6 +138,7 @@ struct LitVertex {
     base: [f32; 4],
     surface: [f32; 4],
     at_vertex: [f32; 4],
+    mr_uv: [f32; 4],
 }
 
 /// The offscreen target.
@@ -305,18 +306,25 @@ impl Viewport {
     /// Uploads every instance's world-space triangles with its base-colour texture, and every
     /// light polygon.
     pub fn upload_geometry(&mut self, gpu: &Gpu, flat: &FlatScene) {
-        let plain = detail::bind_group(gpu, &self.detail_layout, None);
+        let plain = detail::bind_group(gpu, &self.detail_layout, None, None);
         let mut textures = std::collections::HashMap::new();
         self.meshes = (0..flat.instances.len())
             .map(|i| {
                 let mesh = flat.mesh(i);
                 let p: Vec<Vec3> = (0..mesh.positions.len()).map(|v| flat.vertex(i, v).0).collect();
                 let idx: Vec<u32> = mesh.triangles.iter().flatten().copied().collect();
-                let texture = detail::slot(flat, i).map_or(plain.clone(), |s| {
-                    let texture = &flat.textures[s.texture as usize];
+                let maps = flat.instances[i].maps;
+                let texture = if maps.is_empty() {
+                    plain.clone()
+                } else {
+                    let (base, mr) = (maps.base_color.map(|s| s.texture), maps.metallic_roughness.map(|s| s.texture));
+                    let at = |k: Option<u32>| k.map(|k| &*flat.textures[k as usize]);
                     let layout = &self.detail_layout;
-                    textures.entry(s.texture).or_insert_with(|| detail::bind_group(gpu, layout, Some(texture))).clone()
-                });
+                    textures
+                        .entry((base, mr))
+                        .or_insert_with(|| detail::bind_group(gpu, layout, at(base), at(mr)))
+                        .clone()
+                };
                 let look = Look { radiance: &vec![Vec3::ZERO; p.len()], detail: &detail::vertices(flat, i), texture };
                 mesh_buffers(gpu, &p, look, &idx)
             })
@@ -648,13 +656,16 @@ fn mip_buffer(gpu: &Gpu, chain: &Prefiltered) -> wgpu::Buffer {
 /// Vertex `v` of instance `i` as the per-pixel lights read it (`d`: its texture detail).
 fn lit_vertex(flat: &FlatScene, i: usize, v: usize, d: &Detail, weight: f32) -> LitVertex {
     let (p, n) = flat.vertex(i, v);
-    let m = flat.vertex_material(i, v);
+    // The metallic-roughness texture is read per pixel: its factors here, not its value.
+    let (m, factors) = (flat.vertex_material(i, v), flat.instances[i].material);
+    let mr = detail::metallic_roughness_uv(flat, i, v);
     LitVertex {
         p: p.extend(weight).into(),
         n: n.normalize_or_zero().extend(0.0).into(),
-        base: m.base_color.extend(m.metallic).into(),
-        surface: [m.roughness, m.specular, d.uv[0], d.uv[1]],
+        base: m.base_color.extend(factors.metallic).into(),
+        surface: [factors.roughness, m.specular, d.uv[0], d.uv[1]],
         at_vertex: Vec3::from(d.at_vertex).extend(0.0).into(),
+        mr_uv: [mr[0], mr[1], 0.0, 0.0],
     }
 }
 
