@@ -248,12 +248,16 @@ struct LitParams {
     to_map: array<vec4<f32>, 3>,
     // Per level: width, height, offset in `mips`.
     level: array<vec4<u32>, 12>,
+    // Toward the map's sun; w its least roughness (0: no sun).
+    sun_direction: vec4<f32>,
+    // The sun's irradiance (rgb).
+    sun_irradiance: vec4<f32>,
 }
 
 struct LitVertex {
     // xyz position; w the environment's specular weight V_lobe · O.
     p: vec4<f32>,
-    // xyz unit normal.
+    // xyz unit normal; w 1 where the vertex sees the map's sun.
     n: vec4<f32>,
     // rgb base colour at the vertex; w the metallic factor.
     base: vec4<f32>,
@@ -426,6 +430,31 @@ fn environment_at(s: Surface, weight: f32) -> vec3<f32> {
     return reflect_environment(s.n, s.v, ggx_alpha(s.roughness), s.f0, s.f90) * weight;
 }
 
+// The map's sun at a surface point (its roughness already floored for the sun: Look::sun_at):
+// the BSDF times the sun's irradiance, times `seen`, its visibility interpolated from the
+// vertices (Bsdf::eval: Lambertian plus GGX with Schlick Fresnel).
+fn sun_at(s: Surface, seen: f32) -> vec3<f32> {
+    let wi = lit.sun_direction.xyz;
+    let cos_i = dot(s.n, wi);
+    if (cos_i <= 0.0) {
+        return vec3<f32>(0.0);
+    }
+    var f = s.diffuse / PI;
+    if (s.has_spec) {
+        let alpha = ggx_alpha(s.roughness);
+        let h = normalize(s.v + wi);
+        // The local frame's z is the normal: D and Λ read only cosines to it.
+        let cos_h = dot(s.n, h);
+        let hl = vec3<f32>(sqrt(max(1.0 - cos_h * cos_h, 0.0)), 0.0, cos_h);
+        let lo = vec3<f32>(sqrt(max(1.0 - s.mu * s.mu, 0.0)), 0.0, s.mu);
+        let li = vec3<f32>(sqrt(max(1.0 - cos_i * cos_i, 0.0)), 0.0, cos_i);
+        let g2 = 1.0 / (1.0 + ggx_lambda(lo, alpha) + ggx_lambda(li, alpha));
+        let fresnel = s.f0 + (s.f90 - s.f0) * pow(1.0 - clamp(dot(s.v, h), 0.0, 1.0), 5.0);
+        f = f + fresnel * (ggx_d(hl, alpha) * g2 / (4.0 * s.mu * cos_i));
+    }
+    return f * cos_i * lit.sun_irradiance.xyz * seen;
+}
+
 fn ggx_alpha(roughness: f32) -> f32 {
     let r = clamp(roughness, 0.0, 1.0);
     return max(r * r, 1e-4);
@@ -594,5 +623,11 @@ fn fs_lit(v: CornerOut) -> @location(0) vec4<f32> {
     let specular = a.surface.y * w.x + b.surface.y * w.y + c.surface.y * w.z;
     let s = surface_at(v.position, n, base, metallic, roughness, specular);
     let weight = a.p.w * w.x + b.p.w * w.y + c.p.w * w.z;
-    return display(others + lights_at(s, v.corners, w) + environment_at(s, weight));
+    let seen = a.n.w * w.x + b.n.w * w.y + c.n.w * w.z;
+    var sun = vec3<f32>(0.0);
+    if (lit.sun_direction.w > 0.0 && seen > 0.0) {
+        let rough = surface_at(v.position, n, base, metallic, max(roughness, lit.sun_direction.w), specular);
+        sun = sun_at(rough, seen);
+    }
+    return display(others + lights_at(s, v.corners, w) + environment_at(s, weight) + sun);
 }

@@ -16,8 +16,9 @@ use kage_engine::bspvt::pixel::Lobes;
 use kage_engine::math::{ggx, ltc};
 use kage_engine::prt;
 use kage_engine::prt::prefilter::Prefiltered;
+use kage_engine::prt::sun::Sun;
 use kage_engine::scene::{EnvironmentLight, FlatScene, VertexValues};
-use kage_engine::shading::baked::SpecularVertices;
+use kage_engine::shading::baked::{SUN_ALPHA_FLOOR, SpecularVertices};
 use kage_gpu::buffers::{storage, uniform};
 use kage_gpu::prt::ShadowArrays;
 use kage_gpu::{Gpu, Shaders};
@@ -98,12 +99,26 @@ pub struct PixelLights {
 }
 
 /// The environment's specular term, drawn per pixel: the reflection `R` by filtered importance
-/// sampling of `prefiltered` at each pixel, times the weight interpolated from the vertices.
+/// sampling of `prefiltered` at each pixel, times the weight interpolated from the vertices;
+/// and the map's sun, its BSDF at each pixel times its visibility interpolated.
 pub struct PixelEnvironment {
     /// Per vertex: the term (part of what `upload_radiance` is given) and its weight.
     pub specular: SpecularVertices,
     /// The environment's mip chain.
     pub prefiltered: Prefiltered,
+    /// The map's sun, if it has one.
+    pub sun: Option<PixelSun>,
+}
+
+/// The sun per pixel: per vertex its light (part of what `upload_radiance` is given) and 1
+/// where the vertex sees it ([`kage_engine::shading::baked::sun_vertices`]).
+pub struct PixelSun {
+    /// Direction, irradiance and size.
+    pub sun: Sun,
+    /// Per instance and vertex: the sun's light toward the eye.
+    pub values: VertexValues,
+    /// Per instance and vertex: 1 where the vertex sees the sun.
+    pub visible: Vec<Vec<f32>>,
 }
 
 /// Most mip levels the shader reads.
@@ -121,6 +136,10 @@ struct LitParams {
     to_map: [[f32; 4]; 3],
     /// Per level: width, height, offset in the chain's texels.
     level: [[u32; 4]; MAX_LEVELS],
+    /// Toward the sun; w its least roughness (0: no sun).
+    sun_direction: [f32; 4],
+    /// The sun's irradiance.
+    sun_irradiance: [f32; 4],
 }
 
 /// A mip chain on the device, and the chain it was uploaded from.
@@ -583,7 +602,9 @@ fn lit_draw(
     let specular = environment.map(|e| &e.specular);
     let shape = |v: &[Vec<f32>]| v.iter().map(Vec::len).eq((0..flat.instances.len()).map(|i| flat.vertex_count(i)));
     let fits = |v: &VertexValues| v.iter().map(Vec::len).eq((0..flat.instances.len()).map(|i| flat.vertex_count(i)));
-    if !fits(&lights.values) || specular.is_some_and(|s| !fits(&s.values) || !shape(&s.weights)) {
+    let sun = environment.and_then(|e| e.sun.as_ref());
+    let sun_fits = sun.is_none_or(|s| fits(&s.values) && shape(&s.visible));
+    if !fits(&lights.values) || specular.is_some_and(|s| !fits(&s.values) || !shape(&s.weights)) || !sun_fits {
         return None;
     }
     let (mut vertices, mut indices, mut lobes, mut ranges) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
@@ -595,7 +616,10 @@ fn lit_draw(
         ranges.push(start..indices.len() as u32);
         let detail = detail::vertices(flat, i);
         let weight = |v: usize| specular.map_or(0.0, |s| s.weights[i][v]);
-        vertices.extend((0..mesh.positions.len()).zip(&detail).map(|(v, d)| lit_vertex(flat, i, v, d, weight(v))));
+        let seen = |v: usize| sun.map_or(0.0, |s| s.visible[i][v]);
+        vertices.extend(
+            (0..mesh.positions.len()).zip(&detail).map(|(v, d)| lit_vertex(flat, i, v, d, [weight(v), seen(v)])),
+        );
         for v in 0..mesh.positions.len() {
             lobes.extend(lights.lobes.vertex(i, v).iter().map(|[d, s]| [d[0], d[1], s[0], s[1]]));
         }
@@ -604,12 +628,12 @@ fn lit_draw(
         return None;
     }
     let mut per_pixel: Vec<Vec3> = lights.values.iter().flatten().copied().collect();
-    if let Some(s) = specular {
-        per_pixel.iter_mut().zip(s.values.iter().flatten()).for_each(|(p, s)| *p += *s);
+    for values in specular.map(|s| &s.values).into_iter().chain(sun.map(|s| &s.values)) {
+        per_pixel.iter_mut().zip(values.iter().flatten()).for_each(|(p, s)| *p += *s);
     }
     let tables: Vec<f32> =
         ltc::table().entries().iter().flatten().chain(ggx::albedo_tables().concat().iter()).copied().collect();
-    let params = lit_params(flat.lights.len(), environment.map(|e| &e.prefiltered));
+    let params = lit_params(flat.lights.len(), environment.map(|e| &e.prefiltered), sun.map(|s| &s.sun));
     let rest = storage(gpu, "preview rest", &vec![[0.0f32; 4]; vertices.len()]);
     let mips = mips.cloned().unwrap_or_else(|| storage(gpu, "preview no mips", &[[0.0f32; 4]]));
     let buffers = [
@@ -627,9 +651,21 @@ fn lit_draw(
 
 /// The per-pixel lights' parameters: the light count and where the chain's levels are (none
 /// without an environment).
-fn lit_params(lights: usize, chain: Option<&Prefiltered>) -> LitParams {
-    let mut params =
-        LitParams { lights: lights as u32, levels: 0, pad: [0; 2], to_map: [[0.0; 4]; 3], level: [[0; 4]; MAX_LEVELS] };
+fn lit_params(lights: usize, chain: Option<&Prefiltered>, sun: Option<&Sun>) -> LitParams {
+    let mut params = LitParams {
+        lights: lights as u32,
+        levels: 0,
+        pad: [0; 2],
+        to_map: [[0.0; 4]; 3],
+        level: [[0; 4]; MAX_LEVELS],
+        sun_direction: [0.0; 4],
+        sun_irradiance: [0.0; 4],
+    };
+    if let Some(sun) = sun {
+        let least = (SUN_ALPHA_FLOOR * sun.angular_radius).sqrt().max(1e-6);
+        params.sun_direction = sun.direction.extend(least).into();
+        params.sun_irradiance = sun.irradiance.extend(0.0).into();
+    }
     let Some(chain) = chain else { return params };
     let (rotation, intensity) = chain.placement();
     let m = glam::Mat3::from_quat(rotation).transpose();
@@ -654,14 +690,15 @@ fn mip_buffer(gpu: &Gpu, chain: &Prefiltered) -> wgpu::Buffer {
 }
 
 /// Vertex `v` of instance `i` as the per-pixel lights read it (`d`: its texture detail).
-fn lit_vertex(flat: &FlatScene, i: usize, v: usize, d: &Detail, weight: f32) -> LitVertex {
+/// `[weight, seen]`: the environment's specular weight and the sun's visibility there.
+fn lit_vertex(flat: &FlatScene, i: usize, v: usize, d: &Detail, [weight, seen]: [f32; 2]) -> LitVertex {
     let (p, n) = flat.vertex(i, v);
     // The metallic-roughness texture is read per pixel: its factors here, not its value.
     let (m, factors) = (flat.vertex_material(i, v), flat.instances[i].material);
     let mr = detail::metallic_roughness_uv(flat, i, v);
     LitVertex {
         p: p.extend(weight).into(),
-        n: n.normalize_or_zero().extend(0.0).into(),
+        n: n.normalize_or_zero().extend(seen).into(),
         base: m.base_color.extend(factors.metallic).into(),
         surface: [factors.roughness, m.specular, d.uv[0], d.uv[1]],
         at_vertex: Vec3::from(d.at_vertex).extend(0.0).into(),

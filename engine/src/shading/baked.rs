@@ -23,7 +23,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 /// The GGX α the sun's highlight has at least, per radian of the sun's angular radius.
-const SUN_ALPHA_FLOOR: f32 = 0.125;
+pub const SUN_ALPHA_FLOOR: f32 = 0.125;
 
 /// The polygonal lights' part: per-vertex radiance toward the eye and the trees it came from.
 pub struct Polygonal<'a> {
@@ -296,22 +296,9 @@ impl<'a> Look<'a> {
         (d, env.specular(self.flat).map_or((Vec3::ZERO, 0.0), |s| s.parts(i, corners, bary, p, to, o)))
     }
 
-    /// The sun's light leaving a point toward `to`: the material's BSDF times the sun's
-    /// irradiance, where a shadow ray reaches it. The GGX α is at least an eighth of the sun's
-    /// angular radius, so that a near-mirror's highlight stays finite; chosen by measurement
-    /// (docs/baked.md: a wider floor spread a near-mirror's highlight too far).
+    /// The sun's light leaving a point toward `to` ([`sun_light`]).
     fn sun_at(&self, i: usize, corners: [usize; 3], bary: [f32; 3], p: Vec3, to: Vec3) -> Vec3 {
-        let Some((sun, bvh)) = &self.sun else { return Vec3::ZERO };
-        let n = (0..3).map(|c| self.flat.vertex(i, corners[c]).1 * bary[c]).sum::<Vec3>().normalize_or_zero();
-        let frame = Frame::from_normal(n);
-        let wi = frame.to_local(sun.direction);
-        if wi.z <= 0.0 || bvh.occluded(offset_ray_origin(p, n, sun.direction), sun.direction, f32::INFINITY) {
-            return Vec3::ZERO;
-        }
-        let mut material = self.flat.material_at(i, corners, bary);
-        material.roughness = material.roughness.max((SUN_ALPHA_FLOOR * sun.angular_radius).sqrt());
-        let wo = frame.to_local((to - p).normalize_or_zero());
-        crate::shading::Bsdf::new(&material, wo).eval(wo, wi) * wi.z * sun.irradiance
+        self.sun.as_ref().map_or(Vec3::ZERO, |(sun, bvh)| sun_light(self.flat, sun, bvh, (i, corners, bary), p, to).0)
     }
 
     /// A `width × height` image with `spp` samples per pixel through `camera`: the material per
@@ -369,6 +356,46 @@ impl<'a> Look<'a> {
         let material = self.flat.material_at(hit.instance, hit.corners, hit.weights);
         crate::shading::Bsdf::new(&material, Vec3::new(0.0, 0.0, mu)).diffuse_albedo()
     }
+}
+
+/// The sun's light leaving a point of instance `i`'s triangle (`corners`, barycentrics) at `p`
+/// toward `to`: the material's BSDF times the sun's irradiance, where a shadow ray through
+/// `bvh` reaches it; and whether it does (false below the point's horizon). The GGX roughness
+/// is at least √([`SUN_ALPHA_FLOOR`] × the sun's angular radius), so that a near-mirror's
+/// highlight stays finite; chosen by measurement (docs/baked.md: a wider floor spread a
+/// near-mirror's highlight too far).
+pub fn sun_light(
+    flat: &FlatScene,
+    sun: &Sun,
+    bvh: &SceneBvh,
+    (i, corners, bary): (usize, [usize; 3], [f32; 3]),
+    p: Vec3,
+    to: Vec3,
+) -> (Vec3, bool) {
+    let n = (0..3).map(|c| flat.vertex(i, corners[c]).1 * bary[c]).sum::<Vec3>().normalize_or_zero();
+    let frame = Frame::from_normal(n);
+    let wi = frame.to_local(sun.direction);
+    if wi.z <= 0.0 || bvh.occluded(offset_ray_origin(p, n, sun.direction), sun.direction, f32::INFINITY) {
+        return (Vec3::ZERO, false);
+    }
+    let mut material = flat.material_at(i, corners, bary);
+    material.roughness = material.roughness.max((SUN_ALPHA_FLOOR * sun.angular_radius).sqrt());
+    let wo = frame.to_local((to - p).normalize_or_zero());
+    (crate::shading::Bsdf::new(&material, wo).eval(wo, wi) * wi.z * sun.irradiance, true)
+}
+
+/// Per instance and vertex: the sun's light toward `eye` as the look adds it, and 1 where the
+/// vertex sees the sun (0 in shadow or below its horizon) — what the editor's viewport carries
+/// to shade the sun per pixel.
+pub fn sun_vertices(flat: &FlatScene, sun: &Sun, eye: Vec3) -> (VertexValues, Vec<Vec<f32>>) {
+    let bvh = SceneBvh::quick(&flat.triangles);
+    (0..flat.instances.len())
+        .map(|i| {
+            let at = |v: usize| sun_light(flat, sun, &bvh, (i, [v; 3], [1.0, 0.0, 0.0]), flat.vertex(i, v).0, eye);
+            let both: Vec<(Vec3, bool)> = (0..flat.vertex_count(i)).into_par_iter().map(at).collect();
+            (both.iter().map(|b| b.0).collect(), both.iter().map(|b| f32::from(u8::from(b.1))).collect())
+        })
+        .unzip()
 }
 
 /// The environment's per-vertex terms (diffuse and specular, the sun apart) of the last frame
