@@ -37,8 +37,10 @@ impl App {
     /// Wraps `editor`, building the viewport on its GPU.
     pub fn new(mut editor: Editor) -> Self {
         let viewport = match Viewport::new(editor.gpu(), editor.shaders()) {
-            Ok(v) if !v.per_pixel_prt() => {
-                editor.info("this device binds too few storage buffers per shader stage for per-pixel PRT: the viewport interpolates PRT per vertex".into());
+            Ok(v) if !v.per_pixel_prt() || !v.per_pixel_lights() => {
+                let what =
+                    if v.per_pixel_prt() { "the lights and reflections" } else { "PRT, the lights and reflections" };
+                editor.info(format!("this device binds too few storage buffers per shader stage to draw {what} per pixel: the viewport interpolates them per vertex"));
                 Some(v)
             }
             Ok(v) => Some(v),

@@ -289,6 +289,11 @@ impl Viewport {
         self.pipelines.prt.is_some()
     }
 
+    /// Whether this device draws the lights and the environment's reflection per pixel.
+    pub fn per_pixel_lights(&self) -> bool {
+        self.pipelines.lit.is_some()
+    }
+
     /// Shows `env` behind the geometry (`None`: the background colour); the map is uploaded
     /// again only when it changed, its rotation and intensity every call.
     pub fn set_environment(&mut self, gpu: &Gpu, env: Option<&EnvironmentLight>) {
