@@ -65,10 +65,22 @@ fn clip(src: ptr<function, Poly>, pl: vec3<f32>) -> Poly {
 // ∫ max(0, z)/π over the polygon (cosine space, relative to the shading point): horizon clip,
 // then the sum over edges; edge-on and back-facing polygons give 0 (ltc::integrate).
 fn cosine_integral(p: ptr<function, Poly>) -> f32 {
-    let n = (*p).n;
-    if (n < 3u) {
+    if ((*p).n < 3u || edge_on(p)) {
         return 0.0;
     }
+    var c = clip(p, vec3<f32>(0.0, 0.0, 1.0));
+    var z = 0.0;
+    for (var i = 0u; i < c.n; i = i + 1u) {
+        z = z + edge_z(c.v[i], c.v[(i + 1u) % c.n]);
+    }
+    return max(-z / (2.0 * PI), 0.0);
+}
+
+// True when the polygon's plane passes through the shading point: it is seen edge-on and
+// integrates to 0 (a linear map keeps a plane through the origin through it, so the test holds
+// in any lobe's space).
+fn edge_on(p: ptr<function, Poly>) -> bool {
+    let n = (*p).n;
     var newell = vec3<f32>(0.0);
     var scale = 0.0;
     for (var i = 0u; i < n; i = i + 1u) {
@@ -76,21 +88,14 @@ fn cosine_integral(p: ptr<function, Poly>) -> f32 {
         scale = max(scale, length((*p).v[i]));
     }
     let len = length(newell);
-    if (len == 0.0 || abs(dot(newell / len, (*p).v[0])) <= ON_PLANE * scale) {
-        return 0.0;
-    }
-    var c = clip(p, vec3<f32>(0.0, 0.0, 1.0));
-    var z = 0.0;
-    for (var i = 0u; i < c.n; i = i + 1u) {
-        let a = c.v[i];
-        let b = c.v[(i + 1u) % c.n];
-        let e = cross(a, b);
-        let l = length(e);
-        if (l > 0.0) {
-            z = z + e.z * (atan2(l, dot(a, b)) / l);
-        }
-    }
-    return max(-z / (2.0 * PI), 0.0);
+    return len == 0.0 || abs(dot(newell / len, (*p).v[0])) <= ON_PLANE * scale;
+}
+
+// The z component of one edge's θ · n (ltc::edge_integral).
+fn edge_z(a: vec3<f32>, b: vec3<f32>) -> f32 {
+    let e = cross(a, b);
+    let l = length(e);
+    return select(0.0, e.z * (atan2(l, dot(a, b)) / l), l > 0.0);
 }
 
 fn transformed(p: ptr<function, Poly>, r0: vec3<f32>, r1: vec3<f32>, r2: vec3<f32>) -> Poly {

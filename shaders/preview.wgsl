@@ -550,20 +550,6 @@ fn mip_level(k: u32, uv: vec2<f32>) -> vec3<f32> {
     return mix(top, bottom, t.f.y);
 }
 
-// True when the polygon's plane passes through the shading point (cosine_integral's test,
-// made once in world space: a linear map keeps a plane through the origin through it).
-fn edge_on(p: ptr<function, Poly>) -> bool {
-    let n = (*p).n;
-    var newell = vec3<f32>(0.0);
-    var scale = 0.0;
-    for (var i = 0u; i < n; i = i + 1u) {
-        newell = newell + cross((*p).v[i], (*p).v[(i + 1u) % n]);
-        scale = max(scale, length((*p).v[i]));
-    }
-    let len = length(newell);
-    return len == 0.0 || abs(dot(newell / len, (*p).v[0])) <= ON_PLANE * scale;
-}
-
 // cosine_integral of the polygon mapped by rows (r0, r1, r2), clipped at z = 0 edge by edge as
 // it goes — no mapped or clipped copy of the polygon is built (private arrays are what a CPU
 // device pays for most, per pixel). A convex polygon leaves the upper half-space at most once
@@ -598,12 +584,6 @@ fn lobe_integral(p: ptr<function, Poly>, r0: vec3<f32>, r1: vec3<f32>, r2: vec3<
     return max(-z / (2.0 * PI), 0.0);
 }
 
-// The z component of one edge's θ · n (ltc::edge_integral).
-fn edge_z(a: vec3<f32>, b: vec3<f32>) -> f32 {
-    let e = cross(a, b);
-    let l = length(e);
-    return select(0.0, e.z * (atan2(l, dot(a, b)) / l), l > 0.0);
-}
 
 @fragment
 fn fs_lit(v: CornerOut) -> @location(0) vec4<f32> {

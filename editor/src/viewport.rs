@@ -605,8 +605,9 @@ fn lit_draw(
     let gpu_lights = flat.lights.iter().map(kage_gpu::bspvt::gpu_light).collect::<Result<Vec<_>, _>>().ok()?;
     let environment = lights.environment.as_ref().filter(|_| mips.is_some());
     let specular = environment.map(|e| &e.specular);
-    let shape = |v: &[Vec<f32>]| v.iter().map(Vec::len).eq((0..flat.instances.len()).map(|i| flat.vertex_count(i)));
-    let fits = |v: &VertexValues| v.iter().map(Vec::len).eq((0..flat.instances.len()).map(|i| flat.vertex_count(i)));
+    let counts = || (0..flat.instances.len()).map(|i| flat.vertex_count(i));
+    let fits = |v: &VertexValues| v.iter().map(Vec::len).eq(counts());
+    let shape = |v: &[Vec<f32>]| v.iter().map(Vec::len).eq(counts());
     let sun = environment.and_then(|e| e.sun.as_ref());
     let sun_fits = sun.is_none_or(|s| fits(&s.values) && shape(&s.visible));
     if !fits(&lights.values) || specular.is_some_and(|s| !fits(&s.values) || !shape(&s.weights)) || !sun_fits {
