@@ -22,14 +22,15 @@ OUT = Path("assets/scenes")
 
 
 def png(path, width, height, pixel):
-    """An 8-bit RGB PNG of pixel(x, y) -> (r, g, b)."""
+    """An 8-bit PNG of pixel(x, y) -> (r, g, b), or (r, g, b, a) for RGBA."""
     rows = b"".join(b"\x00" + bytes(c for x in range(width) for c in pixel(x, y)) for y in range(height))
+    colour_type = 6 if len(pixel(0, 0)) == 4 else 2
 
     def chunk(kind, data):
         body = kind + data
         return struct.pack(">I", len(data)) + body + struct.pack(">I", zlib.crc32(body) & 0xFFFFFFFF)
 
-    header = struct.pack(">IIBBBBB", width, height, 8, 2, 0, 0, 0)
+    header = struct.pack(">IIBBBBB", width, height, 8, colour_type, 0, 0, 0)
     path.write_bytes(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", header) + chunk(b"IDAT", zlib.compress(rows, 9)) + chunk(b"IEND", b""))
 
 

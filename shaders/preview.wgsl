@@ -17,7 +17,7 @@ struct View {
 
 @group(0) @binding(0) var<uniform> view: View;
 
-// The base-colour texture (one white texel for untextured meshes).
+// The base-colour texture (one white texel for untextured meshes); alpha is a cut-out's mask.
 @group(1) @binding(0) var base_color: texture_2d<f32>;
 @group(1) @binding(1) var base_sampler: sampler;
 
@@ -27,6 +27,8 @@ struct VertexIn {
     // The base-colour UV (its texture transform applied) and the texture's value there.
     @location(2) uv: vec2<f32>,
     @location(3) at_vertex: vec3<f32>,
+    // A cut-out's alpha factor and cutoff ((1, 0): solid).
+    @location(4) cut: vec2<f32>,
 }
 
 struct VertexOut {
@@ -34,6 +36,7 @@ struct VertexOut {
     @location(0) radiance: vec3<f32>,
     @location(1) uv: vec2<f32>,
     @location(2) at_vertex: vec3<f32>,
+    @location(3) @interpolate(flat) cut: vec2<f32>,
 }
 
 @vertex
@@ -43,7 +46,14 @@ fn vs_main(v: VertexIn) -> VertexOut {
     out.radiance = v.radiance;
     out.uv = v.uv;
     out.at_vertex = v.at_vertex;
+    out.cut = v.cut;
     return out;
+}
+
+// glTF alphaMode MASK (engine/src/scene/cutout.rs): the surface is absent where alpha × factor
+// falls below the cutoff.
+fn cut_away(alpha: f32, cut: vec2<f32>) -> bool {
+    return alpha * cut.x < cut.y;
 }
 
 // The target is plain Rgba8Unorm (what egui shows as an image): encode sRGB here.
@@ -66,7 +76,11 @@ fn fs_main(v: VertexOut) -> @location(0) vec4<f32> {
     if (view.exposure.y > 0.5) {
         return display(v.radiance); // the overlay's colours, as they are
     }
-    return display(v.radiance * detail(textureSample(base_color, base_sampler, v.uv).rgb, v.at_vertex));
+    let texel = textureSample(base_color, base_sampler, v.uv);
+    if (cut_away(texel.a, v.cut)) {
+        discard;
+    }
+    return display(v.radiance * detail(texel.rgb, v.at_vertex));
 }
 
 // The texture here over its value interpolated from the vertices, per channel (0 where that is 0).
@@ -265,7 +279,8 @@ struct LitVertex {
     surface: vec4<f32>,
     // rgb the base-colour texture's value at the vertex.
     at_vertex: vec4<f32>,
-    // xy the metallic-roughness texture's UV (read per pixel: G roughness, B metalness).
+    // xy the metallic-roughness texture's UV (read per pixel: G roughness, B metalness); zw the
+    // cut-out's alpha factor and cutoff.
     mr_uv: vec4<f32>,
 }
 
@@ -593,7 +608,11 @@ fn fs_lit(v: CornerOut) -> @location(0) vec4<f32> {
     let w = v.bary;
     let uv = a.surface.zw * w.x + b.surface.zw * w.y + c.surface.zw * w.z;
     let at_vertex = a.at_vertex.xyz * w.x + b.at_vertex.xyz * w.y + c.at_vertex.xyz * w.z;
-    let ratio = detail(textureSample(lit_texture, lit_sampler, uv).rgb, at_vertex);
+    let texel = textureSample(lit_texture, lit_sampler, uv);
+    if (cut_away(texel.a, a.mr_uv.zw)) {
+        discard;
+    }
+    let ratio = detail(texel.rgb, at_vertex);
     let others = (rest[v.corners.x].xyz * w.x + rest[v.corners.y].xyz * w.y + rest[v.corners.z].xyz * w.z) * ratio;
     let n = normalize(a.n.xyz * w.x + b.n.xyz * w.y + c.n.xyz * w.z);
     let base = (a.base.xyz * w.x + b.base.xyz * w.y + c.base.xyz * w.z) * ratio;

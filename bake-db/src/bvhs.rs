@@ -28,7 +28,7 @@ pub fn occluders(store: &Store, flat: &FlatScene) -> Result<(Occluders, Vec<Memo
     let names: Vec<Option<String>> = parts.iter().map(|t| (t.len() >= MIN_TRIANGLES).then(|| name(t))).collect();
     let stored = names.iter().map(|n| n.as_deref().map_or(Ok(None), |n| store.memo(n))).collect::<Result<Vec<_>>>()?;
     let mut built = Vec::new();
-    let occluders = Occluders::with(&parts, |i, triangles| {
+    let occluders = Occluders::with(&parts, &bspvt::occluder_holes(flat), |i, triangles| {
         let restored = stored[i].as_deref().and_then(|b| SceneBvh::from_bytes(triangles, b));
         restored.unwrap_or_else(|| {
             let bvh = SceneBvh::new(triangles);

@@ -3,7 +3,7 @@
 //!
 //! - **BSPVT** (polygonal lights present): visibility depends on the whole scene, so a chunk's
 //!   key covers its receiver (mesh hash, world transform) and the occluder snapshot (every
-//!   instance's id, mesh hash and world transform). Its *slot* (the key without the snapshot)
+//!   instance's id, mesh hash — with its cut-out's mask, if any — and world transform). Its *slot* (the key without the snapshot)
 //!   remembers the last artefact baked there and the snapshot it saw — the lineage that lets an
 //!   edit re-bake only the cube faces that can see what changed.
 //! - **PRT** (an environment present): a chunk's key covers the instance's mesh hash, its
@@ -13,7 +13,7 @@
 use crate::key::{Key, KeyHasher};
 use crate::store::{Result, Store};
 use glam::{Affine3A, Vec3};
-use kage_engine::scene::{FlatScene, InGroup, PolygonLight, PrimitiveId, Scene};
+use kage_engine::scene::{FlatScene, InGroup, MaterialMaps, PolygonLight, PrimitiveId, Scene, cutout};
 use kage_engine::{bspvt, prt};
 use std::collections::HashMap;
 use std::ops::Range;
@@ -62,7 +62,7 @@ pub struct Job {
 pub struct Occluder {
     /// glTF origin (node, mesh, primitive).
     pub id: [u32; 3],
-    /// Mesh content hash.
+    /// Mesh content hash (with the cut-out's mask: [`FlatScene::occluder_hash`]).
     pub mesh: [u8; 32],
     /// World transform.
     pub world: [f32; 12],
@@ -88,7 +88,8 @@ impl Snapshot {
         let occluders: Vec<Occluder> = flat
             .instances
             .iter()
-            .map(|inst| {
+            .enumerate()
+            .map(|(i, inst)| {
                 let mesh = &flat.meshes[inst.mesh as usize];
                 let (lo, hi) = mesh.positions.iter().fold((Vec3::MAX, Vec3::MIN), |(lo, hi), p| {
                     let w = inst.world.transform_point3(*p);
@@ -96,7 +97,7 @@ impl Snapshot {
                 });
                 Occluder {
                     id: [inst.id.node, inst.id.mesh, inst.id.primitive],
-                    mesh: mesh.hash.0,
+                    mesh: flat.occluder_hash(i),
                     world: inst.world.to_cols_array(),
                     bounds: [lo.x, lo.y, lo.z, hi.x, hi.y, hi.z],
                 }
@@ -286,8 +287,12 @@ fn chunks(flat: &FlatScene, i: usize) -> Vec<(usize, Range<usize>)> {
 /// transforms, lights' polygons), in glTF order.
 fn group_geometry(scene: &Scene) -> HashMap<hecs::Entity, Key> {
     let mut members: HashMap<hecs::Entity, Vec<(PrimitiveId, [u8; 32], Affine3A)>> = HashMap::new();
-    for (id, m, g) in scene.world.query::<(&PrimitiveId, &kage_engine::scene::MeshRef, &InGroup)>().iter() {
-        members.entry(g.group).or_default().push((*id, m.hash.0, g.local));
+    let mut query =
+        scene.world.query::<(&PrimitiveId, &kage_engine::scene::MeshRef, &InGroup, Option<&MaterialMaps>)>();
+    for (id, m, g, maps) in query.iter() {
+        let cutout = maps.and_then(|m| m.cutout.as_ref());
+        let mesh = cutout::occluder_hash(&scene.meshes[m.index as usize], cutout, &scene.textures);
+        members.entry(g.group).or_default().push((*id, mesh, g.local));
     }
     let mut lights: HashMap<hecs::Entity, Vec<f32>> = HashMap::new();
     for (l, g) in scene.world.query::<(&PolygonLight, &InGroup)>().iter() {

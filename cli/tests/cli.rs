@@ -603,12 +603,14 @@ fn export_writes_valid_packs_that_render_like_the_database() {
         ("scenes/textured_light", "baked", vec!["--face-res", "16", "--sh-order", "3", "--regions", "8"]),
         // Base-colour and metallic-roughness textures, TEXCOORD_1, a UV transform, vertex colours.
         ("scenes/textured_materials", "baked", vec!["--face-res", "16", "--sh-order", "3", "--regions", "8"]),
+        // A cut-out (alphaMode MASK): the mask travels as a PNG's alpha, the preview is MASK too.
+        ("scenes/cutout_lattice", "baked", vec!["--face-res", "16", "--sh-order", "3", "--regions", "8"]),
     ] {
         let name = Path::new(file).file_name().unwrap().to_str().unwrap();
         for ext in ["gltf", "bin"] {
             std::fs::copy(asset(&format!("{file}.{ext}")), d.join(format!("{name}.{ext}"))).unwrap();
         }
-        for png in ["stained_glass.png", "checker.png", "metal_rough.png", "poster.png"] {
+        for png in ["stained_glass.png", "checker.png", "metal_rough.png", "poster.png", "lattice.png"] {
             std::fs::copy(asset(&format!("scenes/{png}")), d.join(png)).unwrap();
         }
         let scene = d.join(format!("{name}.gltf")).to_str().unwrap().to_string();

@@ -13,7 +13,8 @@ use kage_engine::scene::{FlatScene, TextureSlot};
 use kage_gpu::Gpu;
 use kage_gpu::buffers::texture_2d;
 
-/// `detail` of preview.wgsl's vertex input: the base-colour UV and the texture's value there.
+/// `detail` of preview.wgsl's vertex input: the base-colour UV, the texture's value there, and
+/// the cut-out's factor and cutoff.
 #[repr(C)]
 #[derive(Clone, Copy, Pod, Zeroable)]
 pub struct Detail {
@@ -21,13 +22,18 @@ pub struct Detail {
     pub uv: [f32; 2],
     /// The texture's value at the vertex (linear RGB).
     pub at_vertex: [f32; 3],
+    /// A pixel is discarded where the texture's alpha × `cut[0]` < `cut[1]` ([`SOLID`]: never).
+    pub cut: [f32; 2],
 }
 
+/// The `cut` of a solid surface.
+pub const SOLID: [f32; 2] = [1.0, 0.0];
+
 /// A texture with nothing to modulate: one white texel, value one at every vertex.
-pub const PLAIN: Detail = Detail { uv: [0.0; 2], at_vertex: [1.0; 3] };
+pub const PLAIN: Detail = Detail { uv: [0.0; 2], at_vertex: [1.0; 3], cut: SOLID };
 
 /// Group 1 of the per-vertex pipeline (group 2 of the per-pixel lights): the base-colour
-/// texture and its sampler, then the metallic-roughness texture and its sampler (read per pixel
+/// texture (alpha: the cut-out's mask) and its sampler, then the metallic-roughness texture and its sampler (read per pixel
 /// by the per-pixel lights only).
 pub fn layout(gpu: &Gpu) -> wgpu::BindGroupLayout {
     let entry =
@@ -60,31 +66,52 @@ pub fn metallic_roughness_uv(flat: &FlatScene, i: usize, v: usize) -> [f32; 2] {
     slot.map_or([0.0; 2], |s| s.uv(uv(&mesh.uvs), uv(&mesh.uvs1)).into())
 }
 
-/// Per vertex of instance `i`: the slot's UV and the texture's value there ([`PLAIN`] without
-/// a slot).
+/// Per vertex of instance `i`: the slot's UV, the texture's value there and the cut-out
+/// ([`PLAIN`] without a slot or cut-out).
 pub fn vertices(flat: &FlatScene, i: usize) -> Vec<Detail> {
     let mesh = flat.mesh(i);
-    let Some(s) = slot(flat, i) else { return vec![PLAIN; mesh.positions.len()] };
+    let cut = flat.instances[i].maps.cutout.map_or(SOLID, |c| [c.factor, c.cutoff]);
+    let Some(s) = slot(flat, i) else { return vec![Detail { cut, ..PLAIN }; mesh.positions.len()] };
     let texture = &flat.textures[s.texture as usize];
     let uv = |set: &[glam::Vec2], v: usize| set.get(v).copied().unwrap_or_default();
     (0..mesh.positions.len())
         .map(|v| {
             let at = s.uv(uv(&mesh.uvs, v), uv(&mesh.uvs1, v));
-            Detail { uv: at.into(), at_vertex: texture.sample(at).into() }
+            Detail { uv: at.into(), at_vertex: texture.sample(at).into(), cut }
         })
         .collect()
 }
 
-/// The bind group of the base-colour and metallic-roughness textures (`None`: one white texel)
-/// with their wrap modes and linear filtering, as the CPU's bilinear lookup.
-pub fn bind_group(
-    gpu: &Gpu,
-    layout: &wgpu::BindGroupLayout,
-    base: Option<&Texture>,
-    metallic_roughness: Option<&Texture>,
-) -> wgpu::BindGroup {
-    let (base, base_sampler) = view(gpu, base, true);
-    let (mr, mr_sampler) = view(gpu, metallic_roughness, false);
+/// The textures an instance's bind group holds, by index into the scene's textures.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub struct Textures {
+    /// The base colour.
+    pub base: Option<u32>,
+    /// The cut-out's mask, put in the base colour's alpha (it reads the same UVs).
+    pub alpha: Option<u32>,
+    /// The metallic-roughness texture.
+    pub metallic_roughness: Option<u32>,
+}
+
+impl Textures {
+    /// Instance `i`'s.
+    pub fn of(flat: &FlatScene, i: usize) -> Self {
+        let maps = &flat.instances[i].maps;
+        Self {
+            base: maps.base_color.map(|s| s.texture),
+            alpha: maps.cutout.and_then(|c| c.alpha).map(|s| s.texture),
+            metallic_roughness: maps.metallic_roughness.map(|s| s.texture),
+        }
+    }
+}
+
+/// The bind group of the base-colour (with the mask in alpha) and metallic-roughness textures
+/// (`None`: one white texel) with their wrap modes and linear filtering, as the CPU's bilinear
+/// lookup.
+pub fn bind_group(gpu: &Gpu, layout: &wgpu::BindGroupLayout, flat: &FlatScene, t: Textures) -> wgpu::BindGroup {
+    let at = |k: Option<u32>| k.map(|k| &*flat.textures[k as usize]);
+    let (base, base_sampler) = view(gpu, at(t.base), at(t.alpha), true);
+    let (mr, mr_sampler) = view(gpu, at(t.metallic_roughness), None, false);
     gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
         label: Some("preview textures"),
         layout,
@@ -98,17 +125,24 @@ pub fn bind_group(
 }
 
 /// `texture` (one white texel without one) on the device, sRGB-encoded (`srgb`: a colour
-/// texture) or linear (data), with its sampler.
-fn view(gpu: &Gpu, texture: Option<&Texture>, srgb: bool) -> (wgpu::TextureView, wgpu::Sampler) {
+/// texture) or linear (data), its alpha from `alpha` (a mask of the same size; opaque without
+/// one), with its sampler.
+fn view(
+    gpu: &Gpu,
+    texture: Option<&Texture>,
+    alpha: Option<&Texture>,
+    srgb: bool,
+) -> (wgpu::TextureView, wgpu::Sampler) {
     let white = Texture::new(1, 1, vec![Vec3::ONE], [Wrap::Repeat; 2]);
-    let t = texture.unwrap_or(&white);
-    let encode = |x: f32| if srgb { linear_to_srgb(x.clamp(0.0, 1.0)) } else { x.clamp(0.0, 1.0) };
-    let bytes: Vec<u8> = t
-        .texels
-        .iter()
-        .flat_map(|c| {
-            let [r, g, b] = c.to_array().map(|x| (encode(x) * 255.0).round() as u8);
-            [r, g, b, 255]
+    let t = texture.or(alpha).unwrap_or(&white);
+    let alpha = alpha.filter(|a| a.texels.len() == t.texels.len());
+    let byte = |x: f32| (x.clamp(0.0, 1.0) * 255.0).round() as u8;
+    let encode = |x: f32| byte(if srgb { linear_to_srgb(x.clamp(0.0, 1.0)) } else { x });
+    let colour = |k: usize| if texture.is_some() { t.texels[k] } else { Vec3::ONE };
+    let bytes: Vec<u8> = (0..t.texels.len())
+        .flat_map(|k| {
+            let [r, g, b] = colour(k).to_array().map(encode);
+            [r, g, b, alpha.map_or(255, |a| byte(a.texels[k].x))]
         })
         .collect();
     let size = [t.width as u32, t.height as u32];

@@ -16,7 +16,7 @@ pub struct Picker {
 impl Picker {
     /// Builds the BVH of `flat` (the quick build: it is rebuilt after every edit).
     pub fn new(flat: &FlatScene) -> Self {
-        Self { bvh: SceneBvh::quick(&flat.triangles) }
+        Self { bvh: SceneBvh::quick_over(flat) }
     }
 
     /// The group (for a mesh) or light the ray from `origin` along `dir` (unit) meets first in

@@ -330,24 +330,19 @@ impl Viewport {
     /// Uploads every instance's world-space triangles with its base-colour texture, and every
     /// light polygon.
     pub fn upload_geometry(&mut self, gpu: &Gpu, flat: &FlatScene) {
-        let plain = detail::bind_group(gpu, &self.detail_layout, None, None);
+        let plain = detail::bind_group(gpu, &self.detail_layout, flat, detail::Textures::default());
         let mut textures = std::collections::HashMap::new();
         self.meshes = (0..flat.instances.len())
             .map(|i| {
                 let mesh = flat.mesh(i);
                 let p: Vec<Vec3> = (0..mesh.positions.len()).map(|v| flat.vertex(i, v).0).collect();
                 let idx: Vec<u32> = mesh.triangles.iter().flatten().copied().collect();
-                let maps = flat.instances[i].maps;
-                let texture = if maps.is_empty() {
+                let t = detail::Textures::of(flat, i);
+                let texture = if t == detail::Textures::default() {
                     plain.clone()
                 } else {
-                    let (base, mr) = (maps.base_color.map(|s| s.texture), maps.metallic_roughness.map(|s| s.texture));
-                    let at = |k: Option<u32>| k.map(|k| &*flat.textures[k as usize]);
                     let layout = &self.detail_layout;
-                    textures
-                        .entry((base, mr))
-                        .or_insert_with(|| detail::bind_group(gpu, layout, at(base), at(mr)))
-                        .clone()
+                    textures.entry(t).or_insert_with(|| detail::bind_group(gpu, layout, flat, t)).clone()
                 };
                 let look = Look { radiance: &vec![Vec3::ZERO; p.len()], detail: &detail::vertices(flat, i), texture };
                 mesh_buffers(gpu, &p, look, &idx)
@@ -708,7 +703,7 @@ fn lit_vertex(flat: &FlatScene, i: usize, v: usize, d: &Detail, [weight, seen]: 
         base: m.base_color.extend(factors.metallic).into(),
         surface: [factors.roughness, m.specular, d.uv[0], d.uv[1]],
         at_vertex: Vec3::from(d.at_vertex).extend(0.0).into(),
-        mr_uv: [mr[0], mr[1], 0.0, 0.0],
+        mr_uv: [mr[0], mr[1], d.cut[0], d.cut[1]],
     }
 }
 
@@ -766,7 +761,11 @@ fn build_pipelines(gpu: &Gpu, shaders: &Shaders, layouts: Layouts) -> Result<Pip
     let attributes = [
         vec![attribute(0, vec3, 0)],
         vec![attribute(1, vec3, 0)],
-        vec![attribute(2, wgpu::VertexFormat::Float32x2, 0), attribute(3, vec3, 8)],
+        vec![
+            attribute(2, wgpu::VertexFormat::Float32x2, 0),
+            attribute(3, vec3, 8),
+            attribute(4, wgpu::VertexFormat::Float32x2, 20),
+        ],
     ];
     let strides = [12, 12, std::mem::size_of::<Detail>() as u64];
     let per_vertex = [0, 1, 2].map(|k| {

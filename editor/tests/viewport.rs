@@ -377,3 +377,40 @@ fn a_light_is_dark_from_behind() {
     assert_eq!(below[..3], [255, 255, 255], "from its emitting side: {below:?}");
     assert_eq!(above[..3], [0, 0, 0], "from behind: {above:?}");
 }
+
+/// Cut-outs (`alphaMode: MASK`) are open in both of the viewport's pipelines as they are to
+/// `kage render`'s primary rays: looking down through the lattice of `cutout_lattice.gltf`,
+/// the per-vertex pipeline (`fs_main`, each instance one flat colour) draws the floor where
+/// the CPU's rays pass the openings, and the per-pixel lights (`fs_lit`) match their CPU
+/// statement. Drawn solid, the lattice covers the floor there. Measured: 99.99 % of pixels
+/// within 3 levels in both pipelines; 87.1 % drawn solid.
+#[test]
+fn cut_outs_are_open_in_the_viewport() {
+    let gpu = Gpu::new().expect("a wgpu device (lavapipe without a GPU)");
+    let scene = import::import(&asset("scenes/cutout_lattice.gltf"), Default::default()).unwrap();
+    let flat = flatten(&scene);
+    let orbit = Orbit { target: Vec3::new(0.0, 1.0, 0.0), distance: 3.0, yaw: 0.2, pitch: 1.1, yfov: 0.8 };
+    let colour = |i: usize| [Vec3::new(0.2, 0.8, 0.2), Vec3::new(0.9, 0.1, 0.1), Vec3::new(0.1, 0.2, 0.9)][i % 3];
+    let values: Vec<Vec<Vec3>> = (0..flat.instances.len()).map(|i| vec![colour(i); flat.vertex_count(i)]).collect();
+    let (w, h) = (240, 160);
+    let camera = Camera::look_at(orbit.eye(), orbit.target, orbit.yfov);
+    let cpu = kage_engine::raster::shade_image(&Renderer::new(&scene), &camera, w, h, 1, &|hit| colour(hit.instance));
+    let expected: Vec<[u8; 3]> =
+        cpu.iter().map(|p| p.to_array().map(|c| (display_srgb(c) * 255.0 + 0.5) as u8)).collect();
+    let drawn = |flat: &kage_engine::scene::FlatScene| {
+        let mut vp = Viewport::new(&gpu, &Shaders::embedded()).unwrap();
+        vp.upload_geometry(&gpu, flat);
+        vp.upload_radiance(&gpu, &values);
+        within(&vp.render_image(&gpu, [w as u32, h as u32], &orbit, 0.0).unwrap(), &expected, 3)
+    };
+    let mut solid = flat.clone();
+    solid.instances.iter_mut().for_each(|i| i.maps.cutout = None);
+    let (cut, without) = (drawn(&flat), drawn(&solid));
+    eprintln!("per vertex, within 3 levels of the CPU's rays: cut out {cut:.4}, solid {without:.4}");
+    assert!(cut >= 0.98, "cut out: {:.1} % of pixels", 100.0 * cut);
+    assert!(without < cut - 0.05, "solid: {:.1} %, cut out {:.1} %", 100.0 * without, 100.0 * cut);
+    let (reference, per_pixel, _) = lights_drawn(&gpu, &scene, &flat, &orbit);
+    let lit = within(&per_pixel, &reference, 3);
+    eprintln!("per-pixel lights within 3 levels of the CPU render: {lit:.4}");
+    assert!(lit >= 0.98, "per-pixel lights: {:.1} % of pixels", 100.0 * lit);
+}

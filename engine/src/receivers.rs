@@ -78,8 +78,8 @@ pub fn key(scene: &Scene, settings: &Settings) -> blake3::Hash {
     h.update(&(settings.budget as u64).to_le_bytes());
     h.update(&settings.tolerance.to_le_bytes());
     h.update(&(settings.rounds as u64).to_le_bytes());
-    for inst in &flat.instances {
-        h.update(&flat.meshes[inst.mesh as usize].hash.0);
+    for (i, inst) in flat.instances.iter().enumerate() {
+        h.update(&flat.occluder_hash(i));
         h.update(bytemuck::cast_slice(&inst.world.to_cols_array()));
         h.update(&inst.group.to_bits().get().to_le_bytes());
     }
@@ -448,30 +448,26 @@ struct Probe {
 
 impl Probe {
     fn new(flat: &FlatScene) -> Self {
-        let owned: Vec<(&[Vec3; 3], usize)> = flat
-            .triangles
-            .iter()
-            .zip(&flat.refs)
-            .filter(|(_, r)| r.light == NO_LIGHT)
-            .map(|(t, r)| (t, r.owner as usize))
-            .collect();
         let mut entities: Vec<hecs::Entity> = flat.instances.iter().map(|i| i.group).collect();
         entities.sort();
         entities.dedup();
         let group_of: Vec<usize> =
             flat.instances.iter().map(|i| entities.binary_search(&i.group).expect("listed")).collect();
-        let mut per_group: Vec<Vec<[Vec3; 3]>> = vec![Vec::new(); entities.len()];
-        for &(t, owner) in &owned {
-            per_group[group_of[owner]].push(*t);
-        }
         let mut views: Vec<View> = flat.lights.iter().flat_map(light_views).collect();
         let lights = views.len();
         views.extend(flat.environment.as_ref().map(environment_view));
         // Only what some view casts rays against is built.
-        let all: Vec<[Vec3; 3]> = if lights > 0 { owned.iter().map(|(t, _)| **t).collect() } else { Vec::new() };
-        let groups =
-            if views.len() > lights { per_group.iter().map(|t| SceneBvh::new(t)).collect() } else { Vec::new() };
-        Self { bvh: SceneBvh::new(&all), groups, group_of, views, lights }
+        let cut = |keep: &dyn Fn(&crate::scene::TriangleRef) -> bool| {
+            let (triangles, holes) = flat.select(|r| r.light == NO_LIGHT && keep(r));
+            SceneBvh::new(&triangles).cut(&holes)
+        };
+        let bvh = if lights > 0 { cut(&|_| true) } else { SceneBvh::new(&[]) };
+        let groups = if views.len() > lights {
+            (0..entities.len()).map(|g| cut(&|r| group_of[r.owner as usize] == g)).collect()
+        } else {
+            Vec::new()
+        };
+        Self { bvh, groups, group_of, views, lights }
     }
 
     /// Per view, the share of it that `p` (normal `n`) on instance `instance` sees.

@@ -1,6 +1,28 @@
 //! Shared helpers for kage's cross-crate integration tests (`tests/tests/*.rs`).
 
+use kage_engine::bspvt;
+use kage_engine::prt::{self, prefilter::Prefiltered};
+use kage_engine::scene::{FlatScene, Scene, flatten};
+use kage_engine::shading::baked::{Bakes, Look};
 use std::path::{Path, PathBuf};
+
+/// `scene`'s baked look seen from `eye`, for `f` to read: BSPVT trees (default settings) and
+/// PRT transfer (order 4, 16 regions; the scene must have an environment) baked in memory.
+pub fn with_baked_look<T>(scene: &Scene, eye: glam::Vec3, f: impl FnOnce(&Look, &FlatScene) -> T) -> T {
+    let flat = flatten(scene);
+    let trees = bspvt::bake(&flat, &bspvt::Settings::default(), &|_| {});
+    let ps = prt::Settings { order: 4, regions: 16, ..prt::Settings::default() };
+    let transfer = prt::bake(scene, &flat, &ps, &|_| {});
+    let lighting = prt::Lighting::new(scene, &ps).expect("the scene has an environment");
+    let pre = Prefiltered::new(flat.environment.as_ref().expect("the scene has an environment"));
+    let bakes = Bakes {
+        bspvt: Some(&trees),
+        prt: Some(prt::Parts { bake: &transfer, lighting: &lighting, settings: &ps }),
+        prefiltered: Some(&pre),
+    };
+    let look = Look::prepare(scene, &flat, bakes, eye, &mut prt::SilhouetteMemo::default());
+    f(&look, &flat)
+}
 
 /// `assets/<rel>` in the repository (test scenes, models, environment maps, edge cases).
 pub fn asset(rel: &str) -> PathBuf {

@@ -77,9 +77,9 @@ fn a_group_bvh_in_its_local_frame_agrees_with_the_world_bvh() {
         .find(|(_, _, n, _)| n.0 == "group_box_sphere")
         .map(|(e, _, _, t)| (e, t.world))
         .unwrap();
-    let local = SceneBvh::new(&group_triangles(&s, group));
+    let local = SceneBvh::new(&group_triangles(&s, group).0);
     let world_tris: Vec<[Vec3; 3]> =
-        group_triangles(&s, group).iter().map(|t| t.map(|p| pose.transform_point3(p))).collect();
+        group_triangles(&s, group).0.iter().map(|t| t.map(|p| pose.transform_point3(p))).collect();
     let world = SceneBvh::new(&world_tris);
     let inv = pose.inverse();
     let mut r = rng::seeded(3);

@@ -5,14 +5,12 @@
 
 use glam::{Vec2, Vec3};
 use kage_engine::math::relative_rmse;
-use kage_engine::prt::{self, prefilter::Prefiltered};
 use kage_engine::raster;
 use kage_engine::reference::{Renderer, Settings};
+use kage_engine::scene::FlatScene;
 use kage_engine::scene::import::{ImportOptions, import};
 use kage_engine::scene::{EnvMap, EnvironmentLight, MaterialMaps, Scene, flatten};
-use kage_engine::shading::baked::{Bakes, Look};
-use kage_engine::{bspvt, scene::FlatScene};
-use kage_tests::asset;
+use kage_tests::{asset, with_baked_look};
 
 fn scene() -> Scene {
     let s = import(&asset("scenes/textured_materials.gltf"), ImportOptions::default()).unwrap();
@@ -82,24 +80,14 @@ fn the_baked_look_applies_materials_per_pixel_like_the_reference() {
         |v: &[Vec3]| -> Vec<Vec3> { v.iter().zip(&hits).filter(|(_, m)| **m == Vec3::ONE).map(|(p, _)| *p).collect() };
     // (per pixel, per vertex) relative RMSE of the look of `scene`.
     let errors = |scene: &Scene| {
-        let flat = flatten(scene);
-        let trees = bspvt::bake(&flat, &bspvt::Settings::default(), &|_| {});
-        let ps = prt::Settings { order: 4, regions: 16, ..prt::Settings::default() };
-        let transfer = prt::bake(scene, &flat, &ps, &|_| {});
-        let lighting = prt::Lighting::new(scene, &ps).unwrap();
-        let pre = Prefiltered::new(flat.environment.as_ref().unwrap());
-        let bakes = Bakes {
-            bspvt: Some(&trees),
-            prt: Some(prt::Parts { bake: &transfer, lighting: &lighting, settings: &ps }),
-            prefiltered: Some(&pre),
-        };
-        let look = Look::prepare(scene, &flat, bakes, camera.eye(), &mut prt::SilhouetteMemo::default());
-        let r = Renderer::new(scene);
-        let per_vertex = raster::vertex_image(&r, &camera, w, h, 4, &look.vertex_values());
-        (
-            relative_rmse(&pick(&look.render(&r, &camera, w, h, 4)), &pick(&truth)),
-            relative_rmse(&pick(&per_vertex), &pick(&truth)),
-        )
+        with_baked_look(scene, camera.eye(), |look, _| {
+            let r = Renderer::new(scene);
+            let per_vertex = raster::vertex_image(&r, &camera, w, h, 4, &look.vertex_values());
+            (
+                relative_rmse(&pick(&look.render(&r, &camera, w, h, 4)), &pick(&truth)),
+                relative_rmse(&pick(&per_vertex), &pick(&truth)),
+            )
+        })
     };
     let (per_pixel, per_vertex) = errors(&s);
     let mut plain = s.duplicate();

@@ -7,10 +7,11 @@ use glam::{DVec3, Vec2, Vec3};
 use gltf::json as gj;
 use kage_engine::bspvt;
 use kage_engine::prt::{self, Lighting, regions::Region};
-use kage_engine::scene::import::{self, ImportOptions};
+use kage_engine::scene::import::{self, Channels, ImportOptions};
 use kage_engine::scene::texture::Wrap;
 use kage_engine::scene::{
-    EnvMap, EnvironmentLight, FlatScene, Material, MaterialMaps, NodeId, PolygonLight, PrimitiveId, Scene, TextureSlot,
+    Cutout, EnvMap, EnvironmentLight, FlatScene, Material, MaterialMaps, NodeId, PolygonLight, PrimitiveId, Scene,
+    TextureSlot,
 };
 use kage_engine::{Error, Result};
 use serde::Deserialize;
@@ -107,14 +108,27 @@ impl Pack<'_> {
                 roughness: m.roughness,
                 specular: m.specular,
             };
-            let mut slot = |s: &Option<schema::TextureSlot>, srgb| {
-                s.as_ref().map(|s| self.texture_slot(s, srgb, scene, &mut decoded)).transpose()
+            let mut slot = |s: &Option<schema::TextureSlot>, channels| {
+                s.as_ref().map(|s| self.texture_slot(s, channels, scene, &mut decoded)).transpose()
+            };
+            let cutout = match &m.cutout {
+                Some(c) if !(c.factor.is_finite() && c.cutoff.is_finite()) => {
+                    return Err(format!("mesh {k}: the cut-out's factor and cutoff are not numbers"));
+                }
+                Some(c) => Some(Cutout {
+                    alpha: slot(&c.alpha_texture, Channels::Alpha)
+                        .map_err(|e| format!("mesh {k}: alphaTexture: {e}"))?,
+                    factor: c.factor,
+                    cutoff: c.cutoff,
+                }),
+                None => None,
             };
             let maps = MaterialMaps {
-                base_color: slot(&m.base_color_texture, true)
+                base_color: slot(&m.base_color_texture, Channels::Srgb)
                     .map_err(|e| format!("mesh {k}: baseColorTexture: {e}"))?,
-                metallic_roughness: slot(&m.metallic_roughness_texture, false)
+                metallic_roughness: slot(&m.metallic_roughness_texture, Channels::Linear)
                     .map_err(|e| format!("mesh {k}: metallicRoughnessTexture: {e}"))?,
+                cutout,
             };
             let entity = entities[&inst.id];
             let _ = scene.world.insert_one(entity, material);
@@ -130,9 +144,9 @@ impl Pack<'_> {
     fn texture_slot(
         &self,
         s: &schema::TextureSlot,
-        srgb: bool,
+        channels: Channels,
         scene: &mut Scene,
-        decoded: &mut HashMap<(u32, bool), u32>,
+        decoded: &mut HashMap<(u32, Channels), u32>,
     ) -> Checked<TextureSlot> {
         if s.tex_coord > 1 {
             return Err(format!("TEXCOORD_{} is not a set kage reads", s.tex_coord));
@@ -140,13 +154,13 @@ impl Pack<'_> {
         if !s.transform.iter().all(|x| x.is_finite()) {
             return Err("the UV transform is not 6 finite numbers".into());
         }
-        let texture = match decoded.get(&(s.index, srgb)) {
+        let texture = match decoded.get(&(s.index, channels)) {
             Some(&t) => t,
             None => {
-                let t = self.decode(s.index, srgb).map_err(|e| format!("texture {}: {e}", s.index))?;
+                let t = self.decode(s.index, channels).map_err(|e| format!("texture {}: {e}", s.index))?;
                 scene.textures.push(std::sync::Arc::new(t));
                 let t = scene.textures.len() as u32 - 1;
-                decoded.insert((s.index, srgb), t);
+                decoded.insert((s.index, channels), t);
                 t
             }
         };
@@ -155,7 +169,7 @@ impl Pack<'_> {
     }
 
     /// Core texture `index`, decoded from its image in the binary chunk.
-    fn decode(&self, index: u32, srgb: bool) -> Checked<kage_engine::scene::Texture> {
+    fn decode(&self, index: u32, channels: Channels) -> Checked<kage_engine::scene::Texture> {
         let texture = self.doc.textures.get(index as usize).ok_or("no such texture")?;
         let image = self.doc.images.get(texture.source.value()).ok_or("no such image")?;
         let bytes = self.view(image.buffer_view.ok_or("no image data in the pack")?.value() as u32)?;
@@ -166,7 +180,7 @@ impl Pack<'_> {
             _ => Wrap::Repeat,
         };
         let wraps = [wrap(sampler.map(|s| &s.wrap_s)), wrap(sampler.map(|s| &s.wrap_t))];
-        import::decode_texture(bytes, srgb, wraps).map_err(|e| e.to_string())
+        import::decode_texture(bytes, channels, wraps).map_err(|e| e.to_string())
     }
 
     /// The BSPVT bake: every instance's offsets and records, checked record by record.

@@ -131,6 +131,23 @@ pub struct Material {
     /// Metallic-roughness texture (linear; roughness in G, metalness in B).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub metallic_roughness_texture: Option<TextureSlot>,
+    /// Where the surface is cut out (`alphaMode: MASK`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cutout: Option<Cutout>,
+}
+
+/// A cut-out: alpha = factor × the texture's alpha, absent below the cutoff.
+#[derive(Debug, Serialize, Deserialize)]
+#[serde(rename_all = "camelCase")]
+pub struct Cutout {
+    /// `baseColorFactor`'s alpha.
+    pub factor: f32,
+    /// `alphaCutoff`.
+    pub cutoff: f32,
+    /// The alpha texture: a PNG whose alpha channel is the mask (RGB white), which the
+    /// preview material also reads.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub alpha_texture: Option<TextureSlot>,
 }
 
 /// A texture slot: which core texture, which UV set, which UV transform.

@@ -63,6 +63,9 @@ fn encode(e: &Export) -> std::io::Result<Vec<u8>> {
     };
     doc.extensions_used =
         ["KHR_materials_unlit", "KHR_materials_emissive_strength", EXTENSION].map(String::from).to_vec();
+    if b.transforms {
+        doc.extensions_used.push("KHR_texture_transform".into());
+    }
     doc.extensions = Some(gj::extensions::root::Root { others: others(&root) });
     doc.buffers = vec![gj::Buffer {
         byte_length: USize64(b.bin.len() as u64),
@@ -131,6 +134,8 @@ struct Builder {
     members: Vec<gj::Node>,
     /// Scene texture index → glTF texture, each written once.
     textures: HashMap<u32, Index<gj::Texture>>,
+    /// Whether a preview material uses `KHR_texture_transform`.
+    transforms: bool,
 }
 
 impl Builder {
@@ -245,7 +250,7 @@ impl Builder {
             }),
             prt: e.prt.map(|p| schema::PrtData { transfer: self.raw(bytemuck::cast_slice(&p.bake.instances[k])) }),
         };
-        let preview_material = self.root.push(gj::Material {
+        let mut preview_material = gj::Material {
             name: Some(format!("preview {k}")),
             pbr_metallic_roughness: gj::material::PbrMetallicRoughness {
                 base_color_factor: gj::material::PbrBaseColorFactor([1.0; 4]),
@@ -258,7 +263,11 @@ impl Builder {
                 ..Default::default()
             }),
             ..Default::default()
-        });
+        };
+        if let Some(c) = &record.material.cutout {
+            self.cut_preview(&mut preview_material, c);
+        }
+        let preview_material = self.root.push(preview_material);
         for (set, uvs) in [(0, &mesh.uvs), (1, &mesh.uvs1)] {
             if !uvs.is_empty() {
                 attributes.insert(Valid(gj::mesh::Semantic::TexCoords(set)), self.vec2(uvs));
@@ -269,6 +278,42 @@ impl Builder {
         }
         let primitive = primitive(attributes, indices, preview_material, &record);
         self.member(primitive, format!("instance {k}"), local);
+    }
+
+    /// Makes `m` cut out as `c` says, so that a glTF viewer shows the holes: `MASK`, the
+    /// cutoff, the factor in the base colour's alpha, and the mask texture (RGB white) as the
+    /// base-colour texture with its UV set and transform.
+    fn cut_preview(&mut self, m: &mut gj::Material, c: &schema::Cutout) {
+        m.alpha_mode = Valid(gj::material::AlphaMode::Mask);
+        m.alpha_cutoff = Some(gj::material::AlphaCutoff(c.cutoff));
+        m.pbr_metallic_roughness.base_color_factor.0[3] = c.factor;
+        m.pbr_metallic_roughness.base_color_texture = c.alpha_texture.as_ref().map(|s| {
+            let t = glam::Affine2::from_cols_array(&s.transform);
+            let extensions = (t != glam::Affine2::IDENTITY).then(|| {
+                self.transforms = true;
+                gj::extensions::texture::Info {
+                    texture_transform: Some(gj::extensions::texture::TextureTransform {
+                        offset: gj::extensions::texture::TextureTransformOffset(t.translation.to_array()),
+                        rotation: gj::extensions::texture::TextureTransformRotation(
+                            (-t.matrix2.x_axis.y).atan2(t.matrix2.x_axis.x),
+                        ),
+                        scale: gj::extensions::texture::TextureTransformScale([
+                            t.matrix2.x_axis.length(),
+                            t.matrix2.y_axis.length(),
+                        ]),
+                        tex_coord: None,
+                        extras: Default::default(),
+                    }),
+                    others: Default::default(),
+                }
+            });
+            gj::texture::Info {
+                index: Index::new(s.index),
+                tex_coord: s.tex_coord,
+                extensions,
+                extras: Default::default(),
+            }
+        });
     }
 
     /// A polygonal light: an emissive triangle fan, its exact values in the extension.
@@ -287,7 +332,7 @@ impl Builder {
         };
         let mut emissive_texture = None;
         if let Some(t) = light.texture.filter(|_| light.uvs.len() == light.points.len()) {
-            let index = self.texture(t, &scene.textures[t as usize], true);
+            let index = self.texture(t, &scene.textures[t as usize], Encoding::Srgb);
             emissive_texture =
                 Some(gj::texture::Info { index, tex_coord: 0, extensions: None, extras: Default::default() });
             attributes.insert(Valid(gj::mesh::Semantic::TexCoords(0)), self.vec2(&light.uvs));
@@ -314,15 +359,20 @@ impl Builder {
 
     /// The extension's record of an instance's material: its factors and texture slots.
     fn material(&mut self, inst: &Instance, scene: &Scene) -> schema::Material {
-        let mut slot = |s: Option<TextureSlot>, srgb: bool| {
+        let mut slot = |s: Option<TextureSlot>, encoding: Encoding| {
             s.map(|s| schema::TextureSlot {
-                index: self.texture(s.texture, &scene.textures[s.texture as usize], srgb).value() as u32,
+                index: self.texture(s.texture, &scene.textures[s.texture as usize], encoding).value() as u32,
                 tex_coord: s.texcoord,
                 transform: s.transform.to_cols_array(),
             })
         };
-        let base_color_texture = slot(inst.maps.base_color, true);
-        let metallic_roughness_texture = slot(inst.maps.metallic_roughness, false);
+        let base_color_texture = slot(inst.maps.base_color, Encoding::Srgb);
+        let metallic_roughness_texture = slot(inst.maps.metallic_roughness, Encoding::Linear);
+        let cutout = inst.maps.cutout.map(|c| schema::Cutout {
+            factor: c.factor,
+            cutoff: c.cutoff,
+            alpha_texture: slot(c.alpha, Encoding::Alpha),
+        });
         let m = &inst.material;
         schema::Material {
             base_color: m.base_color.to_array(),
@@ -331,16 +381,16 @@ impl Builder {
             specular: m.specular,
             base_color_texture,
             metallic_roughness_texture,
+            cutout,
         }
     }
 
-    /// The glTF texture for scene texture `index` (colours when `srgb`), written on first use
-    /// as an 8-bit PNG.
-    fn texture(&mut self, index: u32, t: &Texture, srgb: bool) -> Index<gj::Texture> {
+    /// The glTF texture for scene texture `index`, written on first use as an 8-bit PNG.
+    fn texture(&mut self, index: u32, t: &Texture, encoding: Encoding) -> Index<gj::Texture> {
         if let Some(&k) = self.textures.get(&index) {
             return k;
         }
-        let view = self.view(&png(t, srgb), None);
+        let view = self.view(&png(t, encoding), None);
         let source = self.root.push(gj::Image {
             buffer_view: Some(view),
             mime_type: Some(gj::image::MimeType("image/png".into())),
@@ -405,19 +455,38 @@ fn primitive(
     }
 }
 
-/// `t` as a PNG, sRGB-encoded when `srgb`. Textures imported from 8-bit images come back bit
+/// `t` as a PNG, encoded as `encoding` says. Textures imported from 8-bit images come back bit
 /// for bit (every byte round-trips through [`linear_to_srgb`]; tested beside it); others round
 /// to the nearest byte.
-fn png(t: &Texture, srgb: bool) -> Vec<u8> {
-    let encode = |x: f32| {
-        let x = x.clamp(0.0, 1.0);
-        (if srgb { linear_to_srgb(x) } else { x } * 255.0).round() as u8
+fn png(t: &Texture, encoding: Encoding) -> Vec<u8> {
+    let unit = |x: f32| (x.clamp(0.0, 1.0) * 255.0).round() as u8;
+    let (w, h) = (t.width as u32, t.height as u32);
+    let image: image::DynamicImage = match encoding {
+        Encoding::Alpha => {
+            let rgba = t.texels.iter().flat_map(|c| [255, 255, 255, unit(c.x)]).collect();
+            image::RgbaImage::from_raw(w, h, rgba).expect("texel count matches").into()
+        }
+        Encoding::Srgb | Encoding::Linear => {
+            let srgb = encoding == Encoding::Srgb;
+            let encode = |x: f32| unit(if srgb { linear_to_srgb(x.clamp(0.0, 1.0)) } else { x });
+            let rgb = t.texels.iter().flat_map(|c| c.to_array().map(encode)).collect();
+            image::RgbImage::from_raw(w, h, rgb).expect("texel count matches").into()
+        }
     };
-    let rgb: Vec<u8> = t.texels.iter().flat_map(|c| c.to_array().map(encode)).collect();
-    let image = image::RgbImage::from_raw(t.width as u32, t.height as u32, rgb).expect("texel count matches");
     let mut out = std::io::Cursor::new(Vec::new());
     image.write_to(&mut out, image::ImageFormat::Png).expect("PNG encoding into memory");
     out.into_inner()
+}
+
+/// How a scene texture's linear values become a PNG's bytes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Encoding {
+    /// Colours, sRGB-encoded.
+    Srgb,
+    /// Data as is.
+    Linear,
+    /// A cut-out's mask in the alpha channel, RGB white: a viewer's MASK material reads it.
+    Alpha,
 }
 
 /// The glTF camera for `c`.

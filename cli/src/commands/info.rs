@@ -132,8 +132,11 @@ fn material(scene: &kage_engine::scene::Scene, m: &Material, maps: Option<&Mater
     };
     let maps = maps.copied().unwrap_or_default();
     let c = m.base_color;
+    let cutout = maps.cutout.map_or(String::new(), |k| {
+        format!(", cut out below alpha {} (factor {}{})", k.cutoff, k.factor, texture(k.alpha, "; alpha"))
+    });
     format!(
-        "material: base colour ({:.3}, {:.3}, {:.3}){}, metallic {:.2}, roughness {:.2}{}",
+        "material: base colour ({:.3}, {:.3}, {:.3}){}, metallic {:.2}, roughness {:.2}{}{cutout}",
         c.x,
         c.y,
         c.z,

@@ -8,6 +8,7 @@
 
 use super::SceneBvh;
 use super::beam::{self, Beam};
+use crate::scene::Holes;
 use glam::Vec3;
 
 /// One instance: its padded bounds and BVH.
@@ -47,14 +48,19 @@ pub struct Occluders {
 }
 
 impl Occluders {
-    /// One BVH per triangle list, by instance index.
+    /// One BVH per triangle list, by instance index (all solid).
     pub fn new(instances: &[Vec<[Vec3; 3]>]) -> Self {
-        Self::with(instances, |_, t| SceneBvh::new(t))
+        Self::with(instances, &[], |_, t| SceneBvh::new(t))
     }
 
     /// [`Self::new`] with each non-empty list's BVH from `bvh(index, triangles)`: built, or
-    /// restored from bytes a build wrote ([`SceneBvh::from_bytes`]), which answers alike.
-    pub fn with(instances: &[Vec<[Vec3; 3]>], mut bvh: impl FnMut(usize, &[[Vec3; 3]]) -> SceneBvh) -> Self {
+    /// restored from bytes a build wrote ([`SceneBvh::from_bytes`]), which answers alike; and
+    /// cut by the list's holes (`holes[index]`; missing: solid).
+    pub fn with(
+        instances: &[Vec<[Vec3; 3]>],
+        holes: &[Holes],
+        mut bvh: impl FnMut(usize, &[[Vec3; 3]]) -> SceneBvh,
+    ) -> Self {
         let parts = instances
             .iter()
             .enumerate()
@@ -64,8 +70,10 @@ impl Occluders {
                         t.iter().flatten().fold((Vec3::MAX, Vec3::MIN), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
                     // Padding keeps the box test conservative for rays that graze it.
                     let pad = Vec3::splat(1e-4 * (hi - lo).length() + 1e-6);
-                    let few = if t.len() <= beam::MAX_TRIANGLES { t.clone() } else { Vec::new() };
-                    Part { lo: lo - pad, hi: hi + pad, bvh: bvh(i, t), few }
+                    let holes = holes.get(i).cloned().unwrap_or_default();
+                    // A beam sees whole triangles: a cut-out instance is always asked ray by ray.
+                    let few = if t.len() <= beam::MAX_TRIANGLES && holes.is_empty() { t.clone() } else { Vec::new() };
+                    Part { lo: lo - pad, hi: hi + pad, bvh: bvh(i, t).cut(&holes), few }
                 })
             })
             .collect::<Vec<_>>();

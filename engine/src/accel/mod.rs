@@ -11,6 +11,7 @@ mod stored;
 pub use instances::Occluders;
 pub(crate) use instances::slab_hits;
 
+use crate::scene::{FlatScene, Holes};
 use glam::{Vec2, Vec3, Vec3A};
 use obvhs::{BvhBuildParams, cwbvh::CwBvh, ray::Ray, rt_triangle::RtTriangle, triangle::Triangle};
 use std::time::Duration;
@@ -31,6 +32,8 @@ pub struct SceneBvh {
     bvh: CwBvh,
     /// Triangles in BVH leaf order (avoids an indirection in the hot loop).
     tris: Vec<RtTriangle>,
+    /// Their holes, in leaf order (empty: every triangle is solid).
+    holes: Holes,
 }
 
 impl SceneBvh {
@@ -48,7 +51,7 @@ impl SceneBvh {
 
     fn build(triangles: &[[Vec3; 3]], params: BvhBuildParams) -> Self {
         if triangles.is_empty() {
-            return Self { bvh: CwBvh::default(), tris: Vec::new() };
+            return Self { bvh: CwBvh::default(), tris: Vec::new(), holes: Holes::default() };
         }
         let tris: Vec<Triangle> = triangles.iter().map(|&t| triangle(t)).collect();
         let bvh = obvhs::cwbvh::builder::build_cwbvh_from_tris(&tris, params, &mut Duration::default());
@@ -58,7 +61,37 @@ impl SceneBvh {
     /// The BVH `bvh` built over `triangles`, its triangles laid out in leaf order.
     fn from_parts(bvh: CwBvh, triangles: &[[Vec3; 3]]) -> Self {
         let tris = bvh.primitive_indices.iter().map(|&i| RtTriangle::from(&triangle(triangles[i as usize]))).collect();
-        Self { bvh, tris }
+        Self { bvh, tris, holes: Holes::default() }
+    }
+
+    /// This BVH with `holes` (indexed as the triangles it was built from) open to every ray:
+    /// cut-out surfaces ([`crate::scene::cutout`]).
+    pub fn cut(mut self, holes: &Holes) -> Self {
+        self.holes = holes.select(self.bvh.primitive_indices.iter().map(|&i| i as usize));
+        self
+    }
+
+    /// Distance to leaf triangle `id` along `r`, or ∞ where it misses or is open.
+    #[inline]
+    fn intersect_cut(&self, r: &Ray, id: usize) -> f32 {
+        let t = self.tris[id].intersect(r);
+        if t < f32::INFINITY && self.holes.cuts(id) {
+            let p = r.origin + r.direction * t;
+            if self.holes.open(id, barycentrics(&self.tris[id], p)) {
+                return f32::INFINITY;
+            }
+        }
+        t
+    }
+
+    /// A BVH over a snapshot's triangles (lights' too) with its cut-outs' holes.
+    pub fn over(flat: &FlatScene) -> Self {
+        Self::new(&flat.triangles).cut(&flat.holes())
+    }
+
+    /// [`Self::over`], built quickly (see [`Self::quick`]).
+    pub fn quick_over(flat: &FlatScene) -> Self {
+        Self::quick(&flat.triangles).cut(&flat.holes())
     }
 
     /// Number of triangles.
@@ -78,7 +111,14 @@ impl SceneBvh {
         }
         let ray = ray(origin, dir, tmax);
         let mut hit = obvhs::ray::RayHit::none();
-        if !self.bvh.ray_traverse(ray, &mut hit, |r, id| self.tris[id].intersect(r)) {
+        // Two monomorphised traversals: the hole test stays out of the solid scene's loop
+        // (in it, it cost 5–16 % of the any-hit rate; measured).
+        let found = if self.holes.is_empty() {
+            self.bvh.ray_traverse(ray, &mut hit, |r, id| self.tris[id].intersect(r))
+        } else {
+            self.bvh.ray_traverse(ray, &mut hit, |r, id| self.intersect_cut(r, id))
+        };
+        if !found {
             return None;
         }
         let slot = hit.primitive_id as usize;
@@ -93,7 +133,11 @@ impl SceneBvh {
             return false;
         }
         let ray = ray(origin, dir, tmax);
-        !self.bvh.ray_traverse_miss(ray, |r, id| self.tris[id].intersect(r))
+        if self.holes.is_empty() {
+            !self.bvh.ray_traverse_miss(ray, |r, id| self.tris[id].intersect(r))
+        } else {
+            !self.bvh.ray_traverse_miss(ray, |r, id| self.intersect_cut(r, id))
+        }
     }
 }
 

@@ -151,7 +151,9 @@ mod tests {
         assert!(SceneBvh::from_bytes(&tris[..tris.len() / 2], &bytes).is_none(), "indices past the triangles");
         // Well hashed but unwalkable: a child outside the node array, a cycle, a leaf past
         // the indices.
-        let rehashed = |bvh: CwBvh| SceneBvh::from_bytes(&tris, &SceneBvh { bvh, tris: Vec::new() }.to_bytes());
+        let rehashed = |bvh: CwBvh| {
+            SceneBvh::from_bytes(&tris, &SceneBvh { bvh, tris: Vec::new(), holes: Default::default() }.to_bytes())
+        };
         let mut far = bvh.bvh.clone();
         far.nodes[0].child_base_idx = far.nodes.len() as u32;
         assert!(rehashed(far).is_none());

@@ -156,7 +156,7 @@ pub struct Bake {
 /// Everything that casts shadows on polygonal-light receivers (not the lights), one BVH per
 /// instance (see [`Occluders`]: an edit cannot change rays against the other instances).
 pub fn occluder_bvh(flat: &FlatScene) -> Occluders {
-    Occluders::new(&occluder_triangles(flat))
+    Occluders::with(&occluder_triangles(flat), &occluder_holes(flat), |_, t| crate::accel::SceneBvh::new(t))
 }
 
 /// Each instance's occluding triangles (its own, lights excepted), by instance index: what
@@ -169,6 +169,11 @@ pub fn occluder_triangles(flat: &FlatScene) -> Vec<Vec<[glam::Vec3; 3]>> {
         }
     }
     parts
+}
+
+/// The holes of [`occluder_triangles`]' lists, by instance.
+pub fn occluder_holes(flat: &FlatScene) -> Vec<crate::scene::Holes> {
+    (0..flat.instances.len()).map(|i| flat.instance_holes(i)).collect()
 }
 
 /// One vertex's bake: its record and what a warm re-bake of it needs.

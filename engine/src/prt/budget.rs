@@ -161,14 +161,8 @@ fn exact_other_term(flat: &FlatScene, env: &EnvironmentLight, sample: &[(usize, 
     let bvhs: Vec<SceneBvh> = groups
         .iter()
         .map(|g| {
-            let tris: Vec<[Vec3; 3]> = flat
-                .triangles
-                .iter()
-                .zip(&flat.refs)
-                .filter(|(_, r)| r.light == NO_LIGHT && flat.instances[r.owner as usize].group == *g)
-                .map(|(t, _)| *t)
-                .collect();
-            SceneBvh::new(&tris)
+            let (tris, holes) = flat.select(|r| r.light == NO_LIGHT && flat.instances[r.owner as usize].group == *g);
+            SceneBvh::new(&tris).cut(&holes)
         })
         .collect();
     let albedos = super::head_on_albedos(flat);

@@ -29,7 +29,7 @@ use crate::math::frame::Frame as ShadingFrame;
 use crate::math::sh;
 use crate::raster::{self, Primary, SurfaceHit};
 use crate::scene::VertexValues;
-use crate::scene::{FlatScene, InGroup, PrimitiveId, RigidGroup, Scene, Transform, group_triangles};
+use crate::scene::{FlatScene, Holes, InGroup, PrimitiveId, RigidGroup, Scene, Transform, group_triangles};
 use crate::shading::Bsdf;
 use glam::{Affine3A, DMat3, DVec3, Vec3};
 use lighting::{NegativeLobes, RgbCoeffs, Window};
@@ -161,7 +161,10 @@ impl Baker {
         let dirs = transfer::Directions::stratified(s.direction_side(), s.order, DIRECTION_SEED);
         let mut bvhs: HashMap<hecs::Entity, SceneBvh> = HashMap::new();
         for inst in &flat.instances {
-            bvhs.entry(inst.group).or_insert_with(|| SceneBvh::new(&group_triangles(scene, inst.group)));
+            bvhs.entry(inst.group).or_insert_with(|| {
+                let (triangles, holes) = group_triangles(scene, inst.group);
+                SceneBvh::new(&triangles).cut(&holes)
+            });
         }
         Self { dirs, bvhs, locals: local_transforms(scene, flat) }
     }
@@ -649,9 +652,11 @@ impl Frame {
 
 /// Silhouettes kept between frames, per group, keyed by a hash of the group's world triangles,
 /// the regions and the resolution: a group that did not move is not rasterised again.
+/// A cut-out group's holes are compared as kept (its textures by identity): hashing their
+/// texels every frame would cost more than the silhouettes.
 #[derive(Default)]
 pub struct SilhouetteMemo {
-    entries: HashMap<usize, (blake3::Hash, Arc<Vec<Silhouette>>)>,
+    entries: HashMap<usize, (blake3::Hash, Holes, Arc<Vec<Silhouette>>)>,
 }
 
 impl SilhouetteMemo {
@@ -664,12 +669,15 @@ impl SilhouetteMemo {
         regions: &[Region],
         s: &Settings,
     ) -> Vec<Arc<Vec<Silhouette>>> {
-        let mut tris: Vec<Vec<[Vec3; 3]>> = vec![Vec::new(); groups];
-        for (t, r) in flat.triangles.iter().zip(&flat.refs) {
+        let mut picked: Vec<Vec<usize>> = vec![Vec::new(); groups];
+        for (t, r) in flat.refs.iter().enumerate() {
             if r.light == crate::scene::NO_LIGHT {
-                tris[group_of[r.owner as usize]].push(*t);
+                picked[group_of[r.owner as usize]].push(t);
             }
         }
+        let tris: Vec<Vec<[Vec3; 3]>> = picked.iter().map(|p| p.iter().map(|&t| flat.triangles[t]).collect()).collect();
+        let all = flat.holes();
+        let holes: Vec<Holes> = picked.iter().map(|p| all.select(p.iter().copied())).collect();
         let mut context = blake3::Hasher::new();
         context.update(&(s.silhouette_res as u64).to_le_bytes());
         for r in regions {
@@ -680,19 +688,20 @@ impl SilhouetteMemo {
         let built: Vec<Arc<Vec<Silhouette>>> = (0..groups)
             .into_par_iter()
             .map(|g| match self.entries.get(&g) {
-                Some((k, sil)) if *k == keys[g] => sil.clone(),
-                _ => Arc::new(group_silhouettes(&tris[g], regions, s)),
+                Some((k, h, sil)) if *k == keys[g] && h.same(&holes[g]) => sil.clone(),
+                _ => Arc::new(group_silhouettes(&tris[g], &holes[g], regions, s)),
             })
             .collect();
-        self.entries = built.iter().enumerate().map(|(g, sil)| (g, (keys[g], sil.clone()))).collect();
+        self.entries =
+            built.iter().zip(holes).enumerate().map(|(g, (sil, h))| (g, (keys[g], h, sil.clone()))).collect();
         built
     }
 }
 
-/// One silhouette per region of a group's world triangles.
-fn group_silhouettes(t: &[[Vec3; 3]], regions: &[Region], s: &Settings) -> Vec<Silhouette> {
+/// One silhouette per region of a group's world triangles (open where `holes` says).
+fn group_silhouettes(t: &[[Vec3; 3]], holes: &Holes, regions: &[Region], s: &Settings) -> Vec<Silhouette> {
     let (lo, hi) = t.iter().flatten().fold((Vec3::MAX, Vec3::MIN), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
     let centre = 0.5 * (lo + hi);
     let radius = t.iter().flatten().map(|p| p.distance(centre)).fold(0.0f32, f32::max);
-    regions.par_iter().map(|r| Silhouette::build(t, centre, radius, r.dir, s.silhouette_res)).collect()
+    regions.par_iter().map(|r| Silhouette::build(t, holes, centre, radius, r.dir, s.silhouette_res)).collect()
 }

@@ -12,6 +12,7 @@
 //! along `w`. At `R → 0⁺` the box shrinks to one texel, so the two cases meet continuously.
 
 use crate::math::frame::Frame;
+use crate::scene::Holes;
 use glam::{Vec2, Vec3};
 use wide::f32x8;
 
@@ -61,9 +62,9 @@ pub struct Silhouette {
 }
 
 impl Silhouette {
-    /// Rasterises `triangles` (world) seen along unit `w`, on a `res²` grid covering the
-    /// bounding sphere (`centre`, `radius`).
-    pub fn build(triangles: &[[Vec3; 3]], centre: Vec3, radius: f32, w: Vec3, res: usize) -> Self {
+    /// Rasterises `triangles` (world; open where `holes` says) seen along unit `w`, on a `res²`
+    /// grid covering the bounding sphere (`centre`, `radius`).
+    pub fn build(triangles: &[[Vec3; 3]], holes: &Holes, centre: Vec3, radius: f32, w: Vec3, res: usize) -> Self {
         let frame = Frame::from_normal(w);
         let radius = radius.max(1e-6);
         let res = res.clamp(2, 4096);
@@ -82,8 +83,8 @@ impl Silhouette {
             v_axis: frame.b * scale,
             offset: Vec2::new(radius - centre.dot(frame.t), radius - centre.dot(frame.b)) * scale,
         };
-        for t in triangles {
-            s.rasterise(t);
+        for (k, t) in triangles.iter().enumerate() {
+            s.rasterise(t, holes.cuts(k).then_some((holes, k)));
         }
         s.build_sat();
         s
@@ -120,8 +121,10 @@ impl Silhouette {
     }
 
     /// Keeps the largest depth of `t` at the centre of every texel it covers (barycentric
-    /// coordinates all ≥ 0), eight texels of a row at a time.
-    fn rasterise(&mut self, t: &[Vec3; 3]) {
+    /// coordinates all ≥ 0) and where it is not open (`cut`: its holes and index), eight
+    /// texels of a row at a time. The projection is affine, so the plane's barycentrics are
+    /// the triangle's.
+    fn rasterise(&mut self, t: &[Vec3; 3], cut: Option<(&Holes, usize)>) {
         let q = t.map(|p| self.texel_coords(p));
         let z = t.map(|p| f32x8::splat(p.dot(self.frame.n)));
         let area = (q[1] - q[0]).perp_dot(q[2] - q[0]);
@@ -147,7 +150,16 @@ impl Silhouette {
                 // `≥ 0` where the scalar test was `!(< 0)`: they differ only for NaN, whose
                 // depth is NaN too and never kept.
                 let inside = b0.simd_ge(zero) & b1.simd_ge(zero) & b2.simd_ge(zero);
-                let depth = b0 * z[0] + b1 * z[1] + b2 * z[2];
+                let mut depth = b0 * z[0] + b1 * z[1] + b2 * z[2];
+                if let Some((holes, k)) = cut {
+                    let (b1, b2, mut d) = (b1.to_array(), b2.to_array(), depth.to_array());
+                    for j in 0..8 {
+                        if holes.open(k, Vec2::new(b1[j], b2[j])) {
+                            d[j] = f32::NEG_INFINITY;
+                        }
+                    }
+                    depth = f32x8::from(d);
+                }
                 let texels = &mut row[start..x1.min(start + 8)];
                 let mut far = [f32::NEG_INFINITY; 8];
                 far[..texels.len()].copy_from_slice(texels);
@@ -264,7 +276,7 @@ mod tests {
 
     fn sil(w: Vec3) -> Silhouette {
         // Radius 1 at 128² puts the square's edges on texel boundaries.
-        Silhouette::build(&square(), Vec3::new(0.0, 1.0, 0.0), 1.0, w, 128)
+        Silhouette::build(&square(), &Holes::default(), Vec3::new(0.0, 1.0, 0.0), 1.0, w, 128)
     }
 
     #[test]
@@ -347,8 +359,8 @@ mod tests {
         }));
         tris.push([Vec3::ZERO, Vec3::X, 2.0 * Vec3::X]);
         for (w, res) in [(Vec3::Y, 128), (Vec3::new(0.3, 1.0, -0.2).normalize(), 61)] {
-            let fast = Silhouette::build(&tris, Vec3::ZERO, 1.5, w, res);
-            let mut slow = Silhouette::build(&[], Vec3::ZERO, 1.5, w, res);
+            let fast = Silhouette::build(&tris, &Holes::default(), Vec3::ZERO, 1.5, w, res);
+            let mut slow = Silhouette::build(&[], &Holes::default(), Vec3::ZERO, 1.5, w, res);
             for t in &tris {
                 rasterise_scalar(&mut slow, t);
             }
@@ -361,7 +373,7 @@ mod tests {
     #[test]
     fn the_covered_bounds_are_those_of_the_covered_texels() {
         let tilted = sil(Vec3::new(0.3, 1.0, -0.2).normalize());
-        let empty = Silhouette::build(&[], Vec3::ZERO, 1.0, Vec3::Y, 16);
+        let empty = Silhouette::build(&[], &Holes::default(), Vec3::ZERO, 1.0, Vec3::Y, 16);
         assert_eq!(empty.covered, (Vec2::MAX, Vec2::MIN), "nothing covered: an empty box");
         for s in [sil(Vec3::Y), tilted] {
             let n = s.res;
@@ -381,7 +393,7 @@ mod tests {
         // inside the bounding slab (R ≤ 0) and still shadowed by the top.
         let mut tris = square();
         tris.extend(square().iter().map(|t| t.map(|p| p + Vec3::Y)));
-        let s = Silhouette::build(&tris, Vec3::new(0.0, 1.5, 0.0), 0.9, Vec3::Y, 64);
+        let s = Silhouette::build(&tris, &Holes::default(), Vec3::new(0.0, 1.5, 0.0), 0.9, Vec3::Y, 64);
         assert_eq!(s.occlusion(Vec3::new(0.0, 1.5, 0.0), 0.3), 1.0);
         assert_eq!(s.occlusion(Vec3::new(0.0, 2.2, 0.0), 0.3), 0.0, "above every occluder");
         assert_eq!(s.occlusion(Vec3::new(0.8, 1.5, 0.0), 0.3), 0.0, "beside it");

@@ -49,7 +49,7 @@ impl Renderer {
     /// Snapshots `scene` (transforms must be propagated) and builds the BVH.
     pub fn new(scene: &Scene) -> Self {
         let flat = flatten(scene);
-        let bvh = SceneBvh::new(&flat.triangles);
+        let bvh = SceneBvh::over(&flat);
         let powers: Vec<f32> = (0..flat.lights.len()).map(|l| flat.light_power(l)).collect();
         let light_pick = (!flat.lights.is_empty()).then(|| Distribution1D::new(&powers));
         let fan_pick = flat

@@ -212,12 +212,14 @@ pub struct MaterialMaps {
     pub base_color: Option<TextureSlot>,
     /// Multiplies [`Material::roughness`] (G) and [`Material::metallic`] (B).
     pub metallic_roughness: Option<TextureSlot>,
+    /// Where the surface is absent (`alphaMode: MASK`).
+    pub cutout: Option<super::Cutout>,
 }
 
 impl MaterialMaps {
-    /// True when nothing varies (the factors alone are the material).
+    /// True when nothing varies (the factors alone are the material, and it is solid).
     pub fn is_empty(&self) -> bool {
-        self.base_color.is_none() && self.metallic_roughness.is_none()
+        self.base_color.is_none() && self.metallic_roughness.is_none() && self.cutout.is_none()
     }
 }
 

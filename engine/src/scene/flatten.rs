@@ -3,8 +3,8 @@
 
 use super::import::polygon_normal_area;
 use crate::scene::{
-    Camera, EnvironmentLight, InGroup, Material, MaterialMaps, Mesh, MeshRef, PolygonLight, PrimitiveId, Scene,
-    Texture, Transform,
+    Camera, Cutout, EnvironmentLight, Holes, InGroup, Material, MaterialMaps, Mesh, MeshRef, PolygonLight, PrimitiveId,
+    Scene, Texture, Transform,
 };
 use glam::{Affine3A, Mat3A, Vec2, Vec3};
 use std::sync::Arc;
@@ -192,18 +192,19 @@ fn add_light(flat: &mut FlatScene, scene: &Scene, light: &PolygonLight, t: &Tran
 }
 
 /// The triangles of one rigid group in the group's own frame (instances and lights, winding
-/// un-mirrored), for a BVH that stays valid however the group moves.
-pub fn group_triangles(scene: &Scene, group: hecs::Entity) -> Vec<[Vec3; 3]> {
-    let mut items: Vec<(PrimitiveId, MeshRef, InGroup)> = scene
+/// un-mirrored), for a BVH that stays valid however the group moves, and their holes.
+pub fn group_triangles(scene: &Scene, group: hecs::Entity) -> (Vec<[Vec3; 3]>, Holes) {
+    let mut items: Vec<(PrimitiveId, MeshRef, InGroup, Option<Cutout>)> = scene
         .world
-        .query::<(&PrimitiveId, &MeshRef, &InGroup)>()
+        .query::<(&PrimitiveId, &MeshRef, &InGroup, Option<&MaterialMaps>)>()
         .iter()
-        .filter(|(_, _, g)| g.group == group)
-        .map(|(id, m, g)| (*id, *m, *g))
+        .filter(|(_, _, g, _)| g.group == group)
+        .map(|(id, m, g, maps)| (*id, *m, *g, maps.and_then(|m| m.cutout)))
         .collect();
     items.sort_by_key(|(id, ..)| (id.node, id.mesh, id.primitive));
     let mut out = Vec::new();
-    for (_, mref, member) in items {
+    let mut holes = Vec::new();
+    for (_, mref, member, cutout) in items {
         let mesh = &scene.meshes[mref.index as usize];
         let mirrored = member.local.matrix3.determinant() < 0.0;
         for tri in &mesh.triangles {
@@ -213,6 +214,7 @@ pub fn group_triangles(scene: &Scene, group: hecs::Entity) -> Vec<[Vec3; 3]> {
             }
             out.push(p);
         }
+        holes.push((Holes::of_mesh(mesh, cutout.as_ref(), &scene.textures, mirrored), mesh.triangles.len()));
     }
     for (light, member) in scene.world.query::<(&PolygonLight, &InGroup)>().iter().filter(|(_, g)| g.group == group) {
         let pts: Vec<Vec3> = light.points.iter().map(|p| member.local.transform_point3(*p)).collect();
@@ -220,13 +222,36 @@ pub fn group_triangles(scene: &Scene, group: hecs::Entity) -> Vec<[Vec3; 3]> {
             out.push([pts[0], pts[k], pts[k + 1]]);
         }
     }
-    out
+    (out, Holes::concat_counted(holes))
 }
 
 impl FlatScene {
     /// The mesh of instance `inst`.
     pub fn mesh(&self, inst: usize) -> &Mesh {
         &self.meshes[self.instances[inst].mesh as usize]
+    }
+
+    /// The holes of instance `inst`'s triangles (see [`crate::scene::cutout`]).
+    pub fn instance_holes(&self, inst: usize) -> Holes {
+        let i = &self.instances[inst];
+        Holes::of_mesh(self.mesh(inst), i.maps.cutout.as_ref(), &self.textures, i.mirrored)
+    }
+
+    /// See [`crate::scene::cutout::occluder_hash`].
+    pub fn occluder_hash(&self, inst: usize) -> [u8; 32] {
+        crate::scene::cutout::occluder_hash(self.mesh(inst), self.instances[inst].maps.cutout.as_ref(), &self.textures)
+    }
+
+    /// The holes of [`Self::triangles`] (lights' triangles are solid).
+    pub fn holes(&self) -> Holes {
+        Holes::concat_counted((0..self.instances.len()).map(|i| (self.instance_holes(i), self.mesh(i).triangles.len())))
+    }
+
+    /// The triangles whose refs `keep` accepts, in order, with their holes.
+    pub fn select(&self, keep: impl Fn(&TriangleRef) -> bool) -> (Vec<[Vec3; 3]>, Holes) {
+        let picked: Vec<usize> = (0..self.triangles.len()).filter(|&t| keep(&self.refs[t])).collect();
+        let holes = self.holes().select(picked.iter().copied());
+        (picked.into_iter().map(|t| self.triangles[t]).collect(), holes)
     }
 
     /// Why every image of this snapshot is black, when nothing lights it (no polygonal light

@@ -14,6 +14,7 @@
 mod build;
 mod builtin;
 mod components;
+pub mod cutout;
 pub mod environment;
 mod flatten;
 pub mod import;
@@ -24,6 +25,7 @@ pub mod texture;
 
 pub use builtin::default_scene;
 pub use components::*;
+pub use cutout::{Cutout, Holes};
 pub use environment::{EnvMap, EnvironmentLight};
 pub use flatten::{FlatLight, FlatScene, Instance, NO_LIGHT, TriangleRef, VertexValues, flatten, group_triangles};
 pub use mesh::{Mesh, MeshHash};

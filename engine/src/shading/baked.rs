@@ -135,7 +135,7 @@ impl<'a> Look<'a> {
             let radiance = both.iter().map(|v| v.iter().map(|x| x.0).collect()).collect();
             (radiance, both.iter().map(|v| v.iter().map(|x| x.1).collect()).collect())
         });
-        let sun = environment.as_ref().and_then(|e| e.sun).map(|sun| (sun, SceneBvh::quick(&flat.triangles)));
+        let sun = environment.as_ref().and_then(|e| e.sun).map(|sun| (sun, SceneBvh::quick_over(flat)));
         let mut look =
             Self { flat, eye, polygonal, environment, environment_vertices, direct: Vec::new(), indirect: None, sun };
         let environment = look.environment.as_ref().map(|_| look.environment_direct());
@@ -163,7 +163,7 @@ impl<'a> Look<'a> {
         let key = EnvironmentMemo::key(flat, eye, parts, prefiltered);
         if let Some(kept) = memo.kept.as_ref().filter(|k| k.key == key) {
             memo.reused += 1;
-            let sun = parts.lighting.split_sun().0.map(|sun| (sun, SceneBvh::quick(&flat.triangles)));
+            let sun = parts.lighting.split_sun().0.map(|sun| (sun, SceneBvh::quick_over(flat)));
             let look = Self {
                 flat,
                 eye,
@@ -388,7 +388,7 @@ pub fn sun_light(
 /// vertex sees the sun (0 in shadow or below its horizon) — what the editor's viewport carries
 /// to shade the sun per pixel.
 pub fn sun_vertices(flat: &FlatScene, sun: &Sun, eye: Vec3) -> (VertexValues, Vec<Vec<f32>>) {
-    let bvh = SceneBvh::quick(&flat.triangles);
+    let bvh = SceneBvh::quick_over(flat);
     (0..flat.instances.len())
         .map(|i| {
             let at = |v: usize| sun_light(flat, sun, &bvh, (i, [v; 3], [1.0, 0.0, 0.0]), flat.vertex(i, v).0, eye);

@@ -15,7 +15,7 @@ pub use light::polygon_normal_area;
 
 use crate::scene::mesh::MeshProblem;
 use crate::scene::{
-    Camera, Emitter, InGroup, Material, MaterialMaps, Mesh, MeshRef, Name, NodeId, PolygonLight, PrimitiveId,
+    Camera, Cutout, Emitter, InGroup, Material, MaterialMaps, Mesh, MeshRef, Name, NodeId, PolygonLight, PrimitiveId,
     Projection, RigidGroup, Scene, Texture, TextureSlot, Transform, propagate_transforms, texture::Wrap,
 };
 use crate::{Error, Result};
@@ -63,7 +63,7 @@ struct Importer<'a> {
     mesh_cache: HashMap<(usize, usize), u32>,
     by_hash: HashMap<crate::scene::MeshHash, u32>,
     /// (glTF texture, decoded as sRGB) → imported texture index.
-    texture_cache: HashMap<(usize, bool), u32>,
+    texture_cache: HashMap<(usize, Channels), u32>,
     /// Every node's world transform, for skins' joints (empty without skins).
     world: Vec<Option<Affine3A>>,
     group_count: u32,
@@ -118,7 +118,7 @@ impl<'a> Importer<'a> {
     }
 
     /// The image `source` names: from a buffer view, or a URI through the scene's root.
-    fn image(&self, source: gltf::image::Source) -> std::result::Result<image::RgbImage, String> {
+    fn image(&self, source: gltf::image::Source) -> std::result::Result<image::RgbaImage, String> {
         match source {
             gltf::image::Source::View { view, .. } => {
                 let data = &self.buffers[view.buffer().index()];
@@ -234,7 +234,7 @@ impl<'a> Importer<'a> {
             let transform = Transform { world: pose * local };
             if emissive.max_element() > 0.0 {
                 let texture = match mat.emissive_texture() {
-                    Some(info) => Some(self.texture(&info.texture(), true, &where_)?),
+                    Some(info) => Some(self.texture(&info.texture(), Channels::Srgb, &where_)?),
                     None => None,
                 };
                 let m = self.scene.meshes[mesh_index as usize].clone();
@@ -271,8 +271,9 @@ impl<'a> Importer<'a> {
                     specular: mat.specular().map(|s| s.specular_factor()).unwrap_or(1.0).max(0.0),
                 };
                 let maps = MaterialMaps {
-                    base_color: self.slot(pbr.base_color_texture(), true, &where_)?,
-                    metallic_roughness: self.slot(pbr.metallic_roughness_texture(), false, &where_)?,
+                    base_color: self.slot(pbr.base_color_texture(), Channels::Srgb, &where_)?,
+                    metallic_roughness: self.slot(pbr.metallic_roughness_texture(), Channels::Linear, &where_)?,
+                    cutout: self.cutout(&mat, &where_)?,
                 };
                 let hash = self.scene.meshes[mesh_index as usize].hash;
                 let id = PrimitiveId { node: node_id, mesh: mesh.index() as u32, primitive: prim.index() as u32 };
@@ -387,11 +388,38 @@ impl<'a> Importer<'a> {
         Ok(Some(index))
     }
 
-    /// A material texture's slot: texture (decoded as sRGB colour or as linear data), UV set
+    /// A material's cut-out when its `alphaMode` is `MASK` (`BLEND` is drawn opaque, with a
+    /// warning: kage has no translucency).
+    fn cutout(&mut self, mat: &gltf::Material, where_: &str) -> Result<Option<Cutout>> {
+        match mat.alpha_mode() {
+            gltf::material::AlphaMode::Opaque => Ok(None),
+            gltf::material::AlphaMode::Blend => {
+                let w = format!("{}: {where_}: alphaMode BLEND is drawn opaque", self.path.display());
+                self.scene.warnings.push(w);
+                Ok(None)
+            }
+            gltf::material::AlphaMode::Mask => {
+                let pbr = mat.pbr_metallic_roughness();
+                let alpha = self.slot(pbr.base_color_texture(), Channels::Alpha, where_)?;
+                let cutoff = mat.alpha_cutoff().unwrap_or(0.5);
+                if !cutoff.is_finite() {
+                    return Err(self.error(format!("{where_}: alphaCutoff {cutoff} is not a number")));
+                }
+                Ok(Some(Cutout { alpha, factor: pbr.base_color_factor()[3], cutoff }))
+            }
+        }
+    }
+
+    /// A material texture's slot: texture (its channels decoded as `channels` says), UV set
     /// and `KHR_texture_transform`.
-    fn slot(&mut self, info: Option<gltf::texture::Info>, srgb: bool, where_: &str) -> Result<Option<TextureSlot>> {
+    fn slot(
+        &mut self,
+        info: Option<gltf::texture::Info>,
+        channels: Channels,
+        where_: &str,
+    ) -> Result<Option<TextureSlot>> {
         let Some(info) = info else { return Ok(None) };
-        let texture = self.texture(&info.texture(), srgb, where_)?;
+        let texture = self.texture(&info.texture(), channels, where_)?;
         let t = info.texture_transform();
         let texcoord = t.as_ref().and_then(|t| t.tex_coord()).unwrap_or(info.tex_coord());
         if texcoord > 1 {
@@ -403,9 +431,9 @@ impl<'a> Importer<'a> {
         Ok(Some(TextureSlot { texture, texcoord, transform }))
     }
 
-    /// Decodes (or reuses) a texture as linear RGB: from sRGB for colours, as is for data.
-    fn texture(&mut self, tex: &gltf::Texture, srgb: bool, where_: &str) -> Result<u32> {
-        if let Some(&i) = self.texture_cache.get(&(tex.index(), srgb)) {
+    /// Decodes (or reuses) a texture as linear values, as `channels` says.
+    fn texture(&mut self, tex: &gltf::Texture, channels: Channels, where_: &str) -> Result<u32> {
+        if let Some(&i) = self.texture_cache.get(&(tex.index(), channels)) {
             return Ok(i);
         }
         let image = self
@@ -417,25 +445,41 @@ impl<'a> Importer<'a> {
             gltf::texture::WrappingMode::Repeat => Wrap::Repeat,
         };
         let sampler = tex.sampler();
-        let t = texture_from_image(&image, srgb, [wrap(sampler.wrap_s()), wrap(sampler.wrap_t())]);
+        let t = texture_from_image(&image, channels, [wrap(sampler.wrap_s()), wrap(sampler.wrap_t())]);
         let i = self.scene.textures.len() as u32;
         self.scene.textures.push(Arc::new(t));
-        self.texture_cache.insert((tex.index(), srgb), i);
+        self.texture_cache.insert((tex.index(), channels), i);
         Ok(i)
     }
 }
 
-/// An 8-bit image as a linear texture: decoded from sRGB (`srgb`: colours) or as is (data).
-fn texture_from_image(image: &image::RgbImage, srgb: bool, wrap: [Wrap; 2]) -> Texture {
-    let decode = |c: u8| if srgb { crate::math::color::srgb_to_linear(c as f32 / 255.0) } else { c as f32 / 255.0 };
-    let texels: Vec<Vec3> = image.pixels().map(|p| Vec3::from(p.0.map(decode))).collect();
+/// Which of an image's channels a texture holds, and how they are decoded.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Channels {
+    /// RGB, decoded from sRGB to linear (colours).
+    Srgb,
+    /// RGB as is (data: metallic-roughness).
+    Linear,
+    /// The alpha channel as is, in all three components (a cut-out's mask).
+    Alpha,
+}
+
+/// An 8-bit image as a linear texture of the `channels` it names.
+fn texture_from_image(image: &image::RgbaImage, channels: Channels, wrap: [Wrap; 2]) -> Texture {
+    let unit = |c: u8| c as f32 / 255.0;
+    let texel = |p: &image::Rgba<u8>| match channels {
+        Channels::Srgb => Vec3::from([p.0[0], p.0[1], p.0[2]].map(|c| crate::math::color::srgb_to_linear(unit(c)))),
+        Channels::Linear => Vec3::from([p.0[0], p.0[1], p.0[2]].map(unit)),
+        Channels::Alpha => Vec3::splat(unit(p.0[3])),
+    };
+    let texels: Vec<Vec3> = image.pixels().map(texel).collect();
     Texture::new(image.width() as usize, image.height() as usize, texels, wrap)
 }
 
 /// A PNG or JPEG file's bytes as a linear texture (see [`texture_from_image`]), with the
 /// importer's size limits.
-pub fn decode_texture(bytes: &[u8], srgb: bool, wrap: [Wrap; 2]) -> std::result::Result<Texture, String> {
-    Ok(texture_from_image(&decode_image(bytes)?, srgb, wrap))
+pub fn decode_texture(bytes: &[u8], channels: Channels, wrap: [Wrap; 2]) -> std::result::Result<Texture, String> {
+    Ok(texture_from_image(&decode_image(bytes)?, channels, wrap))
 }
 
 /// `KHR_texture_transform`'s `T · R · S` (rotation counter-clockwise in UV space, as the
@@ -481,9 +525,9 @@ fn load_buffers(
         .collect()
 }
 
-/// An image file's bytes decoded as 8-bit RGB (alpha ignored: lights are opaque), with the
+/// An image file's bytes decoded as 8-bit RGBA (opaque where it has no alpha), with the
 /// decoder's size limits set so that a small file cannot ask for a huge allocation.
-fn decode_image(bytes: &[u8]) -> std::result::Result<image::RgbImage, String> {
+fn decode_image(bytes: &[u8]) -> std::result::Result<image::RgbaImage, String> {
     let mut reader = image::ImageReader::new(std::io::Cursor::new(bytes))
         .with_guessed_format()
         .map_err(|e| format!("cannot read image: {e}"))?;
@@ -492,7 +536,7 @@ fn decode_image(bytes: &[u8]) -> std::result::Result<image::RgbImage, String> {
     limits.max_image_height = Some(16_384);
     limits.max_alloc = Some(1 << 30);
     reader.limits(limits);
-    Ok(reader.decode().map_err(|e| format!("cannot decode image: {e}"))?.to_rgb8())
+    Ok(reader.decode().map_err(|e| format!("cannot decode image: {e}"))?.to_rgba8())
 }
 
 fn node_matrix(node: &gltf::Node) -> Option<Affine3A> {
