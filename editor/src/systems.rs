@@ -7,7 +7,7 @@ use super::indirect::{Indirect, Job};
 use super::pick::Seen;
 use super::reload::Change;
 use super::state::Editor;
-use super::viewport::{PixelEnvironment, PixelLights, PixelSun};
+use super::viewport::{PixelEnvironment, PixelLights};
 use super::worker::Worker;
 use glam::Vec3;
 use kage_bake_db::DbError;
@@ -706,11 +706,8 @@ fn specular_per_pixel(ed: &mut Editor, eye: Vec3) {
     if !ed.lights_per_pixel() {
         return;
     }
-    let sun = ed.bakes.lighting.as_ref().and_then(|l| l.split_sun().0).map(|sun| {
-        let (values, visible) = kage_engine::shading::baked::sun_vertices(&ed.flat, &sun, eye);
-        PixelSun { sun, values, visible }
-    });
-    let environment = Some(PixelEnvironment { specular: specular.clone(), prefiltered: pre.clone(), sun });
+    let Some(lighting) = &ed.bakes.lighting else { return };
+    let environment = Some(PixelEnvironment::new(&ed.flat, specular, pre, lighting, eye));
     let lights = ed.pixel_lights.get_or_insert_with(|| {
         let (lobes, values) = Lobes::at_vertices(&ed.flat, None, eye);
         PixelLights { lobes, values, environment: None }

@@ -25,6 +25,19 @@ use kage_gpu::{Gpu, Shaders};
 use wgpu::util::DeviceExt;
 
 const COLOR: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
+/// The target of [`Viewport::render_radiance`].
+const RADIANCE: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
+
+/// What a frame's pixels hold.
+#[derive(Clone, Copy, PartialEq)]
+enum Output {
+    /// Radiance × 2^stops, clamped and sRGB-encoded, over the environment.
+    Display(f32),
+    /// The error overlay's colours as they are, over a plain background.
+    Overlay,
+    /// Radiance as it is, over the environment.
+    Radiance,
+}
 const DEPTH: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 
 #[repr(C)]
@@ -108,6 +121,25 @@ pub struct PixelEnvironment {
     pub prefiltered: Prefiltered,
     /// The map's sun, if it has one.
     pub sun: Option<PixelSun>,
+}
+
+impl PixelEnvironment {
+    /// The environment's part of a frame just shaded through an environment memo
+    /// (`specular`: [`kage_engine::shading::baked::EnvironmentMemo::specular`]), with the
+    /// map's sun from `lighting` and its per-vertex visibility from `eye`'s frame.
+    pub fn new(
+        flat: &FlatScene,
+        specular: &SpecularVertices,
+        prefiltered: &Prefiltered,
+        lighting: &prt::Lighting,
+        eye: Vec3,
+    ) -> Self {
+        let sun = lighting.split_sun().0.map(|sun| {
+            let (values, visible) = kage_engine::shading::baked::sun_vertices(flat, &sun, eye);
+            PixelSun { sun, values, visible }
+        });
+        Self { specular: specular.clone(), prefiltered: prefiltered.clone(), sun }
+    }
 }
 
 /// The sun per pixel: per vertex its light (part of what `upload_radiance` is given) and 1
@@ -249,7 +281,7 @@ impl Viewport {
             prt: prt_layout.as_ref(),
             lit: lit_layout.as_ref(),
         };
-        let pipelines = build_pipelines(gpu, shaders, layouts)?;
+        let pipelines = build_pipelines(gpu, shaders, layouts, COLOR)?;
         Ok(Self {
             pipelines,
             uniform,
@@ -273,6 +305,17 @@ impl Viewport {
     /// Rebuilds the pipeline (hot reload); on error the previous one stays.
     pub fn reload(&mut self, gpu: &Gpu, shaders: &Shaders, generation: u64) -> Result<(), kage_gpu::ShaderError> {
         self.generation = generation;
+        self.pipelines = self.build(gpu, shaders, COLOR)?;
+        Ok(())
+    }
+
+    /// The pipelines of `shaders` over this viewport's layouts, drawing into `target`.
+    fn build(
+        &self,
+        gpu: &Gpu,
+        shaders: &Shaders,
+        target: wgpu::TextureFormat,
+    ) -> Result<Pipelines, kage_gpu::ShaderError> {
         let layouts = Layouts {
             view: &self.layout,
             detail: &self.detail_layout,
@@ -280,8 +323,7 @@ impl Viewport {
             prt: self.prt_layout.as_ref(),
             lit: self.lit_layout.as_ref(),
         };
-        self.pipelines = build_pipelines(gpu, shaders, layouts)?;
-        Ok(())
+        build_pipelines(gpu, shaders, layouts, target)
     }
 
     /// Whether this device draws PRT per pixel.
@@ -292,6 +334,12 @@ impl Viewport {
     /// Whether this device draws the lights and the environment's reflection per pixel.
     pub fn per_pixel_lights(&self) -> bool {
         self.pipelines.lit.is_some()
+    }
+
+    /// Whether the next frame draws them per pixel: the device can, and the last
+    /// [`Viewport::upload_lights`] was given lights it takes.
+    pub fn drawing_lights(&self) -> bool {
+        self.per_pixel_lights() && self.lit.is_some()
     }
 
     /// Shows `env` behind the geometry (`None`: the background colour); the map is uploaded
@@ -399,7 +447,8 @@ impl Viewport {
         }
         let target = self.target.as_ref().expect("made above");
         let background = wgpu::Color { r: 0.02, g: 0.02, b: 0.025, a: 1.0 };
-        self.draw(gpu, (&target.color, &target.depth), size, orbit, (exposure, raw), background);
+        let output = if raw { Output::Overlay } else { Output::Display(exposure) };
+        self.draw(gpu, &self.pipelines, (&target.color, &target.depth), size, orbit, output, background);
         target.id.expect("registered with egui")
     }
 
@@ -417,20 +466,56 @@ impl Viewport {
         let color = texture(gpu, [w, h], COLOR, usage);
         let depth = texture(gpu, [w, h], DEPTH, wgpu::TextureUsages::RENDER_ATTACHMENT);
         let views = (color.create_view(&Default::default()), depth.create_view(&Default::default()));
-        self.draw(gpu, (&views.0, &views.1), [w, h], orbit, (exposure, false), wgpu::Color::BLACK);
-        read_back(gpu, &color, [w, h])
+        self.draw(
+            gpu,
+            &self.pipelines,
+            (&views.0, &views.1),
+            [w, h],
+            orbit,
+            Output::Display(exposure),
+            wgpu::Color::BLACK,
+        );
+        let data = read_back(gpu, &color, [w, h], 4)?;
+        Ok(image::RgbaImage::from_raw(w, h, data).expect("w × h × 4 bytes"))
+    }
+
+    /// The view from `orbit` as linear radiance, row by row from the top (no exposure, no
+    /// clamping: what `kage render --gpu` writes). Builds float-target pipelines from `shaders`
+    /// for the one frame.
+    pub fn render_radiance(
+        &self,
+        gpu: &Gpu,
+        shaders: &Shaders,
+        size: [u32; 2],
+        orbit: &Orbit,
+    ) -> Result<Vec<Vec3>, kage_gpu::GpuError> {
+        let [w, h] = [size[0].clamp(1, 4096), size[1].clamp(1, 4096)];
+        let pipelines = self.build(gpu, shaders, RADIANCE)?;
+        let usage = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC;
+        let color = texture(gpu, [w, h], RADIANCE, usage);
+        let depth = texture(gpu, [w, h], DEPTH, wgpu::TextureUsages::RENDER_ATTACHMENT);
+        let views = (color.create_view(&Default::default()), depth.create_view(&Default::default()));
+        self.draw(gpu, &pipelines, (&views.0, &views.1), [w, h], orbit, Output::Radiance, wgpu::Color::BLACK);
+        let data = read_back(gpu, &color, [w, h], 16)?;
+        Ok(bytemuck::cast_slice::<u8, [f32; 4]>(&data).iter().map(|p| Vec3::new(p[0], p[1], p[2])).collect())
     }
 
     /// One frame: per-pixel PRT (when uploaded) or per-vertex radiance, then the lights.
+    #[allow(clippy::too_many_arguments)]
     fn draw(
         &self,
         gpu: &Gpu,
+        pipelines: &Pipelines,
         (color, depth): (&wgpu::TextureView, &wgpu::TextureView),
         size: [u32; 2],
         orbit: &Orbit,
-        (exposure, raw): (f32, bool),
+        output: Output,
         background: wgpu::Color,
     ) {
+        let (exposure, raw) = match output {
+            Output::Display(stops) => (stops, false),
+            Output::Overlay | Output::Radiance => (0.0, true),
+        };
         let view_proj = orbit.view_proj(size[0] as f32 / size[1] as f32);
         let view = View {
             view_proj: view_proj.to_cols_array_2d(),
@@ -458,12 +543,12 @@ impl Viewport {
             });
             pass.set_bind_group(0, &self.bind, &[]);
             // The error overlay keeps a plain background: its colours are not radiance.
-            if let Some(sky) = self.sky.as_ref().filter(|_| !raw) {
-                pass.set_pipeline(&self.pipelines.sky);
+            if let Some(sky) = self.sky.as_ref().filter(|_| output != Output::Overlay) {
+                pass.set_pipeline(&pipelines.sky);
                 pass.set_bind_group(1, &sky.bind, &[]);
                 pass.draw(0..3, 0..1);
             }
-            let per_vertex = match (&self.lit, &self.pipelines.lit, &self.prt, &self.pipelines.prt) {
+            let per_vertex = match (&self.lit, &pipelines.lit, &self.prt, &pipelines.prt) {
                 (Some(lit), Some(pipeline), _, _) => {
                     pass.set_pipeline(pipeline);
                     pass.set_bind_group(1, &lit.bind, &[]);
@@ -481,7 +566,7 @@ impl Viewport {
                 }
                 _ => &self.meshes[..],
             };
-            pass.set_pipeline(&self.pipelines.main);
+            pass.set_pipeline(&pipelines.main);
             // A light is one-sided: its back is dark, as in `kage render`'s images. The eye is on
             // one side of a flat polygon for all of it, so the side is chosen per light.
             let eye = orbit.eye();
@@ -515,9 +600,10 @@ fn texture(gpu: &Gpu, [w, h]: [u32; 2], format: wgpu::TextureFormat, usage: wgpu
     })
 }
 
-/// Copies an Rgba8 texture into an image (rows padded to wgpu's 256-byte alignment on the way).
-fn read_back(gpu: &Gpu, color: &wgpu::Texture, [w, h]: [u32; 2]) -> Result<image::RgbaImage, kage_gpu::GpuError> {
-    let row = (4 * w).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
+/// Copies a texture of `texel`-byte texels into rows of bytes (padded to wgpu's 256-byte
+/// alignment on the way, unpadded on return).
+fn read_back(gpu: &Gpu, color: &wgpu::Texture, [w, h]: [u32; 2], texel: u32) -> Result<Vec<u8>, kage_gpu::GpuError> {
+    let row = (texel * w).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
     let buffer = gpu.device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("preview read-back"),
         size: (row * h) as u64,
@@ -535,8 +621,7 @@ fn read_back(gpu: &Gpu, color: &wgpu::Texture, [w, h]: [u32; 2]) -> Result<image
     );
     gpu.queue.submit([encoder.finish()]);
     let data = kage_gpu::buffers::map_read(gpu, &buffer)?;
-    let pixels = (0..h as usize).flat_map(|y| data[y * row as usize..][..4 * w as usize].to_vec()).collect();
-    Ok(image::RgbaImage::from_raw(w, h, pixels).expect("w × h × 4 bytes"))
+    Ok((0..h as usize).flat_map(|y| data[y * row as usize..][..(texel * w) as usize].to_vec()).collect())
 }
 
 /// The per-pixel PRT draw of every receiver: its triangles, per-vertex terms and the shadow
@@ -754,7 +839,12 @@ struct Layouts<'a> {
 }
 
 /// The pipelines of preview.wgsl.
-fn build_pipelines(gpu: &Gpu, shaders: &Shaders, layouts: Layouts) -> Result<Pipelines, kage_gpu::ShaderError> {
+fn build_pipelines(
+    gpu: &Gpu,
+    shaders: &Shaders,
+    layouts: Layouts,
+    target: wgpu::TextureFormat,
+) -> Result<Pipelines, kage_gpu::ShaderError> {
     let module = shaders.module(&gpu.device, "preview.wgsl")?;
     let attribute = |location, format, offset| wgpu::VertexAttribute { format, offset, shader_location: location };
     let vec3 = wgpu::VertexFormat::Float32x3;
@@ -779,7 +869,7 @@ fn build_pipelines(gpu: &Gpu, shaders: &Shaders, layouts: Layouts) -> Result<Pip
     // The device may still refuse what naga accepted (e.g. storage buffers in the vertex stage).
     kage_gpu::buffers::checked(gpu, "preview pipelines", || {
         let pipeline = |groups: &[Option<&wgpu::BindGroupLayout>], stages, buffers, depth| {
-            render_pipeline(gpu, &module, groups, stages, buffers, depth)
+            render_pipeline(gpu, &module, groups, (stages, target), buffers, depth)
         };
         let main = pipeline(&[view, Some(layouts.detail)], ("vs_main", "fs_main"), &per_vertex, Depth::Tested);
         let prt = layouts.prt.map(|prt| pipeline(&[view, Some(prt)], ("vs_prt", "fs_prt"), &[], Depth::Tested));
@@ -810,7 +900,7 @@ fn render_pipeline(
     gpu: &Gpu,
     module: &wgpu::ShaderModule,
     groups: &[Option<&wgpu::BindGroupLayout>],
-    (vs, fs): (&str, &str),
+    ((vs, fs), target): ((&str, &str), wgpu::TextureFormat),
     buffers: &[Option<wgpu::VertexBufferLayout>],
     depth: Depth,
 ) -> wgpu::RenderPipeline {
@@ -827,7 +917,7 @@ fn render_pipeline(
         fragment: Some(wgpu::FragmentState {
             module,
             entry_point: Some(fs),
-            targets: &[Some(COLOR.into())],
+            targets: &[Some(target.into())],
             compilation_options: Default::default(),
         }),
         primitive: wgpu::PrimitiveState::default(),

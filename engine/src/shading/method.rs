@@ -93,9 +93,10 @@ impl Method {
         self != Method::Reference
     }
 
-    /// True when the WGSL compute shaders implement it (the others run on the CPU only).
+    /// True when `kage render --gpu` shades it: the WGSL compute shaders per vertex, or for
+    /// `baked` the editor viewport's draw (the others run on the CPU only).
     pub fn on_gpu(self) -> bool {
-        matches!(self, Method::Bspvt | Method::LtcUnshadowed | Method::Prt | Method::PrtSelf)
+        matches!(self, Method::Bspvt | Method::LtcUnshadowed | Method::Prt | Method::PrtSelf | Method::Baked)
     }
 
     /// The PRT shadows it computes, for the PRT methods.

@@ -3,15 +3,17 @@
 
 use super::{Args, Job, Outputs, indirect, run_plan};
 use crate::commands::bake::print_plan;
-use anyhow::{Context, Result};
+use anyhow::{Context, Result, bail};
+use kage_editor::camera::Orbit;
 use kage_engine::bspvt;
+use kage_engine::bspvt::pixel::Lobes;
 use kage_engine::cache;
 use kage_engine::cache::record::{Glossy, GlossyDirect, Source};
 use kage_engine::prt::{self, prefilter::Prefiltered};
 use kage_engine::reference::Renderer;
 use kage_engine::scene::Scene;
 use kage_engine::scene::VertexValues;
-use kage_engine::shading::baked::{Bakes, Look};
+use kage_engine::shading::baked::{Bakes, EnvironmentMemo, Look};
 use std::time::Instant;
 
 /// The bakes the look shades from, read from a pack or the database.
@@ -43,14 +45,74 @@ pub(super) fn run(job: &Job) -> Result<Outputs> {
         let extra = indirect(args, scene, renderer, direct, Glossy::Toward(&toward), eye)?;
         look = look.with_indirect(extra);
     }
-    let image = want_image.then(|| {
-        let start = Instant::now();
-        let (w, h) = args.size;
-        let image = look.render(renderer, camera, w, h, args.spp.min(16));
-        crate::emit(&format!("image: {w}×{h} in {:.2} s\n", start.elapsed().as_secs_f64()));
-        image
-    });
-    Ok(Outputs { image, vertices: Some(look.vertex_values()), glossy: GlossyDirect::PerVertex })
+    let values = look.vertex_values();
+    let image = want_image
+        .then(|| {
+            let start = Instant::now();
+            let (w, h) = args.size;
+            let image = if args.gpu {
+                gpu_image(job, parts, &values)?
+            } else {
+                look.render(renderer, camera, w, h, args.spp.min(16))
+            };
+            crate::emit(&format!("image: {w}×{h} in {:.2} s\n", start.elapsed().as_secs_f64()));
+            Ok::<_, anyhow::Error>(image)
+        })
+        .transpose()?;
+    Ok(Outputs { image, vertices: Some(values), glossy: GlossyDirect::PerVertex })
+}
+
+/// The look through the scene's camera as the editor's viewport draws it on the GPU: the
+/// polygonal lights, the environment's reflection and its sun per pixel (their visibility from
+/// the vertices), everything else (`values`: the look per vertex) interpolated, materials per
+/// pixel. Where the device or a light does not allow per-pixel lights, per vertex (said).
+fn gpu_image(job: &Job, bakes: Bakes, values: &VertexValues) -> Result<Vec<glam::Vec3>> {
+    use kage_editor::viewport::{PixelEnvironment, PixelLights, Viewport};
+    let Job { args, scene, renderer, camera, .. } = *job;
+    let (flat, eye) = (&renderer.flat, camera.eye());
+    let kage_engine::scene::Projection::Perspective { .. } = camera.projection else {
+        bail!("--gpu draws through perspective cameras only; this camera is orthographic");
+    };
+    let gpu = super::gpu_device()?;
+    let shaders = kage_gpu::Shaders::embedded();
+    let mut viewport = Viewport::new(&gpu, &shaders)?;
+    viewport.set_environment(&gpu, flat.environment.as_ref());
+    viewport.upload_geometry(&gpu, flat);
+    let (lobes, lights) = Lobes::at_vertices(flat, bakes.bspvt, eye);
+    let environment = match (bakes.prt, bakes.prefiltered) {
+        (Some(parts), Some(pre)) => {
+            let mut memo = EnvironmentMemo::default();
+            let environment = Some((parts, Some(pre)));
+            let _ = Look::direct_reusing(scene, flat, eye, None, environment, &mut memo, &mut Default::default());
+            memo.specular().map(|s| PixelEnvironment::new(flat, s, pre, parts.lighting, eye))
+        }
+        _ => None,
+    };
+    viewport.upload_lights(&gpu, flat, Some(&PixelLights { lobes, values: lights, environment }));
+    if !viewport.drawing_lights() {
+        eprintln!(
+            "note: --gpu draws per vertex here (the device cannot bind the per-pixel lights' buffers, or a light is textured or has more than 8 corners)"
+        );
+    }
+    viewport.upload_radiance(&gpu, values);
+    if camera.world.matrix3.x_axis.y.abs() > 1e-3 {
+        eprintln!("note: --gpu draws without the camera's roll (the editor's orbit stays upright)");
+    }
+    let (w, h) = args.size;
+    let orbit = Orbit::from_camera(camera, flat.bounding_sphere().1);
+    // Edges antialiased as the CPU's image is (16 samples a pixel): drawn at 4× and averaged.
+    let k = (4096 / w.max(h)).clamp(1, 4);
+    let fine = viewport.render_radiance(&gpu, &shaders, [(k * w) as u32, (k * h) as u32], &orbit)?;
+    Ok(downsample(&fine, (w, h), k))
+}
+
+/// The mean of every `k`×`k` block of `fine` (`k·w` × `k·h`, rows from the top).
+fn downsample(fine: &[glam::Vec3], (w, h): (usize, usize), k: usize) -> Vec<glam::Vec3> {
+    let block = |x: usize, y: usize| {
+        let rows = (0..k).flat_map(|j| fine[(k * y + j) * k * w + k * x..][..k].iter());
+        rows.copied().sum::<glam::Vec3>() / (k * k) as f32
+    };
+    (0..w * h).map(|p| block(p % w, p / w)).collect()
 }
 
 /// Plans the scene's bakes against its database (created on first use), prints the plan and

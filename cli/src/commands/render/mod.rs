@@ -135,8 +135,9 @@ pub struct Args {
     /// Shade from an asset pack written by `kage export` (its scene and bakes) instead of a scene.
     #[arg(long, conflicts_with = "scene")]
     pack: Option<PathBuf>,
-    /// Shade on the GPU with the WGSL compute shaders (bspvt, ltc-unshadowed, prt, prt-self;
-    /// per vertex — images interpolate the vertices, PRT's other-group shadows included).
+    /// Shade on the GPU: bspvt, ltc-unshadowed, prt and prt-self with the WGSL compute shaders
+    /// per vertex (images interpolate the vertices, PRT's other-group shadows included); baked
+    /// drawn as the editor's viewport draws it (lights and reflections per pixel).
     #[arg(long)]
     gpu: bool,
     /// Drop the environment light (the per-vertex polygonal-light methods never include it;
@@ -213,7 +214,7 @@ pub fn run(args: &Args) -> Result<()> {
         ImageFormat::of(path)?;
     }
     if args.gpu && !args.method.on_gpu() {
-        bail!("--gpu shades bspvt, ltc-unshadowed, prt and prt-self; {} runs on the CPU only", args.method);
+        bail!("--gpu shades bspvt, ltc-unshadowed, prt, prt-self and baked; {} runs on the CPU only", args.method);
     }
     if args.method == Method::Reference && args.indirect.is_some_and(|i| i != Indirect::None) {
         bail!("--indirect is for the per-vertex methods; the reference takes --bounces N");
@@ -453,7 +454,7 @@ fn prt_gpu(job: &Job, prt::Parts { bake, lighting, settings }: prt::Parts, shado
 }
 
 /// The GPU device, announced on stderr.
-fn gpu_device() -> Result<kage_gpu::Gpu> {
+pub(super) fn gpu_device() -> Result<kage_gpu::Gpu> {
     let gpu = kage_gpu::Gpu::new()?;
     crate::emit(&format!("gpu: {}\n", gpu.describe()));
     Ok(gpu)
