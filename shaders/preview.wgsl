@@ -13,6 +13,8 @@ struct View {
     inverse_view_proj: mat4x4<f32>,
     // xyz: the eye, for the per-pixel lights' view direction.
     eye: vec4<f32>,
+    // The sun's depth map's clip from world (editor/src/sun_shadow.rs).
+    sun_clip: mat4x4<f32>,
 }
 
 @group(0) @binding(0) var<uniform> view: View;
@@ -48,6 +50,30 @@ fn vs_main(v: VertexIn) -> VertexOut {
     out.at_vertex = v.at_vertex;
     out.cut = v.cut;
     return out;
+}
+
+// The sun's depth map (editor/src/sun_shadow.rs): every mesh's depth seen from the sun, cut-outs
+// cut. Group 1 is the base-colour texture, as for fs_main.
+struct ShadowOut {
+    @builtin(position) clip: vec4<f32>,
+    @location(0) uv: vec2<f32>,
+    @location(1) @interpolate(flat) cut: vec2<f32>,
+}
+
+@vertex
+fn vs_shadow(v: VertexIn) -> ShadowOut {
+    var out: ShadowOut;
+    out.clip = view.sun_clip * vec4<f32>(v.position, 1.0);
+    out.uv = v.uv;
+    out.cut = v.cut;
+    return out;
+}
+
+@fragment
+fn fs_shadow(v: ShadowOut) {
+    if (cut_away(textureSample(base_color, base_sampler, v.uv).a, v.cut)) {
+        discard;
+    }
 }
 
 // glTF alphaMode MASK (engine/src/scene/cutout.rs): the surface is absent where alpha × factor
@@ -266,12 +292,15 @@ struct LitParams {
     sun_direction: vec4<f32>,
     // The sun's irradiance (rgb).
     sun_irradiance: vec4<f32>,
+    // The sun's depth map: x the normal offset (world), y the depth bias, z a texel in map
+    // coordinates (w unused).
+    sun_shadow: vec4<f32>,
 }
 
 struct LitVertex {
     // xyz position; w the environment's specular weight V_lobe · O.
     p: vec4<f32>,
-    // xyz unit normal; w 1 where the vertex sees the map's sun.
+    // xyz unit normal.
     n: vec4<f32>,
     // rgb base colour at the vertex; w the metallic factor.
     base: vec4<f32>,
@@ -299,6 +328,8 @@ struct LitVertex {
 @group(1) @binding(6) var<storage, read> lit_tables: array<f32>;
 // The environment's mip chain (prt::prefilter::Prefiltered), level after level.
 @group(1) @binding(7) var<storage, read> mips: array<vec4<f32>>;
+@group(1) @binding(8) var sun_depth: texture_depth_2d;
+@group(1) @binding(9) var sun_sampler: sampler_comparison;
 @group(2) @binding(0) var lit_texture: texture_2d<f32>;
 @group(2) @binding(1) var lit_sampler: sampler;
 @group(2) @binding(2) var mr_texture: texture_2d<f32>;
@@ -445,9 +476,27 @@ fn environment_at(s: Surface, weight: f32) -> vec3<f32> {
     return reflect_environment(s.n, s.v, ggx_alpha(s.roughness), s.f0, s.f90) * weight;
 }
 
+// The sun's visibility at `p` (normal `n`) from its depth map, 3×3 taps each filtered 2×2;
+// outside the map (nothing there casts), seen.
+fn sun_seen(p: vec3<f32>, n: vec3<f32>) -> f32 {
+    let q = view.sun_clip * vec4<f32>(p + n * lit.sun_shadow.x, 1.0);
+    let uv = vec2<f32>(q.x * 0.5 + 0.5, 0.5 - q.y * 0.5);
+    if (any(uv < vec2<f32>(0.0)) || any(uv > vec2<f32>(1.0)) || q.z > 1.0) {
+        return 1.0;
+    }
+    var seen = 0.0;
+    for (var j = -1; j <= 1; j = j + 1) {
+        for (var i = -1; i <= 1; i = i + 1) {
+            let at = uv + vec2<f32>(f32(i), f32(j)) * lit.sun_shadow.z;
+            seen = seen + textureSampleCompareLevel(sun_depth, sun_sampler, at, q.z - lit.sun_shadow.y);
+        }
+    }
+    return seen / 9.0;
+}
+
 // The map's sun at a surface point (its roughness already floored for the sun: Look::sun_at):
-// the BSDF times the sun's irradiance, times `seen`, its visibility interpolated from the
-// vertices (Bsdf::eval: Lambertian plus GGX with Schlick Fresnel).
+// the BSDF times the sun's irradiance, times `seen`, its visibility from the depth map
+// (Bsdf::eval: Lambertian plus GGX with Schlick Fresnel).
 fn sun_at(s: Surface, seen: f32) -> vec3<f32> {
     let wi = lit.sun_direction.xyz;
     let cos_i = dot(s.n, wi);
@@ -622,9 +671,9 @@ fn fs_lit(v: CornerOut) -> @location(0) vec4<f32> {
     let specular = a.surface.y * w.x + b.surface.y * w.y + c.surface.y * w.z;
     let s = surface_at(v.position, n, base, metallic, roughness, specular);
     let weight = a.p.w * w.x + b.p.w * w.y + c.p.w * w.z;
-    let seen = a.n.w * w.x + b.n.w * w.y + c.n.w * w.z;
     var sun = vec3<f32>(0.0);
-    if (lit.sun_direction.w > 0.0 && seen > 0.0) {
+    let seen = select(0.0, sun_seen(v.position, n), lit.sun_direction.w > 0.0);
+    if (seen > 0.0) {
         let rough = surface_at(v.position, n, base, metallic, max(roughness, lit.sun_direction.w), specular);
         sun = sun_at(rough, seen);
     }

@@ -25,6 +25,7 @@ pub mod reload;
 mod sky;
 pub mod source;
 pub mod state;
+mod sun_shadow;
 pub mod systems;
 pub mod ui;
 pub mod viewport;

@@ -9,6 +9,7 @@
 use super::camera::Orbit;
 use super::detail::{self, Detail};
 use super::sky::{self, Sky};
+use super::sun_shadow::{self, SunShadow};
 use bytemuck::{Pod, Zeroable};
 use eframe::{egui, egui_wgpu};
 use glam::Vec3;
@@ -47,6 +48,7 @@ struct View {
     exposure: [f32; 4],
     inverse_view_proj: [[f32; 4]; 4],
     eye: [f32; 4],
+    sun_clip: [[f32; 4]; 4],
 }
 
 /// One drawable: world positions, radiance and texture detail per vertex, triangle indices,
@@ -59,6 +61,18 @@ struct Mesh {
     texture: wgpu::BindGroup,
     count: u32,
     vertices: usize,
+}
+
+impl Mesh {
+    /// Draws it with its texture as group 1 and its vertex buffers 0–2.
+    fn draw(&self, pass: &mut wgpu::RenderPass) {
+        pass.set_bind_group(1, &self.texture, &[]);
+        pass.set_vertex_buffer(0, self.positions.slice(..));
+        pass.set_vertex_buffer(1, self.radiance.slice(..));
+        pass.set_vertex_buffer(2, self.detail.slice(..));
+        pass.set_index_buffer(self.indices.slice(..), wgpu::IndexFormat::Uint32);
+        pass.draw_indexed(0..self.count, 0, 0..1);
+    }
 }
 
 /// PRT per pixel: one unindexed draw of every instance's triangles.
@@ -135,22 +149,21 @@ impl PixelEnvironment {
         eye: Vec3,
     ) -> Self {
         let sun = lighting.split_sun().0.map(|sun| {
-            let (values, visible) = kage_engine::shading::baked::sun_vertices(flat, &sun, eye);
-            PixelSun { sun, values, visible }
+            let values = kage_engine::shading::baked::sun_vertices(flat, &sun, eye);
+            PixelSun { sun, values }
         });
         Self { specular: specular.clone(), prefiltered: prefiltered.clone(), sun }
     }
 }
 
-/// The sun per pixel: per vertex its light (part of what `upload_radiance` is given) and 1
-/// where the vertex sees it ([`kage_engine::shading::baked::sun_vertices`]).
+/// The sun per pixel — its BSDF at the pixel, its shadow from a depth map
+/// (`sun_shadow.rs`) — and per vertex its light (part of what `upload_radiance` is
+/// given: [`kage_engine::shading::baked::sun_vertices`]).
 pub struct PixelSun {
     /// Direction, irradiance and size.
     pub sun: Sun,
     /// Per instance and vertex: the sun's light toward the eye.
     pub values: VertexValues,
-    /// Per instance and vertex: 1 where the vertex sees the sun.
-    pub visible: Vec<Vec<f32>>,
 }
 
 /// Most mip levels the shader reads.
@@ -172,6 +185,8 @@ struct LitParams {
     sun_direction: [f32; 4],
     /// The sun's irradiance.
     sun_irradiance: [f32; 4],
+    /// The sun's depth map's lookup ([`SunShadow::params`]; zero: not rendered).
+    sun_shadow: [f32; 4],
 }
 
 /// A mip chain on the device, and the chain it was uploaded from.
@@ -211,6 +226,8 @@ struct Pipelines {
     lit: Option<wgpu::RenderPipeline>,
     /// The environment behind the geometry.
     sky: wgpu::RenderPipeline,
+    /// The sun's depth map.
+    shadow: wgpu::RenderPipeline,
 }
 
 /// The viewport renderer.
@@ -229,8 +246,10 @@ pub struct Viewport {
     lit: Option<LitDraw>,
     /// The environment's mip chain for the per-pixel lights, uploaded once per chain.
     mips: Option<Mips>,
-    /// Group 1 of the per-pixel lights: the storage arrays and the mip chain.
+    /// Group 1 of the per-pixel lights: the storage arrays, the mip chain and the sun's depth map.
     lit_layout: Option<wgpu::BindGroupLayout>,
+    /// The map's sun's depth map, for the per-pixel lights.
+    sun: SunShadow,
     /// Flat-coloured light polygons, each with its emitting side.
     lights: Vec<(Mesh, LightSide)>,
     target: Option<Target>,
@@ -272,7 +291,8 @@ impl Viewport {
             layout: &layout,
             entries: &[wgpu::BindGroupEntry { binding: 0, resource: uniform.as_entire_binding() }],
         });
-        let (prt_layout, lit_layout) = (storage_layout(gpu, 4), storage_layout(gpu, 5));
+        let prt_layout = storage_layout(gpu, 4, &[]);
+        let lit_layout = storage_layout(gpu, 5, &sun_depth_entries());
         let (detail_layout, sky_layout) = (detail::layout(gpu), sky::layout(gpu));
         let layouts = Layouts {
             view: &layout,
@@ -296,6 +316,7 @@ impl Viewport {
             lit: None,
             mips: None,
             lit_layout,
+            sun: SunShadow::new(gpu),
             lights: Vec::new(),
             target: None,
             generation: 0,
@@ -366,13 +387,43 @@ impl Viewport {
         if let Some(chain) = chain.filter(|c| self.mips.as_ref().is_none_or(|m| !m.source.same_chain(c))) {
             self.mips = Some(Mips { source: chain.clone(), buffer: mip_buffer(gpu, chain) });
         }
-        let mips = chain.and(self.mips.as_ref()).map(|m| &m.buffer);
-        self.lit = match (lights, &self.lit_layout) {
-            (Some(l), Some(layout)) if self.meshes.len() == flat.instances.len() => {
-                lit_draw(gpu, layout, flat, l, mips)
+        let fits = self.meshes.len() == flat.instances.len();
+        let sun = lights.and_then(|l| l.environment.as_ref()).and_then(|e| e.sun.as_ref());
+        let shadow = match sun {
+            Some(s) if fits && self.pipelines.lit.is_some() => {
+                self.render_sun(gpu, flat, s.sun.direction);
+                Some(&self.sun)
             }
             _ => None,
         };
+        let mips = chain.and(self.mips.as_ref()).map(|m| &m.buffer);
+        self.lit = match (lights, &self.lit_layout) {
+            (Some(l), Some(layout)) if fits => lit_draw(gpu, layout, flat, l, mips, (&self.sun, shadow.is_some())),
+            _ => None,
+        };
+    }
+
+    /// Renders the sun's depth map of every mesh and light polygon (the shadow rays of `kage
+    /// render` see the lights too).
+    fn render_sun(&mut self, gpu: &Gpu, flat: &FlatScene, direction: Vec3) {
+        let clip = self.sun.aim(direction, flat.bounding_sphere());
+        let view = View { sun_clip: clip.to_cols_array_2d(), ..Zeroable::zeroed() };
+        gpu.queue.write_buffer(&self.uniform, 0, bytemuck::bytes_of(&view));
+        let mut encoder = gpu.device.create_command_encoder(&Default::default());
+        {
+            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("sun shadow"),
+                color_attachments: &[],
+                depth_stencil_attachment: Some(self.sun.attachment()),
+                ..Default::default()
+            });
+            pass.set_pipeline(&self.pipelines.shadow);
+            pass.set_bind_group(0, &self.bind, &[]);
+            for m in self.meshes.iter().chain(self.lights.iter().map(|(m, _)| m)) {
+                m.draw(&mut pass);
+            }
+        }
+        gpu.queue.submit([encoder.finish()]);
     }
 
     /// Uploads every instance's world-space triangles with its base-colour texture, and every
@@ -522,6 +573,7 @@ impl Viewport {
             exposure: [exposure.exp2(), if raw { 1.0 } else { 0.0 }, 0.0, 0.0],
             inverse_view_proj: view_proj.inverse().to_cols_array_2d(),
             eye: orbit.eye().extend(1.0).into(),
+            sun_clip: self.sun.clip.to_cols_array_2d(),
         };
         gpu.queue.write_buffer(&self.uniform, 0, bytemuck::bytes_of(&view));
         let mut encoder = gpu.device.create_command_encoder(&Default::default());
@@ -575,12 +627,7 @@ impl Viewport {
                 gpu.queue.write_buffer(&m.radiance, 0, bytemuck::cast_slice(&vec![shown; m.vertices]));
             }
             for m in per_vertex.iter().chain(self.lights.iter().map(|(m, _)| m)) {
-                pass.set_bind_group(1, &m.texture, &[]);
-                pass.set_vertex_buffer(0, m.positions.slice(..));
-                pass.set_vertex_buffer(1, m.radiance.slice(..));
-                pass.set_vertex_buffer(2, m.detail.slice(..));
-                pass.set_index_buffer(m.indices.slice(..), wgpu::IndexFormat::Uint32);
-                pass.draw_indexed(0..m.count, 0, 0..1);
+                m.draw(&mut pass);
             }
         }
         gpu.queue.submit([encoder.finish()]);
@@ -655,15 +702,21 @@ fn prt_draw(gpu: &Gpu, layout: &wgpu::BindGroupLayout, flat: &FlatScene, frame: 
         storage(gpu, "preview silhouettes", &shadows.silhouettes),
         storage(gpu, "preview tables", &shadows.tables),
     ];
-    PrtDraw { bind: bind_buffers(gpu, layout, &buffers), count: indices.len() as u32 }
+    PrtDraw { bind: bind_buffers(gpu, layout, &buffers, &[]), count: indices.len() as u32 }
 }
 
 /// A bind group of `buffers` at bindings 0, 1, … of `layout`.
-fn bind_buffers(gpu: &Gpu, layout: &wgpu::BindGroupLayout, buffers: &[wgpu::Buffer]) -> wgpu::BindGroup {
+fn bind_buffers(
+    gpu: &Gpu,
+    layout: &wgpu::BindGroupLayout,
+    buffers: &[wgpu::Buffer],
+    more: &[wgpu::BindGroupEntry],
+) -> wgpu::BindGroup {
     let entries: Vec<wgpu::BindGroupEntry> = buffers
         .iter()
         .enumerate()
         .map(|(k, b)| wgpu::BindGroupEntry { binding: k as u32, resource: b.as_entire_binding() })
+        .chain(more.iter().cloned())
         .collect();
     gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
         label: Some("preview storage"),
@@ -681,6 +734,7 @@ fn lit_draw(
     flat: &FlatScene,
     lights: &PixelLights,
     mips: Option<&wgpu::Buffer>,
+    (shadow, rendered): (&SunShadow, bool),
 ) -> Option<LitDraw> {
     let gpu_lights = flat.lights.iter().map(kage_gpu::bspvt::gpu_light).collect::<Result<Vec<_>, _>>().ok()?;
     let environment = lights.environment.as_ref().filter(|_| mips.is_some());
@@ -689,7 +743,7 @@ fn lit_draw(
     let fits = |v: &VertexValues| v.iter().map(Vec::len).eq(counts());
     let shape = |v: &[Vec<f32>]| v.iter().map(Vec::len).eq(counts());
     let sun = environment.and_then(|e| e.sun.as_ref());
-    let sun_fits = sun.is_none_or(|s| fits(&s.values) && shape(&s.visible));
+    let sun_fits = sun.is_none_or(|s| fits(&s.values));
     if !fits(&lights.values) || specular.is_some_and(|s| !fits(&s.values) || !shape(&s.weights)) || !sun_fits {
         return None;
     }
@@ -702,10 +756,7 @@ fn lit_draw(
         ranges.push(start..indices.len() as u32);
         let detail = detail::vertices(flat, i);
         let weight = |v: usize| specular.map_or(0.0, |s| s.weights[i][v]);
-        let seen = |v: usize| sun.map_or(0.0, |s| s.visible[i][v]);
-        vertices.extend(
-            (0..mesh.positions.len()).zip(&detail).map(|(v, d)| lit_vertex(flat, i, v, d, [weight(v), seen(v)])),
-        );
+        vertices.extend((0..mesh.positions.len()).zip(&detail).map(|(v, d)| lit_vertex(flat, i, v, d, weight(v))));
         for v in 0..mesh.positions.len() {
             lobes.extend(lights.lobes.vertex(i, v).iter().map(|[d, s]| [d[0], d[1], s[0], s[1]]));
         }
@@ -719,7 +770,10 @@ fn lit_draw(
     }
     let tables: Vec<f32> =
         ltc::table().entries().iter().flatten().chain(ggx::albedo_tables().concat().iter()).copied().collect();
-    let params = lit_params(flat.lights.len(), environment.map(|e| &e.prefiltered), sun.map(|s| &s.sun));
+    let mut params = lit_params(flat.lights.len(), environment.map(|e| &e.prefiltered), sun.map(|s| &s.sun));
+    if rendered {
+        params.sun_shadow = shadow.params();
+    }
     let rest = storage(gpu, "preview rest", &vec![[0.0f32; 4]; vertices.len()]);
     let mips = mips.cloned().unwrap_or_else(|| storage(gpu, "preview no mips", &[[0.0f32; 4]]));
     let buffers = [
@@ -732,7 +786,11 @@ fn lit_draw(
         storage(gpu, "preview ltc tables", &tables),
         mips,
     ];
-    Some(LitDraw { bind: bind_buffers(gpu, layout, &buffers), rest, per_pixel, ranges })
+    let depth = [
+        wgpu::BindGroupEntry { binding: 8, resource: wgpu::BindingResource::TextureView(&shadow.view) },
+        wgpu::BindGroupEntry { binding: 9, resource: wgpu::BindingResource::Sampler(&shadow.sampler) },
+    ];
+    Some(LitDraw { bind: bind_buffers(gpu, layout, &buffers, &depth), rest, per_pixel, ranges })
 }
 
 /// The per-pixel lights' parameters: the light count and where the chain's levels are (none
@@ -746,6 +804,7 @@ fn lit_params(lights: usize, chain: Option<&Prefiltered>, sun: Option<&Sun>) -> 
         level: [[0; 4]; MAX_LEVELS],
         sun_direction: [0.0; 4],
         sun_irradiance: [0.0; 4],
+        sun_shadow: [0.0; 4],
     };
     if let Some(sun) = sun {
         let least = (SUN_ALPHA_FLOOR * sun.angular_radius).sqrt().max(1e-6);
@@ -776,15 +835,15 @@ fn mip_buffer(gpu: &Gpu, chain: &Prefiltered) -> wgpu::Buffer {
 }
 
 /// Vertex `v` of instance `i` as the per-pixel lights read it (`d`: its texture detail).
-/// `[weight, seen]`: the environment's specular weight and the sun's visibility there.
-fn lit_vertex(flat: &FlatScene, i: usize, v: usize, d: &Detail, [weight, seen]: [f32; 2]) -> LitVertex {
+/// `weight`: the environment's specular weight there.
+fn lit_vertex(flat: &FlatScene, i: usize, v: usize, d: &Detail, weight: f32) -> LitVertex {
     let (p, n) = flat.vertex(i, v);
     // The metallic-roughness texture is read per pixel: its factors here, not its value.
     let (m, factors) = (flat.vertex_material(i, v), flat.instances[i].material);
     let mr = detail::metallic_roughness_uv(flat, i, v);
     LitVertex {
         p: p.extend(weight).into(),
-        n: n.normalize_or_zero().extend(seen).into(),
+        n: n.normalize_or_zero().extend(0.0).into(),
         base: m.base_color.extend(factors.metallic).into(),
         surface: [factors.roughness, m.specular, d.uv[0], d.uv[1]],
         at_vertex: Vec3::from(d.at_vertex).extend(0.0).into(),
@@ -796,7 +855,7 @@ fn lit_vertex(flat: &FlatScene, i: usize, v: usize, d: &Detail, [weight, seen]: 
 /// indices read by the vertex stage, vertices by both, `fragment` more by the fragment (see
 /// preview.wgsl); `None` when the device allows fewer storage buffers per stage than the
 /// fragment stage binds.
-fn storage_layout(gpu: &Gpu, fragment: usize) -> Option<wgpu::BindGroupLayout> {
+fn storage_layout(gpu: &Gpu, fragment: usize, more: &[wgpu::BindGroupLayoutEntry]) -> Option<wgpu::BindGroupLayout> {
     use wgpu::ShaderStages as S;
     if (gpu.device.limits().max_storage_buffers_per_shader_stage as usize) < fragment + 1 {
         return None;
@@ -819,11 +878,29 @@ fn storage_layout(gpu: &Gpu, fragment: usize) -> Option<wgpu::BindGroupLayout> {
             },
             count: None,
         })
+        .chain(more.iter().copied())
         .collect();
     Some(gpu.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
         label: Some("preview storage"),
         entries: &entries,
     }))
+}
+
+/// The per-pixel lights' bindings 8 and 9: the sun's depth map and its comparison sampler.
+fn sun_depth_entries() -> [wgpu::BindGroupLayoutEntry; 2] {
+    let entry =
+        |binding, ty| wgpu::BindGroupLayoutEntry { binding, visibility: wgpu::ShaderStages::FRAGMENT, ty, count: None };
+    [
+        entry(
+            8,
+            wgpu::BindingType::Texture {
+                sample_type: wgpu::TextureSampleType::Depth,
+                view_dimension: wgpu::TextureViewDimension::D2,
+                multisampled: false,
+            },
+        ),
+        entry(9, wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Comparison)),
+    ]
 }
 
 /// The bind group layouts the pipelines use: the view (group 0), then the base-colour texture
@@ -877,7 +954,8 @@ fn build_pipelines(
             pipeline(&[view, Some(storage), Some(layouts.detail)], ("vs_lit", "fs_lit"), &[], Depth::Tested)
         });
         let sky = pipeline(&[view, Some(layouts.sky)], ("vs_sky", "fs_sky"), &[], Depth::Behind);
-        Pipelines { main, prt, lit, sky }
+        let shadow = pipeline(&[view, Some(layouts.detail)], ("vs_shadow", "fs_shadow"), &per_vertex, Depth::Shadow);
+        Pipelines { main, prt, lit, sky, shadow }
     })
     .map_err(|e| kage_gpu::ShaderError {
         file: "preview.wgsl".into(),
@@ -894,6 +972,8 @@ enum Depth {
     Tested,
     /// Neither: the background, drawn first.
     Behind,
+    /// Tested and written, with a slope bias, and nothing else: the sun's depth map.
+    Shadow,
 }
 
 fn render_pipeline(
@@ -904,7 +984,9 @@ fn render_pipeline(
     buffers: &[Option<wgpu::VertexBufferLayout>],
     depth: Depth,
 ) -> wgpu::RenderPipeline {
-    let tested = depth == Depth::Tested;
+    let tested = depth != Depth::Behind;
+    let shadow = depth == Depth::Shadow;
+    let color = [Some(target.into())];
     let pipeline_layout = gpu.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
         label: Some("preview"),
         bind_group_layouts: groups,
@@ -917,16 +999,21 @@ fn render_pipeline(
         fragment: Some(wgpu::FragmentState {
             module,
             entry_point: Some(fs),
-            targets: &[Some(target.into())],
+            targets: if shadow { &[] } else { &color },
             compilation_options: Default::default(),
         }),
         primitive: wgpu::PrimitiveState::default(),
         depth_stencil: Some(wgpu::DepthStencilState {
-            format: DEPTH,
+            format: if shadow { sun_shadow::FORMAT } else { DEPTH },
             depth_write_enabled: Some(tested),
             depth_compare: Some(if tested { wgpu::CompareFunction::Less } else { wgpu::CompareFunction::Always }),
             stencil: Default::default(),
-            bias: Default::default(),
+            // Slopes facing the sun at a grazing angle would shadow themselves.
+            bias: if shadow {
+                wgpu::DepthBiasState { constant: 0, slope_scale: 1.5, clamp: 0.0 }
+            } else {
+                Default::default()
+            },
         }),
         multisample: Default::default(),
         multiview_mask: None,

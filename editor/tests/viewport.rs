@@ -217,20 +217,18 @@ fn reflection_drawn(map: &str) -> (f64, f64, f64) {
     let environment = Some((parts, Some(&pre)));
     let direct = Look::direct_reusing(&scene, &flat, eye, Some(polygonal), environment, &mut memo, &mut silhouettes);
     let specular = memo.specular().expect("the look has an environment").clone();
-    let sun = lighting.split_sun().0.map(|sun| {
-        let (values, visible) = sun_vertices(&flat, &sun, eye);
-        PixelSun { sun, values, visible }
-    });
+    let sun = lighting.split_sun().0.map(|sun| PixelSun { sun, values: sun_vertices(&flat, &sun, eye) });
     assert_eq!(sun.is_some(), map == "studio", "{map}: which maps have a sun");
 
     // The CPU statement: the vertices' rest, the lights per pixel, R at the pixel times the
-    // interpolated weight, the sun's BSDF at the pixel times its interpolated visibility.
+    // interpolated weight, the sun's BSDF at the pixel where a shadow ray reaches it (the
+    // viewport's depth map stands for the ray).
     let (w, h) = (240, 160);
     let camera = Camera::look_at(eye, orbit.target, orbit.yfov);
     let mut renderer = Renderer::new(&scene);
     renderer.flat.environment = None; // no sky behind the geometry in either image
     let exposure = -2.0f32;
-    let open = SceneBvh::new(&[]);
+    let bvh = SceneBvh::quick_over(&flat);
     let stated = shade_image(&renderer, &camera, w, h, 1, &|hit| {
         let i = hit.instance;
         let mut rest = hit.interpolate(&direct[i]) - hit.interpolate(&poly[i]) - hit.interpolate(&specular.values[i]);
@@ -244,8 +242,8 @@ fn reflection_drawn(map: &str) -> (f64, f64, f64) {
             Vec3::ZERO
         };
         if let Some(sun) = &sun {
-            let lit = sun_light(&flat, &sun.sun, &open, (i, hit.corners, hit.weights), hit.position, eye).0;
-            rest += lit * hit.interpolate(&sun.visible[i]) - hit.interpolate(&sun.values[i]);
+            let lit = sun_light(&flat, &sun.sun, &bvh, (i, hit.corners, hit.weights), hit.position, eye).0;
+            rest += lit - hit.interpolate(&sun.values[i]);
         }
         rest + lobes.shade(&flat, hit, eye) + reflected * hit.interpolate(&specular.weights[i])
     });

@@ -384,18 +384,16 @@ pub fn sun_light(
     (crate::shading::Bsdf::new(&material, wo).eval(wo, wi) * wi.z * sun.irradiance, true)
 }
 
-/// Per instance and vertex: the sun's light toward `eye` as the look adds it, and 1 where the
-/// vertex sees the sun (0 in shadow or below its horizon) — what the editor's viewport carries
-/// to shade the sun per pixel.
-pub fn sun_vertices(flat: &FlatScene, sun: &Sun, eye: Vec3) -> (VertexValues, Vec<Vec<f32>>) {
+/// Per instance and vertex: the sun's light toward `eye` as the look adds it — what the
+/// editor's viewport takes out of the vertices' radiance to shade the sun per pixel.
+pub fn sun_vertices(flat: &FlatScene, sun: &Sun, eye: Vec3) -> VertexValues {
     let bvh = SceneBvh::quick_over(flat);
     (0..flat.instances.len())
         .map(|i| {
-            let at = |v: usize| sun_light(flat, sun, &bvh, (i, [v; 3], [1.0, 0.0, 0.0]), flat.vertex(i, v).0, eye);
-            let both: Vec<(Vec3, bool)> = (0..flat.vertex_count(i)).into_par_iter().map(at).collect();
-            (both.iter().map(|b| b.0).collect(), both.iter().map(|b| f32::from(u8::from(b.1))).collect())
+            let at = |v: usize| sun_light(flat, sun, &bvh, (i, [v; 3], [1.0, 0.0, 0.0]), flat.vertex(i, v).0, eye).0;
+            (0..flat.vertex_count(i)).into_par_iter().map(at).collect()
         })
-        .unzip()
+        .collect()
 }
 
 /// The environment's per-vertex terms (diffuse and specular, the sun apart) of the last frame

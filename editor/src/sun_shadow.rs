@@ -1,0 +1,80 @@
+//! The map's sun shadowed per pixel in the per-pixel lights' draw: a depth map of the scene seen
+//! from the sun (orthographic, over the scene's bounding sphere), looked up at each pixel with
+//! a 3×3 percentage-closer filter — the directional-light shadow map of real-time engines, in
+//! place of the sun's visibility interpolated from the vertices (which drew a lattice's sharp
+//! sun shadow as blobs). `kage render`'s CPU image casts a shadow ray per pixel instead.
+
+use glam::{Mat4, Vec3};
+use kage_gpu::Gpu;
+
+/// Texels per side.
+pub const SIZE: u32 = 2048;
+/// The depth format.
+pub const FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+
+/// The depth map, its comparison sampler, and where the last render put the sun.
+pub struct SunShadow {
+    /// The depth texture's view (sampled by `fs_lit`, rendered by `vs_shadow`).
+    pub view: wgpu::TextureView,
+    /// A comparison sampler (less-equal, linear: each tap is itself 2×2 filtered).
+    pub sampler: wgpu::Sampler,
+    /// Clip from world of the last render (identity before any).
+    pub clip: Mat4,
+    /// World units per texel of the last render.
+    pub texel: f32,
+}
+
+impl SunShadow {
+    /// An empty map.
+    pub fn new(gpu: &Gpu) -> Self {
+        let texture = gpu.device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("sun shadow"),
+            size: wgpu::Extent3d { width: SIZE, height: SIZE, depth_or_array_layers: 1 },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: FORMAT,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
+            view_formats: &[],
+        });
+        let sampler = gpu.device.create_sampler(&wgpu::SamplerDescriptor {
+            label: Some("sun shadow"),
+            mag_filter: wgpu::FilterMode::Linear,
+            min_filter: wgpu::FilterMode::Linear,
+            compare: Some(wgpu::CompareFunction::LessEqual),
+            ..Default::default()
+        });
+        Self { view: texture.create_view(&Default::default()), sampler, clip: Mat4::IDENTITY, texel: 0.0 }
+    }
+
+    /// Aims the map at the sun (`direction`: toward it) over the sphere (`centre`, `radius`)
+    /// and returns the clip-from-world matrix the depth pass draws with.
+    pub fn aim(&mut self, direction: Vec3, (centre, radius): (Vec3, f32)) -> Mat4 {
+        let up = if direction.cross(Vec3::Y).length_squared() < 1e-6 { Vec3::Z } else { Vec3::Y };
+        let eye = centre + direction * (2.0 * radius);
+        let view = glam::camera::rh::view::look_at_mat4(eye, centre, up);
+        // wgpu's depth runs 0 to 1: the sphere lies between radius and 3·radius from the eye.
+        let proj =
+            glam::camera::rh::proj::directx::orthographic(-radius, radius, -radius, radius, radius, 3.0 * radius);
+        self.clip = proj * view;
+        self.texel = 2.0 * radius / SIZE as f32;
+        self.clip
+    }
+
+    /// The depth pass's attachment, cleared to the far plane.
+    pub fn attachment(&self) -> wgpu::RenderPassDepthStencilAttachment<'_> {
+        wgpu::RenderPassDepthStencilAttachment {
+            view: &self.view,
+            depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(1.0), store: wgpu::StoreOp::Store }),
+            stencil_ops: None,
+        }
+    }
+
+    /// `fs_lit`'s lookup parameters: the normal offset (world units, 1.5 texels), the depth
+    /// bias (a texel's worth of depth: the depth range is the map's width) and the texel size
+    /// in map coordinates.
+    pub fn params(&self) -> [f32; 4] {
+        let texel = 1.0 / SIZE as f32;
+        [1.5 * self.texel, texel, texel, 0.0]
+    }
+}
