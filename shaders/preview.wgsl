@@ -15,9 +15,16 @@ struct View {
     eye: vec4<f32>,
     // The sun's depth map's clip from world (editor/src/sun_shadow.rs).
     sun_clip: mat4x4<f32>,
+    // Toward the sun; w 1 when the depth map holds the scene.
+    sun_direction: vec4<f32>,
+    // The depth map's lookup: x the normal offset (world), y the depth bias, z a texel in map
+    // coordinates.
+    sun_shadow: vec4<f32>,
 }
 
 @group(0) @binding(0) var<uniform> view: View;
+@group(0) @binding(1) var sun_depth: texture_depth_2d;
+@group(0) @binding(2) var sun_sampler: sampler_comparison;
 
 // The base-colour texture (one white texel for untextured meshes); alpha is a cut-out's mask.
 @group(1) @binding(0) var base_color: texture_2d<f32>;
@@ -31,6 +38,9 @@ struct VertexIn {
     @location(3) at_vertex: vec3<f32>,
     // A cut-out's alpha factor and cutoff ((1, 0): solid).
     @location(4) cut: vec2<f32>,
+    // The map's sun's unshadowed light, added per pixel where the depth map sees the sun
+    // (zero: the sun, if any, is in `radiance`).
+    @location(5) sun: vec3<f32>,
 }
 
 struct VertexOut {
@@ -39,6 +49,8 @@ struct VertexOut {
     @location(1) uv: vec2<f32>,
     @location(2) at_vertex: vec3<f32>,
     @location(3) @interpolate(flat) cut: vec2<f32>,
+    @location(4) position: vec3<f32>,
+    @location(5) sun: vec3<f32>,
 }
 
 @vertex
@@ -49,6 +61,8 @@ fn vs_main(v: VertexIn) -> VertexOut {
     out.uv = v.uv;
     out.at_vertex = v.at_vertex;
     out.cut = v.cut;
+    out.position = v.position;
+    out.sun = v.sun;
     return out;
 }
 
@@ -99,6 +113,9 @@ fn display(radiance: vec3<f32>) -> vec4<f32> {
 // its value interpolated from the vertices (a channel black at the vertices stays black).
 @fragment
 fn fs_main(v: VertexOut) -> @location(0) vec4<f32> {
+    // The face's normal, for the depth map's normal offset (derivatives want uniform control
+    // flow: taken first).
+    let face = normalize(cross(dpdx(v.position), dpdy(v.position)));
     if (view.exposure.y > 0.5) {
         return display(v.radiance); // the overlay's colours, as they are
     }
@@ -106,7 +123,12 @@ fn fs_main(v: VertexOut) -> @location(0) vec4<f32> {
     if (cut_away(texel.a, v.cut)) {
         discard;
     }
-    return display(v.radiance * detail(texel.rgb, v.at_vertex));
+    var radiance = v.radiance;
+    if (view.sun_direction.w > 0.0 && any(v.sun > vec3<f32>(0.0))) {
+        let n = select(-face, face, dot(face, view.sun_direction.xyz) >= 0.0);
+        radiance = radiance + v.sun * sun_seen(v.position, n);
+    }
+    return display(radiance * detail(texel.rgb, v.at_vertex));
 }
 
 // The texture here over its value interpolated from the vertices, per channel (0 where that is 0).
@@ -292,9 +314,6 @@ struct LitParams {
     sun_direction: vec4<f32>,
     // The sun's irradiance (rgb).
     sun_irradiance: vec4<f32>,
-    // The sun's depth map: x the normal offset (world), y the depth bias, z a texel in map
-    // coordinates (w unused).
-    sun_shadow: vec4<f32>,
 }
 
 struct LitVertex {
@@ -328,8 +347,6 @@ struct LitVertex {
 @group(1) @binding(6) var<storage, read> lit_tables: array<f32>;
 // The environment's mip chain (prt::prefilter::Prefiltered), level after level.
 @group(1) @binding(7) var<storage, read> mips: array<vec4<f32>>;
-@group(1) @binding(8) var sun_depth: texture_depth_2d;
-@group(1) @binding(9) var sun_sampler: sampler_comparison;
 @group(2) @binding(0) var lit_texture: texture_2d<f32>;
 @group(2) @binding(1) var lit_sampler: sampler;
 @group(2) @binding(2) var mr_texture: texture_2d<f32>;
@@ -479,7 +496,7 @@ fn environment_at(s: Surface, weight: f32) -> vec3<f32> {
 // The sun's visibility at `p` (normal `n`) from its depth map, 3×3 taps each filtered 2×2;
 // outside the map (nothing there casts), seen.
 fn sun_seen(p: vec3<f32>, n: vec3<f32>) -> f32 {
-    let q = view.sun_clip * vec4<f32>(p + n * lit.sun_shadow.x, 1.0);
+    let q = view.sun_clip * vec4<f32>(p + n * view.sun_shadow.x, 1.0);
     let uv = vec2<f32>(q.x * 0.5 + 0.5, 0.5 - q.y * 0.5);
     if (any(uv < vec2<f32>(0.0)) || any(uv > vec2<f32>(1.0)) || q.z > 1.0) {
         return 1.0;
@@ -487,8 +504,8 @@ fn sun_seen(p: vec3<f32>, n: vec3<f32>) -> f32 {
     var seen = 0.0;
     for (var j = -1; j <= 1; j = j + 1) {
         for (var i = -1; i <= 1; i = i + 1) {
-            let at = uv + vec2<f32>(f32(i), f32(j)) * lit.sun_shadow.z;
-            seen = seen + textureSampleCompareLevel(sun_depth, sun_sampler, at, q.z - lit.sun_shadow.y);
+            let at = uv + vec2<f32>(f32(i), f32(j)) * view.sun_shadow.z;
+            seen = seen + textureSampleCompareLevel(sun_depth, sun_sampler, at, q.z - view.sun_shadow.y);
         }
     }
     return seen / 9.0;
@@ -672,7 +689,7 @@ fn fs_lit(v: CornerOut) -> @location(0) vec4<f32> {
     let s = surface_at(v.position, n, base, metallic, roughness, specular);
     let weight = a.p.w * w.x + b.p.w * w.y + c.p.w * w.z;
     var sun = vec3<f32>(0.0);
-    let seen = select(0.0, sun_seen(v.position, n), lit.sun_direction.w > 0.0);
+    let seen = select(0.0, sun_seen(v.position, n), lit.sun_direction.w > 0.0 && view.sun_direction.w > 0.0);
     if (seen > 0.0) {
         let rough = surface_at(v.position, n, base, metallic, max(roughness, lit.sun_direction.w), specular);
         sun = sun_at(rough, seen);

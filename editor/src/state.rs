@@ -273,6 +273,9 @@ pub struct Editor {
     /// The lobes the viewport draws the polygonal lights with per pixel
     /// ([`Editor::lights_per_pixel`]).
     pub pixel_lights: Option<crate::viewport::PixelLights>,
+    /// The map's sun per vertex, which the per-vertex draw shades per pixel under its depth
+    /// map (`baked`, when the lights are not drawn per pixel).
+    pub vertex_sun: Option<crate::viewport::VertexSun>,
     pub(super) gpu: Gpu,
     pub(super) shaders: Shaders,
     pub(super) bspvt_gpu: Option<BspvtShader>,
@@ -359,6 +362,7 @@ impl Editor {
             reference: ReferenceSum::default(),
             per_pixel: None,
             pixel_lights: None,
+            vertex_sun: None,
             aspect: 16.0 / 9.0,
             gpu,
             shaders,

@@ -7,7 +7,7 @@ use super::indirect::{Indirect, Job};
 use super::pick::Seen;
 use super::reload::Change;
 use super::state::Editor;
-use super::viewport::{PixelEnvironment, PixelLights};
+use super::viewport::{PixelEnvironment, PixelLights, VertexSun};
 use super::worker::Worker;
 use glam::Vec3;
 use kage_bake_db::DbError;
@@ -423,6 +423,7 @@ pub fn shade_system(ed: &mut Editor) {
         ed.per_pixel = None;
     }
     ed.pixel_lights = None;
+    ed.vertex_sun = None;
     ed.dirty.per_pixel = true;
     if let Some(job) = Background::of(ed) {
         let wake = ed.wake.clone();
@@ -696,7 +697,18 @@ fn baked(ed: &mut Editor, eye: Vec3) -> VertexValues {
     let direct =
         Look::direct_reusing(&ed.scene, &ed.flat, eye, polygonal, Some((parts, Some(pre))), environment, silhouettes);
     specular_per_pixel(ed, eye);
+    sun_per_pixel(ed, eye);
     direct
+}
+
+/// The map's sun for the per-vertex draw to shade per pixel (the per-pixel lights' draw has
+/// its own: [`specular_per_pixel`]).
+fn sun_per_pixel(ed: &mut Editor, eye: Vec3) {
+    let sun = ed.bakes.lighting.as_ref().and_then(|l| l.split_sun().0).filter(|_| !ed.lights_per_pixel());
+    ed.vertex_sun = sun.map(|sun| {
+        let (values, open) = kage_engine::shading::baked::sun_vertices(&ed.flat, &sun, eye);
+        VertexSun { sun, values, open }
+    });
 }
 
 /// Adds the environment's specular term of the frame just shaded to what the viewport draws

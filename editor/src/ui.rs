@@ -83,13 +83,14 @@ impl App {
             vp.upload_geometry(ed.gpu(), &ed.flat);
             ed.dirty.meshes = false;
         }
-        vp.upload_radiance(ed.gpu(), &ed.values);
-        vp.set_environment(ed.gpu(), ed.flat.environment.as_ref());
         if ed.dirty.per_pixel {
             vp.upload_prt(ed.gpu(), &ed.flat, ed.per_pixel.as_ref());
             vp.upload_lights(ed.gpu(), &ed.flat, ed.pixel_lights.as_ref());
+            vp.upload_sun(ed.gpu(), &ed.flat, ed.vertex_sun.as_ref());
             ed.dirty.per_pixel = false;
         }
+        vp.upload_radiance(ed.gpu(), &ed.values);
+        vp.set_environment(ed.gpu(), ed.flat.environment.as_ref());
     }
 }
 

@@ -49,6 +49,8 @@ struct View {
     inverse_view_proj: [[f32; 4]; 4],
     eye: [f32; 4],
     sun_clip: [[f32; 4]; 4],
+    sun_direction: [f32; 4],
+    sun_shadow: [f32; 4],
 }
 
 /// One drawable: world positions, radiance and texture detail per vertex, triangle indices,
@@ -57,6 +59,8 @@ struct Mesh {
     positions: wgpu::Buffer,
     radiance: wgpu::Buffer,
     detail: wgpu::Buffer,
+    /// The sun's unshadowed light per vertex ([`Viewport::upload_sun`]; zero without).
+    sun: wgpu::Buffer,
     indices: wgpu::Buffer,
     texture: wgpu::BindGroup,
     count: u32,
@@ -64,12 +68,13 @@ struct Mesh {
 }
 
 impl Mesh {
-    /// Draws it with its texture as group 1 and its vertex buffers 0–2.
+    /// Draws it with its texture as group 1 and its vertex buffers 0–3.
     fn draw(&self, pass: &mut wgpu::RenderPass) {
         pass.set_bind_group(1, &self.texture, &[]);
         pass.set_vertex_buffer(0, self.positions.slice(..));
         pass.set_vertex_buffer(1, self.radiance.slice(..));
         pass.set_vertex_buffer(2, self.detail.slice(..));
+        pass.set_vertex_buffer(3, self.sun.slice(..));
         pass.set_index_buffer(self.indices.slice(..), wgpu::IndexFormat::Uint32);
         pass.draw_indexed(0..self.count, 0, 0..1);
     }
@@ -149,7 +154,7 @@ impl PixelEnvironment {
         eye: Vec3,
     ) -> Self {
         let sun = lighting.split_sun().0.map(|sun| {
-            let values = kage_engine::shading::baked::sun_vertices(flat, &sun, eye);
+            let values = kage_engine::shading::baked::sun_vertices(flat, &sun, eye).0;
             PixelSun { sun, values }
         });
         Self { specular: specular.clone(), prefiltered: prefiltered.clone(), sun }
@@ -164,6 +169,17 @@ pub struct PixelSun {
     pub sun: Sun,
     /// Per instance and vertex: the sun's light toward the eye.
     pub values: VertexValues,
+}
+
+/// The map's sun for the per-vertex draw: per vertex its light as the look adds it (shadowed)
+/// and unshadowed ([`kage_engine::shading::baked::sun_vertices`]).
+pub struct VertexSun {
+    /// Direction, irradiance and size.
+    pub sun: Sun,
+    /// Per instance and vertex: the sun's light toward the eye where the vertex sees it.
+    pub values: VertexValues,
+    /// Per instance and vertex: the sun's light toward the eye were nothing in the way.
+    pub open: VertexValues,
 }
 
 /// Most mip levels the shader reads.
@@ -185,8 +201,6 @@ struct LitParams {
     sun_direction: [f32; 4],
     /// The sun's irradiance.
     sun_irradiance: [f32; 4],
-    /// The sun's depth map's lookup ([`SunShadow::params`]; zero: not rendered).
-    sun_shadow: [f32; 4],
 }
 
 /// A mip chain on the device, and the chain it was uploaded from.
@@ -248,8 +262,13 @@ pub struct Viewport {
     mips: Option<Mips>,
     /// Group 1 of the per-pixel lights: the storage arrays, the mip chain and the sun's depth map.
     lit_layout: Option<wgpu::BindGroupLayout>,
-    /// The map's sun's depth map, for the per-pixel lights.
+    /// The map's sun's depth map.
     sun: SunShadow,
+    /// The view's bind group with a stand-in for the map, for the pass that draws the map.
+    bind_for_sun: wgpu::BindGroup,
+    /// The sun's shadowed light per vertex, taken out of the radiance `fs_main` draws (it adds
+    /// the sun per pixel), when [`Viewport::upload_sun`] was given one.
+    vertex_sun: Option<VertexValues>,
     /// Flat-coloured light polygons, each with its emitting side.
     lights: Vec<(Mesh, LightSide)>,
     target: Option<Target>,
@@ -267,18 +286,20 @@ struct LightSide {
 impl Viewport {
     /// Builds the pipeline from `shaders` (`preview.wgsl`).
     pub fn new(gpu: &Gpu, shaders: &Shaders) -> Result<Self, kage_gpu::ShaderError> {
+        let view_entry = wgpu::BindGroupLayoutEntry {
+            binding: 0,
+            visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
+            ty: wgpu::BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Uniform,
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            count: None,
+        };
+        let [depth, sampler] = sun_shadow::layout_entries();
         let layout = gpu.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("preview view"),
-            entries: &[wgpu::BindGroupLayoutEntry {
-                binding: 0,
-                visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
-                ty: wgpu::BindingType::Buffer {
-                    ty: wgpu::BufferBindingType::Uniform,
-                    has_dynamic_offset: false,
-                    min_binding_size: None,
-                },
-                count: None,
-            }],
+            entries: &[view_entry, depth, sampler],
         });
         let uniform = gpu.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("preview view"),
@@ -286,13 +307,22 @@ impl Viewport {
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let bind = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("preview view"),
-            layout: &layout,
-            entries: &[wgpu::BindGroupEntry { binding: 0, resource: uniform.as_entire_binding() }],
-        });
-        let prt_layout = storage_layout(gpu, 4, &[]);
-        let lit_layout = storage_layout(gpu, 5, &sun_depth_entries());
+        let sun = SunShadow::new(gpu);
+        // The depth pass draws into the map, so it binds the view with a stand-in.
+        let view_group = |map: &wgpu::TextureView| {
+            gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("preview view"),
+                layout: &layout,
+                entries: &[
+                    wgpu::BindGroupEntry { binding: 0, resource: uniform.as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 1, resource: wgpu::BindingResource::TextureView(map) },
+                    wgpu::BindGroupEntry { binding: 2, resource: wgpu::BindingResource::Sampler(&sun.sampler) },
+                ],
+            })
+        };
+        let (bind, bind_for_sun) = (view_group(&sun.view), view_group(&sun.stand_in));
+        let prt_layout = storage_layout(gpu, 4);
+        let lit_layout = storage_layout(gpu, 5);
         let (detail_layout, sky_layout) = (detail::layout(gpu), sky::layout(gpu));
         let layouts = Layouts {
             view: &layout,
@@ -316,7 +346,9 @@ impl Viewport {
             lit: None,
             mips: None,
             lit_layout,
-            sun: SunShadow::new(gpu),
+            sun,
+            bind_for_sun,
+            vertex_sun: None,
             lights: Vec::new(),
             target: None,
             generation: 0,
@@ -388,19 +420,37 @@ impl Viewport {
             self.mips = Some(Mips { source: chain.clone(), buffer: mip_buffer(gpu, chain) });
         }
         let fits = self.meshes.len() == flat.instances.len();
-        let sun = lights.and_then(|l| l.environment.as_ref()).and_then(|e| e.sun.as_ref());
-        let shadow = match sun {
-            Some(s) if fits && self.pipelines.lit.is_some() => {
-                self.render_sun(gpu, flat, s.sun.direction);
-                Some(&self.sun)
-            }
-            _ => None,
-        };
         let mips = chain.and(self.mips.as_ref()).map(|m| &m.buffer);
         self.lit = match (lights, &self.lit_layout) {
-            (Some(l), Some(layout)) if fits => lit_draw(gpu, layout, flat, l, mips, (&self.sun, shadow.is_some())),
+            (Some(l), Some(layout)) if fits => lit_draw(gpu, layout, flat, l, mips),
             _ => None,
         };
+        let sun = lights.and_then(|l| l.environment.as_ref()).and_then(|e| e.sun.as_ref());
+        match sun.filter(|_| self.lit.is_some()) {
+            Some(s) => self.render_sun(gpu, flat, s.sun.direction),
+            None => self.sun.clear(),
+        }
+    }
+
+    /// Adds the map's sun per pixel to the per-vertex draw (`fs_main`): `sun`'s shadowed light
+    /// per vertex is taken out of the radiance [`Viewport::upload_radiance`] is given, and its
+    /// unshadowed light interpolated times the depth map's visibility put back at each pixel.
+    /// `None`, or values that do not fit the snapshot: the sun stays in the vertices. Call
+    /// after [`Viewport::upload_geometry`] and [`Viewport::upload_lights`] of the same snapshot.
+    pub fn upload_sun(&mut self, gpu: &Gpu, flat: &FlatScene, sun: Option<&VertexSun>) {
+        let counts = || (0..flat.instances.len()).map(|i| flat.vertex_count(i));
+        let fits = |v: &VertexValues| v.iter().map(Vec::len).eq(counts());
+        let sun = sun.filter(|s| self.meshes.len() == flat.instances.len() && fits(&s.values) && fits(&s.open));
+        for (k, m) in self.meshes.iter().enumerate() {
+            let open = sun.map_or_else(|| vec![Vec3::ZERO; m.vertices], |s| s.open[k].clone());
+            gpu.queue.write_buffer(&m.sun, 0, bytemuck::cast_slice(&open));
+        }
+        self.vertex_sun = sun.map(|s| s.values.clone());
+        match sun {
+            Some(s) => self.render_sun(gpu, flat, s.sun.direction),
+            None if self.lit.is_none() => self.sun.clear(),
+            None => {}
+        }
     }
 
     /// Renders the sun's depth map of every mesh and light polygon (the shadow rays of `kage
@@ -408,6 +458,7 @@ impl Viewport {
     fn render_sun(&mut self, gpu: &Gpu, flat: &FlatScene, direction: Vec3) {
         let clip = self.sun.aim(direction, flat.bounding_sphere());
         let view = View { sun_clip: clip.to_cols_array_2d(), ..Zeroable::zeroed() };
+        // The pass binds the view with a stand-in map: it draws into the real one.
         gpu.queue.write_buffer(&self.uniform, 0, bytemuck::bytes_of(&view));
         let mut encoder = gpu.device.create_command_encoder(&Default::default());
         {
@@ -418,7 +469,7 @@ impl Viewport {
                 ..Default::default()
             });
             pass.set_pipeline(&self.pipelines.shadow);
-            pass.set_bind_group(0, &self.bind, &[]);
+            pass.set_bind_group(0, &self.bind_for_sun, &[]);
             for m in self.meshes.iter().chain(self.lights.iter().map(|(m, _)| m)) {
                 m.draw(&mut pass);
             }
@@ -474,9 +525,16 @@ impl Viewport {
                 gpu.queue.write_buffer(&lit.rest, 0, bytemuck::cast_slice(&rest));
             }
         }
-        for (m, v) in self.meshes.iter().zip(values) {
-            if v.len() == m.vertices {
-                gpu.queue.write_buffer(&m.radiance, 0, bytemuck::cast_slice(v));
+        for (k, (m, v)) in self.meshes.iter().zip(values).enumerate() {
+            if v.len() != m.vertices {
+                continue;
+            }
+            match self.vertex_sun.as_ref().map(|s| &s[k]).filter(|s| s.len() == v.len()) {
+                Some(sun) => {
+                    let rest: Vec<Vec3> = v.iter().zip(sun).map(|(v, s)| *v - *s).collect();
+                    gpu.queue.write_buffer(&m.radiance, 0, bytemuck::cast_slice(&rest));
+                }
+                None => gpu.queue.write_buffer(&m.radiance, 0, bytemuck::cast_slice(v)),
             }
         }
     }
@@ -574,6 +632,8 @@ impl Viewport {
             inverse_view_proj: view_proj.inverse().to_cols_array_2d(),
             eye: orbit.eye().extend(1.0).into(),
             sun_clip: self.sun.clip.to_cols_array_2d(),
+            sun_direction: self.sun.direction(),
+            sun_shadow: self.sun.params(),
         };
         gpu.queue.write_buffer(&self.uniform, 0, bytemuck::bytes_of(&view));
         let mut encoder = gpu.device.create_command_encoder(&Default::default());
@@ -702,21 +762,15 @@ fn prt_draw(gpu: &Gpu, layout: &wgpu::BindGroupLayout, flat: &FlatScene, frame: 
         storage(gpu, "preview silhouettes", &shadows.silhouettes),
         storage(gpu, "preview tables", &shadows.tables),
     ];
-    PrtDraw { bind: bind_buffers(gpu, layout, &buffers, &[]), count: indices.len() as u32 }
+    PrtDraw { bind: bind_buffers(gpu, layout, &buffers), count: indices.len() as u32 }
 }
 
 /// A bind group of `buffers` at bindings 0, 1, … of `layout`.
-fn bind_buffers(
-    gpu: &Gpu,
-    layout: &wgpu::BindGroupLayout,
-    buffers: &[wgpu::Buffer],
-    more: &[wgpu::BindGroupEntry],
-) -> wgpu::BindGroup {
+fn bind_buffers(gpu: &Gpu, layout: &wgpu::BindGroupLayout, buffers: &[wgpu::Buffer]) -> wgpu::BindGroup {
     let entries: Vec<wgpu::BindGroupEntry> = buffers
         .iter()
         .enumerate()
         .map(|(k, b)| wgpu::BindGroupEntry { binding: k as u32, resource: b.as_entire_binding() })
-        .chain(more.iter().cloned())
         .collect();
     gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
         label: Some("preview storage"),
@@ -734,7 +788,6 @@ fn lit_draw(
     flat: &FlatScene,
     lights: &PixelLights,
     mips: Option<&wgpu::Buffer>,
-    (shadow, rendered): (&SunShadow, bool),
 ) -> Option<LitDraw> {
     let gpu_lights = flat.lights.iter().map(kage_gpu::bspvt::gpu_light).collect::<Result<Vec<_>, _>>().ok()?;
     let environment = lights.environment.as_ref().filter(|_| mips.is_some());
@@ -770,10 +823,7 @@ fn lit_draw(
     }
     let tables: Vec<f32> =
         ltc::table().entries().iter().flatten().chain(ggx::albedo_tables().concat().iter()).copied().collect();
-    let mut params = lit_params(flat.lights.len(), environment.map(|e| &e.prefiltered), sun.map(|s| &s.sun));
-    if rendered {
-        params.sun_shadow = shadow.params();
-    }
+    let params = lit_params(flat.lights.len(), environment.map(|e| &e.prefiltered), sun.map(|s| &s.sun));
     let rest = storage(gpu, "preview rest", &vec![[0.0f32; 4]; vertices.len()]);
     let mips = mips.cloned().unwrap_or_else(|| storage(gpu, "preview no mips", &[[0.0f32; 4]]));
     let buffers = [
@@ -786,11 +836,7 @@ fn lit_draw(
         storage(gpu, "preview ltc tables", &tables),
         mips,
     ];
-    let depth = [
-        wgpu::BindGroupEntry { binding: 8, resource: wgpu::BindingResource::TextureView(&shadow.view) },
-        wgpu::BindGroupEntry { binding: 9, resource: wgpu::BindingResource::Sampler(&shadow.sampler) },
-    ];
-    Some(LitDraw { bind: bind_buffers(gpu, layout, &buffers, &depth), rest, per_pixel, ranges })
+    Some(LitDraw { bind: bind_buffers(gpu, layout, &buffers), rest, per_pixel, ranges })
 }
 
 /// The per-pixel lights' parameters: the light count and where the chain's levels are (none
@@ -804,7 +850,6 @@ fn lit_params(lights: usize, chain: Option<&Prefiltered>, sun: Option<&Sun>) -> 
         level: [[0; 4]; MAX_LEVELS],
         sun_direction: [0.0; 4],
         sun_irradiance: [0.0; 4],
-        sun_shadow: [0.0; 4],
     };
     if let Some(sun) = sun {
         let least = (SUN_ALPHA_FLOOR * sun.angular_radius).sqrt().max(1e-6);
@@ -855,7 +900,7 @@ fn lit_vertex(flat: &FlatScene, i: usize, v: usize, d: &Detail, weight: f32) -> 
 /// indices read by the vertex stage, vertices by both, `fragment` more by the fragment (see
 /// preview.wgsl); `None` when the device allows fewer storage buffers per stage than the
 /// fragment stage binds.
-fn storage_layout(gpu: &Gpu, fragment: usize, more: &[wgpu::BindGroupLayoutEntry]) -> Option<wgpu::BindGroupLayout> {
+fn storage_layout(gpu: &Gpu, fragment: usize) -> Option<wgpu::BindGroupLayout> {
     use wgpu::ShaderStages as S;
     if (gpu.device.limits().max_storage_buffers_per_shader_stage as usize) < fragment + 1 {
         return None;
@@ -878,29 +923,11 @@ fn storage_layout(gpu: &Gpu, fragment: usize, more: &[wgpu::BindGroupLayoutEntry
             },
             count: None,
         })
-        .chain(more.iter().copied())
         .collect();
     Some(gpu.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
         label: Some("preview storage"),
         entries: &entries,
     }))
-}
-
-/// The per-pixel lights' bindings 8 and 9: the sun's depth map and its comparison sampler.
-fn sun_depth_entries() -> [wgpu::BindGroupLayoutEntry; 2] {
-    let entry =
-        |binding, ty| wgpu::BindGroupLayoutEntry { binding, visibility: wgpu::ShaderStages::FRAGMENT, ty, count: None };
-    [
-        entry(
-            8,
-            wgpu::BindingType::Texture {
-                sample_type: wgpu::TextureSampleType::Depth,
-                view_dimension: wgpu::TextureViewDimension::D2,
-                multisampled: false,
-            },
-        ),
-        entry(9, wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Comparison)),
-    ]
 }
 
 /// The bind group layouts the pipelines use: the view (group 0), then the base-colour texture
@@ -933,9 +960,10 @@ fn build_pipelines(
             attribute(3, vec3, 8),
             attribute(4, wgpu::VertexFormat::Float32x2, 20),
         ],
+        vec![attribute(5, vec3, 0)],
     ];
-    let strides = [12, 12, std::mem::size_of::<Detail>() as u64];
-    let per_vertex = [0, 1, 2].map(|k| {
+    let strides = [12, 12, std::mem::size_of::<Detail>() as u64, 12];
+    let per_vertex = [0, 1, 2, 3].map(|k| {
         Some(wgpu::VertexBufferLayout {
             array_stride: strides[k],
             step_mode: wgpu::VertexStepMode::Vertex,
@@ -1037,6 +1065,7 @@ fn mesh_buffers(gpu: &Gpu, positions: &[Vec3], look: Look, indices: &[u32]) -> M
         positions: init("positions", bytemuck::cast_slice(positions), v),
         radiance: init("radiance", bytemuck::cast_slice(look.radiance), v),
         detail: init("detail", bytemuck::cast_slice(look.detail), wgpu::BufferUsages::VERTEX),
+        sun: init("sun", bytemuck::cast_slice(&vec![Vec3::ZERO; positions.len()]), v),
         indices: init("indices", bytemuck::cast_slice(indices), wgpu::BufferUsages::INDEX),
         texture: look.texture,
         count: indices.len() as u32,

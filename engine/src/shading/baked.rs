@@ -384,16 +384,20 @@ pub fn sun_light(
     (crate::shading::Bsdf::new(&material, wo).eval(wo, wi) * wi.z * sun.irradiance, true)
 }
 
-/// Per instance and vertex: the sun's light toward `eye` as the look adds it — what the
-/// editor's viewport takes out of the vertices' radiance to shade the sun per pixel.
-pub fn sun_vertices(flat: &FlatScene, sun: &Sun, eye: Vec3) -> VertexValues {
-    let bvh = SceneBvh::quick_over(flat);
-    (0..flat.instances.len())
-        .map(|i| {
-            let at = |v: usize| sun_light(flat, sun, &bvh, (i, [v; 3], [1.0, 0.0, 0.0]), flat.vertex(i, v).0, eye).0;
-            (0..flat.vertex_count(i)).into_par_iter().map(at).collect()
-        })
-        .collect()
+/// Per instance and vertex: the sun's light toward `eye` as the look adds it, and as it would
+/// be with nothing in the way — what the editor's viewport takes out of the vertices' radiance
+/// and puts back per pixel under its depth map.
+pub fn sun_vertices(flat: &FlatScene, sun: &Sun, eye: Vec3) -> (VertexValues, VertexValues) {
+    let (bvh, open) = (SceneBvh::quick_over(flat), SceneBvh::new(&[]));
+    let light = |bvh: &SceneBvh| -> VertexValues {
+        (0..flat.instances.len())
+            .map(|i| {
+                let at = |v: usize| sun_light(flat, sun, bvh, (i, [v; 3], [1.0, 0.0, 0.0]), flat.vertex(i, v).0, eye).0;
+                (0..flat.vertex_count(i)).into_par_iter().map(at).collect()
+            })
+            .collect()
+    };
+    (light(&bvh), light(&open))
 }
 
 /// The environment's per-vertex terms (diffuse and specular, the sun apart) of the last frame
