@@ -76,9 +76,15 @@ impl SunShadow {
         }
     }
 
-    /// Nothing to look up: the shaders leave the sun unshadowed by the map.
+    /// Nothing to look up (or the geometry changed): the shaders leave the sun unshadowed by
+    /// the map until it is rendered again.
     pub fn clear(&mut self) {
         self.toward = None;
+    }
+
+    /// True when the map holds the current geometry seen from `direction`.
+    pub fn holds(&self, direction: Vec3) -> bool {
+        self.toward == Some(direction)
     }
 
     /// The view's `sun_direction`: toward the sun, w 1 when the map was rendered for it.

@@ -426,9 +426,8 @@ impl Viewport {
             _ => None,
         };
         let sun = lights.and_then(|l| l.environment.as_ref()).and_then(|e| e.sun.as_ref());
-        match sun.filter(|_| self.lit.is_some()) {
-            Some(s) => self.render_sun(gpu, flat, s.sun.direction),
-            None => self.sun.clear(),
+        if let Some(s) = sun.filter(|_| self.lit.is_some()) {
+            self.render_sun(gpu, flat, s.sun.direction);
         }
     }
 
@@ -446,16 +445,18 @@ impl Viewport {
             gpu.queue.write_buffer(&m.sun, 0, bytemuck::cast_slice(&open));
         }
         self.vertex_sun = sun.map(|s| s.values.clone());
-        match sun {
-            Some(s) => self.render_sun(gpu, flat, s.sun.direction),
-            None if self.lit.is_none() => self.sun.clear(),
-            None => {}
+        if let Some(s) = sun {
+            self.render_sun(gpu, flat, s.sun.direction);
         }
     }
 
     /// Renders the sun's depth map of every mesh and light polygon (the shadow rays of `kage
     /// render` see the lights too).
     fn render_sun(&mut self, gpu: &Gpu, flat: &FlatScene, direction: Vec3) {
+        // The map depends on the geometry and the sun only: a camera or light move keeps it.
+        if self.sun.holds(direction) {
+            return;
+        }
         let clip = self.sun.aim(direction, flat.bounding_sphere());
         let view = View { sun_clip: clip.to_cols_array_2d(), ..Zeroable::zeroed() };
         // The pass binds the view with a stand-in map: it draws into the real one.
@@ -480,6 +481,7 @@ impl Viewport {
     /// Uploads every instance's world-space triangles with its base-colour texture, and every
     /// light polygon.
     pub fn upload_geometry(&mut self, gpu: &Gpu, flat: &FlatScene) {
+        self.sun.clear();
         let plain = detail::bind_group(gpu, &self.detail_layout, flat, detail::Textures::default());
         let mut textures = std::collections::HashMap::new();
         self.meshes = (0..flat.instances.len())
