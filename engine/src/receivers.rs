@@ -395,9 +395,14 @@ fn side_error(
 ) -> [f32; 2] {
     let (a, b) = (a as usize, b as usize);
     let (va, vb) = (&vertex[a], &vertex[b]);
+    // An end inside geometry is left out of its pixels' shading: nothing to interpolate.
+    if va.is_empty() || vb.is_empty() {
+        return [0.0; 2];
+    }
     let mid = at(0.5 * (p[a] + p[b]), (n[a] + n[b]).normalize_or_zero());
     let error = |views: std::ops::Range<usize>| {
-        views.map(|l| (va[l] - vb[l]).abs().max((mid[l] - 0.5 * (va[l] + vb[l])).abs())).fold(0.0, f32::max)
+        let departs = |l: usize| mid.get(l).map_or(0.0, |m| (m - 0.5 * (va[l] + vb[l])).abs());
+        views.map(|l| (va[l] - vb[l]).abs().max(departs(l))).fold(0.0, f32::max)
     };
     [error(0..lights), error(lights..va.len())]
 }
@@ -433,7 +438,8 @@ const ENVIRONMENT_DIRECTIONS: u32 = 64;
 /// Shadow rays from receiver points to what lights them: fixed points on every light where it
 /// is, or in every cell of its reach box, and fixed directions of the environment.
 struct Probe {
-    /// What casts the polygonal lights' shadows (as BSPVT bakes them): every instance, no light.
+    /// What casts the polygonal lights' shadows (as BSPVT bakes them), and what a point may be
+    /// inside: every instance, no light.
     bvh: SceneBvh,
     /// Per group, its instances' triangles: per vertex, PRT bakes only the shadows a group casts
     /// on itself (other groups' shadows and the sun are shaded per pixel, `docs/baked.md`).
@@ -456,12 +462,12 @@ impl Probe {
         let mut views: Vec<View> = flat.lights.iter().flat_map(light_views).collect();
         let lights = views.len();
         views.extend(flat.environment.as_ref().map(environment_view));
-        // Only what some view casts rays against is built.
+        // The groups' BVHs only where the environment is probed.
         let cut = |keep: &dyn Fn(&crate::scene::TriangleRef) -> bool| {
             let (triangles, holes) = flat.select(|r| r.light == NO_LIGHT && keep(r));
             SceneBvh::new(&triangles).cut(&holes)
         };
-        let bvh = if lights > 0 { cut(&|_| true) } else { SceneBvh::new(&[]) };
+        let bvh = cut(&|_| true);
         let groups = if views.len() > lights {
             (0..entities.len()).map(|g| cut(&|r| group_of[r.owner as usize] == g)).collect()
         } else {
@@ -470,8 +476,13 @@ impl Probe {
         Self { bvh, groups, group_of, views, lights }
     }
 
-    /// Per view, the share of it that `p` (normal `n`) on instance `instance` sees.
+    /// Per view, the share of it that `p` (normal `n`) on instance `instance` sees; empty for
+    /// a point inside geometry ([`SceneBvh::inside`]), whose shading takes no part in what is
+    /// seen (`bspvt::pixel`).
     fn visibility(&self, p: Vec3, n: Vec3, instance: usize) -> Vec<f32> {
+        if self.bvh.inside(p, n) {
+            return Vec::new();
+        }
         let origin = p + n * 1e-4 * (1.0 + p.abs().max_element());
         let own = self.groups.get(self.group_of[instance]);
         self.views

@@ -11,6 +11,7 @@ mod stored;
 pub use instances::Occluders;
 pub(crate) use instances::slab_hits;
 
+use crate::math::sampling;
 use crate::scene::{FlatScene, Holes};
 use glam::{Vec2, Vec3, Vec3A};
 use obvhs::{BvhBuildParams, cwbvh::CwBvh, ray::Ray, rt_triangle::RtTriangle, triangle::Triangle};
@@ -106,6 +107,31 @@ impl SceneBvh {
 
     /// The closest hit along `dir` (unit) from `origin` within `(0, tmax)`.
     pub fn closest_hit(&self, origin: Vec3, dir: Vec3, tmax: f32) -> Option<Hit> {
+        let (slot, t) = self.closest_slot(origin, dir, tmax)?;
+        let p = Vec3A::from(origin) + Vec3A::from(dir) * t;
+        Some(Hit { triangle: self.bvh.primitive_indices[slot], t, bary: barycentrics(&self.tris[slot], p) })
+    }
+
+    /// Whether a surface point `p` (unit normal `n`) lies inside closed geometry — a floor's
+    /// vertex under a box resting on it — rather than merely in shadow: at least half of
+    /// [`INSIDE_RAYS`] rays over its hemisphere (a fixed cosine-distributed Hammersley set)
+    /// first meet a triangle from behind. Such a point's lighting means nothing for what is
+    /// seen around it.
+    pub fn inside(&self, p: Vec3, n: Vec3) -> bool {
+        let frame = crate::math::frame::Frame::from_normal(n);
+        let behind = (0..INSIDE_RAYS)
+            .filter(|&k| {
+                let d = frame.to_world(sampling::cosine_hemisphere(sampling::hammersley(k, INSIDE_RAYS)));
+                // obvhs' `ng` is the negated geometric normal: a hit from behind has ng · d < 0.
+                self.closest_slot(offset_ray_origin(p, n, d), d, f32::INFINITY)
+                    .is_some_and(|(slot, _)| self.tris[slot].ng.dot(Vec3A::from(d)) < 0.0)
+            })
+            .count();
+        2 * behind >= INSIDE_RAYS as usize
+    }
+
+    /// The leaf slot and distance of the closest hit.
+    fn closest_slot(&self, origin: Vec3, dir: Vec3, tmax: f32) -> Option<(usize, f32)> {
         if self.tris.is_empty() {
             return None;
         }
@@ -118,13 +144,7 @@ impl SceneBvh {
         } else {
             self.bvh.ray_traverse(ray, &mut hit, |r, id| self.intersect_cut(r, id))
         };
-        if !found {
-            return None;
-        }
-        let slot = hit.primitive_id as usize;
-        let tri = &self.tris[slot];
-        let p = Vec3A::from(origin) + Vec3A::from(dir) * hit.t;
-        Some(Hit { triangle: self.bvh.primitive_indices[slot], t: hit.t, bary: barycentrics(tri, p) })
+        found.then_some((hit.primitive_id as usize, hit.t))
     }
 
     /// True when anything blocks the segment from `origin` along `dir` (unit) within `(0, tmax)`.
@@ -140,6 +160,9 @@ impl SceneBvh {
         }
     }
 }
+
+/// Rays [`SceneBvh::inside`] casts.
+pub const INSIDE_RAYS: u32 = 32;
 
 /// obvhs' triangle of three vertices.
 fn triangle([v0, v1, v2]: [Vec3; 3]) -> Triangle {
@@ -281,6 +304,23 @@ mod tests {
             assert!(!bvh.occluded(Vec3::new(0.25, 0.5, 1.0), Vec3::NEG_Z, 0.5));
         }
         assert!(SceneBvh::new(&[]).closest_hit(Vec3::ZERO, Vec3::X, 1.0).is_none());
+    }
+
+    /// A floor point under a box resting on it is inside; one beside it, or under a slab
+    /// floating above (in shadow, not inside), is not.
+    #[test]
+    fn points_under_a_resting_box_are_inside_and_shadowed_points_are_not() {
+        let world = |m: &crate::scene::Mesh, at: Vec3| -> Vec<[Vec3; 3]> {
+            m.triangles.iter().map(|t| t.map(|i| m.positions[i as usize] + at)).collect()
+        };
+        let floor = world(&crate::scene::shapes::grid(8.0, 8), Vec3::ZERO);
+        let box_ = world(&crate::scene::shapes::cuboid(Vec3::splat(0.5)), Vec3::new(0.0, 0.5, 0.0));
+        let slab = world(&crate::scene::shapes::cuboid(Vec3::new(0.5, 0.05, 0.5)), Vec3::new(2.0, 1.0, 0.0));
+        let bvh = SceneBvh::new(&[floor, box_, slab].concat());
+        assert!(bvh.inside(Vec3::new(0.1, 0.0, -0.2), Vec3::Y), "under the box");
+        assert!(!bvh.inside(Vec3::new(0.8, 0.0, 0.0), Vec3::Y), "beside it");
+        assert!(!bvh.inside(Vec3::new(2.0, 0.0, 0.0), Vec3::Y), "under the floating slab");
+        assert!(!SceneBvh::new(&[]).inside(Vec3::ZERO, Vec3::Y));
     }
 
     #[test]

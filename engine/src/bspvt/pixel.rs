@@ -33,6 +33,7 @@ impl Lobes {
     pub fn at_vertices(flat: &FlatScene, bake: Option<&Bake>, eye: Vec3) -> (Self, VertexValues) {
         let table = ltc::table();
         let lights = flat.lights.len();
+        let bvh = crate::accel::SceneBvh::over(flat);
         let (integrals, values) = (0..flat.instances.len())
             .map(|i| {
                 let rows: Vec<(Vec3, Vec<[[f32; 2]; 2]>)> = (0..flat.vertex_count(i))
@@ -46,11 +47,12 @@ impl Lobes {
                             Some(_) => shader.lobe_integrals(&flat.lights, Visibility::Unshadowed),
                             None => shut.clone(),
                         };
-                        let pairs = shut
-                            .into_iter()
-                            .zip(open)
-                            .map(|(s, o)| [[s[0] as f32, o[0] as f32], [s[1] as f32, o[1] as f32]])
-                            .collect();
+                        // A vertex inside geometry (under a box resting on the floor) takes no
+                        // part in its pixels' fractions: its zeros would darken what is seen.
+                        let keep = if bvh.inside(p, n) { 0.0 } else { 1.0 };
+                        let pair = |s: f64, o: f64| [s as f32 * keep, o as f32 * keep];
+                        let pairs =
+                            shut.into_iter().zip(open).map(|(s, o)| [pair(s[0], o[0]), pair(s[1], o[1])]).collect();
                         (radiance, pairs)
                     })
                     .collect();
