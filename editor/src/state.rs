@@ -301,6 +301,8 @@ pub(super) struct Memo {
     pub(super) environment: kage_engine::shading::baked::EnvironmentMemo,
     /// Picking's BVH of the current snapshot, built on the first pick after it changed.
     pub(super) picker: Option<super::pick::Picker>,
+    /// Which vertices lie inside geometry, kept while the instances stay put.
+    pub(super) inside: kage_engine::bspvt::pixel::Inside,
 }
 
 /// The editor's background computations (each streams results the systems take in).

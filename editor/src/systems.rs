@@ -645,7 +645,7 @@ fn fits<T>(ed: &Editor, instances: &[T], vertices: impl Fn(&T) -> usize) -> bool
 fn polygonal(ed: &mut Editor, mode: Mode, eye: Vec3) -> VertexValues {
     if ed.lights_per_pixel() {
         let bake = ed.bakes.bspvt.as_deref().filter(|_| mode == Mode::Trees);
-        let (lobes, values) = Lobes::at_vertices(&ed.flat, bake, eye);
+        let (lobes, values) = Lobes::at_vertices(&ed.flat, bake, eye, ed.memo.inside.flags(&ed.flat));
         ed.pixel_lights = Some(PixelLights { lobes, values: values.clone(), environment: None });
         return values;
     }
@@ -721,7 +721,7 @@ fn specular_per_pixel(ed: &mut Editor, eye: Vec3) {
     let Some(lighting) = &ed.bakes.lighting else { return };
     let environment = Some(PixelEnvironment::new(&ed.flat, specular, pre, lighting, eye));
     let lights = ed.pixel_lights.get_or_insert_with(|| {
-        let (lobes, values) = Lobes::at_vertices(&ed.flat, None, eye);
+        let (lobes, values) = Lobes::at_vertices(&ed.flat, None, eye, ed.memo.inside.flags(&ed.flat));
         PixelLights { lobes, values, environment: None }
     });
     lights.environment = environment;

@@ -115,11 +115,11 @@ fn lights_drawn(
     orbit: &Orbit,
 ) -> (Vec<[u8; 3]>, image::RgbaImage, image::RgbaImage) {
     use kage_editor::viewport::PixelLights;
-    use kage_engine::bspvt::{self, pixel::Lobes};
+    use kage_engine::bspvt::{self, pixel::Inside, pixel::Lobes};
     use kage_engine::raster::shade_image;
     let bake = bspvt::bake(flat, &bspvt::Settings { res: 16, epsilon: 2.0 }, &|_| {});
     let eye = orbit.eye();
-    let (lobes, values) = Lobes::at_vertices(flat, Some(&bake), eye);
+    let (lobes, values) = Lobes::at_vertices(flat, Some(&bake), eye, Inside::default().flags(flat));
     let (w, h) = (240, 160);
     let camera = Camera::look_at(eye, orbit.target, orbit.yfov);
     let exposure = -1.0f32;
@@ -190,7 +190,7 @@ fn the_environments_reflection_is_drawn_per_pixel() {
 fn reflection_drawn(map: &str) -> (f64, f64, f64) {
     use kage_editor::viewport::{PixelEnvironment, PixelLights, PixelSun};
     use kage_engine::accel::SceneBvh;
-    use kage_engine::bspvt::{self, pixel::Lobes};
+    use kage_engine::bspvt::{self, pixel::Inside, pixel::Lobes};
     use kage_engine::math::ggx;
     use kage_engine::prt::prefilter::Prefiltered;
     use kage_engine::raster::shade_image;
@@ -210,7 +210,7 @@ fn reflection_drawn(map: &str) -> (f64, f64, f64) {
     let pre = Prefiltered::new(flat.environment.as_ref().unwrap());
     let orbit = Orbit { target: Vec3::new(0.0, 0.3, 0.0), distance: 6.5, yaw: 0.3, pitch: 0.55, yfov: 0.8 };
     let eye = orbit.eye();
-    let (lobes, poly) = Lobes::at_vertices(&flat, Some(&trees), eye);
+    let (lobes, poly) = Lobes::at_vertices(&flat, Some(&trees), eye, Inside::default().flags(&flat));
     let parts = prt::Parts { bake: &transfer, lighting: &lighting, settings: &s };
     let (mut memo, mut silhouettes) = (EnvironmentMemo::default(), prt::SilhouetteMemo::default());
     let polygonal = Polygonal { bake: Some(&trees), values: poly.clone(), lobes: None };

@@ -57,9 +57,10 @@ fn bench(c: &mut Criterion) {
     // Per-vertex direct values as the editor's `baked` view shades them on the CPU: polygonal
     // lights from the trees with the lobes' pairs its viewport draws them with per pixel, the
     // environment's part through the memo.
+    let mut inside = bspvt::pixel::Inside::default();
     let mut shade = |scene: &Scene, eye: Vec3| {
         let flat = flatten(scene);
-        let (_lobes, values) = bspvt::pixel::Lobes::at_vertices(&flat, Some(&trees), eye);
+        let (_lobes, values) = bspvt::pixel::Lobes::at_vertices(&flat, Some(&trees), eye, inside.flags(&flat));
         let polygonal = Polygonal { bake: Some(&trees), values, lobes: None };
         Look::direct_reusing(scene, &flat, eye, Some(polygonal), Some((parts, Some(&pre))), &mut environment, &mut memo)
             .len()

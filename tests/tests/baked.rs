@@ -196,7 +196,8 @@ fn shade_through(
     let flat = flatten(scene);
     let bakes = Bakes { bspvt: Some(trees), prt: Some(env.parts()), prefiltered: Some(&env.prefiltered) };
     let fresh = Look::prepare(scene, &flat, bakes, eye, &mut prt::SilhouetteMemo::default()).into_direct();
-    let (lobes, values) = bspvt::pixel::Lobes::at_vertices(&flat, Some(trees), eye);
+    let (lobes, values) =
+        bspvt::pixel::Lobes::at_vertices(&flat, Some(trees), eye, bspvt::pixel::Inside::default().flags(&flat));
     let polygonal = Polygonal { bake: Some(trees), values, lobes: Some(lobes) };
     let before = memo.reused();
     let environment = Some((env.parts(), Some(&env.prefiltered)));

@@ -30,10 +30,10 @@ impl Lobes {
     /// The integrals at every vertex toward `eye` with the trees of `bake` (`None`:
     /// unshadowed), and the vertices' radiance (as [`super::shade_vertices`] gives it) from the
     /// same pass.
-    pub fn at_vertices(flat: &FlatScene, bake: Option<&Bake>, eye: Vec3) -> (Self, VertexValues) {
+    /// `inside`: per instance and vertex, whether it lies inside geometry ([`Inside`]).
+    pub fn at_vertices(flat: &FlatScene, bake: Option<&Bake>, eye: Vec3, inside: &[Vec<bool>]) -> (Self, VertexValues) {
         let table = ltc::table();
         let lights = flat.lights.len();
-        let bvh = crate::accel::SceneBvh::over(flat);
         let (integrals, values) = (0..flat.instances.len())
             .map(|i| {
                 let rows: Vec<(Vec3, Vec<[[f32; 2]; 2]>)> = (0..flat.vertex_count(i))
@@ -49,7 +49,7 @@ impl Lobes {
                         };
                         // A vertex inside geometry (under a box resting on the floor) takes no
                         // part in its pixels' fractions: its zeros would darken what is seen.
-                        let keep = if bvh.inside(p, n) { 0.0 } else { 1.0 };
+                        let keep = if inside[i][v] { 0.0 } else { 1.0 };
                         let pair = |s: f64, o: f64| [s as f32 * keep, o as f32 * keep];
                         let pairs =
                             shut.into_iter().zip(open).map(|(s, o)| [pair(s[0], o[0]), pair(s[1], o[1])]).collect();
@@ -90,6 +90,43 @@ impl Lobes {
     }
 }
 
+/// Which vertices lie inside geometry ([`crate::accel::SceneBvh::inside`] against every
+/// instance, lights left out), kept while the instances stay as they are: a light or camera
+/// move, which re-shades, does not cast its rays again.
+#[derive(Default)]
+pub struct Inside {
+    key: Option<blake3::Hash>,
+    flags: Vec<Vec<bool>>,
+}
+
+impl Inside {
+    /// Per instance and vertex of `flat`, whether it lies inside geometry.
+    pub fn flags(&mut self, flat: &FlatScene) -> &[Vec<bool>] {
+        let mut h = blake3::Hasher::new();
+        for (i, inst) in flat.instances.iter().enumerate() {
+            h.update(&flat.occluder_hash(i));
+            h.update(bytemuck::cast_slice(&inst.world.to_cols_array()));
+        }
+        let key = h.finalize();
+        if self.key != Some(key) {
+            let (triangles, holes) = flat.select(|r| r.light == crate::scene::NO_LIGHT);
+            let bvh = crate::accel::SceneBvh::quick(&triangles).cut(&holes);
+            let inside = |i: usize| -> Vec<bool> {
+                (0..flat.vertex_count(i))
+                    .into_par_iter()
+                    .map(|v| {
+                        let (p, n) = flat.vertex(i, v);
+                        bvh.inside(p, n)
+                    })
+                    .collect()
+            };
+            self.flags = (0..flat.instances.len()).map(inside).collect();
+            self.key = Some(key);
+        }
+        &self.flags
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -104,15 +141,12 @@ mod tests {
         let flat = flatten(&default_scene());
         let bake = crate::bspvt::bake(&flat, &Settings { res: 8, epsilon: 2.0 }, &|_| {});
         let eye = Vec3::new(0.0, 2.0, 5.0);
-        let (lobes, values) = Lobes::at_vertices(&flat, Some(&bake), eye);
+        let mut inside = Inside::default();
+        let flags = inside.flags(&flat).to_vec();
+        let (lobes, values) = Lobes::at_vertices(&flat, Some(&bake), eye, &flags);
         assert_eq!(values, shade_vertices(&flat, Shadows::Trees(&bake), eye));
-        let bvh = crate::accel::SceneBvh::over(&flat);
-        let inside = |i: usize, v: usize| {
-            let (p, n) = flat.vertex(i, v);
-            bvh.inside(p, n)
-        };
-        assert!(flat.vertex_ids().any(|(i, v)| inside(i, v)), "the ground under the box");
-        for (i, v) in flat.vertex_ids().step_by(37).filter(|&(i, v)| !inside(i, v)) {
+        assert!(flags.iter().flatten().any(|&f| f), "the ground under the box");
+        for (i, v) in flat.vertex_ids().step_by(37).filter(|&(i, v)| !flags[i][v]) {
             let (position, _) = flat.vertex(i, v);
             let hit = SurfaceHit { instance: i, corners: [v, v, v], weights: [1.0, 0.0, 0.0], position };
             let (pixel, vertex) = (lobes.shade(&flat, &hit, eye), values[i][v]);

@@ -102,7 +102,8 @@ impl<'a> Look<'a> {
         memo: &mut prt::SilhouetteMemo,
     ) -> Self {
         let polygonal = bakes.bspvt.map(|b| {
-            let (lobes, values) = bspvt::pixel::Lobes::at_vertices(flat, Some(b), eye);
+            let mut inside = bspvt::pixel::Inside::default();
+            let (lobes, values) = bspvt::pixel::Lobes::at_vertices(flat, Some(b), eye, inside.flags(flat));
             Polygonal { bake: Some(b), values, lobes: Some(lobes) }
         });
         let environment = bakes.prt.map(|parts| {
@@ -368,6 +369,20 @@ pub fn sun_light(
     flat: &FlatScene,
     sun: &Sun,
     bvh: &SceneBvh,
+    at: (usize, [usize; 3], [f32; 3]),
+    p: Vec3,
+    to: Vec3,
+) -> (Vec3, bool) {
+    let (open, seen) = sun_parts(flat, sun, bvh, at, p, to);
+    (if seen { open } else { Vec3::ZERO }, seen)
+}
+
+/// [`sun_light`] with nothing in the way (zero below the point's horizon), and whether the
+/// sun is seen.
+fn sun_parts(
+    flat: &FlatScene,
+    sun: &Sun,
+    bvh: &SceneBvh,
     (i, corners, bary): (usize, [usize; 3], [f32; 3]),
     p: Vec3,
     to: Vec3,
@@ -375,29 +390,31 @@ pub fn sun_light(
     let n = (0..3).map(|c| flat.vertex(i, corners[c]).1 * bary[c]).sum::<Vec3>().normalize_or_zero();
     let frame = Frame::from_normal(n);
     let wi = frame.to_local(sun.direction);
-    if wi.z <= 0.0 || bvh.occluded(offset_ray_origin(p, n, sun.direction), sun.direction, f32::INFINITY) {
+    if wi.z <= 0.0 {
         return (Vec3::ZERO, false);
     }
+    let seen = !bvh.occluded(offset_ray_origin(p, n, sun.direction), sun.direction, f32::INFINITY);
     let mut material = flat.material_at(i, corners, bary);
     material.roughness = material.roughness.max((SUN_ALPHA_FLOOR * sun.angular_radius).sqrt());
     let wo = frame.to_local((to - p).normalize_or_zero());
-    (crate::shading::Bsdf::new(&material, wo).eval(wo, wi) * wi.z * sun.irradiance, true)
+    (crate::shading::Bsdf::new(&material, wo).eval(wo, wi) * wi.z * sun.irradiance, seen)
 }
 
 /// Per instance and vertex: the sun's light toward `eye` as the look adds it, and as it would
 /// be with nothing in the way — what the editor's viewport takes out of the vertices' radiance
 /// and puts back per pixel under its depth map.
 pub fn sun_vertices(flat: &FlatScene, sun: &Sun, eye: Vec3) -> (VertexValues, VertexValues) {
-    let (bvh, open) = (SceneBvh::quick_over(flat), SceneBvh::new(&[]));
-    let light = |bvh: &SceneBvh| -> VertexValues {
-        (0..flat.instances.len())
-            .map(|i| {
-                let at = |v: usize| sun_light(flat, sun, bvh, (i, [v; 3], [1.0, 0.0, 0.0]), flat.vertex(i, v).0, eye).0;
-                (0..flat.vertex_count(i)).into_par_iter().map(at).collect()
-            })
-            .collect()
-    };
-    (light(&bvh), light(&open))
+    let bvh = SceneBvh::quick_over(flat);
+    (0..flat.instances.len())
+        .map(|i| {
+            let at = |v: usize| {
+                let (open, seen) = sun_parts(flat, sun, &bvh, (i, [v; 3], [1.0, 0.0, 0.0]), flat.vertex(i, v).0, eye);
+                (if seen { open } else { Vec3::ZERO }, open)
+            };
+            let both: Vec<(Vec3, Vec3)> = (0..flat.vertex_count(i)).into_par_iter().map(at).collect();
+            both.into_iter().unzip::<_, _, Vec<Vec3>, Vec<Vec3>>()
+        })
+        .unzip()
 }
 
 /// The environment's per-vertex terms (diffuse and specular, the sun apart) of the last frame

@@ -78,7 +78,8 @@ fn gpu_image(job: &Job, bakes: Bakes, values: &VertexValues) -> Result<Vec<glam:
     let mut viewport = Viewport::new(&gpu, &shaders)?;
     viewport.set_environment(&gpu, flat.environment.as_ref());
     viewport.upload_geometry(&gpu, flat);
-    let (lobes, lights) = Lobes::at_vertices(flat, bakes.bspvt, eye);
+    let mut inside = kage_engine::bspvt::pixel::Inside::default();
+    let (lobes, lights) = Lobes::at_vertices(flat, bakes.bspvt, eye, inside.flags(flat));
     let environment = match (bakes.prt, bakes.prefiltered) {
         (Some(parts), Some(pre)) => {
             let mut memo = EnvironmentMemo::default();
