@@ -49,9 +49,9 @@ pub struct SceneArgs {
     /// 6000 (0 turns it off; the editor refines again before each bake).
     #[arg(long, value_name = "VERTICES", env = "KAGE_REFINE_RECEIVERS")]
     pub refine_receivers: Option<usize>,
-    /// Largest visibility error (0–1) linear interpolation may make along an edge after
-    /// --refine-receivers.
-    #[arg(long, value_name = "ERROR", default_value_t = 0.1)]
+    /// Largest visibility error (0–1, a share of the light) interpolation between an edge's
+    /// ends may make at its midpoint after --refine-receivers.
+    #[arg(long, value_name = "ERROR", default_value_t = 0.03)]
     pub refine_tolerance: f32,
 }
 

@@ -12,10 +12,13 @@
 //!    set of points on it — its centre and three rings through its corners and edge midpoints —
 //!    that the point sees in front of both), every cell of a light's declared reach box,
 //!    and the environment (the luminance-weighted share of fixed directions that the point sees
-//!    past its own group). An edge is split when, for some view and side, `|V(a) − V(b)|` or
-//!    `|V(mid) − (V(a) + V(b)) / 2|` exceeds the tolerance: where linear interpolation along
-//!    the edge misrepresents the shadow. The marks of a round are split largest error × world
-//!    length first (an edge's error spreads over its length) until the budget is spent.
+//!    past its own group). An edge is split when, for some view and side, what its pixels are
+//!    shaded with misses the truth at its midpoint by more than the tolerance: for a light,
+//!    the visible fraction as pixels interpolate it (shadowed over unshadowed share) weighed
+//!    by the unshadowed share; for the environment, `|V(a) − V(b)|` or
+//!    `|V(mid) − (V(a) + V(b)) / 2|` (see `side_error`). The marks of a round are split
+//!    largest error × world length first (an edge's error spreads over its length) until the
+//!    budget is spent.
 //!
 //! Lights without a declared reach are refined for where they are: moved, they are refined
 //! again when the scene is next loaded (and the changed receivers re-baked). Lights with one
@@ -37,7 +40,8 @@ use std::collections::HashMap;
 pub struct Settings {
     /// Vertices the refinement may add, over all receivers.
     pub budget: usize,
-    /// Largest visibility error (0–1) linear interpolation may make along an edge.
+    /// Largest visibility error (0–1, a share of the light) interpolation between an edge's
+    /// ends may make at its midpoint.
     pub tolerance: f32,
     /// Rounds of marking and splitting after the seed.
     pub rounds: usize,
@@ -45,7 +49,7 @@ pub struct Settings {
 
 impl Default for Settings {
     fn default() -> Self {
-        Self { budget: 10_000, tolerance: 0.1, rounds: 12 }
+        Self { budget: 10_000, tolerance: 0.03, rounds: 12 }
     }
 }
 
@@ -64,7 +68,7 @@ pub fn refine(scene: &mut Scene, settings: &Settings) -> crate::Result<Report> {
 
 /// Bumped whenever refinement would refine the same scene differently: it names kept
 /// refinements ([`key`]).
-pub const VERSION: u32 = 1;
+pub const VERSION: u32 = 2;
 
 /// What refinement reads of `scene` (its source meshes, as [`Scene::restore_source_meshes`]
 /// leaves it) and `settings`, hashed: the instances' meshes and placements, every occluding
@@ -381,10 +385,13 @@ fn marked(
         .collect()
 }
 
-/// One side of an edge (`[a, b]`, the vertices one triangle uses): how far linear
-/// interpolation between its ends misses the visibility along it — the ends' difference and
-/// the midpoint's departure from their mean — over the lights' views (the first `lights`) and
-/// over the environment's.
+/// One side of an edge (`[a, b]`, the vertices one triangle uses): how far what the pixels
+/// between its ends are shaded with misses the truth at its midpoint, over the lights' views
+/// (the first `lights`) and over the environment's. A light's visible fraction is interpolated
+/// as pixels interpolate it ([`crate::bspvt::pixel`]: the shadowed over the unshadowed share),
+/// and its error weighed by the unshadowed share there; a linear ramp across a penumbra, or the
+/// light sinking below a curved receiver's horizon (which LTC takes per pixel), is no error.
+/// The environment's share is interpolated linearly, so its ends' difference counts too.
 fn side_error(
     [a, b]: [u32; 2],
     p: &[Vec3],
@@ -400,11 +407,16 @@ fn side_error(
         return [0.0; 2];
     }
     let mid = at(0.5 * (p[a] + p[b]), (n[a] + n[b]).normalize_or_zero());
-    let error = |views: std::ops::Range<usize>| {
-        let departs = |l: usize| mid.get(l).map_or(0.0, |m| (m - 0.5 * (va[l] + vb[l])).abs());
-        views.map(|l| (va[l] - vb[l]).abs().max(departs(l))).fold(0.0, f32::max)
+    let Some(m) = (!mid.is_empty()).then_some(&mid) else { return [0.0; 2] };
+    let light = |l: usize| {
+        let [(sa, oa), (sb, ob), (sm, om)] = [va, vb, m].map(|v| (v[2 * l], v[2 * l + 1]));
+        // Where no corner sees the light above its horizon, pixels take it as unshadowed.
+        let shaded = if oa + ob > 0.0 { (sa + sb) / (oa + ob) } else { 1.0 };
+        if om > 0.0 { om * (shaded - sm / om).abs() } else { 0.0 }
     };
-    [error(0..lights), error(lights..va.len())]
+    let environment = |k: usize| (va[k] - vb[k]).abs().max((m[k] - 0.5 * (va[k] + vb[k])).abs());
+    let most = |e: &mut dyn Iterator<Item = f32>| e.fold(0.0, f32::max);
+    [most(&mut (0..lights).map(light)), most(&mut (2 * lights..va.len()).map(environment))]
 }
 
 /// Which views marked an edge. The environment's marks are split only once no light marks
@@ -476,28 +488,34 @@ impl Probe {
         Self { bvh, groups, group_of, views, lights }
     }
 
-    /// Per view, the share of it that `p` (normal `n`) on instance `instance` sees; empty for
-    /// a point inside geometry ([`SceneBvh::inside`]), whose shading takes no part in what is
-    /// seen (`bspvt::pixel`).
+    /// What `p` (normal `n`) on instance `instance` sees: per light view, the share of its
+    /// points seen and the share above the horizon (both in front of the light); then per
+    /// environment view, the share seen. Empty for a point inside geometry
+    /// ([`SceneBvh::inside`]), whose shading takes no part in what is seen (`bspvt::pixel`).
     fn visibility(&self, p: Vec3, n: Vec3, instance: usize) -> Vec<f32> {
         if self.bvh.inside(p, n) {
             return Vec::new();
         }
         let origin = p + n * 1e-4 * (1.0 + p.abs().max_element());
+        // As BSPVT's rays: what touches the point (a box resting on the floor) does not block.
+        let near = crate::accel::touching_distance(origin);
         let own = self.groups.get(self.group_of[instance]);
-        self.views
-            .iter()
-            .map(|view| match view {
+        let mut out = Vec::with_capacity(self.views.len() + self.lights);
+        for view in &self.views {
+            match view {
                 View::Points { points, facing } => {
-                    let lit = points.iter().filter(|&&s| {
+                    let (mut seen, mut above) = (0, 0);
+                    for &s in points {
                         let d = s - origin;
                         let dist = d.length();
                         let dir = d / dist;
-                        dir.dot(n) > 0.0
-                            && facing.is_none_or(|f| dir.dot(f) < 0.0)
-                            && !self.bvh.occluded(origin, dir, dist * (1.0 - 1e-4))
-                    });
-                    lit.count() as f32 / points.len() as f32
+                        if dir.dot(n) > 0.0 && facing.is_none_or(|f| dir.dot(f) < 0.0) {
+                            above += 1;
+                            let blocked = self.bvh.occluded_between(origin, dir, near, dist * (1.0 - 1e-4));
+                            seen += usize::from(!blocked);
+                        }
+                    }
+                    out.extend([seen as f32 / points.len() as f32, above as f32 / points.len() as f32]);
                 }
                 View::Directions(dirs) => {
                     let (mut lit, mut all) = (0.0, 0.0);
@@ -506,10 +524,11 @@ impl Probe {
                         all += w;
                         lit += if own.is_some_and(|g| g.occluded(origin, dir, f32::MAX)) { 0.0 } else { w };
                     }
-                    if all > 0.0 { lit / all } else { 1.0 }
+                    out.push(if all > 0.0 { lit / all } else { 1.0 });
                 }
-            })
-            .collect()
+            }
+        }
+        out
     }
 }
 

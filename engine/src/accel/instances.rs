@@ -86,12 +86,15 @@ impl Occluders {
         Self { parts, nodes, order }
     }
 
-    /// Whether instance `i`'s triangles alone block the segment (any hit; an instance index
+    /// Whether instance `i`'s triangles alone block the segment as [`Self::occluded`] asks (any hit; an instance index
     /// out of range or with no triangles blocks nothing). With the other instances unchanged,
     /// it is how an edit to instance `i` changes [`Self::occluded`].
     pub fn occluded_by(&self, i: usize, origin: Vec3, dir: Vec3, tmax: f32) -> bool {
         let p = self.parts.get(i).and_then(Option::as_ref);
-        p.is_some_and(|p| slab_hits(origin, dir.recip(), tmax, p.lo, p.hi) && p.bvh.occluded(origin, dir, tmax))
+        let near = super::touching_distance(origin);
+        p.is_some_and(|p| {
+            slab_hits(origin, dir.recip(), tmax, p.lo, p.hi) && p.bvh.occluded_between(origin, dir, near, tmax)
+        })
     }
 
     /// A [`Beam`] over instance `i`'s triangles from `origin`, when it has a few (at most
@@ -101,11 +104,14 @@ impl Occluders {
         (!p.few.is_empty()).then(|| Beam::new(origin, &p.few))
     }
 
-    /// True when any instance blocks the segment from `origin` along unit `dir` within `(0, tmax)`.
+    /// True when any instance blocks the segment from `origin` along unit `dir` within
+    /// `[touching_distance(origin), tmax]` ([`super::touching_distance`]: what touches the ray's
+    /// start does not block it).
     // Out of line: inlined into the cold bake's texel loop it ran 3–4 % slower (measured).
     #[inline(never)]
     pub fn occluded(&self, origin: Vec3, dir: Vec3, tmax: f32) -> bool {
         let inv = dir.recip();
+        let near = super::touching_distance(origin);
         // A balanced tree over at most 2³² parts is at most 33 deep.
         let mut stack = [0u32; 64];
         let mut depth = usize::from(!self.nodes.is_empty());
@@ -125,7 +131,7 @@ impl Occluders {
             if leaf
                 .iter()
                 .map(part)
-                .any(|p| slab_hits(origin, inv, tmax, p.lo, p.hi) && p.bvh.occluded(origin, dir, tmax))
+                .any(|p| slab_hits(origin, inv, tmax, p.lo, p.hi) && p.bvh.occluded_between(origin, dir, near, tmax))
             {
                 return true;
             }
@@ -194,6 +200,27 @@ mod tests {
             })
             .collect();
         answers_alike(&field);
+    }
+
+    /// A floor point on the line where a box rests on the floor lies in the plane of the box's
+    /// side: a ray leaving along that side, away from the box, is not blocked by it however the
+    /// side rounds, and a ray into the box is.
+    #[test]
+    fn what_touches_a_rays_start_does_not_block_it() {
+        for x in [0.5f32, 0.5 + f32::EPSILON, 0.5 - f32::EPSILON / 2.0] {
+            let (lo, hi) = (Vec3::new(-0.5, 0.0, -0.5), Vec3::new(x, 1.0, 0.5));
+            let cuboid = crate::scene::shapes::cuboid(0.5 * (hi - lo));
+            let corner = |i: u32| cuboid.positions[i as usize] + 0.5 * (lo + hi);
+            let occ = Occluders::new(&[cuboid.triangles.iter().map(|t| t.map(corner)).collect()]);
+            let p = super::super::offset_ray_origin(Vec3::new(0.5, 0.0, 0.1), Vec3::Y, Vec3::Y);
+            for k in 1..16 {
+                let up = k as f32 / 16.0;
+                let away = Vec3::new(1.0, up, 0.2).normalize();
+                assert!(!occ.occluded(p, away, f32::INFINITY), "side at {x}: away along {away}");
+                let into = Vec3::new(-1.0, up, 0.2).normalize();
+                assert!(occ.occluded(p, into, f32::INFINITY), "side at {x}: into the box along {into}");
+            }
+        }
     }
 
     fn answers_alike(parts: &[Vec<[Vec3; 3]>]) {

@@ -149,10 +149,15 @@ impl SceneBvh {
 
     /// True when anything blocks the segment from `origin` along `dir` (unit) within `(0, tmax)`.
     pub fn occluded(&self, origin: Vec3, dir: Vec3, tmax: f32) -> bool {
+        self.occluded_between(origin, dir, 0.0, tmax)
+    }
+
+    /// True when anything blocks the ray from `origin` along `dir` (unit) within `[tmin, tmax]`.
+    pub fn occluded_between(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> bool {
         if self.tris.is_empty() {
             return false;
         }
-        let ray = ray(origin, dir, tmax);
+        let ray = Ray::new(origin.into(), (dir + Vec3::ZERO).into(), tmin, tmax);
         if self.holes.is_empty() {
             !self.bvh.ray_traverse_miss(ray, |r, id| self.tris[id].intersect(r))
         } else {
@@ -189,6 +194,14 @@ fn barycentrics(tri: &RtTriangle, p: Vec3A) -> Vec2 {
 /// straight down a flat box's axis then misses everything (a pick straight down at the ground).
 fn ray(origin: Vec3, dir: Vec3, tmax: f32) -> Ray {
     Ray::new(origin.into(), (dir + Vec3::ZERO).into(), 0.0, tmax)
+}
+
+/// How far along a shadow ray from `origin` hits are ignored: a surface there is the one the
+/// ray starts on or one touching it. A floor's vertex on the line where a box rests on it lies
+/// in the plane of the box's side, and a ray leaving along that side meets it within a few
+/// ULPs — or not — as the side happens to round, which darkened such vertices at random.
+pub fn touching_distance(origin: Vec3) -> f32 {
+    1e-4 * (1.0 + origin.abs().max_element())
 }
 
 /// Moves `p` off a surface with geometric normal `n`, to the side `dir` leaves towards, by a

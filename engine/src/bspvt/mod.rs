@@ -49,8 +49,9 @@ use std::time::Instant;
 /// would give different trees (2: trees start with the tile grid of [`node::TILE`]; 3: the
 /// split search's looser Nelder–Mead tolerance and fused sums, see [`split`]; 4: a tile's
 /// subtree is its orbit's, mapped, see [`symmetry`], and the search's own sine and cosine; 5: three
-/// single-precision searches without restarts, see [`split`]).
-pub const ALGORITHM_VERSION: u32 = 5;
+/// single-precision searches without restarts, see [`split`]; 6: what touches a ray's start does
+/// not block it, see [`crate::accel::touching_distance`]).
+pub const ALGORITHM_VERSION: u32 = 6;
 
 /// Bake parameters.
 #[derive(Clone, Copy, Debug, PartialEq)]
