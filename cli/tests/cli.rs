@@ -853,10 +853,15 @@ fn receivers_are_refined_by_default_and_say_by_how_much() {
         format!("{}{}", String::from_utf8_lossy(&o.stdout), stderr(&o))
     };
     let info = text(kage_as_shipped(&["info"]));
-    assert!(info.contains("refined receivers: 4555 → 10555 vertices (budget 6000"), "{info}");
-    assert!(info.contains("totals: 10555 vertices"), "{info}");
+    let refined =
+        info.lines().find_map(|l| l.strip_prefix("refined receivers: 4555 → ")).unwrap_or_else(|| panic!("{info}"));
+    let (total, rest) = refined.split_once(" vertices").unwrap();
+    // The budget spent, give or take the vertices a split adds on each side of a seam.
+    let total: usize = total.parse().unwrap();
+    assert!((4555 + 6000..4555 + 6100).contains(&total) && rest.starts_with(" (budget 6000"), "{info}");
+    assert!(info.contains(&format!("totals: {total} vertices")), "{info}");
     let plan = text(kage_as_shipped(&["bake", "--dry-run", "--db", db.to_str().unwrap()]));
-    assert!(plan.contains("instance   0: 1681 →") && plan.contains("10555 vertices"), "{plan}");
+    assert!(plan.contains("instance   0: 1681 →") && plan.contains(&format!("{total} vertices")), "{plan}");
     let off = text(kage_as_shipped(&["info", "--refine-receivers", "0"]));
     assert!(!off.contains("refined receivers") && off.contains("totals: 4555 vertices"), "{off}");
     assert!(text(kage(&["info"])).contains("totals: 4555 vertices"), "the tests' helper turns it off");
