@@ -9,7 +9,7 @@
 //!    of the vertex budget (spacing ∝ √(area / budget)).
 //! 2. **Refine**: each edge's ends and midpoint are tested for the visibility `V` of every
 //!    view of what lights the scene (see [`View`]): a light where it is (the share of a fixed
-//!    set of points on it — its centre and three rings through its corners and edge midpoints —
+//!    set of points on it — its centre and six rings through its corners and edge midpoints —
 //!    that the point sees in front of both), every cell of a light's declared reach box,
 //!    and the environment (the luminance-weighted share of fixed directions that the point sees
 //!    past its own group). An edge is split when, for some view and side, what its pixels are
@@ -389,8 +389,10 @@ fn marked(
 /// between its ends are shaded with misses the truth at its midpoint, over the lights' views
 /// (the first `lights`) and over the environment's. A light's visible fraction is interpolated
 /// as pixels interpolate it ([`crate::bspvt::pixel`]: the shadowed over the unshadowed share),
-/// and its error weighed by the unshadowed share there; a linear ramp across a penumbra, or the
-/// light sinking below a curved receiver's horizon (which LTC takes per pixel), is no error.
+/// and its error weighed by the unshadowed share there and by how dark the truth is (a few
+/// percent of the light show against an umbra, not in full light); a linear ramp across a
+/// penumbra, or the light sinking below a curved receiver's horizon (which LTC takes per
+/// pixel), is no error.
 /// The environment's share is interpolated linearly, so its ends' difference counts too.
 fn side_error(
     [a, b]: [u32; 2],
@@ -412,12 +414,18 @@ fn side_error(
         let [(sa, oa), (sb, ob), (sm, om)] = [va, vb, m].map(|v| (v[2 * l], v[2 * l + 1]));
         // Where no corner sees the light above its horizon, pixels take it as unshadowed.
         let shaded = if oa + ob > 0.0 { (sa + sb) / (oa + ob) } else { 1.0 };
-        if om > 0.0 { om * (shaded - sm / om).abs() } else { 0.0 }
+        if om > 0.0 { om * (shaded - sm / om).abs() / (sm / om + DARK) } else { 0.0 }
     };
     let environment = |k: usize| (va[k] - vb[k]).abs().max((m[k] - 0.5 * (va[k] + vb[k])).abs());
     let most = |e: &mut dyn Iterator<Item = f32>| e.fold(0.0, f32::max);
     [most(&mut (0..lights).map(light)), most(&mut (2 * lights..va.len()).map(environment))]
 }
+
+/// How much more a light's error counts where the truth is dark: it is divided by f + `DARK`,
+/// f the visible fraction at the midpoint — ×4 in an umbra, ×0.8 in full light. Chosen on the
+/// floor scene's ball, whose umbra otherwise showed long triangles' gradients of a few percent
+/// of the light as light wedges (`docs/receivers.md`).
+const DARK: f32 = 0.25;
 
 /// Which views marked an edge. The environment's marks are split only once no light marks
 /// any edge: measured, they lower the environment term's error by 1–2 % of itself, where the
@@ -532,14 +540,14 @@ impl Probe {
     }
 }
 
-/// A light's views: where it is (25 points, seen from its front), or, with a declared reach,
+/// A light's views: where it is (49 points, seen from its front), or, with a declared reach,
 /// each cell of its box (the box split into cells about the light's size, at most 3 per axis;
 /// 9 points each, from any side). The cells depend on the box alone, so moving the light
 /// inside it changes no refined mesh and no bake key.
 fn light_views(light: &FlatLight) -> Vec<View> {
     let Some([lo, hi]) = light.reach else {
         return vec![View::Points {
-            points: sample_points(&light.points, &[0.3, 0.6, 0.9]),
+            points: sample_points(&light.points, &[0.15, 0.3, 0.45, 0.6, 0.75, 0.9]),
             facing: Some(light.normal),
         }];
     };
@@ -573,7 +581,7 @@ fn environment_view(env: &EnvironmentLight) -> View {
 }
 
 /// A light polygon's probe points: its centre, and a ring through its corners and edge
-/// midpoints at each of `rings` (share of the way out) — 25 points on a quad with three rings.
+/// midpoints at each of `rings` (share of the way out) — 49 points on a quad with six rings.
 fn sample_points(polygon: &[Vec3], rings: &[f32]) -> Vec<Vec3> {
     let c = polygon.iter().copied().sum::<Vec3>() / polygon.len() as f32;
     let n = polygon.len();
