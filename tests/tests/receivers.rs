@@ -133,7 +133,7 @@ fn refinement_is_deterministic_on_any_thread_count() {
 
 /// The curve of error against vertices, adaptive against uniform refinement of the floor, as
 /// `docs/benchmarks.md` reports it, with the default trees (64², ε 2), per pixel over geometry
-/// against a 1024-spp reference of the same refined scene (a smooth receiver's new vertices
+/// against a 4096-spp reference of the same refined scene (a smooth receiver's new vertices
 /// lie on its Phong surface, so each refinement has its own geometry), and that reference's
 /// own noise:
 /// `cargo test --release -p kage-tests --test receivers error_against_vertices -- --ignored --nocapture --exact`.
@@ -143,11 +143,11 @@ fn error_against_vertices() {
     let (s, camera) = (two_triangle_floor(), two_triangle_floor().first_camera().unwrap());
     let r = Renderer::new(&s);
     let noise =
-        over_geometry(&r, &camera, &reference_with(&r, &camera, 6, 1024), &reference_with(&r, &camera, 5, 1024));
+        over_geometry(&r, &camera, &reference_with(&r, &camera, 6, 4096), &reference_with(&r, &camera, 5, 4096));
     eprintln!("the reference's own noise (seed 6 against seed 5): {noise:.4}");
     let measure = |scene: &Scene| {
         let r = Renderer::new(scene);
-        let truth = reference_with(&r, &camera, 5, 1024);
+        let truth = reference_with(&r, &camera, 5, 4096);
         (over_geometry(&r, &camera, &look_image(scene, 64), &truth), vertices(scene))
     };
     for budget in [250usize, 500, 1000, 2000, 3000, 4000, 6000, 8000, 16000] {
