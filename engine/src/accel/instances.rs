@@ -86,9 +86,9 @@ impl Occluders {
         Self { parts, nodes, order }
     }
 
-    /// Whether instance `i`'s triangles alone block the segment as [`Self::occluded`] asks (any hit; an instance index
-    /// out of range or with no triangles blocks nothing). With the other instances unchanged,
-    /// it is how an edit to instance `i` changes [`Self::occluded`].
+    /// Whether instance `i`'s triangles alone block the segment as [`Self::occluded`] asks (any
+    /// hit; an instance index out of range or with no triangles blocks nothing). With the other
+    /// instances unchanged, it is how an edit to instance `i` changes [`Self::occluded`].
     pub fn occluded_by(&self, i: usize, origin: Vec3, dir: Vec3, tmax: f32) -> bool {
         let p = self.parts.get(i).and_then(Option::as_ref);
         let near = super::touching_distance(origin);

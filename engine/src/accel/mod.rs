@@ -135,7 +135,7 @@ impl SceneBvh {
         if self.tris.is_empty() {
             return None;
         }
-        let ray = ray(origin, dir, tmax);
+        let ray = ray(origin, dir, 0.0, tmax);
         let mut hit = obvhs::ray::RayHit::none();
         // Two monomorphised traversals: the hole test stays out of the solid scene's loop
         // (in it, it cost 5–16 % of the any-hit rate; measured).
@@ -157,7 +157,7 @@ impl SceneBvh {
         if self.tris.is_empty() {
             return false;
         }
-        let ray = Ray::new(origin.into(), (dir + Vec3::ZERO).into(), tmin, tmax);
+        let ray = ray(origin, dir, tmin, tmax);
         if self.holes.is_empty() {
             !self.bvh.ray_traverse_miss(ray, |r, id| self.tris[id].intersect(r))
         } else {
@@ -192,8 +192,8 @@ fn barycentrics(tri: &RtTriangle, p: Vec3A) -> Vec2 {
 /// An obvhs ray. A direction component of −0.0 becomes +0.0: obvhs takes a component's sign
 /// from `< 0.0` (false for −0.0) but its reciprocal from `signum` (−1 for −0.0), and a ray
 /// straight down a flat box's axis then misses everything (a pick straight down at the ground).
-fn ray(origin: Vec3, dir: Vec3, tmax: f32) -> Ray {
-    Ray::new(origin.into(), (dir + Vec3::ZERO).into(), 0.0, tmax)
+fn ray(origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> Ray {
+    Ray::new(origin.into(), (dir + Vec3::ZERO).into(), tmin, tmax)
 }
 
 /// How far along a shadow ray from `origin` hits are ignored: a surface there is the one the
