@@ -8,9 +8,9 @@
 //!    triangle unseen. The seed length is chosen so that seeding all receivers costs a quarter
 //!    of the vertex budget (spacing ∝ √(area / budget)).
 //! 2. **Refine**: each edge's ends and midpoint are tested for the visibility `V` of every
-//!    view of what lights the scene (see [`View`]): a light where it is (the share of a fixed
-//!    set of points on it — its centre and six rings through its corners and edge midpoints —
-//!    that the point sees in front of both), every cell of a light's declared reach box,
+//!    view of what lights the scene (see [`View`]): a light where it is (the share of 49 fixed
+//!    points spread over it that the point sees in front of both), every cell of a light's
+//!    declared reach box,
 //!    and the environment (the luminance-weighted share of fixed directions that the point sees
 //!    past its own group). An edge is split when, for some view and side, what its pixels are
 //!    shaded with misses the truth at its midpoint by more than the tolerance: for a light,
@@ -28,7 +28,7 @@
 
 use crate::accel::SceneBvh;
 use crate::math::color::luminance;
-use crate::math::sampling::{hammersley, uniform_sphere};
+use crate::math::sampling::{hammersley, uniform_sphere, uniform_triangle};
 use crate::scene::refine::Adaptive;
 use crate::scene::{EnvironmentLight, FlatLight, FlatScene, NO_LIGHT, PrimitiveId, Scene, flatten};
 use glam::Vec3;
@@ -68,7 +68,7 @@ pub fn refine(scene: &mut Scene, settings: &Settings) -> crate::Result<Report> {
 
 /// Bumped whenever refinement would refine the same scene differently: it names kept
 /// refinements ([`key`]).
-pub const VERSION: u32 = 2;
+pub const VERSION: u32 = 3;
 
 /// What refinement reads of `scene` (its source meshes, as [`Scene::restore_source_meshes`]
 /// leaves it) and `settings`, hashed: the instances' meshes and placements, every occluding
@@ -361,15 +361,11 @@ fn marked(
         .par_iter()
         .filter(|e| !memo.edge.contains_key(*e))
         .map(|&e| {
-            let named = side_error(e, p, n, vertex, &at, probe.lights);
-            // Across a hard crease the named ends carry one side's normal each, and the
-            // environment's share dips at the mixed midpoint (the other face is below its
-            // horizon): it is judged on each side's own vertices instead.
-            let environment = mesh
-                .sides(e)
-                .into_iter()
-                .map(|side| if side == e { named[1] } else { side_error(side, p, n, vertex, &at, probe.lights)[1] });
-            (e, [named[0], environment.fold(0.0, f32::max)])
+            // Across a hard crease the named ends carry one side's normal each (a box's corner
+            // would see the light on one face and not on the next): each side is judged on its
+            // own vertices.
+            let sides = mesh.sides(e).into_iter().map(|side| side_error(side, p, n, vertex, &at, probe.lights));
+            (e, sides.fold([0.0f32; 2], |most, s| [most[0].max(s[0]), most[1].max(s[1])]))
         })
         .collect();
     memo.edge.extend(fresh);
@@ -403,23 +399,40 @@ fn side_error(
     lights: usize,
 ) -> [f32; 2] {
     let (a, b) = (a as usize, b as usize);
-    let (va, vb) = (&vertex[a], &vertex[b]);
-    // An end inside geometry is left out of its pixels' shading: nothing to interpolate.
-    if va.is_empty() || vb.is_empty() {
+    // An end inside geometry takes no part in its pixels' lights: they take the other end's.
+    let ends: Vec<&Vec<f32>> = [&vertex[a], &vertex[b]].into_iter().filter(|v| !v.is_empty()).collect();
+    if ends.is_empty() {
         return [0.0; 2];
     }
     let mid = at(0.5 * (p[a] + p[b]), (n[a] + n[b]).normalize_or_zero());
     let Some(m) = (!mid.is_empty()).then_some(&mid) else { return [0.0; 2] };
     let light = |l: usize| {
-        let [(sa, oa), (sb, ob), (sm, om)] = [va, vb, m].map(|v| (v[2 * l], v[2 * l + 1]));
-        // Where no corner sees the light above its horizon, pixels take it as unshadowed.
-        let shaded = if oa + ob > 0.0 { (sa + sb) / (oa + ob) } else { 1.0 };
-        if om > 0.0 { om * (shaded - sm / om).abs() / (sm / om + DARK) } else { 0.0 }
+        let (s, o) = ends.iter().fold((0.0, 0.0), |(s, o), v| (s + v[2 * l], o + v[2 * l + 1]));
+        let (sm, om) = (m[2 * l], m[2 * l + 1]);
+        if om <= 0.0 {
+            return 0.0;
+        }
+        // Where no end sees the light above its horizon, pixels take it as unshadowed.
+        let shaded = if o > 0.0 { s / o } else { 1.0 };
+        let f = sm / om;
+        // A step of one point between the ends is the probe's own resolution, not an error.
+        om * ((shaded - f).abs() - STEP).max(0.0) / (f + DARK)
     };
-    let environment = |k: usize| (va[k] - vb[k]).abs().max((m[k] - 0.5 * (va[k] + vb[k])).abs());
+    // The environment's shading still interpolates an inside end's darkness
+    // (`docs/receivers.md`): it is judged between two outside ends only.
+    let environment = |k: usize| match ends[..] {
+        [va, vb] => (va[k] - vb[k]).abs().max((m[k] - 0.5 * (va[k] + vb[k])).abs()),
+        _ => 0.0,
+    };
     let most = |e: &mut dyn Iterator<Item = f32>| e.fold(0.0, f32::max);
-    [most(&mut (0..lights).map(light)), most(&mut (2 * lights..va.len()).map(environment))]
+    [most(&mut (0..lights).map(light)), most(&mut (2 * lights..m.len()).map(environment))]
 }
+
+/// Points a light is probed at, where it is.
+const LIGHT_POINTS: u32 = 49;
+
+/// Half a point's share: what interpolating across one point's step misses at the midpoint.
+const STEP: f32 = 0.5 / LIGHT_POINTS as f32;
 
 /// How much more a light's error counts where the truth is dark: it is divided by f + `DARK`,
 /// f the visible fraction at the midpoint — ×4 in an umbra, ×0.8 in full light. Chosen on the
@@ -546,10 +559,7 @@ impl Probe {
 /// inside it changes no refined mesh and no bake key.
 fn light_views(light: &FlatLight) -> Vec<View> {
     let Some([lo, hi]) = light.reach else {
-        return vec![View::Points {
-            points: sample_points(&light.points, &[0.15, 0.3, 0.45, 0.6, 0.75, 0.9]),
-            facing: Some(light.normal),
-        }];
+        return vec![View::Points { points: spread_points(&light.points, LIGHT_POINTS), facing: Some(light.normal) }];
     };
     // The box grown to hold the light where it is, as the bake's reach is (`bspvt::reach`).
     let (lo, hi) = light.points.iter().fold((lo, hi), |(a, b), p| (a.min(*p), b.max(*p)));
@@ -580,19 +590,29 @@ fn environment_view(env: &EnvironmentLight) -> View {
     View::Directions(dirs)
 }
 
-/// A light polygon's probe points: its centre, and a ring through its corners and edge
-/// midpoints at each of `rings` (share of the way out) — 49 points on a quad with six rings.
-fn sample_points(polygon: &[Vec3], rings: &[f32]) -> Vec<Vec3> {
-    let c = polygon.iter().copied().sum::<Vec3>() / polygon.len() as f32;
-    let n = polygon.len();
-    let mut out = vec![c];
-    for &t in rings {
-        for k in 0..n {
-            out.push(c + t * (polygon[k] - c));
-            out.push(c + t * (0.5 * (polygon[k] + polygon[(k + 1) % n]) - c));
-        }
-    }
-    out
+/// Points spread evenly over a light polygon (area-uniform over its fan of triangles, from a
+/// Hammersley set): no two share a row, so an occluder's straight edge sweeping over the light
+/// hides them one at a time, and `V` steps by 1/`n` (rings through the corners and edge
+/// midpoints lined up in rows of up to 13: their steps were edges refinement split without end).
+fn spread_points(polygon: &[Vec3], n: u32) -> Vec<Vec3> {
+    let fan: Vec<[Vec3; 3]> = (1..polygon.len() - 1).map(|k| [polygon[0], polygon[k], polygon[k + 1]]).collect();
+    let areas: Vec<f32> = fan.iter().map(|[a, b, c]| 0.5 * (b - a).cross(c - a).length()).collect();
+    let total: f32 = areas.iter().sum();
+    (0..n)
+        .map(|i| {
+            let mut u = hammersley(i, n);
+            // The first coordinate picks a triangle by area and is stretched over it.
+            let mut k = 0;
+            while k + 1 < fan.len() && u.x * total > areas[k] {
+                u.x -= areas[k] / total;
+                k += 1;
+            }
+            u.x = (u.x * total / areas[k].max(f32::MIN_POSITIVE)).min(1.0);
+            let [a, b, c] = fan[k];
+            let w = uniform_triangle(u);
+            a + w.x * (b - a) + w.y * (c - a)
+        })
+        .collect()
 }
 
 /// World-space area of a mesh under `world`.
@@ -611,4 +631,33 @@ fn world_area(mesh: &Adaptive, world: &glam::Affine3A) -> f32 {
 fn world_length(mesh: &Adaptive, world: &glam::Affine3A, e: &[u32; 2]) -> f32 {
     let p = mesh.positions();
     world.transform_point3(p[e[0] as usize]).distance(world.transform_point3(p[e[1] as usize]))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A light's probe points lie on it, and no straight edge parallel to one of its sides hides
+    /// two of them at once: along each side's direction, the points' projections all differ.
+    #[test]
+    fn a_lights_points_are_spread_and_lie_on_it() {
+        let quad = [
+            Vec3::new(-0.5, 3.0, -0.5),
+            Vec3::new(0.5, 3.0, -0.5),
+            Vec3::new(0.5, 3.0, 0.5),
+            Vec3::new(-0.5, 3.0, 0.5),
+        ];
+        let points = spread_points(&quad, LIGHT_POINTS);
+        assert_eq!(points.len(), LIGHT_POINTS as usize);
+        assert!(points.iter().all(|p| p.y == 3.0 && p.x.abs() <= 0.5 && p.z.abs() <= 0.5), "{points:?}");
+        for axis in [Vec3::X, Vec3::Z] {
+            let mut along: Vec<f32> = points.iter().map(|p| p.dot(axis)).collect();
+            along.sort_by(f32::total_cmp);
+            let gap = along.windows(2).map(|w| w[1] - w[0]).fold(f32::MAX, f32::min);
+            assert!(gap > 1e-4, "two points in a row along {axis}: gap {gap}");
+        }
+        let triangle = [Vec3::ZERO, Vec3::X, Vec3::Z];
+        let inside = spread_points(&triangle, 16);
+        assert!(inside.iter().all(|p| p.x >= 0.0 && p.z >= 0.0 && p.x + p.z <= 1.0 + 1e-6), "{inside:?}");
+    }
 }
