@@ -162,6 +162,54 @@ fn error_against_vertices() {
     }
 }
 
+/// Where adaptive refinement stops gaining, measured: BSPVT's own error at the refined floor's
+/// vertices (the visible share of the light's diffuse lobe, the tree against a 64 × 64 grid of
+/// shadow rays over the light), at 64² and 128² faces, over the vertices in a penumbra, and at
+/// one vertex under the slab's edge (`docs/receivers.md#where-adaptive-stops-gaining`).
+/// `cargo test --release -p kage-tests --test receivers bspvt_error_at_refined_vertices -- --ignored --nocapture --exact`.
+#[test]
+#[ignore]
+fn bspvt_error_at_refined_vertices() {
+    let s = refined(two_triangle_floor(), Settings::default().budget);
+    let flat = flatten(&s);
+    let occluders = kage_engine::accel::SceneBvh::new(&flat.select(|r| r.light == NO_LIGHT).0);
+    let light = &flat.lights[0];
+    let truth = |p: Vec3| {
+        let (mut seen, mut all) = (0.0f64, 0.0f64);
+        for (i, j) in (0..64).flat_map(|i| (0..64).map(move |j| (i, j))) {
+            let [u, w] = [i, j].map(|k| (k as f32 + 0.5) / 64.0);
+            let q = light.points[0] + u * (light.points[1] - light.points[0]) + w * (light.points[3] - light.points[0]);
+            let (dist, dir) = ((q - p).length(), (q - p).normalize());
+            let weight = (dir.y.max(0.0) * (-dir.dot(light.normal)).max(0.0) / (dist * dist)) as f64;
+            all += weight;
+            seen += if occluders.occluded(p + Vec3::Y * 1e-4, dir, dist * 0.999) { 0.0 } else { weight };
+        }
+        seen / all
+    };
+    let floor: Vec<(usize, Vec3, f64)> = (0..flat.vertex_count(0))
+        .map(|v| (v, flat.vertex(0, v).0))
+        .map(|(v, p)| (v, p, truth(p)))
+        .filter(|(_, _, t)| (0.02..0.98).contains(t))
+        .collect();
+    let camera = s.first_camera().unwrap();
+    for res in [64, 128] {
+        let bake = bspvt::bake(&flat, &bspvt::Settings { res, epsilon: 2.0 }, &|_| {});
+        let mut inside = bspvt::pixel::Inside::default();
+        let (lobes, _) = bspvt::pixel::Lobes::at_vertices(&flat, Some(&bake), camera.eye(), inside.flags(&flat));
+        let share = |v: usize| {
+            let [shadowed, unshadowed] = lobes.vertex(0, v)[0][0];
+            (shadowed / unshadowed) as f64
+        };
+        let errors: Vec<f64> = floor.iter().map(|&(v, _, t)| share(v) - t).collect();
+        let rms = (errors.iter().map(|e| e * e).sum::<f64>() / errors.len() as f64).sqrt();
+        let worst = errors.iter().fold(0.0f64, |m, e| m.max(e.abs()));
+        eprintln!("{res}²: {} penumbra vertices, error RMS {rms:.4}, worst {worst:.4}", errors.len());
+        for &(v, p, t) in floor.iter().filter(|(_, p, _)| p.distance(Vec3::new(0.875, 0.0, -0.375)) < 1e-3) {
+            eprintln!("  vertex at {p}: the tree {:.4}, the truth {t:.4}", share(v));
+        }
+    }
+}
+
 /// The floor scene with its light promising to stay within `reach`.
 fn with_reach(mut s: Scene, reach: [Vec3; 2]) -> Scene {
     for light in s.world.query_mut::<&mut PolygonLight>() {
