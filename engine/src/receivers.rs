@@ -68,7 +68,7 @@ pub fn refine(scene: &mut Scene, settings: &Settings) -> crate::Result<Report> {
 
 /// Bumped whenever refinement would refine the same scene differently: it names kept
 /// refinements ([`key`]).
-pub const VERSION: u32 = 3;
+pub const VERSION: u32 = 4;
 
 /// What refinement reads of `scene` (its source meshes, as [`Scene::restore_source_meshes`]
 /// leaves it) and `settings`, hashed: the instances' meshes and placements, every occluding
@@ -415,8 +415,7 @@ fn side_error(
         // Where no end sees the light above its horizon, pixels take it as unshadowed.
         let shaded = if o > 0.0 { s / o } else { 1.0 };
         let f = sm / om;
-        // A step of one point between the ends is the probe's own resolution, not an error.
-        om * ((shaded - f).abs() - STEP).max(0.0) / (f + DARK)
+        om * (shaded - f).abs() / (f + DARK)
     };
     // The environment's shading still interpolates an inside end's darkness
     // (`docs/receivers.md`): it is judged between two outside ends only.
@@ -430,9 +429,6 @@ fn side_error(
 
 /// Points a light is probed at, where it is.
 const LIGHT_POINTS: u32 = 49;
-
-/// Half a point's share: what interpolating across one point's step misses at the midpoint.
-const STEP: f32 = 0.5 / LIGHT_POINTS as f32;
 
 /// How much more a light's error counts where the truth is dark: it is divided by f + `DARK`,
 /// f the visible fraction at the midpoint — ×4 in an umbra, ×0.8 in full light. Chosen on the

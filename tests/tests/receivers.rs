@@ -152,13 +152,13 @@ fn error_against_vertices() {
     };
     for budget in [250usize, 300, 350, 500, 1000, 2000, 3000, 4000, 6000, 8000, 16000] {
         let (a, n) = measure(&refined(two_triangle_floor(), budget));
-        eprintln!("adaptive, budget {budget}: {a:.4} ({n} vertices)");
+        eprintln!("adaptive, budget {budget}: {a:.5} ({n} vertices)");
     }
     for floor in [2000usize, 4000, 8000, 16000, 32000, 50000] {
         let mut uniform = two_triangle_floor();
         uniform.refine_instances("floor", floor).unwrap();
         let (u, n) = measure(&uniform);
-        eprintln!("uniform, floor {floor}: {u:.4} ({n} vertices)");
+        eprintln!("uniform, floor {floor}: {u:.5} ({n} vertices)");
     }
 }
 
