@@ -10,9 +10,8 @@
 //! 2. **Refine**: each edge's ends and midpoint are tested for the visibility `V` of every
 //!    view of what lights the scene (see [`View`]): a light where it is (the share of 49 fixed
 //!    points spread over it that the point sees in front of both), every cell of a light's
-//!    declared reach box,
-//!    and the environment (the luminance-weighted share of fixed directions that the point sees
-//!    past its own group). An edge is split when, for some view and side, what its pixels are
+//!    declared reach box, and the environment (the luminance-weighted share of fixed directions
+//!    that the point sees past its own group). An edge is split when, for some view and side, what its pixels are
 //!    shaded with misses the truth at its midpoint by more than the tolerance: for a light,
 //!    the visible fraction as pixels interpolate it (shadowed over unshadowed share) weighed
 //!    by the unshadowed share; for the environment, `|V(a) − V(b)|` or
@@ -655,5 +654,21 @@ mod tests {
         let triangle = [Vec3::ZERO, Vec3::X, Vec3::Z];
         let inside = spread_points(&triangle, 16);
         assert!(inside.iter().all(|p| p.x >= 0.0 && p.z >= 0.0 && p.x + p.z <= 1.0 + 1e-6), "{inside:?}");
+    }
+
+    /// An edge from a vertex inside geometry (no visibility) to one outside is held to the
+    /// outside end's share, which its pixels show: a shadow between them is an error. With
+    /// both ends, or the midpoint, inside there is nothing to judge.
+    #[test]
+    fn an_edge_with_one_end_inside_is_held_to_the_other_end() {
+        let (p, n) = ([Vec3::ZERO, Vec3::X], [Vec3::Y, Vec3::Y]);
+        let lit = vec![1.0, 1.0];
+        let shadowed = |_: Vec3, _: Vec3| vec![0.2, 1.0];
+        let error =
+            |vertex: &[Vec<f32>], at: &dyn Fn(Vec3, Vec3) -> Vec<f32>| side_error([0, 1], &p, &n, vertex, &at, 1)[0];
+        let expected = (1.0 - 0.2) / (0.2 + DARK);
+        assert!((error(&[Vec::new(), lit.clone()], &shadowed) - expected).abs() < 1e-6);
+        assert_eq!(error(&[Vec::new(), Vec::new()], &shadowed), 0.0);
+        assert_eq!(error(&[Vec::new(), lit], &|_, _| Vec::new()), 0.0);
     }
 }
