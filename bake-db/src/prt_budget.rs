@@ -120,7 +120,10 @@ fn stored_transfer(store: &Store, scene: &Scene, flat: &FlatScene, s: &prt::Sett
 /// transform within it, its orientation, and the environment; with `placed`, where each
 /// instance is too.
 fn key(scene: &Scene, flat: &FlatScene, budget: f64, directions: usize, placed: bool) -> KeyHasher {
-    let mut h = KeyHasher::new("prt-plan").f64("budget", budget).u64("directions", directions as u64);
+    let mut h = KeyHasher::new("prt-plan")
+        .u64("algorithm", prt::ALGORITHM_VERSION as u64)
+        .f64("budget", budget)
+        .u64("directions", directions as u64);
     let locals = prt::local_transforms(scene, flat);
     let mut groups = Vec::new();
     for (inst, local) in flat.instances.iter().zip(&locals) {

@@ -67,7 +67,7 @@ pub fn refine(scene: &mut Scene, settings: &Settings) -> crate::Result<Report> {
 
 /// Bumped whenever refinement would refine the same scene differently: it names kept
 /// refinements ([`key`]).
-pub const VERSION: u32 = 4;
+pub const VERSION: u32 = 5;
 
 /// What refinement reads of `scene` (its source meshes, as [`Scene::restore_source_meshes`]
 /// leaves it) and `settings`, hashed: the instances' meshes and placements, every occluding
@@ -513,8 +513,8 @@ impl Probe {
             return Vec::new();
         }
         let origin = p + n * 1e-4 * (1.0 + p.abs().max_element());
-        // As BSPVT's rays: what touches the point (a box resting on the floor) does not block.
-        let near = crate::accel::touching_distance(origin);
+        // As BSPVT's rays, every ray here passes what touches the point (a box resting on the
+        // floor): `occluded_past_touching`.
         let own = self.groups.get(self.group_of[instance]);
         let mut out = Vec::with_capacity(self.views.len() + self.lights);
         for view in &self.views {
@@ -527,7 +527,7 @@ impl Probe {
                         let dir = d / dist;
                         if dir.dot(n) > 0.0 && facing.is_none_or(|f| dir.dot(f) < 0.0) {
                             above += 1;
-                            let blocked = self.bvh.occluded_between(origin, dir, near, dist * (1.0 - 1e-4));
+                            let blocked = self.bvh.occluded_past_touching(origin, dir, dist * (1.0 - 1e-4));
                             seen += usize::from(!blocked);
                         }
                     }
@@ -538,7 +538,8 @@ impl Probe {
                     for &(dir, w) in dirs.iter().filter(|(d, _)| d.dot(n) > 0.0) {
                         let w = w * dir.dot(n);
                         all += w;
-                        lit += if own.is_some_and(|g| g.occluded(origin, dir, f32::MAX)) { 0.0 } else { w };
+                        lit +=
+                            if own.is_some_and(|g| g.occluded_past_touching(origin, dir, f32::MAX)) { 0.0 } else { w };
                     }
                     out.push(if all > 0.0 { lit / all } else { 1.0 });
                 }

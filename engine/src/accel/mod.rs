@@ -152,6 +152,12 @@ impl SceneBvh {
         self.occluded_between(origin, dir, 0.0, tmax)
     }
 
+    /// True when anything blocks a shadow ray from `origin` (a surface point's offset origin)
+    /// along `dir` (unit) within `tmax`, past what touches its start ([`touching_distance`]).
+    pub fn occluded_past_touching(&self, origin: Vec3, dir: Vec3, tmax: f32) -> bool {
+        self.occluded_between(origin, dir, touching_distance(origin), tmax)
+    }
+
     /// True when anything blocks the ray from `origin` along `dir` (unit) within `[tmin, tmax]`.
     pub fn occluded_between(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> bool {
         if self.tris.is_empty() {

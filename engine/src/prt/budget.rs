@@ -187,10 +187,10 @@ fn exact_other_term(flat: &FlatScene, env: &EnvironmentLight, sample: &[(usize, 
                     continue;
                 }
                 let o = offset_ray_origin(p, n, s.dir);
-                if bvhs[own].occluded(o, s.dir, f32::INFINITY) {
+                if bvhs[own].occluded_past_touching(o, s.dir, f32::INFINITY) {
                     continue;
                 }
-                if bvhs.iter().enumerate().any(|(g, b)| g != own && b.occluded(o, s.dir, f32::INFINITY)) {
+                if bvhs.iter().enumerate().any(|(g, b)| g != own && b.occluded_past_touching(o, s.dir, f32::INFINITY)) {
                     sum += s.radiance * cos / (std::f32::consts::PI * s.pdf);
                 }
             }

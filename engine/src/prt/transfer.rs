@@ -55,7 +55,7 @@ pub fn vertex_transfer(bvh: &SceneBvh, dirs: &Directions, p: Vec3, n: Vec3, out:
     let mut acc = vec![0.0f64; k];
     for (j, d) in dirs.dirs.iter().enumerate() {
         let cos = d.dot(n);
-        if cos <= 0.0 || bvh.occluded(offset_ray_origin(p, n, *d), *d, f32::INFINITY) {
+        if cos <= 0.0 || bvh.occluded_past_touching(offset_ray_origin(p, n, *d), *d, f32::INFINITY) {
             continue;
         }
         let y = &dirs.sh[j * k..(j + 1) * k];
@@ -93,6 +93,28 @@ mod tests {
                 assert!((t[k] as f64 - s * y[k]).abs() < 4e-3, "k {k}: {} vs {}", t[k], s * y[k]);
             }
         }
+    }
+
+    /// A floor vertex on the line where a box rests lies in the plane of the box's side: its
+    /// rays leaving along that side pass it, so it receives what a point a hair away does
+    /// (it read 0, dark, when the side rounded onto its rays).
+    #[test]
+    fn a_vertex_at_a_resting_boxs_foot_is_not_dark() {
+        let m = shapes::cuboid(Vec3::splat(0.5));
+        let centre = Vec3::new(-0.9, 0.5, 0.3);
+        let mut tris: Vec<[Vec3; 3]> =
+            m.triangles.iter().map(|t| t.map(|i| m.positions[i as usize] + centre)).collect();
+        let h = 4.0;
+        let [a, b, c, d] = [(-h, -h), (-h, h), (h, h), (h, -h)].map(|(x, z)| Vec3::new(x, 0.0, z));
+        tris.extend([[a, b, c], [a, c, d]]);
+        let (bvh, dirs) = (SceneBvh::new(&tris), Directions::stratified(64, 3, 1));
+        let dc = |x: f32| {
+            let mut t = vec![0.0; 9];
+            vertex_transfer(&bvh, &dirs, Vec3::new(x, 0.0, 0.3), Vec3::Y, &mut t);
+            t[0]
+        };
+        let (foot, beside) = (dc(-0.4), dc(-0.4 + 1e-5));
+        assert!(beside > 0.1 && (foot - beside).abs() < 0.01 * beside, "foot {foot}, beside {beside}");
     }
 
     #[test]

@@ -393,7 +393,7 @@ fn sun_parts(
     if wi.z <= 0.0 {
         return (Vec3::ZERO, false);
     }
-    let seen = !bvh.occluded(offset_ray_origin(p, n, sun.direction), sun.direction, f32::INFINITY);
+    let seen = !bvh.occluded_past_touching(offset_ray_origin(p, n, sun.direction), sun.direction, f32::INFINITY);
     let mut material = flat.material_at(i, corners, bary);
     material.roughness = material.roughness.max((SUN_ALPHA_FLOOR * sun.angular_radius).sqrt());
     let wo = frame.to_local((to - p).normalize_or_zero());
