@@ -11,8 +11,9 @@ use kage_engine::cache::{self, Cache, Settings};
 use kage_engine::scene::Scene;
 
 /// Version of the record layout and placement: part of every key. (2: record spacing and
-/// radius bounds ignore the lights, so a refreshed cache is the cold placement.)
-pub const VERSION: u32 = 2;
+/// radius bounds ignore the lights, so a refreshed cache is the cold placement; 3: gather rays
+/// pass what touches their start, see [`kage_engine::accel::touching_distance`].)
+pub const VERSION: u32 = 3;
 
 /// The key of the records a cache built from `src` with `s` would hold.
 pub fn key(src: &Source, s: &Settings) -> Key {

@@ -204,21 +204,28 @@ mod tests {
 
     /// A floor point on the line where a box rests on the floor lies in the plane of the box's
     /// side: a ray leaving along that side, away from the box, is not blocked by it however the
-    /// side rounds, and a ray into the box is.
+    /// side rounds, and a ray into the box is (it meets the far side) — for BSPVT's occluders,
+    /// and for a scene BVH's shadow rays and closest hits from surface points.
     #[test]
     fn what_touches_a_rays_start_does_not_block_it() {
         for x in [0.5f32, 0.5 + f32::EPSILON, 0.5 - f32::EPSILON / 2.0] {
             let (lo, hi) = (Vec3::new(-0.5, 0.0, -0.5), Vec3::new(x, 1.0, 0.5));
             let cuboid = crate::scene::shapes::cuboid(0.5 * (hi - lo));
             let corner = |i: u32| cuboid.positions[i as usize] + 0.5 * (lo + hi);
-            let occ = Occluders::new(&[cuboid.triangles.iter().map(|t| t.map(corner)).collect()]);
+            let triangles: Vec<[Vec3; 3]> = cuboid.triangles.iter().map(|t| t.map(corner)).collect();
+            let (bvh, occ) = (SceneBvh::new(&triangles), Occluders::new(&[triangles]));
             let p = super::super::offset_ray_origin(Vec3::new(0.5, 0.0, 0.1), Vec3::Y, Vec3::Y);
             for k in 1..16 {
                 let up = k as f32 / 16.0;
                 let away = Vec3::new(1.0, up, 0.2).normalize();
                 assert!(!occ.occluded(p, away, f32::INFINITY), "side at {x}: away along {away}");
+                assert!(!bvh.occluded_past_touching(p, away, f32::INFINITY), "side at {x}: away along {away}");
+                assert!(bvh.closest_hit_past_touching(p, away, f32::INFINITY).is_none(), "side at {x}: {away}");
                 let into = Vec3::new(-1.0, up, 0.2).normalize();
                 assert!(occ.occluded(p, into, f32::INFINITY), "side at {x}: into the box along {into}");
+                assert!(bvh.occluded_past_touching(p, into, f32::INFINITY), "side at {x}: into along {into}");
+                let far = bvh.closest_hit_past_touching(p, into, f32::INFINITY).map(|h| h.t);
+                assert!(far.is_some_and(|t| t > 0.5), "side at {x}: into along {into} meets {far:?}");
             }
         }
     }

@@ -107,7 +107,17 @@ impl SceneBvh {
 
     /// The closest hit along `dir` (unit) from `origin` within `(0, tmax)`.
     pub fn closest_hit(&self, origin: Vec3, dir: Vec3, tmax: f32) -> Option<Hit> {
-        let (slot, t) = self.closest_slot(origin, dir, tmax)?;
+        self.closest_hit_between(origin, dir, 0.0, tmax)
+    }
+
+    /// The closest hit of a ray from `origin` (a surface point's offset origin) along `dir`
+    /// (unit) within `tmax`, past what touches its start ([`touching_distance`]).
+    pub fn closest_hit_past_touching(&self, origin: Vec3, dir: Vec3, tmax: f32) -> Option<Hit> {
+        self.closest_hit_between(origin, dir, touching_distance(origin), tmax)
+    }
+
+    fn closest_hit_between(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> Option<Hit> {
+        let (slot, t) = self.closest_slot(origin, dir, tmin, tmax)?;
         let p = Vec3A::from(origin) + Vec3A::from(dir) * t;
         Some(Hit { triangle: self.bvh.primitive_indices[slot], t, bary: barycentrics(&self.tris[slot], p) })
     }
@@ -123,7 +133,7 @@ impl SceneBvh {
             .filter(|&k| {
                 let d = frame.to_world(sampling::cosine_hemisphere(sampling::hammersley(k, INSIDE_RAYS)));
                 // obvhs' `ng` is the negated geometric normal: a hit from behind has ng · d < 0.
-                self.closest_slot(offset_ray_origin(p, n, d), d, f32::INFINITY)
+                self.closest_slot(offset_ray_origin(p, n, d), d, 0.0, f32::INFINITY)
                     .is_some_and(|(slot, _)| self.tris[slot].ng.dot(Vec3A::from(d)) < 0.0)
             })
             .count();
@@ -131,11 +141,11 @@ impl SceneBvh {
     }
 
     /// The leaf slot and distance of the closest hit.
-    fn closest_slot(&self, origin: Vec3, dir: Vec3, tmax: f32) -> Option<(usize, f32)> {
+    fn closest_slot(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> Option<(usize, f32)> {
         if self.tris.is_empty() {
             return None;
         }
-        let ray = ray(origin, dir, 0.0, tmax);
+        let ray = ray(origin, dir, tmin, tmax);
         let mut hit = obvhs::ray::RayHit::none();
         // Two monomorphised traversals: the hole test stays out of the solid scene's loop
         // (in it, it cost 5–16 % of the any-hit rate; measured).

@@ -93,7 +93,7 @@ struct Sample {
 impl Source<'_> {
     /// What a gather ray from `o` along `d` finds; `stream` seeds glossy hits' estimates.
     fn trace(&self, o: Vec3, d: Vec3, stream: u64) -> Option<Sample> {
-        let hit = self.renderer.bvh.closest_hit(o, d, f32::INFINITY)?;
+        let hit = self.renderer.bvh.closest_hit_past_touching(o, d, f32::INFINITY)?;
         Some(self.light(o, hit, d, stream))
     }
 
@@ -251,7 +251,7 @@ pub fn gather_with_hits(src: &Source, p: Vec3, n: Vec3, params: &Params, index: 
         .iter()
         .map(|l| {
             let d = frame.to_world(*l);
-            src.renderer.bvh.closest_hit(offset_ray_origin(p, n, d), d, f32::INFINITY)
+            src.renderer.bvh.closest_hit_past_touching(offset_ray_origin(p, n, d), d, f32::INFINITY)
         })
         .collect();
     (integrate(src, p, frame, params, &dirs, &hits, index), hits)
@@ -412,7 +412,7 @@ pub fn relight(
         let reach = hit.map_or(f32::INFINITY, |h| h.t);
         let crosses = change.moved.iter().any(|&(lo, hi)| slab_hits(o, d.recip(), reach, lo, hi));
         if crosses {
-            let again = src.renderer.bvh.closest_hit(o, d, f32::INFINITY);
+            let again = src.renderer.bvh.closest_hit_past_touching(o, d, f32::INFINITY);
             relit.recast += 1;
             relit.changed |= again != *hit;
             *hit = again;
