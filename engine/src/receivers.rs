@@ -11,11 +11,11 @@
 //!    view of what lights the scene (see [`View`]): a light where it is (the share of 49 fixed
 //!    points spread over it that the point sees in front of both), every cell of a light's
 //!    declared reach box, and the environment (the luminance-weighted share of fixed directions
-//!    that the point sees past its own group). An edge is split when, for some view and side, what its pixels are
-//!    shaded with misses the truth at its midpoint by more than the tolerance: for a light,
-//!    the visible fraction as pixels interpolate it (shadowed over unshadowed share) weighed
-//!    by the unshadowed share; for the environment, `|V(a) − V(b)|` or
-//!    `|V(mid) − (V(a) + V(b)) / 2|` (see `side_error`). The marks of a round are split
+//!    that the point sees past its own group). An edge is split when, for some view and side,
+//!    what its pixels are shaded with misses the truth at its midpoint by more than the
+//!    tolerance: for a light, the visible fraction as pixels interpolate it (shadowed over
+//!    unshadowed share; an end inside geometry takes no part) weighed by the unshadowed share;
+//!    for the environment, `|V(a) − V(b)|` or `|V(mid) − (V(a) + V(b)) / 2|` (see `side_error`). The marks of a round are split
 //!    largest error × world length first (an edge's error spreads over its length) until the
 //!    budget is spent.
 //!

@@ -91,9 +91,8 @@ impl Occluders {
     /// instances unchanged, it is how an edit to instance `i` changes [`Self::occluded`].
     pub fn occluded_by(&self, i: usize, origin: Vec3, dir: Vec3, tmax: f32) -> bool {
         let p = self.parts.get(i).and_then(Option::as_ref);
-        let near = super::touching_distance(origin);
         p.is_some_and(|p| {
-            slab_hits(origin, dir.recip(), tmax, p.lo, p.hi) && p.bvh.occluded_between(origin, dir, near, tmax)
+            slab_hits(origin, dir.recip(), tmax, p.lo, p.hi) && p.bvh.occluded_past_touching(origin, dir, tmax)
         })
     }
 
