@@ -1,25 +1,40 @@
 //! The bake plan: which artefacts a scene needs (per instance, per chunk of vertices), their
 //! keys, which are already in the store, and what the misses should cost.
 //!
+//! A chunk is a run of an instance's vertices cut where their content says ([`chunks`]), and
+//! its keys hash those vertices (positions and normals), not the whole mesh: an edit that
+//! changes one stretch of a mesh's vertices — receiver refinement following a moved shadow —
+//! leaves the other chunks' keys as they were.
+//!
 //! - **BSPVT** (polygonal lights present): visibility depends on the whole scene, so a chunk's
-//!   key covers its receiver (mesh hash, world transform) and the occluder snapshot (every
-//!   instance's id, mesh hash — with its cut-out's mask, if any — and world transform). Its *slot* (the key without the snapshot)
-//!   remembers the last artefact baked there and the snapshot it saw — the lineage that lets an
-//!   edit re-bake only the cube faces that can see what changed.
-//! - **PRT** (an environment present): a chunk's key covers the instance's mesh hash, its
-//!   transform relative to its group, and the group's own geometry in the group's frame — never
-//!   where the group is.
+//!   key covers its vertices, its instance's world transform, and the occluder snapshot (every
+//!   instance's id, occluding mesh's hash — with its cut-out's mask, if any — and world
+//!   transform). Its *slot* (the key without the snapshot) remembers the last artefact baked
+//!   there and the snapshot it saw — the lineage that lets an edit re-bake only the cube faces
+//!   that can see what changed.
+//! - **PRT** (an environment present): a chunk's key covers its vertices, the instance's
+//!   transform relative to its group, and the group's own occluding geometry in the group's
+//!   frame — never where the group is.
 
 use crate::key::{Key, KeyHasher};
 use crate::store::{Result, Store};
 use glam::{Affine3A, Vec3};
-use kage_engine::scene::{FlatScene, InGroup, MaterialMaps, PolygonLight, PrimitiveId, Scene, cutout};
+use kage_engine::math::rng::mix64;
+use kage_engine::scene::{
+    FlatScene, InGroup, MaterialMaps, MeshRef, PolygonLight, PrimitiveId, Scene, SourceMesh, cutout,
+};
 use kage_engine::{bspvt, prt};
 use std::collections::HashMap;
 use std::ops::Range;
 
-/// Vertices per artefact: the unit of caching, resuming and writing.
+/// Vertices per artefact on average: the unit of caching, resuming and writing.
 pub const CHUNK: usize = 256;
+
+/// Fewest vertices in a chunk, but for an instance's last.
+const MIN_CHUNK: usize = 64;
+
+/// Most vertices in a chunk.
+const MAX_CHUNK: usize = 1024;
 
 /// Which technique a job bakes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -62,7 +77,7 @@ pub struct Job {
 pub struct Occluder {
     /// glTF origin (node, mesh, primitive).
     pub id: [u32; 3],
-    /// Mesh content hash (with the cut-out's mask: [`FlatScene::occluder_hash`]).
+    /// Occluding mesh's content hash (with the cut-out's mask: [`FlatScene::occluder_hash`]).
     pub mesh: [u8; 32],
     /// World transform.
     pub world: [f32; 12],
@@ -241,16 +256,16 @@ pub fn plan(
                 .u64("algorithm", bspvt::ALGORITHM_VERSION as u64)
                 .u64("res", s.res as u64)
                 .f64("epsilon", s.epsilon)
-                .bytes("mesh", &flat.meshes[inst.mesh as usize].hash.0)
                 .affine("world", &inst.world);
             // Lights that may go anywhere add nothing: keys baked before reaches existed stay valid.
             if reach != bspvt::reach::Reach::Anywhere {
                 base = base.bytes("reach", &reach.key_bytes());
             }
             let id = [inst.id.node, inst.id.mesh, inst.id.primitive];
-            for (c, vertices) in chunks(flat, i) {
-                let key = base.clone().bytes("occluders", snapshot.hash.as_bytes()).u64("chunk", c as u64).finish();
-                let slot = base.clone().bytes("id", bytemuck::cast_slice(&id)).u64("slot", c as u64).finish();
+            for vertices in chunks(flat, i) {
+                let base = base.clone().bytes("vertices", &chunk_content(flat, i, &vertices));
+                let key = base.clone().bytes("occluders", snapshot.hash.as_bytes()).finish();
+                let slot = base.bytes("id", bytemuck::cast_slice(&id)).finish();
                 jobs.push(Job { kind: Kind::Bspvt, instance: i, vertices, key, slot: Some(slot), cached: false });
             }
         }
@@ -263,11 +278,10 @@ pub fn plan(
                 .u64("version", prt::ALGORITHM_VERSION as u64)
                 .u64("order", s.order as u64)
                 .u64("directions", s.direction_side().pow(2) as u64)
-                .bytes("mesh", &flat.meshes[inst.mesh as usize].hash.0)
                 .affine("local", &locals[i])
                 .bytes("group", groups[&inst.group].as_bytes());
-            for (c, vertices) in chunks(flat, i) {
-                let key = base.clone().u64("chunk", c as u64).finish();
+            for vertices in chunks(flat, i) {
+                let key = base.clone().bytes("vertices", &chunk_content(flat, i, &vertices)).finish();
                 jobs.push(Job { kind: Kind::Prt, instance: i, vertices, key, slot: None, cached: false });
             }
         }
@@ -277,21 +291,56 @@ pub fn plan(
     Ok(Plan { bspvt, prt, jobs, snapshot, reach })
 }
 
-/// (chunk index, vertex range) of instance `i`.
-fn chunks(flat: &FlatScene, i: usize) -> Vec<(usize, Range<usize>)> {
-    let n = flat.vertex_count(i);
-    (0..n.div_ceil(CHUNK)).map(|c| (c, c * CHUNK..((c + 1) * CHUNK).min(n))).collect()
+/// Instance `i`'s vertices cut into chunks by their content, as content-defined chunking cuts
+/// a file: after a vertex whose hash (of its position and normal) is 0 modulo
+/// `CHUNK − MIN_CHUNK`, once the chunk has [`MIN_CHUNK`] vertices, and at [`MAX_CHUNK`] in any
+/// case — [`CHUNK`] vertices on average. Vertices added or dropped in one stretch of the list
+/// change the chunks there; past the next cut the chunks are the same as before.
+pub fn chunks(flat: &FlatScene, i: usize) -> Vec<Range<usize>> {
+    let mesh = flat.mesh(i);
+    let bits = |v: usize| -> [u32; 6] {
+        let (p, n) = (mesh.positions[v].to_array(), mesh.normals[v].to_array());
+        [p[0], p[1], p[2], n[0], n[1], n[2]].map(f32::to_bits)
+    };
+    let cut_after = |v: usize| {
+        let b = bits(v);
+        let h = (0..3).fold(0u64, |h, k| mix64(h ^ ((b[2 * k] as u64) << 32 | b[2 * k + 1] as u64)));
+        h.is_multiple_of((CHUNK - MIN_CHUNK) as u64)
+    };
+    let mut out = Vec::new();
+    let mut start = 0;
+    for v in 0..mesh.positions.len() {
+        let len = v + 1 - start;
+        if len == MAX_CHUNK || (len >= MIN_CHUNK && cut_after(v)) {
+            out.push(start..v + 1);
+            start = v + 1;
+        }
+    }
+    if start < mesh.positions.len() {
+        out.push(start..mesh.positions.len());
+    }
+    out
 }
 
-/// Per group: a hash of its geometry in its own frame (members' meshes and group-relative
-/// transforms, lights' polygons), in glTF order.
+/// What a chunk's bake reads of its own vertices: their positions and normals (mesh frame).
+fn chunk_content(flat: &FlatScene, i: usize, vertices: &Range<usize>) -> Vec<u8> {
+    let mesh = flat.mesh(i);
+    let mut out: Vec<u8> = bytemuck::cast_slice(&mesh.positions[vertices.clone()]).to_vec();
+    out.extend_from_slice(bytemuck::cast_slice(&mesh.normals[vertices.clone()]));
+    out
+}
+
+/// Per group: a hash of its occluding geometry in its own frame (members' occluding meshes and
+/// group-relative transforms, lights' polygons), in glTF order: what [`prt::Baker`] casts
+/// against.
 fn group_geometry(scene: &Scene) -> HashMap<hecs::Entity, Key> {
     let mut members: HashMap<hecs::Entity, Vec<(PrimitiveId, [u8; 32], Affine3A)>> = HashMap::new();
     let mut query =
-        scene.world.query::<(&PrimitiveId, &kage_engine::scene::MeshRef, &InGroup, Option<&MaterialMaps>)>();
-    for (id, m, g, maps) in query.iter() {
+        scene.world.query::<(&PrimitiveId, &MeshRef, Option<&SourceMesh>, &InGroup, Option<&MaterialMaps>)>();
+    for (id, m, source, g, maps) in query.iter() {
         let cutout = maps.and_then(|m| m.cutout.as_ref());
-        let mesh = cutout::occluder_hash(&scene.meshes[m.index as usize], cutout, &scene.textures);
+        let occluder = SourceMesh::occluder(*m, source);
+        let mesh = cutout::occluder_hash(&scene.meshes[occluder.index as usize], cutout, &scene.textures);
         members.entry(g.group).or_default().push((*id, mesh, g.local));
     }
     let mut lights: HashMap<hecs::Entity, Vec<f32>> = HashMap::new();
@@ -316,6 +365,44 @@ fn group_geometry(scene: &Scene) -> HashMap<hecs::Entity, Key> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use kage_engine::scene::{Material, Mesh, flatten, shapes};
+
+    /// The chunks of a scene holding only `mesh`, with each chunk's positions.
+    fn chunked(mesh: Mesh) -> Vec<Vec<Vec3>> {
+        let mut scene = Scene::new("test:chunks");
+        scene.add_object("m", mesh, Material::lambertian(Vec3::ONE), glam::Affine3A::IDENTITY);
+        let flat = flatten(&scene);
+        chunks(&flat, 0).into_iter().map(|r| flat.mesh(0).positions[r].to_vec()).collect()
+    }
+
+    /// Chunks cover the vertices in order, [`MIN_CHUNK`] to [`MAX_CHUNK`] long (the last may be
+    /// shorter), [`CHUNK`] on average; vertices inserted in the middle change the chunks there
+    /// and leave those before and, past the next cut, those after as they were.
+    #[test]
+    fn chunks_are_cut_by_content() {
+        let grid = shapes::grid(8.0, 80);
+        let n = grid.positions.len();
+        let before = chunked(grid.clone());
+        assert_eq!(before.iter().map(Vec::len).sum::<usize>(), n);
+        let (last, rest) = before.split_last().unwrap();
+        assert!(rest.iter().all(|c| (MIN_CHUNK..=MAX_CHUNK).contains(&c.len())) && last.len() <= MAX_CHUNK);
+        let mean = n as f64 / before.len() as f64;
+        assert!((0.7..1.4).contains(&(mean / CHUNK as f64)), "{mean} vertices a chunk");
+
+        let at = n / 2;
+        let mut positions = grid.positions.clone();
+        let extra: Vec<Vec3> = (0..40).map(|k| Vec3::new(0.01 * k as f32, 0.0, 0.123)).collect();
+        positions.splice(at..at, extra.iter().copied());
+        let mut normals = grid.normals.clone();
+        normals.splice(at..at, extra.iter().map(|_| Vec3::Y));
+        let shift = |i: u32| if i as usize >= at { i + extra.len() as u32 } else { i };
+        let triangles: Vec<[u32; 3]> = grid.triangles.iter().map(|t| t.map(shift)).collect();
+        let (edited, _) = Mesh::new(positions, Some(normals), vec![], triangles, false).unwrap();
+        let after = chunked(edited);
+        let kept = after.iter().filter(|c| before.contains(c)).count();
+        assert!(kept + 2 >= before.len(), "{kept} of {} chunks kept", before.len());
+        assert!(after.len() > kept, "the chunk with the new vertices is new");
+    }
 
     #[test]
     fn occluders_round_trip_through_their_encoding() {

@@ -1,5 +1,6 @@
 //! Radiance-cache records in the database, keyed by everything they depend on: the scene's
 //! geometry (the occluder snapshot and the lights, which block gather rays), the receivers'
+//! meshes (which the records are placed on and gathers read their light from), their
 //! materials (which decide where records are placed), the per-vertex direct light the gathers
 //! saw, and the cache settings. A light that moves changes the direct light and so the key.
 
@@ -12,8 +13,10 @@ use kage_engine::scene::Scene;
 
 /// Version of the record layout and placement: part of every key. (2: record spacing and
 /// radius bounds ignore the lights, so a refreshed cache is the cold placement; 3: gather rays
-/// pass what touches their start, see [`kage_engine::accel::touching_distance`].)
-pub const VERSION: u32 = 3;
+/// pass what touches their start, see [`kage_engine::accel::touching_distance`]; 4: the
+/// receivers' meshes join the key, since the occluder snapshot names a flat refinement's
+/// source.)
+pub const VERSION: u32 = 4;
 
 /// The key of the records a cache built from `src` with `s` would hold.
 pub fn key(src: &Source, s: &Settings) -> Key {
@@ -29,6 +32,7 @@ pub fn key(src: &Source, s: &Settings) -> Key {
         .collect();
     let lights: Vec<f32> = flat.lights.iter().flat_map(|l| l.points.iter().flat_map(|p| p.to_array())).collect();
     let direct: Vec<f32> = src.direct.iter().flatten().flat_map(|v| v.to_array()).collect();
+    let receivers: Vec<u8> = (0..flat.instances.len()).flat_map(|i| flat.mesh(i).hash.0).collect();
     let mut hasher = KeyHasher::new("hsh-cache");
     // Only the numerical form joins the key, so records stored before it existed stay valid.
     if s.gradient_form == GradientForm::Numerical {
@@ -51,6 +55,7 @@ pub fn key(src: &Source, s: &Settings) -> Key {
     };
     hasher
         .bytes("occluders", &encode_occluders(&snapshot.occluders))
+        .bytes("receivers", &receivers)
         .bytes("lights", bytemuck::cast_slice(&lights))
         .bytes("materials", bytemuck::cast_slice(&materials))
         .bytes("direct", bytemuck::cast_slice(&direct))

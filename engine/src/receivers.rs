@@ -16,8 +16,8 @@
 //!    tolerance: for a light, the visible fraction as pixels interpolate it (shadowed over
 //!    unshadowed share; an end inside geometry takes no part) weighed by the unshadowed share;
 //!    for the environment, `|V(a) − V(b)|` or `|V(mid) − (V(a) + V(b)) / 2|` (see `side_error`). The marks of a round are split
-//!    largest error × world length first (an edge's error spreads over its length) until the
-//!    budget is spent.
+//!    largest error × world length first (an edge's error spreads over its length; in steps of
+//!    2^¼, by place within a step, see `split_worst`) until the budget is spent.
 //!
 //! Lights without a declared reach are refined for where they are: moved, they are refined
 //! again when the scene is next loaded (and the changed receivers re-baked). Lights with one
@@ -28,7 +28,7 @@
 use crate::accel::SceneBvh;
 use crate::math::color::luminance;
 use crate::math::sampling::{hammersley, uniform_sphere, uniform_triangle};
-use crate::scene::refine::Adaptive;
+use crate::scene::refine::{Adaptive, Refined};
 use crate::scene::{EnvironmentLight, FlatLight, FlatScene, NO_LIGHT, PrimitiveId, Scene, flatten};
 use glam::Vec3;
 use rayon::prelude::*;
@@ -67,7 +67,7 @@ pub fn refine(scene: &mut Scene, settings: &Settings) -> crate::Result<Report> {
 
 /// Bumped whenever refinement would refine the same scene differently: it names kept
 /// refinements ([`key`]).
-pub const VERSION: u32 = 5;
+pub const VERSION: u32 = 6;
 
 /// What refinement reads of `scene` (its source meshes, as [`Scene::restore_source_meshes`]
 /// leaves it) and `settings`, hashed: the instances' meshes and placements, every occluding
@@ -114,7 +114,7 @@ pub fn key(scene: &Scene, settings: &Settings) -> blake3::Hash {
 /// before, and its refined mesh where refinement changed it.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Refinement {
-    instances: Vec<(usize, Option<crate::scene::Mesh>)>,
+    instances: Vec<(usize, Option<Refined>)>,
 }
 
 impl Refinement {
@@ -182,7 +182,7 @@ impl Refinement {
         let flat = flatten(scene);
         let mut report = Vec::new();
         for (inst, (before, mesh)) in flat.instances.iter().zip(self.instances) {
-            let Some(mesh) = mesh else {
+            let Some(Refined { mesh, flat }) = mesh else {
                 report.push((before, before));
                 continue;
             };
@@ -193,7 +193,7 @@ impl Refinement {
                 .iter()
                 .find(|(_, id)| **id == inst.id)
                 .map(|(e, _)| e);
-            scene.set_refined_mesh(entity.expect("the snapshot's instances are the world's"), mesh);
+            scene.set_refined_mesh(entity.expect("the snapshot's instances are the world's"), mesh, flat);
         }
         report
     }
@@ -203,13 +203,14 @@ impl Refinement {
         let mut out = Vec::new();
         let word = |out: &mut Vec<u8>, n: usize| out.extend((n as u32).to_le_bytes());
         word(&mut out, self.instances.len());
-        for (before, mesh) in &self.instances {
+        for (before, refined) in &self.instances {
             word(&mut out, *before);
-            let Some(m) = mesh else {
+            let Some(Refined { mesh: m, flat }) = refined else {
                 word(&mut out, 0);
                 continue;
             };
-            word(&mut out, 1);
+            // 1: refined, lifted off its source; 2: refined flat.
+            word(&mut out, 1 + *flat as usize);
             for n in [m.positions.len(), m.uvs.len(), m.uvs1.len(), m.colors.len(), m.triangles.len()] {
                 word(&mut out, n);
             }
@@ -241,6 +242,9 @@ impl Refinement {
                 instances.push((before, None));
                 continue;
             }
+            if refined > 2 {
+                return None;
+            }
             let [p, uv, uv1, c, t] = [r.word()?, r.word()?, r.word()?, r.word()?, r.word()?];
             let mut mesh = crate::scene::Mesh {
                 positions: r.pods(p)?,
@@ -255,7 +259,7 @@ impl Refinement {
                 return None;
             }
             mesh.hash = mesh.compute_hash();
-            instances.push((before, Some(mesh)));
+            instances.push((before, Some(Refined { mesh, flat: refined == 2 })));
         }
         (r.at == body.len()).then_some(Self { instances })
     }
@@ -315,13 +319,24 @@ fn seeded(source: &[Adaptive], instances: &[crate::scene::Instance], share: usiz
 /// Splits the marked edges of every instance, the largest errors first, within `budget` new
 /// vertices (a split adds one vertex per side of a seam; counted as one, so the budget may be
 /// exceeded by the seams' extra vertices).
+///
+/// Errors are compared in steps of 2^¼ (19 %), and marks in one step go by instance, then by
+/// place ([`Adaptive::place`]). When the budget cuts a step, an edit that adds or drops marks
+/// in one place (a moved box's shadow) moves the cut along one stretch of places, rather than
+/// among near-equal marks all over the receiver, so the vertices, and the bakes, away from the
+/// edit mostly stay as they were (`docs/receivers.md#edits`).
 fn split_worst(meshes: &mut [Adaptive], marks: Vec<Vec<Mark>>, budget: usize) {
-    let mut all: Vec<(f32, usize, [u32; 2])> =
-        marks.into_iter().enumerate().flat_map(|(i, m)| m.into_iter().map(move |(_, e, edge)| (e, i, edge))).collect();
-    all.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)));
+    let step = |e: f32| (4.0 * e.log2()).floor() as i32;
+    let mut all: Vec<(i32, usize, u64, [u32; 2])> = marks
+        .into_iter()
+        .enumerate()
+        .flat_map(|(i, m)| m.into_iter().map(move |(_, e, edge)| (e, i, edge)))
+        .map(|(e, i, edge)| (step(e), i, meshes[i].place(edge), edge))
+        .collect();
+    all.sort_by(|a, b| b.0.cmp(&a.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)).then(a.3.cmp(&b.3)));
     all.truncate(budget);
     let mut per: Vec<Vec<[u32; 2]>> = vec![Vec::new(); meshes.len()];
-    for (_, i, e) in all {
+    for (_, i, _, e) in all {
         per[i].extend(meshes[i].longest_around(e));
     }
     for (mesh, edges) in meshes.iter_mut().zip(per) {

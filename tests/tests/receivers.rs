@@ -541,3 +541,19 @@ fn a_shadow_boundary_along_an_existing_edge_is_resolved() {
     eprintln!("boundary along the diagonal: {before:.4} with {n0} vertices, {after:.4} with {n1}");
     assert!(after < 0.5 * before && after < 0.08, "refined {after:.4}, coarse {before:.4}");
 }
+
+/// A floor refined flat casts its shadows as its source does — two triangles, whatever the
+/// refinement, so refining it again for a moved light changes no occluder and no key that
+/// hashes the occluders — while the ball, refined onto its curved surface, casts as refined.
+#[test]
+fn a_flat_refinement_occludes_as_its_source_and_a_lifted_one_as_itself() {
+    let (s, moved) = (refined(two_triangle_floor(), 2000), refined(moved(two_triangle_floor(), Vec3::X), 2000));
+    let (flat, flat_moved) = (flatten(&s), flatten(&moved));
+    let (floor, ball) = (0, 3);
+    assert!(flat.vertex_count(floor) > 1000 && flat.vertex_count(floor) != flat_moved.vertex_count(floor));
+    assert_eq!(flat.occluder_mesh(floor).positions.len(), 4);
+    assert_eq!(bspvt::occluder_triangles(&flat)[floor].len(), 2);
+    assert_eq!(flat.occluder_hash(floor), flat_moved.occluder_hash(floor));
+    assert!(flat.vertex_count(ball) > 153, "the ball is refined");
+    assert_eq!(flat.occluder_mesh(ball).hash, flat.mesh(ball).hash);
+}

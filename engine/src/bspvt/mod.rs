@@ -36,8 +36,8 @@ pub mod tree;
 pub mod visibility;
 
 use crate::accel::Occluders;
+use crate::scene::FlatScene;
 use crate::scene::VertexValues;
-use crate::scene::{FlatScene, NO_LIGHT};
 use memo::SubtreeMemo;
 use rayon::prelude::*;
 use reach::Reach;
@@ -160,21 +160,16 @@ pub fn occluder_bvh(flat: &FlatScene) -> Occluders {
     Occluders::with(&occluder_triangles(flat), &occluder_holes(flat), |_, t| crate::accel::SceneBvh::new(t))
 }
 
-/// Each instance's occluding triangles (its own, lights excepted), by instance index: what
-/// [`occluder_bvh`] builds its BVHs over.
+/// Each instance's occluding triangles (its own, lights excepted; a flat refinement's source
+/// triangles, see [`FlatScene::occluder_mesh`]), by instance index: what [`occluder_bvh`]
+/// builds its BVHs over.
 pub fn occluder_triangles(flat: &FlatScene) -> Vec<Vec<[glam::Vec3; 3]>> {
-    let mut parts: Vec<Vec<[glam::Vec3; 3]>> = vec![Vec::new(); flat.instances.len()];
-    for (t, r) in flat.triangles.iter().zip(&flat.refs) {
-        if r.light == NO_LIGHT {
-            parts[r.owner as usize].push(*t);
-        }
-    }
-    parts
+    (0..flat.instances.len()).map(|i| flat.occluder_triangles(i)).collect()
 }
 
 /// The holes of [`occluder_triangles`]' lists, by instance.
 pub fn occluder_holes(flat: &FlatScene) -> Vec<crate::scene::Holes> {
-    (0..flat.instances.len()).map(|i| flat.instance_holes(i)).collect()
+    (0..flat.instances.len()).map(|i| flat.occluder_holes(i)).collect()
 }
 
 /// One vertex's bake: its record and what a warm re-bake of it needs.

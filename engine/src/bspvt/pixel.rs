@@ -105,6 +105,7 @@ impl Inside {
         let mut h = blake3::Hasher::new();
         for (i, inst) in flat.instances.iter().enumerate() {
             h.update(&flat.occluder_hash(i));
+            h.update(&flat.mesh(i).hash.0);
             h.update(bytemuck::cast_slice(&inst.world.to_cols_array()));
         }
         let key = h.finalize();

@@ -9,6 +9,7 @@ pub mod frame;
 pub mod ggx;
 pub mod hsh;
 pub mod ltc;
+pub mod morton;
 pub mod nelder_mead;
 pub mod planes;
 pub mod polygon;

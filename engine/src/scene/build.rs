@@ -95,7 +95,7 @@ impl Scene {
     /// The mesh instance `e` was given (by the file or an edit), before any receiver
     /// refinement.
     pub fn source_mesh(&self, e: hecs::Entity) -> Option<MeshRef> {
-        let refined = self.world.get::<&SourceMesh>(e).ok().map(|s| s.0);
+        let refined = self.world.get::<&SourceMesh>(e).ok().map(|s| s.mesh);
         refined.or_else(|| self.world.get::<&MeshRef>(e).ok().map(|r| *r))
     }
 
@@ -111,15 +111,16 @@ impl Scene {
     /// Every refined instance back on its source mesh.
     pub fn restore_source_meshes(&mut self) {
         let refined: Vec<(hecs::Entity, MeshRef)> =
-            self.world.query::<(hecs::Entity, &SourceMesh)>().iter().map(|(e, s)| (e, s.0)).collect();
+            self.world.query::<(hecs::Entity, &SourceMesh)>().iter().map(|(e, s)| (e, s.mesh)).collect();
         for (e, mesh) in refined {
             self.set_source_mesh(e, mesh);
         }
     }
 
     /// Puts `mesh` in place of instance `e`'s mesh as a refinement of its source (a mesh
-    /// already held with the same content is shared, so refining again adds nothing).
-    pub fn set_refined_mesh(&mut self, e: hecs::Entity, mesh: Mesh) {
+    /// already held with the same content is shared, so refining again adds nothing); `flat`
+    /// as [`SourceMesh::flat`].
+    pub fn set_refined_mesh(&mut self, e: hecs::Entity, mesh: Mesh, flat: bool) {
         let Some(source) = self.source_mesh(e) else { return };
         let index = match self.meshes.iter().position(|m| m.hash == mesh.hash) {
             Some(i) => i,
@@ -129,7 +130,7 @@ impl Scene {
             }
         };
         let refined = MeshRef { index: index as u32, hash: self.meshes[index].hash };
-        let _ = self.world.insert(e, (refined, SourceMesh(source)));
+        let _ = self.world.insert(e, (refined, SourceMesh { mesh: source, flat }));
     }
 
     /// An independent copy with the same entity ids (a snapshot for a background bake while the

@@ -155,7 +155,22 @@ pub struct MeshRef {
 /// The mesh an instance had before receiver refinement replaced it: refinement always starts
 /// again from it, and a saved file still refers to it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct SourceMesh(pub MeshRef);
+pub struct SourceMesh {
+    /// The source mesh.
+    pub mesh: MeshRef,
+    /// True when the refinement put every vertex on the source's flat triangles: the instance
+    /// then occludes as its source ([`SourceMesh::occluder`]), so re-refining it (another
+    /// shadow to follow) changes nothing it casts, nor any key that hashes what occludes.
+    pub flat: bool,
+}
+
+impl SourceMesh {
+    /// The mesh that occludes for an instance showing `shown` and refined from `source` (if
+    /// it was): the source when the refinement is flat, else what it shows.
+    pub fn occluder(shown: MeshRef, source: Option<&SourceMesh>) -> MeshRef {
+        source.filter(|s| s.flat).map_or(shown, |s| s.mesh)
+    }
+}
 
 /// glTF metallic-roughness material (factors only; see `docs/conventions.md` for the BRDF).
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -4,7 +4,7 @@
 use super::import::polygon_normal_area;
 use crate::scene::{
     Camera, Cutout, EnvironmentLight, Holes, InGroup, Material, MaterialMaps, Mesh, MeshRef, PolygonLight, PrimitiveId,
-    Scene, Texture, Transform,
+    Scene, SourceMesh, Texture, Transform,
 };
 use glam::{Affine3A, Mat3A, Vec2, Vec3};
 use std::sync::Arc;
@@ -17,6 +17,9 @@ pub const NO_LIGHT: u32 = u32::MAX;
 pub struct Instance {
     /// Index into [`FlatScene::meshes`] (and [`Scene::meshes`]).
     pub mesh: u32,
+    /// The mesh that casts its shadows (see [`SourceMesh::occluder`]): its source, when a flat
+    /// refinement shows more vertices on the same triangles.
+    pub occluder: u32,
     /// World-from-local.
     pub world: Affine3A,
     /// Transforms normals (inverse transpose of the linear part).
@@ -118,19 +121,24 @@ pub fn flatten(scene: &Scene) -> FlatScene {
     };
     // Sorted by glTF origin so that triangle order (and hence every seeded estimate) does not
     // depend on entity allocation order.
-    let mut items: Vec<(PrimitiveId, MeshRef, Material, MaterialMaps, Transform, hecs::Entity)> = scene
+    type Item = (PrimitiveId, MeshRef, MeshRef, Material, MaterialMaps, Transform, hecs::Entity);
+    let mut items: Vec<Item> = scene
         .world
-        .query::<(&PrimitiveId, &MeshRef, &Material, Option<&MaterialMaps>, &Transform, &InGroup)>()
+        .query::<(&PrimitiveId, &MeshRef, Option<&SourceMesh>, &Material, Option<&MaterialMaps>, &Transform, &InGroup)>(
+        )
         .iter()
-        .map(|(id, m, mat, maps, t, g)| (*id, *m, *mat, maps.copied().unwrap_or_default(), *t, g.group))
+        .map(|(id, m, source, mat, maps, t, g)| {
+            (*id, *m, SourceMesh::occluder(*m, source), *mat, maps.copied().unwrap_or_default(), *t, g.group)
+        })
         .collect();
     items.sort_by_key(|(id, ..)| (id.node, id.mesh, id.primitive));
-    for (id, mref, material, maps, t, group) in items {
+    for (id, mref, occluder, material, maps, t, group) in items {
         let mesh = &scene.meshes[mref.index as usize];
         let mirrored = t.is_mirrored();
         let owner = flat.instances.len() as u32;
         flat.instances.push(Instance {
             mesh: mref.index,
+            occluder: occluder.index,
             world: t.world,
             normal_matrix: t.world.matrix3.inverse().transpose(),
             mirrored,
@@ -140,11 +148,7 @@ pub fn flatten(scene: &Scene) -> FlatScene {
             group,
             first_triangle: flat.triangles.len() as u32,
         });
-        for (k, tri) in mesh.triangles.iter().enumerate() {
-            let mut p = tri.map(|i| t.world.transform_point3(mesh.positions[i as usize]));
-            if mirrored {
-                p.swap(1, 2);
-            }
+        for (k, p) in world_triangles(mesh, &t.world).enumerate() {
             flat.triangles.push(p);
             flat.refs.push(TriangleRef { owner, local: k as u32, light: NO_LIGHT });
         }
@@ -191,15 +195,27 @@ fn add_light(flat: &mut FlatScene, scene: &Scene, light: &PolygonLight, t: &Tran
     });
 }
 
+/// `mesh`'s triangles placed by `to` (winding un-mirrored).
+fn world_triangles<'a>(mesh: &'a Mesh, to: &'a Affine3A) -> impl Iterator<Item = [Vec3; 3]> + 'a {
+    let mirrored = to.matrix3.determinant() < 0.0;
+    mesh.triangles.iter().map(move |tri| {
+        let mut p = tri.map(|i| to.transform_point3(mesh.positions[i as usize]));
+        if mirrored {
+            p.swap(1, 2);
+        }
+        p
+    })
+}
+
 /// The triangles of one rigid group in the group's own frame (instances and lights, winding
 /// un-mirrored), for a BVH that stays valid however the group moves, and their holes.
 pub fn group_triangles(scene: &Scene, group: hecs::Entity) -> (Vec<[Vec3; 3]>, Holes) {
     let mut items: Vec<(PrimitiveId, MeshRef, InGroup, Option<Cutout>)> = scene
         .world
-        .query::<(&PrimitiveId, &MeshRef, &InGroup, Option<&MaterialMaps>)>()
+        .query::<(&PrimitiveId, &MeshRef, Option<&SourceMesh>, &InGroup, Option<&MaterialMaps>)>()
         .iter()
-        .filter(|(_, _, g, _)| g.group == group)
-        .map(|(id, m, g, maps)| (*id, *m, *g, maps.and_then(|m| m.cutout)))
+        .filter(|(_, _, _, g, _)| g.group == group)
+        .map(|(id, m, source, g, maps)| (*id, SourceMesh::occluder(*m, source), *g, maps.and_then(|m| m.cutout)))
         .collect();
     items.sort_by_key(|(id, ..)| (id.node, id.mesh, id.primitive));
     let mut out = Vec::new();
@@ -207,13 +223,7 @@ pub fn group_triangles(scene: &Scene, group: hecs::Entity) -> (Vec<[Vec3; 3]>, H
     for (_, mref, member, cutout) in items {
         let mesh = &scene.meshes[mref.index as usize];
         let mirrored = member.local.matrix3.determinant() < 0.0;
-        for tri in &mesh.triangles {
-            let mut p = tri.map(|i| member.local.transform_point3(mesh.positions[i as usize]));
-            if mirrored {
-                p.swap(1, 2);
-            }
-            out.push(p);
-        }
+        out.extend(world_triangles(mesh, &member.local));
         holes.push((Holes::of_mesh(mesh, cutout.as_ref(), &scene.textures, mirrored), mesh.triangles.len()));
     }
     for (light, member) in scene.world.query::<(&PolygonLight, &InGroup)>().iter().filter(|(_, g)| g.group == group) {
@@ -231,15 +241,33 @@ impl FlatScene {
         &self.meshes[self.instances[inst].mesh as usize]
     }
 
+    /// The mesh that casts instance `inst`'s shadows ([`Instance::occluder`]).
+    pub fn occluder_mesh(&self, inst: usize) -> &Mesh {
+        &self.meshes[self.instances[inst].occluder as usize]
+    }
+
     /// The holes of instance `inst`'s triangles (see [`crate::scene::cutout`]).
     pub fn instance_holes(&self, inst: usize) -> Holes {
         let i = &self.instances[inst];
         Holes::of_mesh(self.mesh(inst), i.maps.cutout.as_ref(), &self.textures, i.mirrored)
     }
 
-    /// See [`crate::scene::cutout::occluder_hash`].
+    /// Instance `inst`'s occluding triangles in world space (its [`Self::occluder_mesh`]'s).
+    pub fn occluder_triangles(&self, inst: usize) -> Vec<[Vec3; 3]> {
+        world_triangles(self.occluder_mesh(inst), &self.instances[inst].world).collect()
+    }
+
+    /// The holes of [`Self::occluder_triangles`].
+    pub fn occluder_holes(&self, inst: usize) -> Holes {
+        let i = &self.instances[inst];
+        Holes::of_mesh(self.occluder_mesh(inst), i.maps.cutout.as_ref(), &self.textures, i.mirrored)
+    }
+
+    /// A hash of what instance `inst` occludes with: its [`Self::occluder_mesh`] and the
+    /// cut-out's mask (see [`crate::scene::cutout::occluder_hash`]).
     pub fn occluder_hash(&self, inst: usize) -> [u8; 32] {
-        crate::scene::cutout::occluder_hash(self.mesh(inst), self.instances[inst].maps.cutout.as_ref(), &self.textures)
+        let cutout = self.instances[inst].maps.cutout.as_ref();
+        crate::scene::cutout::occluder_hash(self.occluder_mesh(inst), cutout, &self.textures)
     }
 
     /// The holes of [`Self::triangles`] (lights' triangles are solid).

@@ -18,12 +18,17 @@
 //! there); on a crease it stays on the flat edge, so an occluder's silhouette does not move.
 
 use super::mesh::{Mesh, MeshProblem};
+use crate::math::morton;
 use glam::Vec3;
 use std::cmp::Reverse;
 use std::collections::{BinaryHeap, HashMap};
 
 /// Phong tessellation's shape factor: 0 is flat, 1 the full quadratic patch.
 const PHONG_ALPHA: f32 = 0.75;
+
+/// A Phong point this close to its flat edge's midpoint (relative to the edge's length) is the
+/// midpoint: the difference is rounding on a flat surface, and a curved one lifts far more.
+const FLAT_LIFT: f32 = 1e-5;
 
 type Edge = (u32, u32);
 
@@ -45,6 +50,12 @@ struct Refiner {
     users: HashMap<Edge, Vec<u32>>,
     /// (squared length bits, reversed pair): the longest first, then the smallest pair.
     queue: BinaryHeap<(u32, Reverse<Edge>)>,
+    /// Vertices of the source mesh (the first ones); the rest were added by splits.
+    source_vertices: usize,
+    /// The source's bounds, which places are coded over ([`Refiner::place`]).
+    bounds: (Vec3, Vec3),
+    /// Whether a split put a vertex off its flat edge (onto the Phong surface).
+    lifted: bool,
 }
 
 impl Refiner {
@@ -61,6 +72,9 @@ impl Refiner {
             canon,
             users: HashMap::new(),
             queue: BinaryHeap::new(),
+            source_vertices: mesh.positions.len(),
+            bounds: mesh.positions.iter().fold((Vec3::MAX, Vec3::MIN), |(lo, hi), p| (lo.min(*p), hi.max(*p))),
+            lifted: false,
         };
         for tri in &mesh.triangles {
             r.push_triangle(*tri);
@@ -116,6 +130,8 @@ impl Refiner {
             })
             .collect();
         let position = self.split_point(&sides);
+        let (p, q, _) = sides[0];
+        self.lifted |= position != 0.5 * (self.positions[p as usize] + self.positions[q as usize]);
         let name = self.positions.len() as u32;
         let mut mids: Vec<((u32, u32), u32)> = Vec::new();
         for (&t, &(p, q, r)) in users.iter().zip(&sides) {
@@ -181,8 +197,10 @@ impl Refiner {
         let mid = 0.5 * (pa + pb);
         let onto = |p: Vec3, n: Vec3| mid - (mid - p).dot(n) * n;
         let curved = (1.0 - PHONG_ALPHA) * mid + PHONG_ALPHA * 0.5 * (onto(pa, na) + onto(pb, nb));
-        // Normals that disagree wildly (a crease) would pull the point off: stay flat there.
-        if na.dot(nb) > 0.0 && self.face_normal(tri).dot(na + nb) > 0.0 { curved } else { mid }
+        // Normals that disagree wildly (a crease) would pull the point off: stay flat there. A
+        // lift within rounding (a flat surface) is none, so a flat mesh refines exactly flat.
+        let lifted = (curved - mid).length() > FLAT_LIFT * pa.distance(pb);
+        if lifted && na.dot(nb) > 0.0 && self.face_normal(tri).dot(na + nb) > 0.0 { curved } else { mid }
     }
 
     fn face_normal(&self, tri: [u32; 3]) -> Vec3 {
@@ -317,14 +335,72 @@ impl Adaptive {
         sides
     }
 
+    /// Where edge `e` lies, as an order of places ([`Refiner::place`] of its midpoint): ties
+    /// between equal marks go by it, so which of them a budget takes depends on where they
+    /// are, not on when their vertices were made.
+    pub fn place(&self, e: [u32; 2]) -> u64 {
+        let r = &self.0;
+        r.place(0.5 * (r.positions[e[0] as usize] + r.positions[e[1] as usize]))
+    }
+
     /// Vertices so far.
     pub fn vertices(&self) -> usize {
         self.0.positions.len()
     }
 
-    /// The refined mesh.
-    pub fn finish(self) -> Result<Mesh, MeshProblem> {
-        self.0.finish()
+    /// The refined mesh, the vertices splits added in spatial order after the source's (see
+    /// [`Refiner::spatial_order`]).
+    pub fn finish(self) -> Result<Refined, MeshProblem> {
+        let mut r = self.0;
+        let flat = !r.lifted;
+        r.spatial_order();
+        Ok(Refined { mesh: r.finish()?, flat })
+    }
+}
+
+/// An adaptively refined mesh.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Refined {
+    /// The mesh.
+    pub mesh: Mesh,
+    /// True when every added vertex lies on its source's flat triangles: the mesh then occludes
+    /// exactly as its source does (see [`crate::scene::SourceMesh`]).
+    pub flat: bool,
+}
+
+impl Refiner {
+    /// The Morton code of `p` over the source's bounds: an order of places that keeps nearby
+    /// ones mostly together, the same for every refinement of one source.
+    fn place(&self, p: Vec3) -> u64 {
+        morton::encode(morton::quantize(p, self.bounds.0, self.bounds.1))
+    }
+
+    /// Puts the vertices splits added in Morton order over the source's bounds, ties by
+    /// content. Where a vertex lies, not when it was split, decides its place, so two
+    /// refinements that differ in one region differ in one stretch of the vertex list — and so
+    /// in a few of the bake's chunks of vertices.
+    fn spatial_order(&mut self) {
+        let n0 = self.source_vertices;
+        let bits = |v: Vec3| v.to_array().map(f32::to_bits);
+        let mut added: Vec<u32> = (n0 as u32..self.positions.len() as u32).collect();
+        added.sort_by_cached_key(|&v| {
+            let (p, n) = (self.positions[v as usize], self.normals[v as usize]);
+            let uv = self.uvs.get(v as usize).map_or([0; 2], |t| t.to_array().map(f32::to_bits));
+            (self.place(p), bits(p), bits(n), uv)
+        });
+        let order: Vec<usize> = (0..n0).chain(added.iter().map(|&v| v as usize)).collect();
+        let mut new_index = vec![0u32; order.len()];
+        order.iter().enumerate().for_each(|(new, &old)| new_index[old] = new as u32);
+        let permute = |a: &mut Vec<_>| *a = order.iter().map(|&i| a[i]).collect();
+        permute(&mut self.positions);
+        permute(&mut self.normals);
+        for uvs in [&mut self.uvs, &mut self.uvs1].into_iter().filter(|u| !u.is_empty()) {
+            *uvs = order.iter().map(|&i| uvs[i]).collect();
+        }
+        if !self.colors.is_empty() {
+            self.colors = order.iter().map(|&i| self.colors[i]).collect();
+        }
+        self.triangles.iter_mut().flatten().for_each(|i| *i = new_index[*i as usize]);
     }
 }
 
@@ -487,7 +563,7 @@ mod tests {
             let edges = a.edges();
             a.split(&edges, usize::MAX);
         }
-        a.finish().unwrap()
+        a.finish().unwrap().mesh
     }
 
     /// A UV seam (two vertices at each position along x = 0) is split on both sides at once:
@@ -556,6 +632,32 @@ mod tests {
         assert!(welded_edge_users(&fine).values().all(|&n| n == 2), "closed: every edge has two triangles");
         assert!(fine.positions.iter().all(|p| (p.abs().max_element() - h).abs() < 1e-6), "on the box's faces");
         assert!((fine.area() - 6.0).abs() < 1e-4);
+    }
+
+    /// Added vertices follow their place, not the order of the splits that made them: two
+    /// refinements with the same splits in another order are the same mesh, vertex for vertex,
+    /// and a flat grid refines flat where a smooth sphere does not.
+    #[test]
+    fn added_vertices_lie_in_spatial_order_and_flatness_is_reported() {
+        let grid = shapes::grid(2.0, 6);
+        let edges = Adaptive::new(&grid).edges();
+        let (first, last) = (edges[..4].to_vec(), edges[edges.len() - 4..].to_vec());
+        let refine_in = |order: [&[[u32; 2]]; 2]| {
+            let mut a = Adaptive::new(&grid);
+            order.iter().for_each(|e| _ = a.split(e, usize::MAX));
+            a.finish().unwrap()
+        };
+        let (one, other) = (refine_in([&first, &last]), refine_in([&last, &first]));
+        assert!(one.flat && one.mesh.positions.len() > grid.positions.len());
+        assert_eq!(one.mesh.positions, other.mesh.positions);
+        let n0 = grid.positions.len();
+        let (lo, hi) = (Vec3::new(-1.0, 0.0, -1.0), Vec3::new(1.0, 0.0, 1.0));
+        let codes: Vec<u64> =
+            one.mesh.positions[n0..].iter().map(|p| morton::encode(morton::quantize(*p, lo, hi))).collect();
+        assert!(codes.windows(2).all(|w| w[0] <= w[1]), "{codes:?}");
+        let mut sphere = Adaptive::new(&icosahedron());
+        sphere.split(&sphere.edges(), usize::MAX);
+        assert!(!sphere.finish().unwrap().flat, "a smooth surface lifts its new vertices");
     }
 
     #[test]
