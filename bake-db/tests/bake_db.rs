@@ -826,7 +826,9 @@ fn a_refined_receiver_rebakes_only_near_a_moved_shadow() {
     use kage_bake_db::refinement::refine;
     use kage_engine::receivers::Settings;
     use kage_engine::scene::SourceMesh;
-    let settings = Settings { budget: 3000, ..Settings::default() };
+    // Five rounds end refinement before the budget does (3.3K of 8.4K vertices): a binding
+    // budget couples every place (`docs/receivers.md#edits`).
+    let settings = Settings { budget: 8000, rounds: 5, ..Settings::default() };
     let refined = |by: f32| {
         let mut s = scene("");
         let g = s.find_group("box a").unwrap();
@@ -850,9 +852,9 @@ fn a_refined_receiver_rebakes_only_near_a_moved_shadow() {
     let prt_kept = count(Kind::Prt, &|j| j.cached);
     let with_lineage = count(Kind::Bspvt, &|j| store.lineage(&j.slot.unwrap()).unwrap().is_some());
     assert!(chunks >= 8, "the refined ground has {chunks} chunks");
-    // Measured: 6 of 11 (the box's shadow crosses much of this small ground).
-    assert!(3 * prt_kept >= chunks, "PRT: {prt_kept} of {chunks} ground chunks kept");
-    assert!(3 * with_lineage >= chunks, "BSPVT: {with_lineage} of {chunks} ground chunks have lineage");
+    // Measured: 9 of 12.
+    assert!(2 * prt_kept >= chunks, "PRT: {prt_kept} of {chunks} ground chunks kept");
+    assert!(2 * with_lineage >= chunks, "BSPVT: {with_lineage} of {chunks} ground chunks have lineage");
     assert!(prt_kept < chunks, "the ground's vertices changed near the box");
     let (warm, bytes, _) = bake(&store, &after);
     let (_, cold_bytes, _) = bake(&Store::open(&scratch("near-fresh")).unwrap(), &after);
