@@ -6,10 +6,11 @@
 //!   lineage and bakers' memos), batched writes, read-only opens, integrity check, garbage
 //!   collection and merging;
 //! - [`bvhs`]: the BSPVT occluders' BVHs, kept between runs so that an edit rebuilds only
-//!   the BVHs of the instances it touched;
+//!   the BVHs of the instances it touched; [`regions`]: a re-refined curved occluder's
+//!   triangles, kept so that the next edit re-bakes only what sees the ones that changed;
 //! - [`key`]: bake keys, blake3 of everything a result depends on;
-//! - [`plan`](mod@plan): which artefacts a scene needs (chunks of [`plan::CHUNK`] vertices per instance
-//!   and technique), which are cached;
+//! - [`plan`](mod@plan): which artefacts a scene needs (chunks of about [`plan::CHUNK`] vertices,
+//!   cut by content, per instance and technique), which are cached;
 //! - [`run`](mod@run): bakes the misses on rayon while one writer commits batches, re-bakes BSPVT warm
 //!   from lineage after edits (with the BSPVT subtree memo kept between runs), and assembles the
 //!   engine's bakes ([`bake`]: the same without assembling, reading no cached chunk);
@@ -25,7 +26,7 @@
 //!   their databases (`docs/sharded-bakes.md`).
 //!
 //! ## Guarantees
-//! - **Same inputs, same bytes**: a key covers the mesh content, parameters, algorithm version
+//! - **Same inputs, same bytes**: a key covers the chunk's vertices, parameters, algorithm version
 //!   and (BSPVT) the occluder snapshot or (PRT) the group's own geometry; artefacts are
 //!   bit-identical on any thread count, and a warm re-bake gives the cold bake's bytes.
 //! - **Crash safety**: each batch is one transaction; a process killed at any moment loses at
@@ -43,6 +44,7 @@ pub mod plan;
 pub mod prt_budget;
 pub mod records;
 pub mod refinement;
+pub mod regions;
 pub mod run;
 pub mod shard;
 pub mod store;

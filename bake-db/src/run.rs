@@ -16,14 +16,14 @@
 use crate::key::Key;
 use crate::plan::{Job, Kind, Occluder, Plan, decode_occluders, encode_occluders};
 use crate::store::{DbError, Info, Result, Store};
-use glam::Vec3;
+use glam::{Affine3A, Vec3};
 use kage_engine::accel::Occluders;
 use kage_engine::scene::{FlatScene, Scene};
 use kage_engine::{bspvt, prt};
 use rayon::prelude::*;
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
-use std::sync::mpsc;
+use std::sync::{Mutex, mpsc};
 use std::time::{Duration, Instant};
 
 /// Artefacts per write transaction at most.
@@ -344,16 +344,27 @@ pub(crate) struct Tools {
     new_bvhs: Vec<(String, Vec<u8>)>,
     tiles: Option<bspvt::memo::SubtreeMemo>,
     transfer: Option<prt::Baker>,
+    /// Re-refined curved occluders' triangles, as memos to store ([`crate::regions`]).
+    new_triangles: Vec<(String, Vec<u8>)>,
+    /// What changed in each re-refined occluder, by (old occluder hash, instance), worked out
+    /// once for every chunk that asks.
+    regions: Regions,
 }
+
+/// See [`Tools::regions`].
+type Regions = Mutex<HashMap<([u8; 32], usize), Option<Vec<(Vec3, Vec3)>>>>;
 
 impl Tools {
     pub(crate) fn for_jobs(store: &Store, scene: &Scene, flat: &FlatScene, plan: &Plan, jobs: &[&Job]) -> Result<Self> {
         let baking = |kind: Kind| jobs.iter().any(|j| j.kind == kind);
         let bspvt = plan.bspvt.filter(|_| baking(Kind::Bspvt));
         let (occluders, new_bvhs) = bspvt.map(|_| crate::bvhs::occluders(store, flat)).transpose()?.unzip();
+        let new_triangles = if bspvt.is_some() { crate::regions::memos(store, flat)? } else { Vec::new() };
         Ok(Tools {
             occluders,
             new_bvhs: new_bvhs.unwrap_or_default(),
+            new_triangles,
+            regions: Mutex::default(),
             tiles: bspvt.map(|s| load_tiles(store, &s)).transpose()?,
             transfer: plan.prt.filter(|_| baking(Kind::Prt)).map(|s| prt::Baker::new(scene, flat, &s)),
         })
@@ -367,13 +378,15 @@ impl Tools {
             occluders: self.occluders.as_ref(),
             tiles: self.tiles.as_ref(),
             transfer: self.transfer.as_ref(),
+            regions: &self.regions,
         }
     }
 
-    /// The memos worth storing: new occluder BVHs, and the subtree memo when it grew.
+    /// The memos worth storing: new occluder BVHs, re-refined occluders' triangles, and the
+    /// subtree memo when it grew.
     fn memos(&self) -> Vec<(String, Vec<u8>)> {
         let tiles = self.tiles.as_ref().filter(|t| t.added() > 0).map(|t| (tiles_name(t.settings()), t.to_bytes()));
-        self.new_bvhs.iter().cloned().chain(tiles).collect()
+        self.new_bvhs.iter().chain(&self.new_triangles).cloned().chain(tiles).collect()
     }
 }
 
@@ -384,6 +397,7 @@ pub(crate) struct Context<'a> {
     occluders: Option<&'a Occluders>,
     tiles: Option<&'a bspvt::memo::SubtreeMemo>,
     transfer: Option<&'a prt::Baker>,
+    regions: &'a Regions,
 }
 
 impl Context<'_> {
@@ -470,7 +484,32 @@ impl Context<'_> {
             masks,
             ..Default::default()
         });
-        Ok(Some((old.collect(), changes(&then, &self.plan.snapshot.occluders))))
+        Ok(Some((old.collect(), self.changes(&then)?)))
+    }
+
+    /// Every occluder that changed since the snapshot `then`, a re-refined curved one by the
+    /// regions whose triangles changed where the store keeps its old triangles
+    /// ([`crate::regions`]).
+    fn changes(&self, then: &[Occluder]) -> Result<Vec<bspvt::Change>> {
+        let now = &self.plan.snapshot.occluders;
+        let mut within: HashMap<[u32; 3], Vec<(Vec3, Vec3)>> = HashMap::new();
+        for (i, n) in now.iter().enumerate() {
+            let Some(o) = then.iter().find(|o| o.id == n.id && o.world == n.world && o.mesh != n.mesh) else {
+                continue;
+            };
+            let known = self.regions.lock().expect("no worker panics holding it").get(&(o.mesh, i)).cloned();
+            let boxes = match known {
+                Some(boxes) => boxes,
+                None => {
+                    let world = Affine3A::from_cols_array(&n.world);
+                    let boxes = crate::regions::changed(self.store, self.flat, (&o.mesh, i), &world, padding(n))?;
+                    self.regions.lock().expect("no worker panics holding it").insert((o.mesh, i), boxes.clone());
+                    boxes
+                }
+            };
+            within.extend(boxes.map(|b| (n.id, b)));
+        }
+        Ok(changes(then, now, &within))
     }
 }
 
@@ -489,25 +528,40 @@ fn load_tiles(store: &Store, s: &bspvt::Settings) -> Result<bspvt::memo::Subtree
 
 /// Every occluder added, removed or changed between two snapshots, with its old and new
 /// bounds (padded: rays' offset origins differ from the vertex) and its index in `now` (the
-/// flattened scene's instance order, as [`Occluders`] has it).
-pub fn changes(then: &[Occluder], now: &[Occluder]) -> Vec<bspvt::Change> {
+/// flattened scene's instance order, as [`Occluders`] has it). An occluder listed in `within`
+/// (changed in place) is instead each of its boxes there, before and after alike.
+pub fn changes(
+    then: &[Occluder],
+    now: &[Occluder],
+    within: &HashMap<[u32; 3], Vec<(Vec3, Vec3)>>,
+) -> Vec<bspvt::Change> {
     let old: HashMap<[u32; 3], &Occluder> = then.iter().map(|o| (o.id, o)).collect();
     let new: HashMap<[u32; 3], (usize, &Occluder)> = now.iter().enumerate().map(|(i, o)| (o.id, (i, o))).collect();
     let bounds = |o: &Occluder| {
         let (lo, hi) = (Vec3::from_slice(&o.bounds[..3]), Vec3::from_slice(&o.bounds[3..]));
-        let pad = Vec3::splat(1e-4 * (hi - lo).length() + 1e-5);
-        (lo - pad, hi + pad)
+        (lo - padding(o), hi + padding(o))
     };
     let mut ids: Vec<[u32; 3]> = old.keys().chain(new.keys()).copied().collect();
     ids.sort_unstable();
     ids.dedup();
     ids.into_iter()
         .filter(|id| old.get(id).copied() != new.get(id).map(|n| n.1))
-        .map(|id| bspvt::Change {
-            before: old.get(&id).map(|o| bounds(o)),
-            after: new.get(&id).map(|&(i, o)| (bounds(o), i)),
+        .flat_map(|id| match (within.get(&id), new.get(&id)) {
+            (Some(boxes), Some(&(i, _))) => {
+                boxes.iter().map(|&b| bspvt::Change { before: Some(b), after: Some((b, i)) }).collect()
+            }
+            _ => vec![bspvt::Change {
+                before: old.get(&id).map(|o| bounds(o)),
+                after: new.get(&id).map(|&(i, o)| (bounds(o), i)),
+            }],
         })
         .collect()
+}
+
+/// How far a changed occluder's boxes are grown: rays' offset origins differ from the vertex.
+fn padding(o: &Occluder) -> Vec3 {
+    let (lo, hi) = (Vec3::from_slice(&o.bounds[..3]), Vec3::from_slice(&o.bounds[3..]));
+    Vec3::splat(1e-4 * (hi - lo).length() + 1e-5)
 }
 
 /// Appends a vertex's masks to a lineage entry: u32 count, then (u32 tile, u64 mask) pairs.

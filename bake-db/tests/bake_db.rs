@@ -861,3 +861,47 @@ fn a_refined_receiver_rebakes_only_near_a_moved_shadow() {
     assert!(bytes == cold_bytes, "a warm re-bake must give a cold bake's bytes");
     assert!(warm.warm >= with_lineage, "{warm:?}");
 }
+
+/// A curved receiver refined again (here for a moved light, its refinement alone swapped in)
+/// occludes as its new refinement: the other receivers re-bake warm only what sees the
+/// triangles that changed, not its whole bounds — with the store's copy of its old triangles;
+/// without it (damaged), the whole bounds. Both give a cold bake's bytes.
+#[test]
+fn a_re_refined_curved_occluder_rebakes_only_what_sees_its_changed_triangles() {
+    use kage_bake_db::refinement::refine;
+    use kage_engine::receivers::Settings;
+    use kage_engine::scene::PrimitiveId;
+    let settings = Settings { budget: 2000, ..Settings::default() };
+    let refined = |by: f32| {
+        let mut s = scene("add");
+        let light = s.find_group("light").unwrap();
+        s.pose_group(light, Quat::IDENTITY, Vec3::new(by, 0.0, 0.0));
+        refine(&Store::open(&scratch(&format!("curved-{by}-refine"))).unwrap(), &mut s, &settings).unwrap();
+        s
+    };
+    let sphere = |s: &Scene| {
+        let flat = flatten(s);
+        let i = flat.instances.iter().position(|i| i.id.node == 3).unwrap();
+        let inst = &flat.instances[i];
+        assert!(inst.mesh != inst.source && inst.occluder == inst.mesh, "the sphere occludes as its refinement");
+        flat.mesh(i).clone()
+    };
+    let before = refined(0.0);
+    let mut after = before.duplicate();
+    let moved = sphere(&refined(0.7));
+    assert_ne!(sphere(&before).hash, moved.hash, "the moved light re-refines the sphere");
+    let e = after.world.query::<(hecs::Entity, &PrimitiveId)>().iter().find(|(_, id)| id.node == 3).unwrap().0;
+    after.set_refined_mesh(e, moved, false);
+    let [with, without] = ["curved-with", "curved-without"].map(|n| Store::open(&scratch(n)).unwrap());
+    bake(&with, &before);
+    bake(&without, &before);
+    let kept: Vec<String> =
+        without.memos().unwrap().into_iter().map(|m| m.0).filter(|n| n.starts_with("occluder triangles")).collect();
+    assert_eq!(kept.len(), 1, "the sphere's triangles are kept");
+    without.put_memos(&[(kept[0].clone(), vec![0; 40])]).unwrap();
+    let (regions, bytes, _) = bake(&with, &after);
+    let (whole, whole_bytes, _) = bake(&without, &after);
+    let (_, cold_bytes, _) = bake(&Store::open(&scratch("curved-fresh")).unwrap(), &after);
+    assert!(bytes == cold_bytes && whole_bytes == cold_bytes, "warm re-bakes must give a cold bake's bytes");
+    assert!(regions.warm > 0 && 2 * regions.rays_cast < whole.rays_cast, "{regions:?} vs {whole:?}");
+}

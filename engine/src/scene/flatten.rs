@@ -20,6 +20,8 @@ pub struct Instance {
     /// The mesh that casts its shadows (see [`SourceMesh::occluder`]): its source, when a flat
     /// refinement shows more vertices on the same triangles.
     pub occluder: u32,
+    /// The mesh it had before receiver refinement (`mesh` itself when not refined).
+    pub source: u32,
     /// World-from-local.
     pub world: Affine3A,
     /// Transforms normals (inverse transpose of the linear part).
@@ -121,24 +123,25 @@ pub fn flatten(scene: &Scene) -> FlatScene {
     };
     // Sorted by glTF origin so that triangle order (and hence every seeded estimate) does not
     // depend on entity allocation order.
-    type Item = (PrimitiveId, MeshRef, MeshRef, Material, MaterialMaps, Transform, hecs::Entity);
+    type Item = (PrimitiveId, MeshRef, Option<SourceMesh>, Material, MaterialMaps, Transform, hecs::Entity);
     let mut items: Vec<Item> = scene
         .world
         .query::<(&PrimitiveId, &MeshRef, Option<&SourceMesh>, &Material, Option<&MaterialMaps>, &Transform, &InGroup)>(
         )
         .iter()
         .map(|(id, m, source, mat, maps, t, g)| {
-            (*id, *m, SourceMesh::occluder(*m, source), *mat, maps.copied().unwrap_or_default(), *t, g.group)
+            (*id, *m, source.copied(), *mat, maps.copied().unwrap_or_default(), *t, g.group)
         })
         .collect();
     items.sort_by_key(|(id, ..)| (id.node, id.mesh, id.primitive));
-    for (id, mref, occluder, material, maps, t, group) in items {
+    for (id, mref, source, material, maps, t, group) in items {
         let mesh = &scene.meshes[mref.index as usize];
         let mirrored = t.is_mirrored();
         let owner = flat.instances.len() as u32;
         flat.instances.push(Instance {
             mesh: mref.index,
-            occluder: occluder.index,
+            occluder: SourceMesh::occluder(mref, source.as_ref()).index,
+            source: source.map_or(mref.index, |s| s.mesh.index),
             world: t.world,
             normal_matrix: t.world.matrix3.inverse().transpose(),
             mirrored,
