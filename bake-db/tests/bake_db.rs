@@ -329,7 +329,7 @@ fn the_estimate_samples_both_techniques_and_writes_nothing() {
     assert!(e.rates.iter().all(|r| r.1 > 0.0 && r.2 > 0.0) && e.total(2) > 0.0, "{e:?}");
     let sampled: usize = [Kind::Bspvt, Kind::Prt]
         .iter()
-        .flat_map(|&k| kage_bake_db::estimate::sample(&p, k))
+        .flat_map(|&k| kage_bake_db::estimate::sample(&p.misses().filter(|j| j.kind == k).collect::<Vec<_>>()))
         .map(|j| j.vertices.len())
         .sum();
     assert_eq!(e.sampled, sampled);
@@ -339,6 +339,15 @@ fn the_estimate_samples_both_techniques_and_writes_nothing() {
     assert!(estimated == fresh, "the bake after an estimate equals one without");
     let p = plan(&store, &s, &flat, Some(BSPVT), Some(prt_settings())).unwrap();
     assert_eq!(kage_bake_db::estimate::estimate(&store, &s, &flat, &p).unwrap(), Default::default());
+
+    // After an edit, the misses with lineage are timed warm, apart, at their lower rate.
+    let moved = scene("move");
+    let flat = flatten(&moved);
+    let p = plan(&store, &moved, &flat, Some(BSPVT), Some(prt_settings())).unwrap();
+    let e = kage_bake_db::estimate::estimate(&store, &moved, &flat, &p).unwrap();
+    assert_eq!(e.rates.iter().map(|r| r.0).collect::<Vec<_>>(), ["bspvt", "bspvt warm"], "{e:?}");
+    assert_eq!(e.warm.len(), 3, "the three receivers that did not move re-bake warm");
+    assert!(e.rates[1].2 < e.rates[0].2, "warm re-bakes cost less per vertex: {e:?}");
 }
 
 /// The occluders' BVHs are stored by a run for the instances with enough triangles (here the

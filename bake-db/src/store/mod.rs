@@ -308,6 +308,14 @@ impl Store {
         })
     }
 
+    /// Whether each slot has a lineage entry (without reading the entries).
+    pub fn has_lineage(&self, slots: &[Key]) -> Result<Vec<bool>> {
+        self.read(|t| {
+            let l = t.open_table(LINEAGE)?;
+            slots.iter().map(|k| Ok(l.get(k.as_bytes().as_slice())?.is_some())).collect()
+        })
+    }
+
     /// The artefact of `key`, copied once into aligned memory as `T`s.
     pub fn get<T: bytemuck::Pod>(&self, key: &Key) -> Result<Option<Vec<T>>> {
         self.with_artefacts(std::slice::from_ref(key), |found| Ok(found[0].map(bytemuck::pod_collect_to_vec)))

@@ -177,7 +177,8 @@ fn bake_once(args: &Args, store: &Store) -> Result<()> {
 /// sample of the misses baked on this machine, see `kage_bake_db::estimate`).
 pub fn print_plan(store: &Store, scene: &Scene, flat: &FlatScene, plan: &Plan, planning_s: f64) -> Result<()> {
     let threads = rayon::current_num_threads();
-    // (chunks, cached, vertices to bake, their work in full-vertex units).
+    let estimate = kage_bake_db::estimate::estimate(store, scene, flat, plan)?;
+    // (chunks, cached, vertices to bake, their seconds on one worker).
     let mut rows: BTreeMap<(usize, Kind), (usize, usize, usize, f64)> = BTreeMap::new();
     for j in &plan.jobs {
         let r = rows.entry((j.instance, j.kind)).or_default();
@@ -185,10 +186,9 @@ pub fn print_plan(store: &Store, scene: &Scene, flat: &FlatScene, plan: &Plan, p
         r.1 += usize::from(j.cached);
         if !j.cached {
             r.2 += j.vertices.len();
-            r.3 += plan.work(flat, j);
+            r.3 += estimate.rate(j) * plan.work(flat, j);
         }
     }
-    let estimate = kage_bake_db::estimate::estimate(store, scene, flat, plan)?;
     let mut out = format!("plan for {} ({:.0} ms):\n", scene.source, planning_s * 1e3);
     if let Some(s) = plan.bspvt {
         out += &format!("  bspvt: {}² faces, ε {}, {} (polygonal lights present)\n", s.res, s.epsilon, plan.reach);
@@ -205,8 +205,8 @@ pub fn print_plan(store: &Store, scene: &Scene, flat: &FlatScene, plan: &Plan, p
     if plan.jobs.is_empty() {
         out += "  nothing to bake: no polygonal light and no environment\n";
     }
-    for ((i, kind), (chunks, cached, vertices, work)) in &rows {
-        let est = estimate.rate(*kind) * work / threads as f64;
+    for ((i, kind), (chunks, cached, vertices, seconds)) in &rows {
+        let est = seconds / threads as f64;
         let kind = kind.name();
         out += &format!(
             "  instance {i:3} {kind:5}: {chunks:3} chunks, {cached:3} cached, {vertices:6} vertices to bake, ~{est:.1} s\n"
