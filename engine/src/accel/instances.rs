@@ -45,6 +45,8 @@ pub struct Occluders {
     nodes: Vec<Node>,
     /// Part indices in the tree's leaf order.
     order: Vec<u32>,
+    /// Parts as wide as the scene (a terrain), asked before the tree and kept out of it.
+    wide: Vec<u32>,
 }
 
 impl Occluders {
@@ -77,13 +79,14 @@ impl Occluders {
                 })
             })
             .collect::<Vec<_>>();
-        let mut order: Vec<u32> = (0..parts.len() as u32).filter(|&i| parts[i as usize].is_some()).collect();
+        let present: Vec<u32> = (0..parts.len() as u32).filter(|&i| parts[i as usize].is_some()).collect();
+        let (wide, mut order) = split_wide(&parts, present);
         let mut nodes = Vec::new();
         if !order.is_empty() {
             nodes.push(Node { lo: Vec3::ZERO, hi: Vec3::ZERO, start: 0, count: 0 });
             top_level(&parts, &mut nodes, 0, &mut order, 0);
         }
-        Self { parts, nodes, order }
+        Self { parts, nodes, order, wide }
     }
 
     /// Whether instance `i`'s triangles alone block the segment as [`Self::occluded`] asks (any
@@ -111,6 +114,12 @@ impl Occluders {
     pub fn occluded(&self, origin: Vec3, dir: Vec3, tmax: f32) -> bool {
         let inv = dir.recip();
         let near = super::touching_distance(origin);
+        let part = |&i: &u32| self.parts[i as usize].as_ref().expect("the tree holds parts only");
+        let blocks =
+            |p: &Part| slab_hits(origin, inv, tmax, p.lo, p.hi) && p.bvh.occluded_between(origin, dir, near, tmax);
+        if self.wide.iter().map(part).any(blocks) {
+            return true;
+        }
         // A balanced tree over at most 2³² parts is at most 33 deep.
         let mut stack = [0u32; 64];
         let mut depth = usize::from(!self.nodes.is_empty());
@@ -126,17 +135,27 @@ impl Occluders {
                 continue;
             }
             let leaf = &self.order[node.start as usize..(node.start + node.count) as usize];
-            let part = |&i: &u32| self.parts[i as usize].as_ref().expect("the tree holds parts only");
-            if leaf
-                .iter()
-                .map(part)
-                .any(|p| slab_hits(origin, inv, tmax, p.lo, p.hi) && p.bvh.occluded_between(origin, dir, near, tmax))
-            {
+            if leaf.iter().map(part).any(blocks) {
                 return true;
             }
         }
         false
     }
+}
+
+/// The parts whose box spans at least half the scene along two axes (a terrain), and the rest. A wide part in the tree would widen every node above it to the
+/// whole scene, and every ray from inside it — from any receiver on a terrain — would descend
+/// that whole path: asked apart, before the tree, they cost one box test and their own BVH.
+fn split_wide(parts: &[Option<Part>], present: Vec<u32>) -> (Vec<u32>, Vec<u32>) {
+    let part = |i: u32| parts[i as usize].as_ref().expect("only parts are listed");
+    let (lo, hi) =
+        present.iter().map(|&i| part(i)).fold((Vec3::MAX, Vec3::MIN), |(lo, hi), p| (lo.min(p.lo), hi.max(p.hi)));
+    let (scene, many) = (hi - lo, present.len() > LEAF);
+    let wide = |i: &u32| {
+        let e = part(*i).hi - part(*i).lo;
+        many && (0..3).filter(|&k| e[k] >= 0.5 * scene[k]).count() >= 2
+    };
+    present.into_iter().partition(wide)
 }
 
 /// Fills `nodes[at]` for the parts `order` (from `offset` in the whole order): bounds, then a
@@ -199,6 +218,17 @@ mod tests {
             })
             .collect();
         answers_alike(&field);
+        // With a part as wide as the field (a sheet over most of it), asked apart from the tree.
+        let mut covered = field.clone();
+        let (a, b, c, d) = (
+            Vec3::new(-20.0, 3.0, -20.0),
+            Vec3::new(5.0, 2.5, -20.0),
+            Vec3::new(5.0, 2.5, 20.0),
+            Vec3::new(-20.0, 3.0, 20.0),
+        );
+        covered.push(vec![[a, b, c], [a, c, d]]);
+        assert_eq!(Occluders::new(&covered).wide.len(), 1, "the sheet is wide, the quads are not");
+        answers_alike(&covered);
     }
 
     /// A floor point on the line where a box rests on the floor lies in the plane of the box's
