@@ -37,7 +37,7 @@ pub fn memos(store: &Store, flat: &FlatScene) -> Result<Vec<Memo>> {
     let mut out: Vec<Memo> = Vec::new();
     for i in (0..flat.instances.len()).filter(|&i| lifted(flat, i)) {
         let n = name(&flat.occluder_hash(i));
-        if out.iter().any(|(m, _)| *m == n) || store.memo(&n)?.is_some() {
+        if out.iter().any(|(m, _)| *m == n) || store.has_memo(&n)? {
             continue;
         }
         out.push((n, to_bytes(&local_triangles(flat, i))));

@@ -492,11 +492,10 @@ impl Context<'_> {
     /// ([`crate::regions`]).
     fn changes(&self, then: &[Occluder]) -> Result<Vec<bspvt::Change>> {
         let now = &self.plan.snapshot.occluders;
+        let old: HashMap<[u32; 3], &Occluder> = then.iter().map(|o| (o.id, o)).collect();
         let mut within: HashMap<[u32; 3], Vec<(Vec3, Vec3)>> = HashMap::new();
         for (i, n) in now.iter().enumerate() {
-            let Some(o) = then.iter().find(|o| o.id == n.id && o.world == n.world && o.mesh != n.mesh) else {
-                continue;
-            };
+            let Some(o) = old.get(&n.id).filter(|o| o.world == n.world && o.mesh != n.mesh) else { continue };
             let known = self.regions.lock().expect("no worker panics holding it").get(&(o.mesh, i)).cloned();
             let boxes = match known {
                 Some(boxes) => boxes,

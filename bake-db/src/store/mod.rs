@@ -393,6 +393,15 @@ impl Store {
         self.read(|t| Ok(t.open_table(LINEAGE)?.get(slot.as_bytes().as_slice())?.map(|v| v.value().to_vec())))
     }
 
+    /// Whether a memo is stored under `name` (without reading it).
+    pub fn has_memo(&self, name: &str) -> Result<bool> {
+        self.read(|t| match t.open_table(MEMOS) {
+            Ok(c) => Ok(c.get(name)?.is_some()),
+            Err(redb::TableError::TableDoesNotExist(_)) => Ok(false),
+            Err(e) => Err(e.into()),
+        })
+    }
+
     /// The memo stored under `name`.
     pub fn memo(&self, name: &str) -> Result<Option<Vec<u8>>> {
         self.read(|t| match t.open_table(MEMOS) {
