@@ -11,6 +11,7 @@ use glam::Vec3;
 use kage_engine::accel::{Occluders, SceneBvh};
 use kage_engine::bspvt;
 use kage_engine::scene::FlatScene;
+use std::sync::Mutex;
 
 /// The builder whose output the entries hold: obvhs' version (as `Cargo.lock` pins it; a test
 /// keeps the two in step, since another version may build other trees) and the preset
@@ -21,24 +22,31 @@ const BUILDER: &str = "obvhs 0.4.0 very_slow_build";
 /// an entry up, and every move of such an instance would leave another entry behind.
 const MIN_TRIANGLES: usize = 256;
 
-/// The scene's BSPVT occluders, each instance's BVH restored from the store where it holds one
-/// for exactly its triangles, else built; also the entries to store for the BVHs built.
+/// The scene's BSPVT occluders, each piece's BVH ([`kage_engine::accel::instances::PIECE`])
+/// restored from the store where it holds one for exactly its triangles, else built; also the
+/// entries to store for the BVHs built.
 pub fn occluders(store: &Store, flat: &FlatScene) -> Result<(Occluders, Vec<Memo>)> {
+    let (built, failed) = (Mutex::new(Vec::new()), Mutex::new(None));
     let parts = bspvt::occluder_triangles(flat);
-    let names: Vec<Option<String>> = parts.iter().map(|t| (t.len() >= MIN_TRIANGLES).then(|| name(t))).collect();
-    let stored = names.iter().map(|n| n.as_deref().map_or(Ok(None), |n| store.memo(n))).collect::<Result<Vec<_>>>()?;
-    let mut built = Vec::new();
-    let occluders = Occluders::with(&parts, &bspvt::occluder_holes(flat), |i, triangles| {
-        let restored = stored[i].as_deref().and_then(|b| SceneBvh::from_bytes(triangles, b));
+    let occluders = Occluders::with(&parts, &bspvt::occluder_holes(flat), |_, triangles| {
+        let name = (triangles.len() >= MIN_TRIANGLES).then(|| name(triangles));
+        let stored = name.as_deref().map_or(Ok(None), |n| store.memo(n)).unwrap_or_else(|e| {
+            failed.lock().expect("not poisoned").get_or_insert(e);
+            None
+        });
+        let restored = stored.as_deref().and_then(|b| SceneBvh::from_bytes(triangles, b));
         restored.unwrap_or_else(|| {
             let bvh = SceneBvh::new(triangles);
-            if let Some(n) = &names[i] {
-                built.push((n.clone(), bvh.to_bytes()));
+            if let Some(n) = name {
+                built.lock().expect("not poisoned").push((n, bvh.to_bytes()));
             }
             bvh
         })
     });
-    Ok((occluders, built))
+    let mut built = built.into_inner().expect("not poisoned");
+    // Built in parallel: stored in a fixed order.
+    built.sort_unstable_by(|a, b| a.0.cmp(&b.0));
+    failed.into_inner().expect("not poisoned").map_or(Ok((occluders, built)), Err)
 }
 
 /// The store's name for the BVH of `triangles`.

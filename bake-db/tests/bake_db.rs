@@ -26,7 +26,9 @@ fn prt_settings() -> prt::Settings {
 fn scene(edit: &str) -> Scene {
     let mut s = Scene::new("test:edits");
     let d = |c: f32| Material::lambertian(Vec3::splat(c));
-    s.add_object("ground", shapes::grid(8.0, 20), d(0.8), Affine3A::IDENTITY);
+    // "fine": a ground of 3200 triangles, BSPVT occluder pieces of at most 2048.
+    let (edit, cells) = edit.strip_prefix("fine ").map_or((edit, 20), |e| (e, 40));
+    s.add_object("ground", shapes::grid(8.0, cells), d(0.8), Affine3A::IDENTITY);
     let a_pose = if edit == "move" { Vec3::new(-0.5, 0.5, 0.4) } else { Vec3::new(-1.5, 0.5, 0.0) };
     let a_mesh = if edit == "mesh" { shapes::sphere(0.5, 12, 6) } else { shapes::cuboid(Vec3::splat(0.5)) };
     s.add_object("box a", a_mesh, d(0.5), Affine3A::from_translation(a_pose));
@@ -350,15 +352,27 @@ fn the_estimate_samples_both_techniques_and_writes_nothing() {
     assert!(e.rates[1].2 < e.rates[0].2, "warm re-bakes cost less per vertex: {e:?}");
 }
 
+/// The names of the occluder BVHs `store` keeps.
+fn bvhs(store: &Store) -> Vec<String> {
+    store.memos().unwrap().into_iter().map(|c| c.0).filter(|n| n.starts_with("bvh ")).collect()
+}
+
+/// Bakes `scene(edit)` into `store`, which re-bakes some chunks warm, and into a fresh store
+/// named `fresh`, and checks that the bytes are equal; returns the fresh store.
+fn warm_as_cold(store: &Store, edit: &str, fresh: &str) -> Store {
+    let (warm, bytes, _) = bake(store, &scene(edit));
+    let fresh = Store::open(&scratch(fresh)).unwrap();
+    let (_, cold, _) = bake(&fresh, &scene(edit));
+    assert!(warm.warm > 0 && bytes == cold, "{warm:?}");
+    fresh
+}
+
 /// The occluders' BVHs are stored by a run for the instances with enough triangles (here the
 /// ground alone) and restored by the next; a damaged entry is built and stored again, and the
 /// bytes are a cold bake's either way.
 #[test]
 fn occluder_bvhs_outlive_runs_and_damage_costs_only_time() {
     let store = Store::open(&scratch("bvhs")).unwrap();
-    let bvhs = |s: &Store| -> Vec<String> {
-        s.memos().unwrap().into_iter().map(|c| c.0).filter(|n| n.starts_with("bvh ")).collect()
-    };
     bake(&store, &scene(""));
     let names = bvhs(&store);
     assert_eq!(names.len(), 1, "{names:?}");
@@ -366,15 +380,24 @@ fn occluder_bvhs_outlive_runs_and_damage_costs_only_time() {
     let mut damaged = good.clone();
     damaged[good.len() / 2] ^= 0x04;
     store.put_memos(&[(names[0].clone(), damaged)]).unwrap();
-    let (warm, bytes, _) = bake(&store, &scene("move"));
-    let fresh = Store::open(&scratch("bvhs-fresh")).unwrap();
-    let (_, cold, _) = bake(&fresh, &scene("move"));
-    assert!(warm.warm > 0 && bytes == cold, "{warm:?}");
+    let fresh = warm_as_cold(&store, "move", "bvhs-fresh");
     assert_eq!(store.memo(&names[0]).unwrap(), Some(good.clone()), "built and stored again");
     assert_eq!(bvhs(&store), names, "the moved box has too few triangles for an entry");
     assert_eq!(fresh.memo(&names[0]).unwrap(), Some(good), "the same build in another database");
     store.gc().unwrap();
     assert!(bvhs(&store).is_empty(), "gc drops them with the other caches");
+}
+
+/// An occluder of more triangles than a piece keeps one BVH per piece, and a warm re-bake
+/// that restores them gives a cold bake's bytes.
+#[test]
+fn a_large_occluder_keeps_a_bvh_per_piece() {
+    let store = Store::open(&scratch("pieces")).unwrap();
+    bake(&store, &scene("fine "));
+    let names = bvhs(&store);
+    assert_eq!(names.len(), 2, "3200 ground triangles in two pieces: {names:?}");
+    warm_as_cold(&store, "fine move", "pieces-fresh");
+    assert_eq!(bvhs(&store), names, "the same pieces, the moved box too small for an entry");
 }
 
 /// The BSPVT subtree memo is stored by a run and used by the next; a damaged one only costs

@@ -7,9 +7,10 @@
 pub mod beam;
 mod instances;
 mod stored;
+mod top_level;
 
-pub use instances::Occluders;
 pub(crate) use instances::slab_hits;
+pub use instances::{Occluders, Seen};
 
 use crate::math::sampling;
 use crate::scene::{FlatScene, Holes};
@@ -180,6 +181,18 @@ impl SceneBvh {
             !self.bvh.ray_traverse_miss(ray, |r, id| self.intersect_cut(r, id))
         }
     }
+}
+
+/// The two triangles of each of the `n × n` cells of a grid whose corner (i, j) is at `p(i, j)`
+/// (for tests: terrains of any size).
+#[cfg(test)]
+pub(crate) fn grid_triangles(n: usize, p: impl Fn(usize, usize) -> Vec3) -> Vec<[Vec3; 3]> {
+    (0..n * n)
+        .flat_map(|k| {
+            let (i, j) = (k % n, k / n);
+            [[p(i, j), p(i + 1, j), p(i + 1, j + 1)], [p(i, j), p(i + 1, j + 1), p(i, j + 1)]]
+        })
+        .collect()
 }
 
 /// Rays [`SceneBvh::inside`] casts.

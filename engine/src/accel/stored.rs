@@ -109,13 +109,7 @@ mod tests {
 
     /// A bumpy grid of `n × n` quads: enough triangles for a tree of several levels.
     fn terrain(n: usize) -> Vec<[Vec3; 3]> {
-        let p = |i: usize, j: usize| Vec3::new(i as f32, ((i * 7 + j * 13) % 5) as f32 * 0.2, j as f32);
-        (0..n * n)
-            .flat_map(|k| {
-                let (i, j) = (k % n, k / n);
-                [[p(i, j), p(i + 1, j), p(i + 1, j + 1)], [p(i, j), p(i + 1, j + 1), p(i, j + 1)]]
-            })
-            .collect()
+        crate::accel::grid_triangles(n, |i, j| Vec3::new(i as f32, ((i * 7 + j * 13) % 5) as f32 * 0.2, j as f32))
     }
 
     /// The round trip restores the same tree, and it answers random rays as the build does.

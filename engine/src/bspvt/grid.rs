@@ -22,6 +22,14 @@ impl FaceGrid {
         [at, at + 1, at + k + 1, at + k + 2]
     }
 
+    /// Inward unit normals of the four planes through the cube's centre that bound tile `t`
+    /// (`k` tiles per side): every direction through the tile is on their positive sides.
+    pub fn sides(&self, t: usize, k: usize) -> [DVec3; 4] {
+        let (i, j) = (t % k, t / k);
+        let l = &self.lines;
+        [l[i], -l[i + 1], l[k + 1 + j], -l[k + 2 + j]]
+    }
+
     fn new(f: usize, res: usize) -> Self {
         let k = tiles_per_side(res);
         let edge = |t: usize| 2.0 * (t * node::TILE).min(res) as f64 / res as f64 - 1.0;

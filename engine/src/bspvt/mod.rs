@@ -50,8 +50,10 @@ use std::time::Instant;
 /// split search's looser Nelder–Mead tolerance and fused sums, see [`split`]; 4: a tile's
 /// subtree is its orbit's, mapped, see [`symmetry`], and the search's own sine and cosine; 5: three
 /// single-precision searches without restarts, see [`split`]; 6: what touches a ray's start does
-/// not block it, see [`crate::accel::touching_distance`]).
-pub const ALGORITHM_VERSION: u32 = 6;
+/// not block it, see [`crate::accel::touching_distance`]; 7: an occluder of many triangles is
+/// asked in pieces, see [`crate::accel::Occluders`] — the same texels on every level measured,
+/// but a ray grazing a piece's box may round otherwise than through the whole BVH's boxes).
+pub const ALGORITHM_VERSION: u32 = 7;
 
 /// Bake parameters.
 #[derive(Clone, Copy, Debug, PartialEq)]
