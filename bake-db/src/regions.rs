@@ -18,10 +18,14 @@ use std::collections::{HashMap, HashSet};
 /// tests its tiles against.
 pub const MAX_REGIONS: usize = 16;
 
+/// How the names of these memos start. They are named by their content, so every database
+/// that holds one holds the same bytes under it, and a merge carries them (`Store::merge_from`).
+pub const PREFIX: &str = "occluder triangles ";
+
 /// The memo name of the triangles of the occluder whose hash is `occluder`.
-fn name(occluder: &[u8; 32]) -> String {
+pub fn name(occluder: &[u8; 32]) -> String {
     let hex: String = occluder.iter().map(|b| format!("{b:02x}")).collect();
-    format!("occluder triangles {hex}")
+    format!("{PREFIX}{hex}")
 }
 
 /// Whether instance `i` occludes with a refinement of its mesh that lifted vertices, solid (a

@@ -388,6 +388,22 @@ fn occluder_bvhs_outlive_runs_and_damage_costs_only_time() {
     assert!(bvhs(&store).is_empty(), "gc drops them with the other caches");
 }
 
+/// A merge carries the occluders' triangles that keep the first edit after it local, and
+/// not the memos each baker rebuilds; merging again changes nothing.
+#[test]
+fn a_merge_carries_occluder_triangles_and_no_other_memo() {
+    let (shard, merged) =
+        (Store::open(&scratch("memos-shard")).unwrap(), Store::open(&scratch("memos-merged")).unwrap());
+    let triangles = (kage_bake_db::regions::name(&[7; 32]), vec![1, 2, 3]);
+    let others = [("bvh of something", 4), ("tiles of some settings", 5)].map(|(n, b)| (n.to_string(), vec![b]));
+    shard.put_memos(&[&others[..], std::slice::from_ref(&triangles)].concat()).unwrap();
+    for _ in 0..2 {
+        merged.merge_from(&shard).unwrap();
+        assert_eq!(merged.memos().unwrap(), vec![(triangles.0.clone(), 3)]);
+        assert_eq!(merged.memo(&triangles.0).unwrap(), Some(triangles.1.clone()));
+    }
+}
+
 /// An occluder of more triangles than a piece keeps one BVH per piece, and a warm re-bake
 /// that restores them gives a cold bake's bytes.
 #[test]

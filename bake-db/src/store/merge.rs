@@ -6,9 +6,12 @@
 //! paths. Artefacts are copied in transactions of at most [`BATCH_BYTES`]; the small tables
 //! (meshes, scenes, extras, lineage, metadata) in one at the end. A merge killed at any moment
 //! leaves the target as of its last commit, and merging again completes it: merging is
-//! idempotent. Memos are not merged: they only save time, and each baker rebuilds its own.
+//! idempotent. Of the memos, which only save time, only the curved occluders' triangles are
+//! merged (where the target lacks them): without them the first edit after a merge would count
+//! such an occluder's whole bounds as changed ([`crate::regions`]). The others (BVHs, the
+//! subtree memo) each baker rebuilds as it goes.
 
-use super::{ARTEFACTS, DbError, EXTRAS, INFO, Info, LINEAGE, MESHES, META, Result, SCENES, Store, checksum_of};
+use super::{ARTEFACTS, DbError, EXTRAS, INFO, Info, LINEAGE, MEMOS, MESHES, META, Result, SCENES, Store, checksum_of};
 use crate::key::Key;
 use redb::{ReadableTable, TableDefinition};
 
@@ -99,8 +102,9 @@ impl Store {
 
     /// Merges the small tables: meshes and extras as unions, scene records as the union of
     /// their keys, lineage as `input`'s entries (shards bake disjoint slots; a later bake's
-    /// lineage supersedes an earlier one's), metadata where the target has none — and an error
-    /// when both hold a different value (a different parameter plan for the same scene).
+    /// lineage supersedes an earlier one's), occluder triangles where the target has none,
+    /// metadata where the target has none — and an error when both hold a different value (a
+    /// different parameter plan for the same scene).
     fn merge_tables(&self, input: &Store) -> Result<()> {
         let read_all = |table: TableDefinition<&[u8], &[u8]>| {
             input.read(|t| {
@@ -116,6 +120,17 @@ impl Store {
         };
         let (meshes, lineage) = (read_all(MESHES)?, read_all(LINEAGE)?);
         let (scenes, extras, meta) = (read_named(SCENES)?, read_named(EXTRAS)?, read_named(META)?);
+        // By a range of names: the other memos (a large level's BVHs) are not even read.
+        let prefix = crate::regions::PREFIX;
+        let triangles: Vec<(String, Vec<u8>)> = input.read(|t| match t.open_table(MEMOS) {
+            Ok(tab) => rows(
+                tab.range(prefix..)?
+                    .map(|r| r.map(|(k, v)| (k.value().to_string(), v.value().to_vec())))
+                    .take_while(|r| r.as_ref().map_or(true, |(k, _)| k.starts_with(prefix))),
+            ),
+            Err(redb::TableError::TableDoesNotExist(_)) => Ok(Vec::new()),
+            Err(e) => Err(e.into()),
+        })?;
         let mut disagree = None;
         self.write(|t| {
             let mut m = t.open_table(MESHES)?;
@@ -130,6 +145,13 @@ impl Store {
                 l.insert(k.as_slice(), v.as_slice())?;
             }
             drop(l);
+            let mut memos = t.open_table(MEMOS)?;
+            for (name, bytes) in &triangles {
+                if memos.get(name.as_str())?.is_none() {
+                    memos.insert(name.as_str(), bytes.as_slice())?;
+                }
+            }
+            drop(memos);
             for (table, entries, width) in [(SCENES, &scenes, 32), (EXTRAS, &extras, 64)] {
                 let mut tab = t.open_table(table)?;
                 for (name, v) in entries {
