@@ -14,7 +14,7 @@
 
 use super::SceneBvh;
 use super::beam::{self, Beam};
-use super::top_level::TopLevel;
+use super::top_level::{self, TopLevel};
 use crate::scene::Holes;
 use glam::Vec3;
 use std::ops::Range;
@@ -168,12 +168,6 @@ impl Occluders {
             seen.extend(leaf.iter().copied().filter(piece));
             seen.len() > MAX_SEEN
         });
-        // Nearest first: a blocked ray is most often blocked near its start.
-        let distance = |&i: &u32| {
-            let p = &self.pieces[i as usize];
-            (apex.clamp(p.lo, p.hi) - apex).length_squared()
-        };
-        seen.sort_by(|a, b| distance(a).total_cmp(&distance(b)));
         all.then_some(Seen(seen))
     }
 
@@ -241,11 +235,7 @@ fn pieces_of(triangles: &[[Vec3; 3]]) -> Vec<Option<Vec<u32>>> {
             out.push(Some(piece));
             continue;
         }
-        let (lo, hi) = ids.iter().fold((Vec3::MAX, Vec3::MIN), |(lo, hi), &k| (lo.min(centre(k)), hi.max(centre(k))));
-        let axis = (hi - lo).max_position();
-        // Ties by index make the order strict, so the halves are the same sets on every run.
-        let mid = ids.len() / 2;
-        ids.select_nth_unstable_by(mid, |&a, &b| centre(a)[axis].total_cmp(&centre(b)[axis]).then(a.cmp(&b)));
+        let mid = top_level::halve(ids, centre);
         let (a, b) = ids.split_at_mut(mid);
         todo.extend([b, a]);
     }

@@ -88,6 +88,17 @@ impl TopLevel {
     }
 }
 
+/// Splits `ids` at its median along the longest axis of the bounds of their `centre`s: the
+/// first half (returned: its length) holds the lower ones. Ties go by index, so the order is
+/// strict and the halves are the same sets on every run.
+pub(super) fn halve(ids: &mut [u32], centre: impl Fn(u32) -> Vec3) -> usize {
+    let (lo, hi) = ids.iter().fold((Vec3::MAX, Vec3::MIN), |(lo, hi), &i| (lo.min(centre(i)), hi.max(centre(i))));
+    let axis = (hi - lo).max_position();
+    let mid = ids.len() / 2;
+    ids.select_nth_unstable_by(mid, |&a, &b| centre(a)[axis].total_cmp(&centre(b)[axis]).then(a.cmp(&b)));
+    mid
+}
+
 /// Fills `nodes[at]` for the items `order` (from `offset` in the whole order): padded bounds,
 /// then a leaf, or a median split into two children appended to `nodes`.
 fn split(boxes: &[(Vec3, Vec3)], nodes: &mut Vec<Node>, at: usize, order: &mut [u32], offset: usize) {
@@ -100,11 +111,7 @@ fn split(boxes: &[(Vec3, Vec3)], nodes: &mut Vec<Node>, at: usize, order: &mut [
     if order.len() <= LEAF {
         return;
     }
-    let centre = |i: u32| boxes[i as usize].0 + boxes[i as usize].1;
-    let (clo, chi) = order.iter().fold((Vec3::MAX, Vec3::MIN), |(lo, hi), &i| (lo.min(centre(i)), hi.max(centre(i))));
-    let axis = (chi - clo).max_position();
-    order.sort_unstable_by(|&a, &b| centre(a)[axis].total_cmp(&centre(b)[axis]).then(a.cmp(&b)));
-    let mid = order.len() / 2;
+    let mid = halve(order, |i| boxes[i as usize].0 + boxes[i as usize].1);
     let left = nodes.len();
     nodes.extend([0, 1].map(|_| Node { lo, hi, start: 0, count: 0 }));
     (nodes[at].start, nodes[at].count) = (left as u32, 0);
