@@ -15,8 +15,9 @@ use kage_engine::scene::Scene;
 /// radius bounds ignore the lights, so a refreshed cache is the cold placement; 3: gather rays
 /// pass what touches their start, see [`kage_engine::accel::touching_distance`]; 4: the
 /// receivers' meshes join the key, since the occluder snapshot names a flat refinement's
-/// source.)
-pub const VERSION: u32 = 4;
+/// source; 5: a gather ray that enters a surface touching its start, such as a box's foot
+/// into the floor it rests on, meets it there.)
+pub const VERSION: u32 = 5;
 
 /// The key of the records a cache built from `src` with `s` would hold.
 pub fn key(src: &Source, s: &Settings) -> Key {

@@ -108,19 +108,48 @@ impl SceneBvh {
 
     /// The closest hit along `dir` (unit) from `origin` within `(0, tmax)`.
     pub fn closest_hit(&self, origin: Vec3, dir: Vec3, tmax: f32) -> Option<Hit> {
-        self.closest_hit_between(origin, dir, 0.0, tmax)
+        let (slot, t) = self.closest_slot(origin, dir, 0.0, tmax, |_, _| true)?;
+        Some(self.hit(slot, origin, dir, t))
+    }
+
+    /// The hit on the triangle in leaf `slot` at `t` along the ray.
+    fn hit(&self, slot: usize, origin: Vec3, dir: Vec3, t: f32) -> Hit {
+        let p = Vec3A::from(origin) + Vec3A::from(dir) * t;
+        Hit { triangle: self.bvh.primitive_indices[slot], t, bary: barycentrics(&self.tris[slot], p) }
     }
 
     /// The closest hit of a ray from `origin` (a surface point's offset origin) along `dir`
-    /// (unit) within `tmax`, past what touches its start ([`touching_distance`]).
+    /// (unit) within `tmax`, past what touches its start ([`touching_distance`]) unless the ray
+    /// enters it through its front: a box's foot meets the floor it rests on at once.
     pub fn closest_hit_past_touching(&self, origin: Vec3, dir: Vec3, tmax: f32) -> Option<Hit> {
-        self.closest_hit_between(origin, dir, touching_distance(origin), tmax)
+        let near = touching_distance(origin);
+        let (slot, t) = self.closest_slot(origin - dir * near, dir, 0.0, tmax + near, |slot, t| {
+            self.counts(slot, t - near, dir, near)
+        })?;
+        // A surface entered at the start is met there (its plane may round to either side).
+        Some(self.hit(slot, origin, dir, (t - near).max(0.0)))
     }
 
-    fn closest_hit_between(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> Option<Hit> {
-        let (slot, t) = self.closest_slot(origin, dir, tmin, tmax)?;
-        let p = Vec3A::from(origin) + Vec3A::from(dir) * t;
-        Some(Hit { triangle: self.bvh.primitive_indices[slot], t, bary: barycentrics(&self.tris[slot], p) })
+    /// Whether a hit at `t` on the triangle in `slot` counts for a ray along `dir` from a
+    /// surface point's offset origin: beyond `near` everything does; nearer, the surface
+    /// touches the ray's start and counts only when the ray enters it through its front from a
+    /// start on (within rounding) or before its plane. A floor vertex at the foot of a box lies
+    /// in the plane of the box's side, which rounds to either side of it: a ray leaving away
+    /// from the box meets the side from behind, if at all, and passes; a ray from the box's foot
+    /// down into the floor meets the floor's front and stops there; a ray leaving a surface
+    /// with a coincident back face (offset past it by [`offset_ray_origin`]) passes.
+    ///
+    /// Rays are cast from `near` before their start: obvhs ignores a box ending within 10⁻⁴ of
+    /// a ray's origin, which would lose a flat floor's box under a foot on it.
+    fn counts(&self, slot: usize, t: f32, dir: Vec3, near: f32) -> bool {
+        if t >= near {
+            return true;
+        }
+        // obvhs' `ng` is the negated geometric normal: a hit on the front has ng · d > 0, and
+        // t (ng · d) / |ng| is the start's height above the plane.
+        let ng = self.tris[slot].ng;
+        let cos = ng.dot(Vec3A::from(dir));
+        cos > 0.0 && t * cos >= -near * ENTERING_SLACK * ng.length()
     }
 
     /// Whether a surface point `p` (unit normal `n`) lies inside closed geometry — a floor's
@@ -134,26 +163,34 @@ impl SceneBvh {
             .filter(|&k| {
                 let d = frame.to_world(sampling::cosine_hemisphere(sampling::hammersley(k, INSIDE_RAYS)));
                 // obvhs' `ng` is the negated geometric normal: a hit from behind has ng · d < 0.
-                self.closest_slot(offset_ray_origin(p, n, d), d, 0.0, f32::INFINITY)
+                self.closest_slot(offset_ray_origin(p, n, d), d, 0.0, f32::INFINITY, |_, _| true)
                     .is_some_and(|(slot, _)| self.tris[slot].ng.dot(Vec3A::from(d)) < 0.0)
             })
             .count();
         2 * behind >= INSIDE_RAYS as usize
     }
 
-    /// The leaf slot and distance of the closest hit.
-    fn closest_slot(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> Option<(usize, f32)> {
+    /// The leaf slot and distance of the closest hit that `counts` (slot, t) keeps.
+    fn closest_slot(
+        &self,
+        origin: Vec3,
+        dir: Vec3,
+        tmin: f32,
+        tmax: f32,
+        counts: impl Fn(usize, f32) -> bool,
+    ) -> Option<(usize, f32)> {
         if self.tris.is_empty() {
             return None;
         }
         let ray = ray(origin, dir, tmin, tmax);
         let mut hit = obvhs::ray::RayHit::none();
+        let kept = |id: usize, t: f32| kept(t, || counts(id, t));
         // Two monomorphised traversals: the hole test stays out of the solid scene's loop
         // (in it, it cost 5–16 % of the any-hit rate; measured).
         let found = if self.holes.is_empty() {
-            self.bvh.ray_traverse(ray, &mut hit, |r, id| self.tris[id].intersect(r))
+            self.bvh.ray_traverse(ray, &mut hit, |r, id| kept(id, self.tris[id].intersect(r)))
         } else {
-            self.bvh.ray_traverse(ray, &mut hit, |r, id| self.intersect_cut(r, id))
+            self.bvh.ray_traverse(ray, &mut hit, |r, id| kept(id, self.intersect_cut(r, id)))
         };
         found.then_some((hit.primitive_id as usize, hit.t))
     }
@@ -164,21 +201,29 @@ impl SceneBvh {
     }
 
     /// True when anything blocks a shadow ray from `origin` (a surface point's offset origin)
-    /// along `dir` (unit) within `tmax`, past what touches its start ([`touching_distance`]).
+    /// along `dir` (unit) within `tmax`, past what touches its start ([`touching_distance`])
+    /// unless the ray enters it through its front (see [`Self::closest_hit_past_touching`]).
     pub fn occluded_past_touching(&self, origin: Vec3, dir: Vec3, tmax: f32) -> bool {
-        self.occluded_between(origin, dir, touching_distance(origin), tmax)
+        let near = touching_distance(origin);
+        self.any_hit(origin - dir * near, dir, 0.0, tmax + near, |slot, t| self.counts(slot, t - near, dir, near))
     }
 
     /// True when anything blocks the ray from `origin` along `dir` (unit) within `[tmin, tmax]`.
     pub fn occluded_between(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> bool {
+        self.any_hit(origin, dir, tmin, tmax, |_, _| true)
+    }
+
+    /// Whether the ray meets, within `[tmin, tmax]`, a triangle whose hit `counts` (slot, t) keeps.
+    fn any_hit(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32, counts: impl Fn(usize, f32) -> bool) -> bool {
         if self.tris.is_empty() {
             return false;
         }
         let ray = ray(origin, dir, tmin, tmax);
+        let kept = |id: usize, t: f32| kept(t, || counts(id, t));
         if self.holes.is_empty() {
-            !self.bvh.ray_traverse_miss(ray, |r, id| self.tris[id].intersect(r))
+            !self.bvh.ray_traverse_miss(ray, |r, id| kept(id, self.tris[id].intersect(r)))
         } else {
-            !self.bvh.ray_traverse_miss(ray, |r, id| self.intersect_cut(r, id))
+            !self.bvh.ray_traverse_miss(ray, |r, id| kept(id, self.intersect_cut(r, id)))
         }
     }
 }
@@ -193,6 +238,12 @@ pub(crate) fn grid_triangles(n: usize, p: impl Fn(usize, usize) -> Vec3) -> Vec<
             [[p(i, j), p(i + 1, j), p(i + 1, j + 1)], [p(i, j), p(i + 1, j + 1), p(i, j + 1)]]
         })
         .collect()
+}
+
+/// Hit distance `t`, or a miss when `counts` drops the hit.
+#[inline]
+fn kept(t: f32, counts: impl FnOnce() -> bool) -> f32 {
+    if t < f32::INFINITY && !counts() { f32::INFINITY } else { t }
 }
 
 /// Rays [`SceneBvh::inside`] casts.
@@ -232,6 +283,11 @@ fn ray(origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> Ray {
 pub fn touching_distance(origin: Vec3) -> f32 {
     1e-4 * (1.0 + origin.abs().max_element())
 }
+
+/// How far behind a touching surface's plane, as a share of [`touching_distance`], a ray's
+/// start may lie and still enter it: a few ULPs of rounding (a box's foot on a table top), not
+/// the hundreds by which [`offset_ray_origin`] lifts a start past a coincident back face.
+const ENTERING_SLACK: f32 = 0.02;
 
 /// Moves `p` off a surface with geometric normal `n`, to the side `dir` leaves towards, by a
 /// few ULPs of its coordinates (or a small absolute step near the world origin).
@@ -363,6 +419,40 @@ mod tests {
         assert!(!bvh.inside(Vec3::new(0.8, 0.0, 0.0), Vec3::Y), "beside it");
         assert!(!bvh.inside(Vec3::new(2.0, 0.0, 0.0), Vec3::Y), "under the floating slab");
         assert!(!SceneBvh::new(&[]).inside(Vec3::ZERO, Vec3::Y));
+    }
+
+    /// A ray from a box's foot down into the floor (or table top) it rests on meets the floor
+    /// there, whichever side of the floor's plane the foot rounds to; a ray from a surface with
+    /// a coincident back face (a leaf's two sides) passes that back face.
+    #[test]
+    fn a_ray_entering_a_surface_at_its_start_meets_it() {
+        for height in [0.0f32, 0.6, 0.6 + 1.2e-7, 0.6 - 6e-8, 17.3] {
+            let floor = crate::scene::shapes::grid(8.0, 1);
+            let floor: Vec<[Vec3; 3]> =
+                floor.triangles.iter().map(|t| t.map(|i| floor.positions[i as usize] + height * Vec3::Y)).collect();
+            let bvh = SceneBvh::new(&floor);
+            // The +z side's foot: its height as the box's own transform rounds it.
+            let foot = Vec3::new(0.1, 0.3 + (height - 0.3), 0.5);
+            for k in 1..8 {
+                let down = Vec3::new(0.1 * k as f32, -0.1 * k as f32, 1.0).normalize();
+                let o = offset_ray_origin(foot, Vec3::Z, down);
+                let hit = bvh.closest_hit_past_touching(o, down, f32::INFINITY);
+                assert!(hit.is_some_and(|h| h.t < 1e-3), "floor at {height}: {down} meets {hit:?}");
+                assert!(bvh.occluded_past_touching(o, down, f32::INFINITY), "floor at {height}: {down}");
+                let up = Vec3::new(0.1 * k as f32, 0.1 * k as f32, 1.0).normalize();
+                let o = offset_ray_origin(foot, Vec3::Z, up);
+                assert!(!bvh.occluded_past_touching(o, up, f32::INFINITY), "floor at {height}: {up}");
+            }
+            // The floor's own rays pass its coincident back face.
+            let back: Vec<[Vec3; 3]> = floor.iter().map(|&[a, b, c]| [a, c, b]).collect();
+            let two_sided = SceneBvh::new(&[floor, back].concat());
+            for k in 1..8 {
+                let d = Vec3::new(0.1 * k as f32, 1.0, 0.3).normalize();
+                let o = offset_ray_origin(Vec3::new(0.3, height, -0.2), Vec3::Y, d);
+                assert!(!two_sided.occluded_past_touching(o, d, f32::INFINITY), "floor at {height}: {d}");
+                assert!(two_sided.closest_hit_past_touching(o, d, f32::INFINITY).is_none(), "floor at {height}: {d}");
+            }
+        }
     }
 
     #[test]
