@@ -40,6 +40,10 @@ enum Output {
     Radiance,
 }
 const DEPTH: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+/// Samples per pixel of the displayed view (WebGPU guarantees 4 for [`COLOR`] and [`DEPTH`]):
+/// silhouettes and shadow-casting edges without stair steps. Linear radiance for
+/// `kage render --gpu` stays at one sample, as the CPU renderer's pixel centres.
+pub const SAMPLES: u32 = 4;
 
 #[repr(C)]
 #[derive(Clone, Copy, Pod, Zeroable)]
@@ -221,12 +225,40 @@ struct LitVertex {
     mr_uv: [f32; 4],
 }
 
-/// The offscreen target.
+/// The offscreen target: [`SAMPLES`] per pixel, resolved into the texture egui shows.
 struct Target {
     size: [u32; 2],
+    frame: Frame,
+    id: Option<egui::TextureId>,
+}
+
+/// What one frame draws into: colour and depth of some samples per pixel, and the one-sample
+/// colour they resolve into (the colour itself at one sample).
+struct Frame {
     color: wgpu::TextureView,
     depth: wgpu::TextureView,
-    id: Option<egui::TextureId>,
+    resolved: Option<wgpu::TextureView>,
+}
+
+impl Frame {
+    /// Views of `color` (a one-sample texture of `size`, read afterwards) with `samples`
+    /// multisampled colour and depth textures in front of it when `samples` > 1.
+    fn new(gpu: &Gpu, color: &wgpu::Texture, samples: u32) -> Self {
+        let size = [color.width(), color.height()];
+        let target = |format, usage| texture(gpu, size, format, usage, samples).create_view(&Default::default());
+        let depth = target(DEPTH, wgpu::TextureUsages::RENDER_ATTACHMENT);
+        let resolved = color.create_view(&Default::default());
+        if samples == 1 {
+            return Self { color: resolved, depth, resolved: None };
+        }
+        let color = target(color.format(), wgpu::TextureUsages::RENDER_ATTACHMENT);
+        Self { color, depth, resolved: Some(resolved) }
+    }
+
+    /// The view to read or show: the resolved colour.
+    fn shown(&self) -> &wgpu::TextureView {
+        self.resolved.as_ref().unwrap_or(&self.color)
+    }
 }
 
 /// The pipelines of preview.wgsl.
@@ -272,6 +304,8 @@ pub struct Viewport {
     /// Flat-coloured light polygons, each with its emitting side.
     lights: Vec<(Mesh, LightSide)>,
     target: Option<Target>,
+    /// Samples per pixel of what it draws for display ([`SAMPLES`] unless made otherwise).
+    samples: u32,
     /// The shader generation the pipeline was built from.
     pub generation: u64,
 }
@@ -284,8 +318,14 @@ struct LightSide {
 }
 
 impl Viewport {
-    /// Builds the pipeline from `shaders` (`preview.wgsl`).
+    /// Builds the pipeline from `shaders` (`preview.wgsl`), drawing [`SAMPLES`] per pixel.
     pub fn new(gpu: &Gpu, shaders: &Shaders) -> Result<Self, kage_gpu::ShaderError> {
+        Self::with_samples(gpu, shaders, SAMPLES)
+    }
+
+    /// [`Self::new`] drawing `samples` per pixel (1: each pixel's centre alone, as a ray
+    /// caster's image, which tests compare against).
+    pub fn with_samples(gpu: &Gpu, shaders: &Shaders, samples: u32) -> Result<Self, kage_gpu::ShaderError> {
         let view_entry = wgpu::BindGroupLayoutEntry {
             binding: 0,
             visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
@@ -331,7 +371,7 @@ impl Viewport {
             prt: prt_layout.as_ref(),
             lit: lit_layout.as_ref(),
         };
-        let pipelines = build_pipelines(gpu, shaders, layouts, COLOR)?;
+        let pipelines = build_pipelines(gpu, shaders, layouts, (COLOR, samples))?;
         Ok(Self {
             pipelines,
             uniform,
@@ -351,6 +391,7 @@ impl Viewport {
             vertex_sun: None,
             lights: Vec::new(),
             target: None,
+            samples,
             generation: 0,
         })
     }
@@ -358,16 +399,17 @@ impl Viewport {
     /// Rebuilds the pipeline (hot reload); on error the previous one stays.
     pub fn reload(&mut self, gpu: &Gpu, shaders: &Shaders, generation: u64) -> Result<(), kage_gpu::ShaderError> {
         self.generation = generation;
-        self.pipelines = self.build(gpu, shaders, COLOR)?;
+        self.pipelines = self.build(gpu, shaders, (COLOR, self.samples))?;
         Ok(())
     }
 
-    /// The pipelines of `shaders` over this viewport's layouts, drawing into `target`.
+    /// The pipelines of `shaders` over this viewport's layouts, drawing into `target` (format,
+    /// samples per pixel).
     fn build(
         &self,
         gpu: &Gpu,
         shaders: &Shaders,
-        target: wgpu::TextureFormat,
+        target: (wgpu::TextureFormat, u32),
     ) -> Result<Pipelines, kage_gpu::ShaderError> {
         let layouts = Layouts {
             view: &self.layout,
@@ -554,12 +596,12 @@ impl Viewport {
         let size = [size[0].clamp(1, 4096), size[1].clamp(1, 4096)];
         if self.target.as_ref().is_none_or(|t| t.size != size) {
             let old = self.target.take().and_then(|t| t.id);
-            self.target = Some(make_target(gpu, size, renderer, old));
+            self.target = Some(make_target(gpu, (size, self.samples), renderer, old));
         }
         let target = self.target.as_ref().expect("made above");
         let background = wgpu::Color { r: 0.02, g: 0.02, b: 0.025, a: 1.0 };
         let output = if raw { Output::Overlay } else { Output::Display(exposure) };
-        self.draw(gpu, &self.pipelines, (&target.color, &target.depth), size, orbit, output, background);
+        self.draw(gpu, &self.pipelines, &target.frame, size, orbit, output, background);
         target.id.expect("registered with egui")
     }
 
@@ -574,18 +616,9 @@ impl Viewport {
     ) -> Result<image::RgbaImage, kage_gpu::GpuError> {
         let [w, h] = [size[0].clamp(1, 4096), size[1].clamp(1, 4096)];
         let usage = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC;
-        let color = texture(gpu, [w, h], COLOR, usage);
-        let depth = texture(gpu, [w, h], DEPTH, wgpu::TextureUsages::RENDER_ATTACHMENT);
-        let views = (color.create_view(&Default::default()), depth.create_view(&Default::default()));
-        self.draw(
-            gpu,
-            &self.pipelines,
-            (&views.0, &views.1),
-            [w, h],
-            orbit,
-            Output::Display(exposure),
-            wgpu::Color::BLACK,
-        );
+        let color = texture(gpu, [w, h], COLOR, usage, 1);
+        let frame = Frame::new(gpu, &color, self.samples);
+        self.draw(gpu, &self.pipelines, &frame, [w, h], orbit, Output::Display(exposure), wgpu::Color::BLACK);
         let data = read_back(gpu, &color, [w, h], 4)?;
         Ok(image::RgbaImage::from_raw(w, h, data).expect("w × h × 4 bytes"))
     }
@@ -601,12 +634,11 @@ impl Viewport {
         orbit: &Orbit,
     ) -> Result<Vec<Vec3>, kage_gpu::GpuError> {
         let [w, h] = [size[0].clamp(1, 4096), size[1].clamp(1, 4096)];
-        let pipelines = self.build(gpu, shaders, RADIANCE)?;
+        let pipelines = self.build(gpu, shaders, (RADIANCE, 1))?;
         let usage = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC;
-        let color = texture(gpu, [w, h], RADIANCE, usage);
-        let depth = texture(gpu, [w, h], DEPTH, wgpu::TextureUsages::RENDER_ATTACHMENT);
-        let views = (color.create_view(&Default::default()), depth.create_view(&Default::default()));
-        self.draw(gpu, &pipelines, (&views.0, &views.1), [w, h], orbit, Output::Radiance, wgpu::Color::BLACK);
+        let color = texture(gpu, [w, h], RADIANCE, usage, 1);
+        let frame = Frame::new(gpu, &color, 1);
+        self.draw(gpu, &pipelines, &frame, [w, h], orbit, Output::Radiance, wgpu::Color::BLACK);
         let data = read_back(gpu, &color, [w, h], 16)?;
         Ok(bytemuck::cast_slice::<u8, [f32; 4]>(&data).iter().map(|p| Vec3::new(p[0], p[1], p[2])).collect())
     }
@@ -617,7 +649,7 @@ impl Viewport {
         &self,
         gpu: &Gpu,
         pipelines: &Pipelines,
-        (color, depth): (&wgpu::TextureView, &wgpu::TextureView),
+        frame: &Frame,
         size: [u32; 2],
         orbit: &Orbit,
         output: Output,
@@ -643,13 +675,13 @@ impl Viewport {
             let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
                 label: Some("preview"),
                 color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                    view: color,
-                    resolve_target: None,
+                    view: &frame.color,
+                    resolve_target: frame.resolved.as_ref(),
                     depth_slice: None,
                     ops: wgpu::Operations { load: wgpu::LoadOp::Clear(background), store: wgpu::StoreOp::Store },
                 })],
                 depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                    view: depth,
+                    view: &frame.depth,
                     depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(1.0), store: wgpu::StoreOp::Store }),
                     stencil_ops: None,
                 }),
@@ -696,12 +728,18 @@ impl Viewport {
     }
 }
 
-fn texture(gpu: &Gpu, [w, h]: [u32; 2], format: wgpu::TextureFormat, usage: wgpu::TextureUsages) -> wgpu::Texture {
+fn texture(
+    gpu: &Gpu,
+    [w, h]: [u32; 2],
+    format: wgpu::TextureFormat,
+    usage: wgpu::TextureUsages,
+    samples: u32,
+) -> wgpu::Texture {
     gpu.device.create_texture(&wgpu::TextureDescriptor {
         label: Some("preview"),
         size: wgpu::Extent3d { width: w, height: h, depth_or_array_layers: 1 },
         mip_level_count: 1,
-        sample_count: 1,
+        sample_count: samples,
         dimension: wgpu::TextureDimension::D2,
         format,
         usage,
@@ -949,7 +987,7 @@ fn build_pipelines(
     gpu: &Gpu,
     shaders: &Shaders,
     layouts: Layouts,
-    target: wgpu::TextureFormat,
+    target: (wgpu::TextureFormat, u32),
 ) -> Result<Pipelines, kage_gpu::ShaderError> {
     let module = shaders.module(&gpu.device, "preview.wgsl")?;
     let attribute = |location, format, offset| wgpu::VertexAttribute { format, offset, shader_location: location };
@@ -1010,7 +1048,7 @@ fn render_pipeline(
     gpu: &Gpu,
     module: &wgpu::ShaderModule,
     groups: &[Option<&wgpu::BindGroupLayout>],
-    ((vs, fs), target): ((&str, &str), wgpu::TextureFormat),
+    ((vs, fs), (target, samples)): ((&str, &str), (wgpu::TextureFormat, u32)),
     buffers: &[Option<wgpu::VertexBufferLayout>],
     depth: Depth,
 ) -> wgpu::RenderPipeline {
@@ -1045,7 +1083,8 @@ fn render_pipeline(
                 Default::default()
             },
         }),
-        multisample: Default::default(),
+        // The sun's depth map has one sample, whatever the view's.
+        multisample: wgpu::MultisampleState { count: if shadow { 1 } else { samples }, ..Default::default() },
         multiview_mask: None,
         cache: None,
     })
@@ -1075,16 +1114,21 @@ fn mesh_buffers(gpu: &Gpu, positions: &[Vec3], look: Look, indices: &[u32]) -> M
     }
 }
 
-fn make_target(gpu: &Gpu, size: [u32; 2], renderer: &mut egui_wgpu::Renderer, old: Option<egui::TextureId>) -> Target {
-    let view = |format, usage| texture(gpu, size, format, usage).create_view(&Default::default());
-    let color = view(COLOR, wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING);
-    let depth = view(DEPTH, wgpu::TextureUsages::RENDER_ATTACHMENT);
+fn make_target(
+    gpu: &Gpu,
+    (size, samples): ([u32; 2], u32),
+    renderer: &mut egui_wgpu::Renderer,
+    old: Option<egui::TextureId>,
+) -> Target {
+    let usage = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING;
+    let frame = Frame::new(gpu, &texture(gpu, size, COLOR, usage, 1), samples);
+    let shown = frame.shown();
     let id = match old {
         Some(id) => {
-            renderer.update_egui_texture_from_wgpu_texture(&gpu.device, &color, wgpu::FilterMode::Linear, id);
+            renderer.update_egui_texture_from_wgpu_texture(&gpu.device, shown, wgpu::FilterMode::Linear, id);
             id
         }
-        None => renderer.register_native_texture(&gpu.device, &color, wgpu::FilterMode::Linear),
+        None => renderer.register_native_texture(&gpu.device, shown, wgpu::FilterMode::Linear),
     };
-    Target { size, color, depth, id: Some(id) }
+    Target { size, frame, id: Some(id) }
 }

@@ -51,7 +51,7 @@ fn per_pixel_prt_matches_the_cpu_per_pixel_render_and_beats_per_vertex_shading()
         cpu.iter().map(|p| (*p * exposure.exp2()).to_array().map(|c| (display_srgb(c) * 255.0 + 0.5) as u8)).collect();
     assert!(reference.iter().filter(|p| p.iter().any(|c| *c > 0)).count() > w * h / 3, "the scene fills the view");
 
-    let mut vp = Viewport::new(&gpu, &Shaders::embedded()).unwrap();
+    let mut vp = Viewport::with_samples(&gpu, &Shaders::embedded(), 1).unwrap();
     vp.upload_geometry(&gpu, &flat);
     vp.upload_prt(&gpu, &flat, Some(&frame));
     let per_pixel = vp.render_image(&gpu, [w as u32, h as u32], &orbit, exposure).unwrap();
@@ -63,7 +63,8 @@ fn per_pixel_prt_matches_the_cpu_per_pixel_render_and_beats_per_vertex_shading()
     per_pixel.save(dir.join("prt-per-pixel.png")).unwrap();
     per_vertex.save(dir.join("prt-per-vertex.png")).unwrap();
 
-    // Rasterised and ray-cast silhouettes differ by a pixel at edges; f32 against f64 by a level.
+    // One sample per pixel, as the CPU's rays through pixel centres. Rasterised and ray-cast
+    // silhouettes still differ by a pixel at edges; f32 against f64 by a level.
     let (pixel, vertex) = (within(&per_pixel, &reference, 3), within(&per_vertex, &reference, 3));
     assert!(pixel >= 0.99, "per-pixel PRT matches the CPU render on {:.1} % of pixels", 100.0 * pixel);
     assert!(
@@ -126,7 +127,7 @@ fn lights_drawn(
     let cpu = shade_image(&Renderer::new(scene), &camera, w, h, 1, &|hit| lobes.shade(flat, hit, eye));
     let reference: Vec<[u8; 3]> =
         cpu.iter().map(|p| (*p * exposure.exp2()).to_array().map(|c| (display_srgb(c) * 255.0 + 0.5) as u8)).collect();
-    let mut vp = Viewport::new(gpu, &Shaders::embedded()).unwrap();
+    let mut vp = Viewport::with_samples(gpu, &Shaders::embedded(), 1).unwrap();
     vp.upload_geometry(gpu, flat);
     vp.upload_lights(gpu, flat, Some(&PixelLights { lobes, values: values.clone(), environment: None }));
     vp.upload_radiance(gpu, &values);
@@ -353,17 +354,22 @@ fn the_environment_shows_behind_the_geometry() {
     assert!(plain.pixels().all(|p| p.0[..3] == [0, 0, 0]), "without an environment the background is black");
 }
 
+/// A scene of one 1 m quad light at y = 1 (counter-clockwise seen from below: it emits
+/// downwards), flattened.
+fn one_light() -> kage_engine::scene::FlatScene {
+    let mut scene = kage_engine::scene::Scene::new("test:one light");
+    let q = 0.5;
+    let quad = vec![Vec3::new(-q, 0.0, -q), Vec3::new(q, 0.0, -q), Vec3::new(q, 0.0, q), Vec3::new(-q, 0.0, q)];
+    scene.add_light("light", quad, Vec3::splat(4.0), glam::Affine3A::from_translation(Vec3::Y));
+    flatten(&scene)
+}
+
 /// A light polygon is one-sided, as in `kage render`'s images: seen from its emitting side it
 /// shows its radiance, from behind it is dark.
 #[test]
 fn a_light_is_dark_from_behind() {
     let gpu = Gpu::new().expect("a wgpu device (lavapipe without a GPU)");
-    let mut scene = kage_engine::scene::Scene::new("test:one-sided");
-    let q = 0.5;
-    let quad = vec![Vec3::new(-q, 0.0, -q), Vec3::new(q, 0.0, -q), Vec3::new(q, 0.0, q), Vec3::new(-q, 0.0, q)];
-    // Counter-clockwise seen from below: it emits downwards.
-    scene.add_light("light", quad, Vec3::splat(4.0), glam::Affine3A::from_translation(Vec3::Y));
-    let flat = flatten(&scene);
+    let flat = one_light();
     assert!(flat.lights[0].normal.y < 0.0, "the light faces down");
     let mut vp = Viewport::new(&gpu, &Shaders::embedded()).unwrap();
     vp.upload_geometry(&gpu, &flat);
@@ -374,6 +380,29 @@ fn a_light_is_dark_from_behind() {
     });
     assert_eq!(below[..3], [255, 255, 255], "from its emitting side: {below:?}");
     assert_eq!(above[..3], [0, 0, 0], "from behind: {above:?}");
+}
+
+/// The displayed view is antialiased: a light polygon's edges, tilted across the pixel grid,
+/// take the share of each pixel's samples they cover (steps of a quarter with 4 samples),
+/// where one sample per pixel draws each pixel all or nothing; the area drawn stays the same.
+#[test]
+fn the_view_is_drawn_with_four_samples_per_pixel() {
+    let gpu = Gpu::new().expect("a wgpu device (lavapipe without a GPU)");
+    let flat = one_light();
+    let orbit = Orbit { target: Vec3::Y, distance: 3.0, yaw: 0.3, pitch: -0.8, yfov: 0.8 };
+    let drawn = |samples| {
+        let mut vp = Viewport::with_samples(&gpu, &Shaders::embedded(), samples).unwrap();
+        vp.upload_geometry(&gpu, &flat);
+        let image = vp.render_image(&gpu, [96, 96], &orbit, 0.0).unwrap();
+        image.pixels().map(|p| p.0[0]).collect::<Vec<u8>>()
+    };
+    let (one, four) = (drawn(1), drawn(kage_editor::viewport::SAMPLES));
+    let partial = |img: &[u8]| img.iter().filter(|&&v| v > 8 && v < 247).count();
+    let coverage = |img: &[u8]| img.iter().map(|&v| v as f64 / 255.0).sum::<f64>();
+    assert_eq!(partial(&one), 0, "one sample: every pixel all or nothing");
+    assert!(partial(&four) > 60, "four samples: {} edge pixels partly covered", partial(&four));
+    let (a, b) = (coverage(&one), coverage(&four));
+    assert!(a > 500.0 && (a - b).abs() < 0.03 * a, "the area drawn: {a:.0} pixels with one sample, {b:.0} with four");
 }
 
 /// Cut-outs (`alphaMode: MASK`) are open in both of the viewport's pipelines as they are to
