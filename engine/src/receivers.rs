@@ -66,9 +66,8 @@ pub fn refine(scene: &mut Scene, settings: &Settings) -> crate::Result<Report> {
 }
 
 /// Bumped whenever refinement would refine the same scene differently: it names kept
-/// refinements ([`key`]) (7: the probe's rays stop where they enter a surface touching their
-/// start, see [`crate::accel::SceneBvh::occluded_past_touching`]).
-pub const VERSION: u32 = 7;
+/// refinements ([`key`]).
+pub const VERSION: u32 = 6;
 
 /// What refinement reads of `scene` (its source meshes, as [`Scene::restore_source_meshes`]
 /// leaves it) and `settings`, hashed: the instances' meshes and placements, every occluding

@@ -134,9 +134,9 @@ impl Occluders {
         (!p.few.is_empty()).then(|| Beam::new(origin, &p.few))
     }
 
-    /// True when any instance blocks the segment from `origin` along unit `dir` within `tmax`,
-    /// past what touches its start unless the ray enters it (as
-    /// [`SceneBvh::occluded_past_touching`](super::SceneBvh::occluded_past_touching)).
+    /// True when any instance blocks the segment from `origin` along unit `dir` within
+    /// `[touching_distance(origin), tmax]` ([`super::touching_distance`]: what touches the ray's
+    /// start does not block it).
     // Out of line: inlined into the cold bake's texel loop it ran 3–4 % slower (measured).
     #[inline(never)]
     pub fn occluded(&self, origin: Vec3, dir: Vec3, tmax: f32) -> bool {
@@ -181,7 +181,7 @@ impl Occluders {
 
     /// A query's ray.
     fn ray(&self, origin: Vec3, dir: Vec3, tmax: f32) -> Ray {
-        Ray { origin, dir, inv: dir.recip(), tmax }
+        Ray { origin, dir, inv: dir.recip(), near: super::touching_distance(origin), tmax }
     }
 }
 
@@ -194,6 +194,8 @@ struct Ray {
     dir: Vec3,
     /// The reciprocal of `dir`.
     inv: Vec3,
+    /// What is nearer does not block it ([`super::touching_distance`]).
+    near: f32,
     tmax: f32,
 }
 
@@ -202,7 +204,7 @@ impl Ray {
     #[inline]
     fn blocked_by(&self, piece: &Piece) -> bool {
         slab_hits(self.origin, self.inv, self.tmax, piece.lo, piece.hi)
-            && piece.bvh.occluded_past_touching(self.origin, self.dir, self.tmax)
+            && piece.bvh.occluded_between(self.origin, self.dir, self.near, self.tmax)
     }
 }
 

@@ -52,10 +52,8 @@ use std::time::Instant;
 /// single-precision searches without restarts, see [`split`]; 6: what touches a ray's start does
 /// not block it, see [`crate::accel::touching_distance`]; 7: an occluder of many triangles is
 /// asked in pieces, see [`crate::accel::Occluders`] — the same texels on every level measured,
-/// but a ray grazing a piece's box may round otherwise than through the whole BVH's boxes; 8: a
-/// ray that enters a surface touching its start stops there, see
-/// [`crate::accel::SceneBvh::occluded_past_touching`]).
-pub const ALGORITHM_VERSION: u32 = 8;
+/// but a ray grazing a piece's box may round otherwise than through the whole BVH's boxes).
+pub const ALGORITHM_VERSION: u32 = 7;
 
 /// Bake parameters.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -42,9 +42,8 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 
 /// Version of the transfer bake's algorithm: part of every bake key (2: what touches a ray's
-/// start does not block it, see [`crate::accel::touching_distance`]; 3: unless the ray enters
-/// it through its front, see [`crate::accel::SceneBvh::occluded_past_touching`]).
-pub const ALGORITHM_VERSION: u32 = 3;
+/// start does not block it, see [`crate::accel::touching_distance`]).
+pub const ALGORITHM_VERSION: u32 = 2;
 
 /// Seed of the shared direction set (fixed: the bake depends on its parameters only).
 const DIRECTION_SEED: u64 = 0x0050_5254;
