@@ -43,14 +43,17 @@ struct VertexIn {
     @location(5) sun: vec3<f32>,
 }
 
+// Varyings are interpolated at the centroid of a pixel's covered samples: with several samples
+// per pixel, an edge pixel's centre may lie outside the triangle, and values extrapolated there
+// (normals past a silhouette, negative barycentrics) drew a dark rim round curved objects.
 struct VertexOut {
     @builtin(position) clip: vec4<f32>,
-    @location(0) radiance: vec3<f32>,
-    @location(1) uv: vec2<f32>,
-    @location(2) at_vertex: vec3<f32>,
+    @location(0) @interpolate(perspective, centroid) radiance: vec3<f32>,
+    @location(1) @interpolate(perspective, centroid) uv: vec2<f32>,
+    @location(2) @interpolate(perspective, centroid) at_vertex: vec3<f32>,
     @location(3) @interpolate(flat) cut: vec2<f32>,
-    @location(4) position: vec3<f32>,
-    @location(5) sun: vec3<f32>,
+    @location(4) @interpolate(perspective, centroid) position: vec3<f32>,
+    @location(5) @interpolate(perspective, centroid) sun: vec3<f32>,
 }
 
 @vertex
@@ -237,8 +240,8 @@ struct PrtVertex {
 // point, its barycentrics and the three corners' vertex indices.
 struct CornerOut {
     @builtin(position) clip: vec4<f32>,
-    @location(0) position: vec3<f32>,
-    @location(1) bary: vec3<f32>,
+    @location(0) @interpolate(perspective, centroid) position: vec3<f32>,
+    @location(1) @interpolate(perspective, centroid) bary: vec3<f32>,
     @location(2) @interpolate(flat) corners: vec3<u32>,
 }
 
