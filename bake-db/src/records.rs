@@ -16,8 +16,9 @@ use kage_engine::scene::Scene;
 /// pass what touches their start, see [`kage_engine::accel::touching_distance`]; 4: the
 /// receivers' meshes join the key, since the occluder snapshot names a flat refinement's
 /// source; 5: a gather ray that enters a surface touching its start, such as a box's foot
-/// into the floor it rests on, meets it there.)
-pub const VERSION: u32 = 5;
+/// into the floor it rests on, meets it there; 6: such a hit reads the floor's corners outside
+/// the object, as pixels do.)
+pub const VERSION: u32 = 6;
 
 /// The key of the records a cache built from `src` with `s` would hold.
 pub fn key(src: &Source, s: &Settings) -> Key {

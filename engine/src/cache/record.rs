@@ -118,9 +118,34 @@ impl Source<'_> {
                 r.estimate_point(&sp, -d, &s, stream).mean
             }
             Glossy::Toward(shade) if glossy => shade(inst, self.corner_indices(hit), barycentrics(hit), o),
-            _ => self.corners(hit, self.direct).iter().zip(barycentrics(hit)).map(|(v, b)| *v * b).sum(),
+            _ => self.diffuse_at(hit, inst),
         };
         Sample { radiance, t: hit.t, normal }
+    }
+
+    /// The direct radiance at a Lambertian `hit` on instance `inst`, interpolated from its
+    /// corners. A hit met at its ray's start (a gather from a box's foot down into the floor it
+    /// stands on) lies on the line where an object rests: there, as in pixels
+    /// ([`crate::bspvt::pixel`]), corners inside that object (under the box, dark) take no part,
+    /// or the foot's records would read the floor's triangulation, a streak each.
+    fn diffuse_at(&self, hit: Hit, inst: usize) -> Vec3 {
+        let corners = self.corners(hit, self.direct);
+        let mut weights = barycentrics(hit);
+        if hit.t == 0.0 {
+            let (flat, bvh) = (&self.renderer.flat, &self.renderer.bvh);
+            let outside = self.corner_indices(hit).map(|v| {
+                let (p, n) = flat.vertex(inst, v);
+                !bvh.inside(p, n)
+            });
+            let kept: [f32; 3] = std::array::from_fn(|k| if outside[k] { weights[k] } else { 0.0 });
+            let (sum, count) = (kept.iter().sum::<f32>(), outside.iter().filter(|&&o| o).count());
+            if sum > 1e-6 {
+                weights = kept.map(|w| w / sum);
+            } else if count > 0 {
+                weights = outside.map(|o| if o { 1.0 / count as f32 } else { 0.0 });
+            }
+        }
+        corners.iter().zip(weights).map(|(v, w)| *v * w).sum()
     }
 
     /// The direct radiance in `direct` at the corners of a receiver `hit`'s triangle, in the
