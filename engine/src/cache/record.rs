@@ -92,13 +92,15 @@ struct Sample {
 
 impl Source<'_> {
     /// What a gather ray from `o` along `d` finds; `stream` seeds glossy hits' estimates.
-    fn trace(&self, o: Vec3, d: Vec3, stream: u64) -> Option<Sample> {
+    fn trace(&self, o: Vec3, d: Vec3, stream: u64, outside: &mut Outside) -> Option<Sample> {
         let hit = self.renderer.bvh.closest_hit_past_touching(o, d, f32::INFINITY)?;
-        Some(self.light(o, hit, d, stream))
+        Some(self.light(o, hit, d, stream, outside))
     }
 
-    /// The radiance `hit` (of a ray from `o` along `d`) sends back along the ray.
-    fn light(&self, o: Vec3, hit: Hit, d: Vec3, stream: u64) -> Sample {
+    /// The radiance `hit` (of a ray from `o` along `d`) sends back along the ray; `outside`
+    /// remembers the corners of triangles met at the start of the record's rays (see
+    /// [`Self::diffuse_at`]).
+    fn light(&self, o: Vec3, hit: Hit, d: Vec3, stream: u64, outside: &mut Outside) -> Sample {
         let r = self.renderer;
         let tri = r.flat.triangles[hit.triangle as usize];
         let normal = (tri[1] - tri[0]).cross(tri[2] - tri[0]).normalize_or_zero();
@@ -118,7 +120,7 @@ impl Source<'_> {
                 r.estimate_point(&sp, -d, &s, stream).mean
             }
             Glossy::Toward(shade) if glossy => shade(inst, self.corner_indices(hit), barycentrics(hit), o),
-            _ => self.diffuse_at(hit, inst),
+            _ => self.diffuse_at(hit, inst, outside),
         };
         Sample { radiance, t: hit.t, normal }
     }
@@ -128,15 +130,22 @@ impl Source<'_> {
     /// stands on) lies on the line where an object rests: there, as in pixels
     /// ([`crate::bspvt::pixel`]), corners inside that object (under the box, dark) take no part,
     /// or the foot's records would read the floor's triangulation, a streak each.
-    fn diffuse_at(&self, hit: Hit, inst: usize) -> Vec3 {
+    fn diffuse_at(&self, hit: Hit, inst: usize, memo: &mut Outside) -> Vec3 {
         let corners = self.corners(hit, self.direct);
         let mut weights = barycentrics(hit);
         if hit.t == 0.0 {
-            let (flat, bvh) = (&self.renderer.flat, &self.renderer.bvh);
-            let outside = self.corner_indices(hit).map(|v| {
-                let (p, n) = flat.vertex(inst, v);
-                !bvh.inside(p, n)
-            });
+            let outside = match memo.0.iter().find(|(t, _)| *t == hit.triangle) {
+                Some(&(_, outside)) => outside,
+                None => {
+                    let (flat, bvh) = (&self.renderer.flat, &self.renderer.bvh);
+                    let outside = self.corner_indices(hit).map(|v| {
+                        let (p, n) = flat.vertex(inst, v);
+                        !bvh.inside(p, n)
+                    });
+                    memo.0.push((hit.triangle, outside));
+                    outside
+                }
+            };
             let kept: [f32; 3] = std::array::from_fn(|k| if outside[k] { weights[k] } else { 0.0 });
             let (sum, count) = (kept.iter().sum::<f32>(), outside.iter().filter(|&&o| o).count());
             if sum > 1e-6 {
@@ -174,6 +183,12 @@ impl Source<'_> {
             && self.corners(hit, old) != self.corners(hit, self.direct)
     }
 }
+
+/// Which corners of the triangles met at a ray's start lie outside geometry: a record's
+/// gathers from a box's foot meet the one or two floor triangles at that point, so their
+/// corners are tested once per record, not once per ray.
+#[derive(Default)]
+struct Outside(Vec<(u32, [bool; 3])>);
 
 /// Weights of a hit's triangle corners (b0, b1, b2).
 fn barycentrics(hit: Hit) -> [f32; 3] {
@@ -314,6 +329,7 @@ fn integrate(
     let k = hsh::num_coeffs(params.order);
     let (mut c, mut gx, mut gy) = (vec![DVec3::ZERO; k], vec![DVec3::ZERO; k], vec![DVec3::ZERO; k]);
     let mut inverse_distance = 0.0f64;
+    let mut outside = Outside::default();
     for (j, (&local, hit)) in dirs.iter().zip(hits).enumerate() {
         let Some(hit) = hit else { continue };
         let d = frame.to_world(local);
@@ -322,7 +338,7 @@ fn integrate(
         if src.renderer.flat.refs[hit.triangle as usize].light == crate::scene::NO_LIGHT {
             inverse_distance += 1.0 / hit.t.max(1e-6) as f64;
         }
-        let hit = src.light(p, *hit, d, rng::mix64(index) ^ j as u64);
+        let hit = src.light(p, *hit, d, rng::mix64(index) ^ j as u64, &mut outside);
         if hit.radiance == Vec3::ZERO {
             continue;
         }
@@ -461,7 +477,7 @@ pub fn gather_bsdf(
 ) -> Vec3 {
     let frame = Frame::from_normal(n);
     let mut r = rng::stream(0x61055, index);
-    let mut sum = Vec3::ZERO;
+    let (mut sum, mut outside) = (Vec3::ZERO, Outside::default());
     for j in 0..side * side {
         let u = glam::Vec2::new(
             ((j % side) as f32 + r.random::<f32>()) / side as f32,
@@ -473,7 +489,8 @@ pub fn gather_bsdf(
             continue;
         }
         let d = frame.to_world(wi);
-        if let Some(hit) = src.trace(offset_ray_origin(p, n, d), d, rng::mix64(index ^ 0x61055) ^ j as u64) {
+        let stream = rng::mix64(index ^ 0x61055) ^ j as u64;
+        if let Some(hit) = src.trace(offset_ray_origin(p, n, d), d, stream, &mut outside) {
             sum += hit.radiance * bsdf.eval(wo, wi) * wi.z / pdf;
         }
     }
