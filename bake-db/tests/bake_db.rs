@@ -7,10 +7,12 @@ use kage_bake_db::run::RunStats;
 use kage_bake_db::{DbError, Hooks, Store, load, plan, run};
 use kage_engine::scene::{EnvMap, EnvironmentLight, Material, Scene, flatten, shapes};
 use kage_engine::{bspvt, prt};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
+/// `bake.redb` in a fresh folder for test `name` under Cargo's `target/tmp` (the next run
+/// replaces it; `cargo clean` removes it).
 fn scratch(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("kage-db-{}-{name}", std::process::id()));
+    let d = Path::new(env!("CARGO_TARGET_TMPDIR")).join("kage-db").join(name);
     let _ = std::fs::remove_dir_all(&d);
     std::fs::create_dir_all(&d).unwrap();
     d.join("bake.redb")

@@ -159,12 +159,11 @@ mod tests {
 
     #[test]
     fn reads_are_not_changes_and_writes_are() {
-        let dir = std::env::temp_dir().join(format!("kage-watch-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
+        let scratch = tempfile::tempdir().unwrap();
+        let dir = scratch.path();
         std::fs::write(dir.join("a.wgsl"), "// one").unwrap();
         std::fs::write(dir.join("scene.gltf"), "{}").unwrap();
-        let mut w = Watcher::new(Some(&dir), Some(&dir.join("scene.gltf")), None, || {}).unwrap();
+        let mut w = Watcher::new(Some(dir), Some(&dir.join("scene.gltf")), None, || {}).unwrap();
         // Loading files (what a reload does) is not a change.
         let _ = std::fs::read(dir.join("a.wgsl")).unwrap();
         let _ = std::fs::read(dir.join("scene.gltf")).unwrap();

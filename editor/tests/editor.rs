@@ -17,8 +17,9 @@ use kage_engine::{bspvt, prt};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
+/// A fresh folder for test `name` under Cargo's `target/tmp` (the next run replaces it).
 fn scratch(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("kage-editor-{}-{name}", std::process::id()));
+    let d = Path::new(env!("CARGO_TARGET_TMPDIR")).join("kage-editor").join(name);
     let _ = std::fs::remove_dir_all(&d);
     std::fs::create_dir_all(&d).unwrap();
     d

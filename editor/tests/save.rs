@@ -11,8 +11,9 @@ use std::path::{Path, PathBuf};
 
 type Object = IndexMap<String, Box<RawValue>>;
 
+/// A fresh folder for test `name` under Cargo's `target/tmp` (the next run replaces it).
 fn scratch(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("kage-save-{}-{name}", std::process::id()));
+    let d = Path::new(env!("CARGO_TARGET_TMPDIR")).join("kage-save").join(name);
     let _ = std::fs::remove_dir_all(&d);
     std::fs::create_dir_all(&d).unwrap();
     d

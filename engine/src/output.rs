@@ -173,9 +173,8 @@ mod tests {
 
     #[test]
     fn csv_round_trips_exactly() {
-        let dir = std::env::temp_dir().join(format!("kage-csv-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let path = dir.join("v.csv");
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("v.csv");
         let rows = vec![VertexRow {
             node: 1,
             mesh: 2,
@@ -186,7 +185,6 @@ mod tests {
         }];
         write_vertex_csv(&path, &rows).unwrap();
         assert_eq!(read_vertex_csv(&path).unwrap(), rows);
-        std::fs::remove_dir_all(dir).unwrap();
     }
 
     #[test]

@@ -217,12 +217,12 @@ mod tests {
 
     #[test]
     fn an_error_in_an_included_file_names_that_file_and_line() {
-        let dir = std::env::temp_dir().join(format!("kage-include-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let scratch = tempfile::tempdir().unwrap();
+        let dir = scratch.path();
         let main = "fn f() -> f32 {\n    return g();\n}\n// #include \"lib.wgsl\"\n";
         std::fs::write(dir.join("main.wgsl"), main).unwrap();
         std::fs::write(dir.join("lib.wgsl"), "// a library\nfn g() -> f32 {\n    return 1u;\n}\n").unwrap();
-        let shaders = Shaders::from_dir(&dir);
+        let shaders = Shaders::from_dir(dir);
         assert_eq!(shaders.dependents("lib.wgsl"), ["main.wgsl"]);
         assert_eq!(shaders.dependents("main.wgsl"), ["main.wgsl"]);
         let e = shaders.checked("main.wgsl").unwrap_err();

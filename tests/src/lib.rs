@@ -29,9 +29,17 @@ pub fn asset(rel: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../assets").join(rel)
 }
 
-/// A fresh, empty scratch directory for one test.
-pub fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("kage-test-{}-{name}", std::process::id()));
+/// A fresh, empty folder for test `name` under Cargo's `target/tmp` (the next run replaces it;
+/// `cargo clean` removes it). A macro: only an integration test knows that folder.
+#[macro_export]
+macro_rules! scratch {
+    ($name:expr) => {
+        $crate::fresh_dir(std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("kage-tests").join($name))
+    };
+}
+
+/// `dir`, emptied or made.
+pub fn fresh_dir(dir: PathBuf) -> PathBuf {
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).expect("temp dir is writable");
     dir

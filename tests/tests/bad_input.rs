@@ -69,7 +69,7 @@ fn expect_error(path: &Path, needle: &str) {
 }
 
 fn synthetic_files_are_rejected_clearly() {
-    let dir = scratch("bad-input");
+    let dir = scratch!("bad-input");
     let ok = write_gltf(&dir, "ok", &TRI, &[0, 1, 2], |_| {});
     import(&ok, ImportOptions::default()).expect("the unmodified file is valid");
 
@@ -181,7 +181,7 @@ fn synthetic_files_are_rejected_clearly() {
 }
 
 fn bad_environment_maps_are_rejected_clearly() {
-    let dir = scratch("bad-env");
+    let dir = scratch!("bad-env");
     let garbage = dir.join("garbage.hdr");
     std::fs::write(&garbage, b"#?RADIANCE\nthis is not an image").unwrap();
     // Headers that claim more texels than the limit, or (EXR) a display window larger than the
@@ -277,7 +277,7 @@ fn edge_case_corpus_never_panics() {
 /// A scene reads only regular files inside its own folder, never more than it declares; the
 /// error names the URI and the rule. A wider root the user allows reads what it covers.
 fn uris_stay_inside_the_scene_folder() {
-    let dir = scratch("confinement");
+    let dir = scratch!("confinement");
     let scene_dir = dir.join("scene");
     std::fs::create_dir_all(&scene_dir).unwrap();
     let ok = write_gltf(&scene_dir, "inside", &TRI, &[0, 1, 2], |_| {});

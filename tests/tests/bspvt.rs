@@ -305,7 +305,7 @@ fn light_below_the_horizon_adds_nothing_whatever_the_trees_hold_there() {
 
 #[test]
 fn a_declared_light_reach_bakes_less_and_shades_the_same() {
-    let dir = kage_tests::scratch("light-reach");
+    let dir = kage_tests::scratch!("light-reach");
     let reach = serde_json::json!({"kage": {"light_reach": {"min": [-1.5, 3.0, -1.5], "max": [1.5, 5.0, 1.5]}}});
     let bounded = import(
         &kage_tests::with_node_extras("scenes/cube_on_plane.gltf", &dir, "light", reach),

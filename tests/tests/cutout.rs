@@ -94,9 +94,8 @@ fn light_falls_through_the_openings_in_the_bakes_and_the_reference_alike() {
 #[test]
 fn bake_keys_follow_the_cutout() {
     let s = scene();
-    let dir = std::env::temp_dir().join(format!("kage-cutout-keys-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let store = kage_bake_db::Store::open(&dir.join("bake.redb")).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let store = kage_bake_db::Store::open(&dir.path().join("bake.redb")).unwrap();
     let keys = |s: &Scene| {
         let flat = flatten(s);
         let plan =

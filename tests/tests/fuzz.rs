@@ -80,7 +80,7 @@ struct Seeds {
 
 impl Seeds {
     fn new() -> Self {
-        let root = scratch("fuzz");
+        let root = scratch!("fuzz");
         let dir = root.join("scene");
         std::fs::create_dir_all(&dir).unwrap();
         std::fs::write(root.join("canary.bin"), vec![7u8; 4096]).unwrap();

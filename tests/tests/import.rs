@@ -157,7 +157,7 @@ fn assert_points(got: &[Vec3], want: &[[f32; 3]], what: &str) {
 
 #[test]
 fn morph_targets_import_with_their_default_weights() {
-    let dir = kage_tests::scratch("morph");
+    let dir = kage_tests::scratch!("morph");
     // A triangle, two position targets; the mesh's weights (0.5, 0.25), overridden by a node's (1, 0).
     let mut bytes = f32_bytes(&[0., 0., 0., 1., 0., 0., 0., 1., 0.]);
     bytes.extend(f32_bytes(&[0., 0., 1., 0., 0., 1., 0., 0., 1.]));
@@ -192,7 +192,7 @@ fn morph_targets_import_with_their_default_weights() {
 
 #[test]
 fn skinned_meshes_import_posed_by_their_joints() {
-    let dir = kage_tests::scratch("skin");
+    let dir = kage_tests::scratch!("skin");
     // A strip of two quads' corners: the bottom pair bound to joint 0, the top pair to joint 1,
     // which sits 1 m up and is turned 90° about Z. The skinned node's own translation is ignored.
     let mut bytes = f32_bytes(&[0., 0., 0., 1., 0., 0., 0., 2., 0., 1., 2., 0.]);
@@ -240,7 +240,7 @@ fn skinned_meshes_import_posed_by_their_joints() {
 
 #[test]
 fn sparse_positions_without_a_base_view_substitute_into_zeros() {
-    let dir = kage_tests::scratch("sparse");
+    let dir = kage_tests::scratch!("sparse");
     // Three vertices, all zeros but for two substituted by the sparse data.
     let mut bytes = vec![1u8, 2, 0, 0];
     bytes.extend(f32_bytes(&[1., 0., 0., 0., 1., 0.]));

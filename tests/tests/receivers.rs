@@ -489,7 +489,7 @@ fn a_reach_crossing_the_floor_still_resolves_the_shadows() {
 /// shadows' vertices, the far one only the seed, and they no longer share a mesh.
 #[test]
 fn a_mesh_instanced_twice_is_refined_per_instance() {
-    let dir = kage_tests::scratch("instanced-twice");
+    let dir = kage_tests::scratch!("instanced-twice");
     let mut doc: serde_json::Value =
         serde_json::from_slice(&std::fs::read(kage_tests::asset("scenes/two_triangle_floor.gltf")).unwrap()).unwrap();
     let far = doc["nodes"].as_array().unwrap().len();

@@ -16,9 +16,10 @@ pub fn kage_as_shipped(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_kage")).args(args).env_remove("KAGE_REFINE_RECEIVERS").output().expect("kage runs")
 }
 
-/// A fresh folder for test `name`.
+/// A fresh folder for test `name` under Cargo's `target/tmp` (the next run replaces it; `cargo
+/// clean` removes it).
 pub fn scratch(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("kage-cli-{}-{name}", std::process::id()));
+    let d = Path::new(env!("CARGO_TARGET_TMPDIR")).join("kage-cli").join(name);
     let _ = std::fs::remove_dir_all(&d);
     std::fs::create_dir_all(&d).unwrap();
     d

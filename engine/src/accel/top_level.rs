@@ -3,7 +3,9 @@
 //! Median splits along the longest axis of the boxes' centres (deterministic: ties by index).
 //! Every node's box is padded around what it holds, so a ray meeting an item's box always meets
 //! its ancestors' boxes, whatever the rounding: the tree finds every item whose box a ray meets.
-//! (An 8-wide tree with one SIMD slab test per node measured no faster on the 1M-vertex level.)
+//! (An 8-wide tree with one SIMD slab test per node measured no faster on the 1M-vertex level;
+//! opening the child nearer along a ray first, and asking a pyramid's pieces nearest first,
+//! measured no faster or slower: the costly rays there skim the terrain and meet nothing.)
 
 use super::instances::slab_hits;
 use glam::Vec3;

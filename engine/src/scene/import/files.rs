@@ -117,18 +117,20 @@ fn short(uri: &str) -> String {
 mod tests {
     use super::*;
 
-    fn scratch(name: &str) -> PathBuf {
-        let d = std::env::temp_dir().join(format!("kage-files-{}-{name}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&d);
+    /// A folder (removed when dropped) with `scene/sub/ok.bin` and, outside `scene`, `secret.bin`.
+    fn scratch() -> tempfile::TempDir {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
         std::fs::create_dir_all(d.join("scene/sub")).unwrap();
         std::fs::write(d.join("scene/sub/ok.bin"), [1u8, 2, 3, 4, 5, 6]).unwrap();
         std::fs::write(d.join("secret.bin"), [9u8; 8]).unwrap();
-        d
+        dir
     }
 
     #[test]
     fn relative_files_inside_the_root_are_read_up_to_their_declared_length() {
-        let d = scratch("inside");
+        let dir = scratch();
+        let d = dir.path();
         let (scene, base) = (d.join("scene/a.gltf"), d.join("scene"));
         let root = Root::for_scene(&scene, None).unwrap();
         assert_eq!(root.read_exact(&base, "sub/ok.bin", 4).unwrap(), [1, 2, 3, 4]);
@@ -141,7 +143,8 @@ mod tests {
 
     #[test]
     fn escapes_schemes_and_special_files_are_refused_with_the_rule() {
-        let d = scratch("escape");
+        let dir = scratch();
+        let d = dir.path();
         let (scene, base) = (d.join("scene/a.gltf"), d.join("scene"));
         let root = Root::for_scene(&scene, None).unwrap();
         let secret = d.join("secret.bin");
@@ -161,14 +164,15 @@ mod tests {
             assert!(e.contains(rule) && e.contains("URI"), "{uri}: {e}");
         }
         // A wider root the user allowed reads the file the symlink names.
-        let wide = Root::for_scene(&scene, Some(&d)).unwrap();
+        let wide = Root::for_scene(&scene, Some(d)).unwrap();
         assert_eq!(wide.read(&base, "link.bin", 8).unwrap(), [9u8; 8]);
         assert_eq!(wide.read(&base, "../secret.bin", 8).unwrap(), [9u8; 8]);
     }
 
     #[test]
     fn devices_and_fifos_are_never_opened() {
-        let d = scratch("special");
+        let dir = scratch();
+        let d = dir.path();
         let base = d.join("scene");
         std::os::unix::fs::symlink("/dev/zero", base.join("zero.bin")).unwrap();
         let fifo = base.join("pipe.bin");
