@@ -51,7 +51,7 @@ pub struct SceneArgs {
     pub refine_receivers: Option<usize>,
     /// Largest visibility error (0–1, a share of the light) interpolation between an edge's
     /// ends may make at its midpoint after --refine-receivers.
-    #[arg(long, value_name = "ERROR", default_value_t = 0.03)]
+    #[arg(long, value_name = "ERROR", default_value_t = kage_engine::receivers::Settings::default().tolerance)]
     pub refine_tolerance: f32,
 }
 
