@@ -180,6 +180,7 @@ fn bad_input_exits_non_zero_with_a_message() {
         let err = stderr(&o);
         assert!(!o.status.success(), "{args:?} succeeded");
         assert!(err.contains(needle), "{args:?}: '{needle}' not in {err}");
+        assert!(err.matches("(os error").count() <= 1, "{args:?}: the OS's words said twice: {err}");
         assert!(!err.contains("panicked"), "{args:?} panicked: {err}");
     }
     std::fs::remove_dir_all(d).unwrap();

@@ -9,12 +9,13 @@ pub type Result<T, E = Error> = std::result::Result<T, E>;
 #[derive(Debug, thiserror::Error)]
 pub enum Error {
     /// A file could not be read or written.
-    #[error("{path}: {source}")]
+    #[error("{path}: {error}")]
     Io {
         /// The file.
         path: PathBuf,
-        /// What the OS said.
-        source: std::io::Error,
+        /// What the OS said: part of the message, not a cause of its own (a cause would be said
+        /// twice where the error is printed with its chain).
+        error: std::io::Error,
     },
     /// A glTF file is malformed or uses something kage does not support.
     #[error("{path}: {message}")]
@@ -49,8 +50,8 @@ impl Error {
     }
 
     /// An I/O error for `path`.
-    pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
-        Self::Io { path: path.into(), source }
+    pub fn io(path: impl Into<PathBuf>, error: std::io::Error) -> Self {
+        Self::Io { path: path.into(), error }
     }
 }
 
