@@ -42,7 +42,8 @@ struct Piece {
 pub const PIECE: usize = 2048;
 
 /// Pieces [`Occluders::seen_from`] returns at most: past them, asking the top-level tree ray
-/// by ray costs less than asking every piece.
+/// by ray costs less than asking every piece (8 and 32, with 32 and 128 visits, baked the
+/// 1M-vertex level's eighth 8 % and 4 % slower).
 pub const MAX_SEEN: usize = 16;
 
 /// Nodes of the top-level tree [`Occluders::seen_from`] visits at most.
