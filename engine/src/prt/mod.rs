@@ -31,6 +31,7 @@ use crate::raster::{self, Primary, SurfaceHit};
 use crate::scene::VertexValues;
 use crate::scene::{FlatScene, Holes, InGroup, PrimitiveId, RigidGroup, Scene, Transform, group_triangles};
 use crate::shading::Bsdf;
+use crate::shading::detail;
 use glam::{Affine3A, DMat3, DVec3, Vec3};
 use lighting::{NegativeLobes, RgbCoeffs, Window};
 use rayon::prelude::*;
@@ -583,7 +584,8 @@ impl Frame {
     }
 
     /// A `width × height` image with `spp` samples per pixel, the other groups' shadows
-    /// evaluated per sample (see [`Frame::shade_grid`]); misses show the environment.
+    /// evaluated per sample (see [`Frame::shade_grid`]) and the diffuse albedo too where the
+    /// material varies (textures, vertex colours: [`detail::albedo_at`]); misses show the environment.
     pub fn render(
         &self,
         r: &crate::reference::Renderer,
@@ -593,7 +595,14 @@ impl Frame {
         spp: u32,
     ) -> Vec<Vec3> {
         let (grid, side) = raster::primary_grid(r, camera, width, height, spp);
-        let albedo = |h: &SurfaceHit| h.interpolate(&self.albedo[h.instance]);
+        let (flat, eye) = (&r.flat, camera.eye());
+        let albedo = |h: &SurfaceHit| {
+            if flat.varies(h.instance) {
+                detail::albedo_at(flat, h, eye)
+            } else {
+                h.interpolate(&self.albedo[h.instance])
+            }
+        };
         raster::downsample(&self.shade_grid(&grid, width * side, &|h, l, _| albedo(h) * l), width, height, side)
     }
 

@@ -19,6 +19,7 @@ use crate::prt::{self, glossy::Lobe, glossy::Specular, prefilter::Prefiltered, s
 use crate::raster::{self, SurfaceHit};
 use crate::reference::Renderer;
 use crate::scene::{Camera, FlatScene, VertexValues};
+use crate::shading::detail::{Detail, albedo_at};
 use glam::Vec3;
 use rayon::prelude::*;
 
@@ -310,21 +311,17 @@ impl<'a> Look<'a> {
     /// environment behind the geometry.
     pub fn render(&self, r: &Renderer, camera: &Camera, width: usize, height: usize, spp: u32) -> Vec<Vec3> {
         let (grid, side) = raster::primary_grid(r, camera, width, height, spp);
-        // The vertices' albedos only matter where a material varies inside a triangle.
-        let varies = (0..self.flat.instances.len()).any(|i| self.flat.varies(i));
-        let vertex_albedo = self.indirect.as_ref().filter(|_| varies).map(|_| prt::vertex_albedo(self.flat, self.eye));
+        let detail = self.indirect.as_ref().map(|_| Detail::new(self.flat, self.eye));
         let interpolated = |hit: &SurfaceHit, albedo: Vec3| {
             let poly = self.polygonal.as_ref().map_or(Vec3::ZERO, |p| match &p.lobes {
                 Some(lobes) => lobes.shade(self.flat, hit, self.eye),
                 None => hit.interpolate(&p.values[hit.instance]),
             });
-            let indirect = self.indirect.as_ref().map_or(Vec3::ZERO, |v| {
-                let i = hit.instance;
-                let ratio = vertex_albedo
-                    .as_ref()
-                    .map_or(Vec3::ONE, |a| albedo_ratio(albedo, hit.interpolate(&a[i]), self.flat.varies(i)));
-                hit.interpolate(&v[i]) * ratio
-            });
+            let indirect = self
+                .indirect
+                .as_ref()
+                .zip(detail.as_ref())
+                .map_or(Vec3::ZERO, |(v, d)| hit.interpolate(&v[hit.instance]) * d.scale_for(hit, albedo));
             poly + indirect
         };
         let values = match &self.environment {
@@ -334,7 +331,7 @@ impl<'a> Look<'a> {
                     let s = specular.as_ref().map_or(Vec3::ZERO, |s| {
                         s.at(hit.instance, hit.corners, hit.weights, hit.position, self.eye, open)
                     });
-                    let albedo = self.albedo(hit);
+                    let albedo = albedo_at(self.flat, hit, self.eye);
                     let sun = self.sun_at(hit.instance, hit.corners, hit.weights, hit.position, self.eye);
                     albedo * light + interpolated(hit, albedo) + s + sun
                 })
@@ -343,19 +340,11 @@ impl<'a> Look<'a> {
                 .par_iter()
                 .map(|p| match p {
                     raster::Primary::Miss(l) | raster::Primary::Emitter(l) => *l,
-                    raster::Primary::Surface(hit) => interpolated(hit, self.albedo(hit)),
+                    raster::Primary::Surface(hit) => interpolated(hit, albedo_at(self.flat, hit, self.eye)),
                 })
                 .collect(),
         };
         raster::downsample(&values, width, height, side)
-    }
-
-    /// The diffuse albedo of the material at `hit`, seen from the eye.
-    fn albedo(&self, hit: &SurfaceHit) -> Vec3 {
-        let n = (0..3).map(|c| self.flat.vertex(hit.instance, hit.corners[c]).1 * hit.weights[c]).sum::<Vec3>();
-        let mu = n.normalize_or_zero().dot((self.eye - hit.position).normalize_or_zero());
-        let material = self.flat.material_at(hit.instance, hit.corners, hit.weights);
-        crate::shading::Bsdf::new(&material, Vec3::new(0.0, 0.0, mu)).diffuse_albedo()
     }
 }
 
@@ -491,14 +480,4 @@ impl EnvironmentMemo {
         }
         h.finalize()
     }
-}
-
-/// What scales light carried from the vertices to a sample whose diffuse albedo is `at` where
-/// the vertices' interpolate to `vertices`: their ratio where the material `varies` (a channel
-/// black at the vertices stays black), else one.
-fn albedo_ratio(at: Vec3, vertices: Vec3, varies: bool) -> Vec3 {
-    if !varies {
-        return Vec3::ONE;
-    }
-    Vec3::select(vertices.cmpgt(Vec3::splat(1e-6)), at / vertices.max(Vec3::splat(1e-6)), Vec3::ZERO)
 }

@@ -4,6 +4,7 @@
 
 pub mod baked;
 mod bsdf;
+pub mod detail;
 mod method;
 pub mod ratio;
 

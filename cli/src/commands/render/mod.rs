@@ -19,6 +19,7 @@ use kage_engine::reference::{Estimate, Renderer, Settings};
 use kage_engine::scene::VertexValues;
 use kage_engine::scene::{Camera, Scene};
 use kage_engine::shading::Method;
+use kage_engine::shading::detail::Detail;
 use kage_engine::{bspvt, prt, raster};
 use std::path::PathBuf;
 use std::time::Instant;
@@ -268,10 +269,15 @@ struct Job<'a> {
 }
 
 impl Job<'_> {
-    /// The image of per-vertex `values` (at most 16 samples per pixel), when one is wanted.
+    /// The image of per-vertex `values` (at most 16 samples per pixel) with the materials'
+    /// detail per sample ([`Detail`]), when one is wanted.
     fn vertex_image(&self, values: &[Vec<Vec3>]) -> Option<Vec<Vec3>> {
         let (w, h) = self.args.size;
-        self.want_image.then(|| raster::vertex_image(self.renderer, self.camera, w, h, self.args.spp.min(16), values))
+        self.want_image.then(|| {
+            let detail = Detail::new(&self.renderer.flat, self.camera.eye());
+            let shade = |hit: &raster::SurfaceHit| hit.interpolate(&values[hit.instance]) * detail.scale(hit);
+            raster::shade_image(self.renderer, self.camera, w, h, self.args.spp.min(16), &shade)
+        })
     }
 }
 
