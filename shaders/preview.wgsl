@@ -208,7 +208,9 @@ fn bilinear_taps(uv: vec2<f32>, size: vec2<i32>) -> Taps {
 
 // Per-pixel PRT (engine/src/prt/mod.rs, Frame::shade_hit):
 //   L = ρ · max(0, Ls − Σ_i B_i T_i (1 − Π_o (1 − V_o(p, w_i))))
-// with ρ, Ls and T_i interpolated across the triangle and V_o looked up at the pixel's point.
+// with ρ, Ls and T_i interpolated across the triangle and V_o looked up at the pixel's point;
+// ρ given the base-colour texture's detail (and a cut-out's mask) at the pixel as fs_main
+// does, from the texture at group 2 as for fs_lit.
 // Triangles are drawn unindexed: each vertex reads its triangle's corners, so the fragment can
 // interpolate any number of T_i from storage.
 
@@ -224,6 +226,10 @@ struct PrtVertex {
     ls: vec4<f32>,
     // rgb diffuse albedo toward the eye.
     albedo: vec4<f32>,
+    // xy the base-colour UV; zw the cut-out's alpha factor and cutoff.
+    uv_cut: vec4<f32>,
+    // rgb the base-colour texture's value at the vertex.
+    at_vertex: vec4<f32>,
 }
 
 @group(1) @binding(0) var<uniform> prt: PrtParams;
@@ -273,7 +279,12 @@ fn fs_prt(v: CornerOut) -> @location(0) vec4<f32> {
     let b = prt_vertices[v.corners.y];
     let c = prt_vertices[v.corners.z];
     let w = v.bary;
-    let albedo = a.albedo.xyz * w.x + b.albedo.xyz * w.y + c.albedo.xyz * w.z;
+    let texel = textureSample(lit_texture, lit_sampler, a.uv_cut.xy * w.x + b.uv_cut.xy * w.y + c.uv_cut.xy * w.z);
+    if (cut_away(texel.a, a.uv_cut.zw)) {
+        discard;
+    }
+    let at_vertex = a.at_vertex.xyz * w.x + b.at_vertex.xyz * w.y + c.at_vertex.xyz * w.z;
+    let albedo = (a.albedo.xyz * w.x + b.albedo.xyz * w.y + c.albedo.xyz * w.z) * detail(texel.rgb, at_vertex);
     var l = a.ls.xyz * w.x + b.ls.xyz * w.y + c.ls.xyz * w.z;
     let own = u32(a.p.w);
     let q = prt.regions;

@@ -87,7 +87,8 @@ impl Mesh {
 /// PRT per pixel: one unindexed draw of every instance's triangles.
 struct PrtDraw {
     bind: wgpu::BindGroup,
-    count: u32,
+    /// Per instance, its range of the unindexed draw (drawn with its base-colour texture).
+    ranges: Vec<std::ops::Range<u32>>,
 }
 
 /// `PrtParams` of preview.wgsl.
@@ -106,6 +107,10 @@ struct PrtVertex {
     p: [f32; 4],
     ls: [f32; 4],
     albedo: [f32; 4],
+    /// The base-colour UV, then the cut-out's factor and cutoff ([`Detail`]).
+    uv_cut: [f32; 4],
+    /// The base-colour texture's value at the vertex.
+    at_vertex: [f32; 4],
 }
 
 /// The polygonal lights per pixel: one unindexed draw per instance (each with its base-colour
@@ -694,23 +699,22 @@ impl Viewport {
                 pass.set_bind_group(1, &sky.bind, &[]);
                 pass.draw(0..3, 0..1);
             }
-            let per_vertex = match (&self.lit, &pipelines.lit, &self.prt, &pipelines.prt) {
-                (Some(lit), Some(pipeline), _, _) => {
+            let per_pixel = match (&self.lit, &pipelines.lit, &self.prt, &pipelines.prt) {
+                (Some(lit), Some(pipeline), _, _) => Some((pipeline, &lit.bind, &lit.ranges)),
+                (_, _, Some(prt), Some(pipeline)) => Some((pipeline, &prt.bind, &prt.ranges)),
+                _ => None,
+            };
+            let per_vertex = match per_pixel {
+                Some((pipeline, bind, ranges)) => {
                     pass.set_pipeline(pipeline);
-                    pass.set_bind_group(1, &lit.bind, &[]);
-                    for (range, mesh) in lit.ranges.iter().zip(&self.meshes) {
+                    pass.set_bind_group(1, bind, &[]);
+                    for (range, mesh) in ranges.iter().zip(&self.meshes) {
                         pass.set_bind_group(2, &mesh.texture, &[]);
                         pass.draw(range.clone(), 0..1);
                     }
                     &self.meshes[..0]
                 }
-                (_, _, Some(prt), Some(pipeline)) => {
-                    pass.set_pipeline(pipeline);
-                    pass.set_bind_group(1, &prt.bind, &[]);
-                    pass.draw(0..prt.count, 0..1);
-                    &self.meshes[..0]
-                }
-                _ => &self.meshes[..],
+                None => &self.meshes[..],
             };
             pass.set_pipeline(&pipelines.main);
             // A light is one-sided: its back is dark, as in `kage render`'s images. The eye is on
@@ -776,18 +780,21 @@ fn read_back(gpu: &Gpu, color: &wgpu::Texture, [w, h]: [u32; 2], texel: u32) -> 
 fn prt_draw(gpu: &Gpu, layout: &wgpu::BindGroupLayout, flat: &FlatScene, frame: &prt::Frame) -> PrtDraw {
     let terms = frame.vertex_terms();
     let posed = frame.posed();
-    let (mut vertices, mut indices) = (Vec::new(), Vec::new());
+    let (mut vertices, mut indices, mut ranges) = (Vec::new(), Vec::new(), Vec::new());
     for i in 0..flat.instances.len() {
         let mesh = flat.mesh(i);
-        let base = vertices.len() as u32;
+        let (base, start) = (vertices.len() as u32, indices.len() as u32);
         indices.extend(mesh.triangles.iter().flatten().map(|k| base + k));
+        ranges.push(start..indices.len() as u32);
         let group = posed.group_of[i] as f32;
-        vertices.extend((0..mesh.positions.len()).map(|v| {
+        vertices.extend(detail::vertices(flat, i).iter().enumerate().map(|(v, d)| {
             let p = flat.vertex(i, v).0;
             PrtVertex {
                 p: [p.x, p.y, p.z, group],
                 ls: terms.ls[i][v].extend(0.0).into(),
                 albedo: terms.albedo[i][v].extend(0.0).into(),
+                uv_cut: [d.uv[0], d.uv[1], d.cut[0], d.cut[1]],
+                at_vertex: Vec3::from(d.at_vertex).extend(0.0).into(),
             }
         }));
     }
@@ -802,7 +809,7 @@ fn prt_draw(gpu: &Gpu, layout: &wgpu::BindGroupLayout, flat: &FlatScene, frame: 
         storage(gpu, "preview silhouettes", &shadows.silhouettes),
         storage(gpu, "preview tables", &shadows.tables),
     ];
-    PrtDraw { bind: bind_buffers(gpu, layout, &buffers), count: indices.len() as u32 }
+    PrtDraw { bind: bind_buffers(gpu, layout, &buffers), ranges }
 }
 
 /// A bind group of `buffers` at bindings 0, 1, … of `layout`.
@@ -972,7 +979,7 @@ fn storage_layout(gpu: &Gpu, fragment: usize) -> Option<wgpu::BindGroupLayout> {
 
 /// The bind group layouts the pipelines use: the view (group 0), then the base-colour texture
 /// (per-vertex pipeline), the environment map (sky) or the storage arrays (per-pixel PRT and
-/// lights, the latter with the base-colour texture as group 2) as group 1.
+/// lights, both with the base-colour texture as group 2) as group 1.
 #[derive(Clone, Copy)]
 struct Layouts<'a> {
     view: &'a wgpu::BindGroupLayout,
@@ -1017,7 +1024,9 @@ fn build_pipelines(
             render_pipeline(gpu, &module, groups, (stages, target), buffers, depth)
         };
         let main = pipeline(&[view, Some(layouts.detail)], ("vs_main", "fs_main"), &per_vertex, Depth::Tested);
-        let prt = layouts.prt.map(|prt| pipeline(&[view, Some(prt)], ("vs_prt", "fs_prt"), &[], Depth::Tested));
+        let prt = layouts
+            .prt
+            .map(|prt| pipeline(&[view, Some(prt), Some(layouts.detail)], ("vs_prt", "fs_prt"), &[], Depth::Tested));
         let lit = layouts.lit.map(|storage| {
             pipeline(&[view, Some(storage), Some(layouts.detail)], ("vs_lit", "fs_lit"), &[], Depth::Tested)
         });

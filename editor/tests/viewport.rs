@@ -289,23 +289,9 @@ fn texture_detail_is_drawn_per_pixel_over_per_vertex_lighting() {
         .collect();
     let renderer = Renderer::new(&scene);
     let camera = Camera::look_at(orbit.eye(), orbit.target, orbit.yfov);
-    let textured = |hit: &SurfaceHit| -> Vec3 {
-        let i = hit.instance;
-        let lit = hit.interpolate(&values[i]);
-        let Some(slot) = flat.instances[i].maps.base_color else { return lit };
-        let (mesh, t) = (flat.mesh(i), &flat.textures[slot.texture as usize]);
-        let uv = |v: usize| {
-            slot.uv(mesh.uvs.get(v).copied().unwrap_or_default(), mesh.uvs1.get(v).copied().unwrap_or_default())
-        };
-        let at_vertices: Vec3 = (0..3).map(|k| t.sample(uv(hit.corners[k])) * hit.weights[k]).sum();
-        let here = t.sample((0..3).map(|k| uv(hit.corners[k]) * hit.weights[k]).sum());
-        lit * Vec3::select(at_vertices.cmpgt(Vec3::splat(1e-6)), here / at_vertices.max(Vec3::splat(1e-6)), Vec3::ZERO)
-    };
-    let srgb = |img: Vec<Vec3>| -> Vec<[u8; 3]> {
-        img.iter().map(|p| p.to_array().map(|c| (display_srgb(c) * 255.0 + 0.5) as u8)).collect()
-    };
-    let expected = srgb(shade_image(&renderer, &camera, w, h, 1, &textured));
-    let plain = srgb(shade_image(&renderer, &camera, w, h, 1, &|hit| hit.interpolate(&values[hit.instance])));
+    let textured = |hit: &SurfaceHit| hit.interpolate(&values[hit.instance]) * texture_detail(&flat, hit);
+    let expected = srgb(&shade_image(&renderer, &camera, w, h, 1, &textured), 0.0);
+    let plain = srgb(&shade_image(&renderer, &camera, w, h, 1, &|hit| hit.interpolate(&values[hit.instance])), 0.0);
 
     let mut vp = Viewport::new(&gpu, &Shaders::embedded()).unwrap();
     vp.upload_geometry(&gpu, &flat);
@@ -318,6 +304,70 @@ fn texture_detail_is_drawn_per_pixel_over_per_vertex_lighting() {
     // Edges and 8-bit filtering on the device differ by a pixel or a level.
     let (detail, without) = (within(&drawn, &expected, 3), within(&drawn, &plain, 3));
     assert!(detail >= 0.97, "the detail matches its CPU statement on {:.1} % of pixels", 100.0 * detail);
+    assert!(without < detail - 0.1, "without detail {:.1} %, with {:.1} %", 100.0 * without, 100.0 * detail);
+}
+
+/// The CPU statement of the viewport's texture detail (`kage_editor::detail`): the base-colour
+/// texture at `hit` over its value interpolated from the triangle's vertices (one untextured; a
+/// channel black at the vertices stays black).
+fn texture_detail(flat: &kage_engine::scene::FlatScene, hit: &kage_engine::raster::SurfaceHit) -> Vec3 {
+    let i = hit.instance;
+    let Some(slot) = flat.instances[i].maps.base_color else { return Vec3::ONE };
+    let (mesh, t) = (flat.mesh(i), &flat.textures[slot.texture as usize]);
+    let uv =
+        |v: usize| slot.uv(mesh.uvs.get(v).copied().unwrap_or_default(), mesh.uvs1.get(v).copied().unwrap_or_default());
+    let at_vertices: Vec3 = (0..3).map(|k| t.sample(uv(hit.corners[k])) * hit.weights[k]).sum();
+    let here = t.sample((0..3).map(|k| uv(hit.corners[k]) * hit.weights[k]).sum());
+    Vec3::select(at_vertices.cmpgt(Vec3::splat(1e-6)), here / at_vertices.max(Vec3::splat(1e-6)), Vec3::ZERO)
+}
+
+/// Radiance as the viewport shows it at `stops` of exposure, as 8-bit sRGB.
+fn srgb(img: &[Vec3], stops: f32) -> Vec<[u8; 3]> {
+    img.iter().map(|p| (*p * stops.exp2()).to_array().map(|c| (display_srgb(c) * 255.0 + 0.5) as u8)).collect()
+}
+
+/// Per-pixel PRT shows the base-colour texture's detail as the per-vertex draw does: on the
+/// textured scene under `city.hdr` it matches its CPU statement (the transfer's light and the
+/// other groups' shadows per pixel, `Frame::shade_grid`, times the albedo interpolated from the
+/// vertices and the texture's detail); without the detail the floor's checker and the poster
+/// are the vertices' colours.
+#[test]
+fn per_pixel_prt_draws_the_texture_detail() {
+    let gpu = Gpu::new().expect("a wgpu device (lavapipe without a GPU)");
+    let mut scene = import::import(&asset("scenes/textured_materials.gltf"), Default::default()).unwrap();
+    scene.set_environment(EnvironmentLight::new(EnvMap::load(&asset("envmaps/city.hdr")).unwrap()));
+    let s = prt::Settings { order: 4, directions: 256, regions: 16, ..prt::Settings::default() };
+    let flat = flatten(&scene);
+    let bake = prt::bake(&scene, &flat, &s, &|_| {});
+    let light = prt::Lighting::new(&scene, &s).expect("the scene has an environment");
+    let orbit = Orbit { target: Vec3::new(0.0, 0.5, -0.4), distance: 4.5, yaw: 0.5, pitch: 0.5, yfov: 0.8 };
+    let parts = prt::Parts { bake: &bake, lighting: &light, settings: &s };
+    let frame = prt::Frame::prepare(&scene, &flat, parts, Shadows::WithOthers, orbit.eye());
+    let (w, h) = (240, 160);
+    let camera = Camera::look_at(orbit.eye(), orbit.target, orbit.yfov);
+    let mut renderer = Renderer::new(&scene);
+    renderer.flat.environment = None;
+    let (grid, _) = kage_engine::raster::primary_grid(&renderer, &camera, w, h, 1);
+    let albedo = frame.vertex_terms().albedo;
+    let shade = |detail: bool| {
+        let image = frame.shade_grid(&grid, w, &|hit, l, _| {
+            let ratio = if detail { texture_detail(&flat, hit) } else { Vec3::ONE };
+            hit.interpolate(&albedo[hit.instance]) * ratio * l
+        });
+        srgb(&image, -1.0)
+    };
+    let (expected, plain) = (shade(true), shade(false));
+
+    let mut vp = Viewport::with_samples(&gpu, &Shaders::embedded(), 1).unwrap();
+    vp.upload_geometry(&gpu, &flat);
+    vp.upload_prt(&gpu, &flat, Some(&frame));
+    let drawn = vp.render_image(&gpu, [w as u32, h as u32], &orbit, -1.0).unwrap();
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../target/editor-snapshots");
+    std::fs::create_dir_all(&dir).unwrap();
+    drawn.save(dir.join("prt-texture-detail.png")).unwrap();
+    let (detail, without) = (within(&drawn, &expected, 3), within(&drawn, &plain, 3));
+    eprintln!("per-pixel PRT within 3 levels: of its statement {detail:.4}, of the same without detail {without:.4}");
+    assert!(detail >= 0.97, "per-pixel PRT matches its statement on {:.1} % of pixels", 100.0 * detail);
     assert!(without < detail - 0.1, "without detail {:.1} %, with {:.1} %", 100.0 * without, 100.0 * detail);
 }
 
