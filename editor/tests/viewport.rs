@@ -8,7 +8,7 @@ use kage_editor::viewport::Viewport;
 use kage_engine::output::display_srgb;
 use kage_engine::prt::{self, Shadows};
 use kage_engine::reference::Renderer;
-use kage_engine::scene::{Camera, EnvMap, EnvironmentLight, flatten, import};
+use kage_engine::scene::{Camera, EnvMap, EnvironmentLight, FlatScene, Scene, flatten, import};
 use kage_gpu::{Gpu, Shaders};
 use std::path::PathBuf;
 
@@ -22,15 +22,22 @@ fn within(img: &image::RgbaImage, reference: &[[u8; 3]], levels: u8) -> f64 {
     close as f64 / reference.len() as f64
 }
 
-#[test]
-fn per_pixel_prt_matches_the_cpu_per_pixel_render_and_beats_per_vertex_shading() {
-    let gpu = Gpu::new().expect("a wgpu device (lavapipe without a GPU)");
-    let mut scene = import::import(&asset("scenes/bunny_two_groups.gltf"), Default::default()).unwrap();
-    scene.set_environment(EnvironmentLight::new(EnvMap::load(&asset("envmaps/studio.hdr")).unwrap()));
+/// `scene` under `env` (asset paths), its snapshot, PRT settings small enough for a test, its
+/// transfer bake and lighting.
+fn prt_baked(scene: &str, env: &str) -> (Scene, FlatScene, prt::Settings, prt::Bake, prt::Lighting) {
+    let mut scene = import::import(&asset(scene), Default::default()).unwrap();
+    scene.set_environment(EnvironmentLight::new(EnvMap::load(&asset(env)).unwrap()));
     let s = prt::Settings { order: 4, directions: 256, regions: 16, ..prt::Settings::default() };
     let flat = flatten(&scene);
     let bake = prt::bake(&scene, &flat, &s, &|_| {});
     let light = prt::Lighting::new(&scene, &s).expect("the scene has an environment");
+    (scene, flat, s, bake, light)
+}
+
+#[test]
+fn per_pixel_prt_matches_the_cpu_per_pixel_render_and_beats_per_vertex_shading() {
+    let gpu = Gpu::new().expect("a wgpu device (lavapipe without a GPU)");
+    let (scene, flat, s, bake, light) = prt_baked("scenes/bunny_two_groups.gltf", "envmaps/studio.hdr");
     let orbit = Orbit { target: Vec3::new(0.0, 0.3, 0.0), distance: 5.0, yaw: 0.6, pitch: 0.7, yfov: 0.8 };
     let frame = prt::Frame::prepare(
         &scene,
@@ -47,8 +54,7 @@ fn per_pixel_prt_matches_the_cpu_per_pixel_render_and_beats_per_vertex_shading()
     let cpu = frame.render(&renderer, &camera, w, h, 1);
     // Two stops down: the studio light saturates much of the view at 0.
     let exposure = -2.0f32;
-    let reference: Vec<[u8; 3]> =
-        cpu.iter().map(|p| (*p * exposure.exp2()).to_array().map(|c| (display_srgb(c) * 255.0 + 0.5) as u8)).collect();
+    let reference = srgb(&cpu, exposure);
     assert!(reference.iter().filter(|p| p.iter().any(|c| *c > 0)).count() > w * h / 3, "the scene fills the view");
 
     let mut vp = Viewport::with_samples(&gpu, &Shaders::embedded(), 1).unwrap();
@@ -125,8 +131,7 @@ fn lights_drawn(
     let camera = Camera::look_at(eye, orbit.target, orbit.yfov);
     let exposure = -1.0f32;
     let cpu = shade_image(&Renderer::new(scene), &camera, w, h, 1, &|hit| lobes.shade(flat, hit, eye));
-    let reference: Vec<[u8; 3]> =
-        cpu.iter().map(|p| (*p * exposure.exp2()).to_array().map(|c| (display_srgb(c) * 255.0 + 0.5) as u8)).collect();
+    let reference = srgb(&cpu, exposure);
     let mut vp = Viewport::with_samples(gpu, &Shaders::embedded(), 1).unwrap();
     vp.upload_geometry(gpu, flat);
     vp.upload_lights(gpu, flat, Some(&PixelLights { lobes, values: values.clone(), environment: None }));
@@ -310,7 +315,7 @@ fn texture_detail_is_drawn_per_pixel_over_per_vertex_lighting() {
 /// The CPU statement of the viewport's texture detail (`kage_editor::detail`): the base-colour
 /// texture at `hit` over its value interpolated from the triangle's vertices (one untextured; a
 /// channel black at the vertices stays black).
-fn texture_detail(flat: &kage_engine::scene::FlatScene, hit: &kage_engine::raster::SurfaceHit) -> Vec3 {
+fn texture_detail(flat: &FlatScene, hit: &kage_engine::raster::SurfaceHit) -> Vec3 {
     let i = hit.instance;
     let Some(slot) = flat.instances[i].maps.base_color else { return Vec3::ONE };
     let (mesh, t) = (flat.mesh(i), &flat.textures[slot.texture as usize]);
@@ -334,12 +339,7 @@ fn srgb(img: &[Vec3], stops: f32) -> Vec<[u8; 3]> {
 #[test]
 fn per_pixel_prt_draws_the_texture_detail() {
     let gpu = Gpu::new().expect("a wgpu device (lavapipe without a GPU)");
-    let mut scene = import::import(&asset("scenes/textured_materials.gltf"), Default::default()).unwrap();
-    scene.set_environment(EnvironmentLight::new(EnvMap::load(&asset("envmaps/city.hdr")).unwrap()));
-    let s = prt::Settings { order: 4, directions: 256, regions: 16, ..prt::Settings::default() };
-    let flat = flatten(&scene);
-    let bake = prt::bake(&scene, &flat, &s, &|_| {});
-    let light = prt::Lighting::new(&scene, &s).expect("the scene has an environment");
+    let (scene, flat, s, bake, light) = prt_baked("scenes/textured_materials.gltf", "envmaps/city.hdr");
     let orbit = Orbit { target: Vec3::new(0.0, 0.5, -0.4), distance: 4.5, yaw: 0.5, pitch: 0.5, yfov: 0.8 };
     let parts = prt::Parts { bake: &bake, lighting: &light, settings: &s };
     let frame = prt::Frame::prepare(&scene, &flat, parts, Shadows::WithOthers, orbit.eye());
