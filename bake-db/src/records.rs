@@ -68,15 +68,23 @@ pub fn key(src: &Source, s: &Settings) -> Key {
 /// The cache from the store when its records are there, else placed now and stored; and
 /// whether it came from the store. The scene's extras gain the key (kept by `gc`).
 pub fn load_or_place(store: &Store, scene: &Scene, src: &Source, s: &Settings) -> Result<(Cache, bool)> {
-    let key = key(src, s);
-    add_to_scene(store, scene, src, &key)?;
-    if let Some(records) = store.get::<f64>(&key)?.and_then(|d| Record::from_f64s(&d, s.order)) {
-        return Ok((cache::from_records(src, s, records), true));
+    if let Some(cache) = load(store, scene, src, s)? {
+        return Ok((cache, true));
     }
+    let key = key(src, s);
     let start = std::time::Instant::now();
     let cache = cache::place_at_vertices(src, s);
     put(store, key, &cache, start.elapsed().as_secs_f64())?;
     Ok((cache, false))
+}
+
+/// The cache from the store when its records are there (without their hits, see
+/// [`Cache::refresh`]). The scene's extras gain the key (kept by `gc`).
+pub fn load(store: &Store, scene: &Scene, src: &Source, s: &Settings) -> Result<Option<Cache>> {
+    let key = key(src, s);
+    add_to_scene(store, scene, src, &key)?;
+    let records = store.get::<f64>(&key)?.and_then(|d| Record::from_f64s(&d, s.order));
+    Ok(records.map(|records| cache::from_records(src, s, records)))
 }
 
 /// Stores `cache` — refreshed ([`Cache::refresh`]) from a cache placed over the same receivers

@@ -39,6 +39,22 @@ fn an_unlit_scene_is_warned_about() {
     assert!(o.status.success() && !stderr(&o).contains("nothing lights it"), "{}", stderr(&o));
 }
 
+/// A scene of glTF's default material (metallic 1) under `--method prt` is black, with a note
+/// that says why and which method shows it; the default method needs none.
+#[test]
+fn metals_under_prt_are_explained() {
+    let d = scratch("metals");
+    let (scene, city) = (asset("khronos/BoxTextured/BoxTextured.gltf"), asset("envmaps/city.hdr"));
+    let png = d.join("box.png");
+    let args = ["render", scene.as_str(), "--env", city.as_str(), "--size", "16x9", "-o", png.to_str().unwrap()];
+    let o = kage(&[&args[..], &["--method", "prt", "--db", d.join("bake.redb").to_str().unwrap()]].concat());
+    assert!(o.status.success(), "{}", stderr(&o));
+    let noted = stderr(&o);
+    assert!(noted.contains("1 of 1 instances are metals") && noted.contains("--method baked"), "{noted}");
+    let o = kage(&[&args[..], &["--method", "ltc-unshadowed"]].concat());
+    assert!(o.status.success() && !stderr(&o).contains("metals"), "{}", stderr(&o));
+}
+
 /// A small object under a dark studio map: the metered exposure keeps its highlights (at most
 /// 5 % of the pixels showing it clip), where metering all pixels alike would let the black
 /// around it push the object into white.

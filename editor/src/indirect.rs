@@ -4,7 +4,8 @@
 //! nothing of the editor's state: [`super::systems`] starts jobs and takes in what lands.
 
 use glam::Vec3;
-use kage_bake_db::records::{load_or_place, store_refreshed};
+use kage_bake_db::Key;
+use kage_bake_db::records::{self, load_or_place, store_refreshed};
 use kage_engine::cache::{
     self,
     record::{GlossyDirect, Source},
@@ -33,6 +34,8 @@ pub struct IndirectBase {
     direct: VertexValues,
     lights: Vec<kage_engine::scene::FlatLight>,
     receivers: Vec<(u32, glam::Affine3A, bool)>,
+    /// The key of its records ([`records::key`]): everything they depend on.
+    key: Key,
 }
 
 impl IndirectBase {
@@ -79,8 +82,22 @@ impl Job {
         let renderer = Renderer::new(&scene);
         let landed = glossy.with(&renderer.flat, |glossy| {
             let src = Source { renderer: &renderer, direct: &direct, glossy };
-            let (cache, note) = match base.and_then(|b| b.fits(&renderer, &s)) {
-                Some(b) => {
+            let key = records::key(&src, &s);
+            let base = base.and_then(|b| b.fits(&renderer, &s));
+            // Stored under this lighting, loading costs less than a refresh, which would also
+            // gather anew every record the base loaded without its hits. (A store that cannot
+            // be read is reported when the refresh is stored.)
+            let stored = base
+                .as_ref()
+                .filter(|b| b.key != key)
+                .and_then(|_| store.as_deref().and_then(|st| records::load(st, &scene, &src, &s).ok().flatten()));
+            let (cache, note) = match (base, stored) {
+                // A re-shade that gave the same direct light (a bake landing, a method switched
+                // back): the records are those a refresh would make, and it would gather again
+                // every record loaded without its hits.
+                (Some(b), _) if b.key == key => (b.cache, "unchanged".to_string()),
+                (Some(_), Some(cache)) => (cache, "from the bake database".to_string()),
+                (Some(b), None) => {
                     let partial = |c: &cache::Cache| {
                         send(Indirect { values: cache::shade_vertices(&src, c, eye), what: String::new(), base: None })
                     };
@@ -95,7 +112,7 @@ impl Job {
                     };
                     (cache, format!("{note}{stored}"))
                 }
-                None => match store.as_deref().map(|st| load_or_place(st, &scene, &src, &s)) {
+                (None, _) => match store.as_deref().map(|st| load_or_place(st, &scene, &src, &s)) {
                     Some(Ok((cache, true))) => (cache, "from the bake database".to_string()),
                     Some(Ok((cache, false))) => (cache, "gathered".to_string()),
                     Some(Err(e)) => (cache::place_at_vertices(&src, &s), format!("gathered (not stored: {e})")),
@@ -103,9 +120,9 @@ impl Job {
                 },
             };
             let values = cache::shade_vertices(&src, &cache, eye);
-            Some((cache, note, values))
+            Some((cache, note, values, key))
         });
-        let Some((cache, note, values)) = landed else { return };
+        let Some((cache, note, values, key)) = landed else { return };
         let what = format!("{} records {note}, {:.2} s", cache.records.len(), start.elapsed().as_secs_f64());
         let base = IndirectBase {
             cache,
@@ -113,6 +130,7 @@ impl Job {
             direct,
             lights: renderer.flat.lights.clone(),
             receivers: receivers(&renderer, &s),
+            key,
         };
         send(Indirect { values, what, base: Some(Box::new(base)) });
     }

@@ -522,6 +522,9 @@ impl Editor {
     pub fn set_method(&mut self, m: Method) {
         if m != self.method {
             self.method = m;
+            if let Some(why) = self.flat.black_under_prt().filter(|_| matches!(m, Method::Prt | Method::PrtSelf)) {
+                self.info(format!("{}: {why}; `baked` shows their reflections", m.name()));
+            }
             self.restart_reference();
             self.edited();
         }

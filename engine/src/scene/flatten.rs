@@ -292,6 +292,21 @@ impl FlatScene {
         unlit.then_some("nothing lights it: it has no emissive quad (polygonal light) and no environment")
     }
 
+    /// Why diffuse transfer (PRT) shows some instances black, when some are metals everywhere
+    /// (metallic 1, glTF's default, with no texture lowering it): they have no diffuse term.
+    /// Front ends note it and name the method that shows them.
+    pub fn black_under_prt(&self) -> Option<String> {
+        let metal = |i: &&Instance| i.material.metallic >= 1.0 && i.maps.metallic_roughness.is_none();
+        let metals = self.instances.iter().filter(metal).count();
+        (metals > 0).then(|| {
+            format!(
+                "{metals} of {} instances are metals (metallic 1, glTF's default when a material sets no \
+                 metallicFactor): PRT transfers diffuse light only, so they show black",
+                self.instances.len()
+            )
+        })
+    }
+
     /// Vertices of instance `inst`.
     pub fn vertex_count(&self, inst: usize) -> usize {
         self.mesh(inst).positions.len()

@@ -209,6 +209,10 @@ pub fn run(args: &Args) -> Result<()> {
     if let Some(why) = renderer.flat.unlit() {
         eprintln!("warning: {}: {why}; `--env MAP.hdr` lights it with an environment map", scene.source);
     }
+    if let Some(why) = renderer.flat.black_under_prt().filter(|_| matches!(args.method, Method::Prt | Method::PrtSelf))
+    {
+        eprintln!("note: {}: {why}; `--method baked` shows their reflections", scene.source);
+    }
     let camera = camera(args, scene.first_camera(), &renderer.flat)?;
     let output = args.output.clone().or_else(|| args.vertices_out.is_none().then(|| PathBuf::from("render.png")));
     if let Some(path) = &output {
