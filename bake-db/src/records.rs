@@ -68,34 +68,40 @@ pub fn key(src: &Source, s: &Settings) -> Key {
 /// The cache from the store when its records are there, else placed now and stored; and
 /// whether it came from the store. The scene's extras gain the key (kept by `gc`).
 pub fn load_or_place(store: &Store, scene: &Scene, src: &Source, s: &Settings) -> Result<(Cache, bool)> {
-    if let Some(cache) = load(store, scene, src, s)? {
+    let key = key(src, s);
+    if let Some(cache) = load(store, scene, src, s, &key)? {
         return Ok((cache, true));
     }
-    let key = key(src, s);
     let start = std::time::Instant::now();
     let cache = cache::place_at_vertices(src, s);
     put(store, key, &cache, start.elapsed().as_secs_f64())?;
     Ok((cache, false))
 }
 
-/// The cache from the store when its records are there (without their hits, see
-/// [`Cache::refresh`]). The scene's extras gain the key (kept by `gc`).
-pub fn load(store: &Store, scene: &Scene, src: &Source, s: &Settings) -> Result<Option<Cache>> {
-    let key = key(src, s);
-    add_to_scene(store, scene, src, &key)?;
-    let records = store.get::<f64>(&key)?.and_then(|d| Record::from_f64s(&d, s.order));
+/// The cache from the store when its records, under `key` = [`key`]`(src, s)`, are there
+/// (without their hits, see [`Cache::refresh`]). The scene's extras gain the key (kept by `gc`).
+pub fn load(store: &Store, scene: &Scene, src: &Source, s: &Settings, key: &Key) -> Result<Option<Cache>> {
+    debug_assert!(*key == self::key(src, s), "the key of src's records");
+    add_to_scene(store, scene, src, key)?;
+    let records = store.get::<f64>(key)?.and_then(|d| Record::from_f64s(&d, s.order));
     Ok(records.map(|records| cache::from_records(src, s, records)))
 }
 
 /// Stores `cache` — refreshed ([`Cache::refresh`]) from a cache placed over the same receivers
 /// with the same settings — under the key of `src`'s lighting: its records are those a cold
 /// placement would gather there (record places depend on the receivers alone), so the next
-/// [`load_or_place`] under this lighting loads them. Returns the key.
-pub fn store_refreshed(store: &Store, scene: &Scene, src: &Source, cache: &Cache, seconds: f64) -> Result<Key> {
-    let key = key(src, cache.settings());
-    add_to_scene(store, scene, src, &key)?;
-    put(store, key, cache, seconds)?;
-    Ok(key)
+/// [`load_or_place`] under this lighting loads them. `key` is [`key`]`(src, cache.settings())`.
+pub fn store_refreshed(
+    store: &Store,
+    scene: &Scene,
+    src: &Source,
+    key: &Key,
+    cache: &Cache,
+    seconds: f64,
+) -> Result<()> {
+    debug_assert!(*key == self::key(src, cache.settings()), "the key of src's records");
+    add_to_scene(store, scene, src, key)?;
+    put(store, *key, cache, seconds)
 }
 
 /// Records `key` among the scene's extras for its current geometry (kept by `gc` until the

@@ -595,7 +595,8 @@ fn a_refreshed_cache_is_stored_under_the_new_lightings_key_with_a_cold_placement
     assert!(!from_db);
     let lights = cache::moved_lights(&r0.flat.lights, &r1.flat.lights);
     c.refresh(&src1, &Change { old_direct: &d0, moved: &lights });
-    let key = store_refreshed(&store, &moved, &src1, &c, 0.0).unwrap();
+    let key = kage_bake_db::records::key(&src1, &s);
+    store_refreshed(&store, &moved, &src1, &key, &c, 0.0).unwrap();
     let (loaded, from_db) = load_or_place(&store, &moved, &src1, &s).unwrap();
     assert!(from_db && loaded.records == c.records, "the next session loads the refreshed records");
     let cold = Store::open(&scratch("refreshed-cold")).unwrap();

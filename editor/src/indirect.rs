@@ -90,7 +90,7 @@ impl Job {
             let stored = base
                 .as_ref()
                 .filter(|b| b.key != key)
-                .and_then(|_| store.as_deref().and_then(|st| records::load(st, &scene, &src, &s).ok().flatten()));
+                .and_then(|_| store.as_deref().and_then(|st| records::load(st, &scene, &src, &s, &key).ok().flatten()));
             let (cache, note) = match (base, stored) {
                 // A re-shade that gave the same direct light (a bake landing, a method switched
                 // back): the records are those a refresh would make, and it would gather again
@@ -104,7 +104,7 @@ impl Job {
                     let (cache, note) = refreshed(*b, &src, stop, &partial)?;
                     let stored = match store
                         .as_deref()
-                        .map(|st| store_refreshed(st, &scene, &src, &cache, start.elapsed().as_secs_f64()))
+                        .map(|st| store_refreshed(st, &scene, &src, &key, &cache, start.elapsed().as_secs_f64()))
                     {
                         Some(Ok(_)) => ", stored".to_string(),
                         Some(Err(e)) => format!(" (not stored: {e})"),
