@@ -556,6 +556,9 @@ pub fn view_samples(ed: &mut Editor) -> (Vec<Vec3>, Vec<Vec3>) {
 /// One bounce of indirect light from the HSH radiance cache, lit by the current direct result:
 /// gathered in the background (one gather at a time; a newer direct result starts the next when
 /// it ends), its records kept in the bake database. The preview adds the last term that landed.
+/// No gather starts while a bake runs: its direct light changes with every chunk that lands, so
+/// the term would be replaced, its records stored for lighting no finished bake has, and its
+/// rays would take cores from the bake.
 pub fn indirect_system(ed: &mut Editor) {
     if !ed.indirect || !ed.method.direct() {
         ed.workers.indirect = None;
@@ -572,7 +575,7 @@ pub fn indirect_system(ed: &mut Editor) {
         compose(ed);
     }
     let (direct, started) = ed.workers.generations;
-    if ed.workers.indirect.is_none() && started != direct && !ed.direct.is_empty() {
+    if ed.workers.indirect.is_none() && started != direct && !ed.direct.is_empty() && ed.job.is_none() {
         ed.workers.generations.1 = direct;
         ed.workers.indirect = Some(spawn_indirect(ed));
     }

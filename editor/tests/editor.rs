@@ -312,6 +312,27 @@ fn the_preview_refines_batch_by_batch_while_the_bakes_stream_in() {
     assert!(ed.bakes.streamed >= previews.len(), "{} preview updates", ed.bakes.streamed);
 }
 
+/// With the bounce on from the start, no gather runs while the first bake does (its direct
+/// light changes with every chunk that lands): the term is gathered once, after the bakes.
+#[test]
+fn the_indirect_term_waits_for_the_bakes() {
+    use kage_editor::systems::gathering;
+    let dir = scratch("indirect-waits");
+    let mut o = options(&dir, None, None);
+    o.cache.rays = 64;
+    o.indirect = true;
+    let mut h = harness(default_scene(), o);
+    let landed = |ed: &Editor| settled(ed) && !ed.indirect_values.is_empty() && !gathering(ed);
+    step_until(&mut h, "the bakes and the indirect term", landed);
+    let ed = &h.state().editor;
+    assert!(errors(ed).is_empty(), "{:?}", errors(ed));
+    let at = |prefix: &str| ed.log.iter().position(|l| l.text.starts_with(prefix));
+    let gathers = ed.log.iter().filter(|l| l.text.starts_with("indirect: ")).count();
+    let (bspvt, prt, first) = (at("BSPVT: ").unwrap(), at("PRT: ").unwrap(), at("indirect: ").unwrap());
+    assert!(first > bspvt && first > prt, "gathered after the bakes landed: {:#?}", ed.log);
+    assert_eq!(gathers, 1, "{:#?}", ed.log);
+}
+
 #[test]
 fn the_cached_indirect_term_lands_in_the_background_follows_edits_and_persists() {
     use kage_editor::systems::gathering;
