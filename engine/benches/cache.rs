@@ -2,7 +2,8 @@
 //! (256 rays per record, default settings; direct light per vertex from the reference at 16
 //! samples): placing the records cold against refreshing them (`Cache::refresh`: only records
 //! whose rays see changed light are integrated again, only rays crossing the light's old or new
-//! bounds are cast again). The light moves 0.5 m back and forth between the two states.
+//! bounds are cast again). The light moves 0.5 m back and forth between the two states. Then
+//! the bounce at every vertex from the records (`cache::shade_vertices`).
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use glam::{Quat, Vec3};
@@ -49,6 +50,8 @@ fn bench(c: &mut Criterion) {
         first.recast
     );
     g.bench_function("refresh_after_light_move", |b| b.iter(|| step(&mut cache).relit));
+    let eye = default_scene().first_camera().expect("camera").eye();
+    g.bench_function("shade_vertices", |b| b.iter(|| cache::shade_vertices(&source(at), &cache, eye).len()));
     g.finish();
 }
 

@@ -11,7 +11,10 @@
 //!
 //! Rotation goes through SH (`hsh::Conversion`, order [`ROTATION_SH_ORDER`]); when the
 //! receiver's normal is within [`SMALL_ANGLE`] of the record's the rotation is skipped (the
-//! small-angle case, measured in the tests).
+//! small-angle case, measured in the tests). A Lambertian receiver needs only irradiance, so it
+//! integrates each record's SH against the cosine about its normal in the record's own frame
+//! (Funk–Hecke) instead of rotating the record ([`Cache::irradiance_at`]; equal to rotating to
+//! 1e-9).
 
 pub mod record;
 
@@ -303,31 +306,68 @@ impl Cache {
     /// `Frame::from_normal(n)`: the records the [`Blend`] takes, extrapolated, rotated and
     /// blended. `None` when there are none.
     pub fn incoming(&self, p: Vec3, n: Vec3) -> Option<Vec<DVec3>> {
+        let frame = crate::math::frame::Frame::from_normal(n);
+        let k = self.cosine.len();
+        self.blend(p, n, vec![DVec3::ZERO; k], |sum, r, c, w| {
+            sum.iter_mut().zip(self.rotate(&c, r, &frame)).for_each(|(s, c)| *s += c * w);
+        })
+        .map(|(sum, total)| sum.into_iter().map(|s| s / total).collect())
+    }
+
+    /// Irradiance at `p` (normal `n`): [`Self::irradiance`] of [`Self::incoming`], each record
+    /// integrated against the cosine about `n` in its own frame instead of rotated into the
+    /// receiver's (what a Lambertian receiver needs; [`hsh::Conversion::irradiance_functional`]).
+    pub fn irradiance_at(&self, p: Vec3, n: Vec3) -> Option<Vec3> {
+        let (sum, total) = self.blend(p, n, DVec3::ZERO, |sum, r, c, w| {
+            let g = if self.unrotated(r, n) {
+                std::borrow::Cow::Borrowed(&self.cosine)
+            } else {
+                std::borrow::Cow::Owned(
+                    self.conversion.irradiance_functional(r.frame.to_local(n).as_dvec3().normalize()),
+                )
+            };
+            *sum += c.iter().zip(g.iter()).map(|(c, g)| *c * *g).sum::<DVec3>() * w;
+        })?;
+        Some((sum / total).max(DVec3::ZERO).as_vec3())
+    }
+
+    /// Folds `add(sum, record, its coefficients extrapolated to p, weight)` over the records the
+    /// [`Blend`] takes at `p` (normal `n`), from `sum`; with the weights' total, or `None`
+    /// when there are none.
+    fn blend<T>(
+        &self,
+        p: Vec3,
+        n: Vec3,
+        mut sum: T,
+        add: impl Fn(&mut T, &Record, Vec<DVec3>, f64),
+    ) -> Option<(T, f64)> {
         let (least, most) = self.settings.blend.limits(self.settings.accuracy);
         let usable = self.usable_above(p, n, least);
         if usable.is_empty() {
             return None;
         }
-        let frame = crate::math::frame::Frame::from_normal(n);
-        let k = self.cosine.len();
-        let (mut sum, mut total) = (vec![DVec3::ZERO; k], 0.0f64);
+        let mut total = 0.0f64;
         for (i, w) in usable {
             let r = &self.records[i as usize];
             let mut c = r.coeffs.clone();
             if self.settings.gradients {
                 extrapolate(&mut c, r, r.frame.to_local(p - r.p).as_dvec3());
             }
-            let c = self.rotate(&c, r, &frame);
             let w = w.min(most) as f64;
-            sum.iter_mut().zip(&c).for_each(|(s, c)| *s += *c * w);
+            add(&mut sum, r, c, w);
             total += w;
         }
-        Some(sum.into_iter().map(|s| s / total).collect())
+        Some((sum, total))
+    }
+
+    /// Whether record `r` is used as it is at a receiver with normal `n` (the small-angle case).
+    fn unrotated(&self, r: &Record, n: Vec3) -> bool {
+        r.frame.n.dot(n) as f64 >= SMALL_ANGLE.cos()
     }
 
     /// A record's coefficients in the receiver's frame.
     fn rotate(&self, c: &[DVec3], r: &Record, to: &crate::math::frame::Frame) -> Vec<DVec3> {
-        if r.frame.n.dot(to.n) as f64 >= SMALL_ANGLE.cos() {
+        if self.unrotated(r, to.n) {
             return c.to_vec();
         }
         let basis = |f: &crate::math::frame::Frame| DMat3::from_cols(f.t.as_dvec3(), f.b.as_dvec3(), f.n.as_dvec3());
@@ -462,6 +502,10 @@ pub fn shade_vertices(src: &Source, cache: &Cache, eye: Vec3) -> VertexValues {
             if back[i] {
                 return record::gather_bsdf(src, p, n, &bsdf, wo, s.side(), k as u64);
             }
+            if !bsdf.has_specular() {
+                let e = cache.irradiance_at(p, n).unwrap_or(Vec3::ZERO);
+                return bsdf.diffuse_albedo() * e / std::f32::consts::PI;
+            }
             cache.incoming(p, n).map_or(Vec3::ZERO, |c| cache.outgoing(&c, &bsdf, wo))
         })
         .collect();
@@ -515,6 +559,44 @@ mod tests {
             grad_x: vec![DVec3::splat(grad), DVec3::splat(grad)],
             grad_y: vec![DVec3::ZERO; 2],
         }
+    }
+
+    /// A Lambertian receiver's irradiance from the records ([`Cache::irradiance_at`]) equals
+    /// the irradiance of their coefficients extrapolated, rotated into its frame and blended,
+    /// where its normal is within the small angle of a record's and where it is tilted away.
+    #[test]
+    fn irradiance_at_equals_the_irradiance_of_the_rotated_blend() {
+        let mut cache = Cache::new(Settings::default(), 10.0);
+        let normals = [Vec3::Z, Vec3::new(0.3, 0.1, 1.0).normalize(), Vec3::new(-0.4, 0.2, 1.0).normalize()];
+        for (i, n) in normals.into_iter().enumerate() {
+            let k = |j: usize| j as f64;
+            let record = Record {
+                p: Vec3::new(0.2 * i as f32, 0.0, 0.1 * i as f32),
+                frame: crate::math::frame::Frame::from_normal(n),
+                radius: 1.0,
+                coeffs: (0..9).map(|j| DVec3::new(1.0 - 0.1 * k(j), 0.5 + 0.05 * k(j), 0.3 * k(j).cos())).collect(),
+                grad_x: vec![DVec3::splat(0.1); 9],
+                grad_y: vec![DVec3::splat(-0.05); 9],
+            };
+            cache.insert(record, Vec::new());
+        }
+        let mut compared = 0;
+        for (a, b) in (0..6).flat_map(|a| (0..6).map(move |b| (a, b))) {
+            let p = Vec3::new(0.05 * a as f32, 0.0, 0.04 * b as f32);
+            let n = Vec3::new(0.06 * (a as f32 - 2.5), 0.05 * (b as f32 - 2.5), 1.0).normalize();
+            for n in [n, normals[a % 3]] {
+                let (fast, c) = (cache.irradiance_at(p, n), cache.incoming(p, n));
+                assert_eq!(fast.is_some(), c.is_some(), "the same records at {p}");
+                let (Some(fast), Some(c)) = (fast, c) else { continue };
+                let rotated = cache.irradiance(&c);
+                assert!(
+                    (fast - rotated).abs().max_element() < 1e-5 * (1.0 + rotated.max_element()),
+                    "{fast} vs {rotated}"
+                );
+                compared += 1;
+            }
+        }
+        assert!(compared > 50, "{compared} receivers with records");
     }
 
     #[test]

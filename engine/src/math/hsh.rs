@@ -157,6 +157,8 @@ pub struct Conversion {
     sh_order: usize,
     /// `∫_{H+} Y_k H_j`, SH-count × HSH-count, row-major.
     overlap: Vec<f64>,
+    /// Per SH band l, the clamped cosine's Funk–Hecke factor `sqrt(4π/(2l+1)) k_l`.
+    cosine: Vec<f64>,
 }
 
 impl Conversion {
@@ -175,7 +177,32 @@ impl Conversion {
                 }
             }
         }
-        Self { hsh_order, sh_order, overlap }
+        let cosine = sh::clamped_cosine_zonal(sh_order)
+            .iter()
+            .enumerate()
+            .map(|(l, k)| (4.0 * std::f64::consts::PI / (2 * l + 1) as f64).sqrt() * k)
+            .collect();
+        Self { hsh_order, sh_order, overlap, cosine }
+    }
+
+    /// The irradiance at unit normal `n` (in the coefficients' own frame) as a functional of
+    /// HSH coefficients `c`: `g` with `Σ_j c_j g_j = ∫ f(ω) max(0, n·ω) dω`, f the SH of `c`'s
+    /// even extension. The same as rotating `c` into a frame about `n` ([`Self::rotate`]) and
+    /// integrating the cosine there, without building the rotation (Funk–Hecke).
+    pub fn irradiance_functional(&self, n: DVec3) -> Vec<f64> {
+        let (nh, ns) = (num_coeffs(self.hsh_order), num_coeffs(self.sh_order));
+        let y = sh::eval(self.sh_order, n);
+        let mut g = vec![0.0; nh];
+        for (k, y) in y.iter().enumerate().take(ns) {
+            let l = (k as f64).sqrt() as usize;
+            // Odd l + m: zero in the even extension (see `hsh_to_sh`).
+            if (k - l * l) % 2 == 1 {
+                continue;
+            }
+            let z = 2.0 * y * self.cosine[l];
+            g.iter_mut().zip(&self.overlap[k * nh..(k + 1) * nh]).for_each(|(g, o)| *g += o * z);
+        }
+        g
     }
 
     /// HSH coefficients → SH coefficients of the even extension: Y_lm is even in z when
@@ -330,5 +357,27 @@ mod tests {
         let together = conv.rotate_rgb(&rgb, turn);
         assert!(together.iter().enumerate().all(|(k, v)| (0..3).all(|ch| v[ch] == by_channel[ch][k])));
         assert!(together.iter().zip(&rgb).any(|(a, b)| (*a - *b).length() > 1e-3), "the turn changes them");
+    }
+
+    /// The irradiance functional at a normal equals rotating the coefficients into a frame about
+    /// that normal and integrating the cosine there (HSH order 3 holds cos θ exactly), for
+    /// normals near the frame's pole, tilted, grazing and below its horizon.
+    #[test]
+    fn irradiance_functional_equals_rotating_then_integrating() {
+        let (order, conv) = (3, Conversion::new(3, 8));
+        let cosine = project(order, 64, |d| d.z);
+        let c: Vec<f64> =
+            (0..num_coeffs(order)).map(|k| [1.0, -0.3, 0.5, 0.2, -0.1, 0.4, 0.05, -0.2, 0.1][k]).collect();
+        for (axis, angle) in
+            [(DVec3::X, 0.05), (DVec3::new(0.3, 0.4, 0.5), 0.7), (DVec3::Y, 1.5), (DVec3::new(1.0, -1.0, 0.2), 2.2)]
+        {
+            // Receiver-local from record-local, as the cache builds it: the receiver's normal
+            // in the record's frame is its transpose applied to +Z.
+            let r = DMat3::from_axis_angle(axis.normalize(), angle);
+            let rotated: f64 = conv.rotate(&c, r).iter().zip(&cosine).map(|(a, h)| a * h).sum();
+            let g = conv.irradiance_functional(r.transpose() * DVec3::Z);
+            let direct: f64 = c.iter().zip(&g).map(|(a, g)| a * g).sum();
+            assert!((direct - rotated).abs() < 1e-9 * (1.0 + rotated.abs()), "turn {angle}: {direct} vs {rotated}");
+        }
     }
 }
