@@ -329,10 +329,12 @@ fn report_writes_markdown_csv_and_plot() {
         line.rsplit(',').nth(k).unwrap().to_string()
     };
     // The tree's own error (against exact visibility at 64²): only on 64² rows, and small.
-    let tree_error = |config: &str| column(&format!("bspvt,{config},"), 1);
+    let tree_error = |config: &str| column(&format!("bspvt,\"{config}\","), 1);
     // Indirect rows count their rays (the rays plot's axis); others have none.
     assert_eq!(column("indirect-gather,256 rays per vertex", 0).parse::<usize>().unwrap() % 256, 0);
-    assert_eq!(column("bspvt,16² faces", 0), "");
+    assert_eq!(column("bspvt,\"16² faces", 0), "");
+    // A configuration holding commas is one quoted field.
+    assert!(csv.lines().any(|l| l.starts_with("hsh-cache,\"order 3, a 0.3: ")), "{csv}");
     assert_eq!(tree_error("16² faces, ε 2"), "");
     let e: f64 = tree_error("64² faces, ε 2").parse().unwrap();
     assert!(e > 0.0 && e < 0.01, "tree error {e}");
@@ -358,6 +360,38 @@ fn report_writes_markdown_csv_and_plot() {
     assert!(o.status.success(), "{}", stderr(&o));
     let csv = std::fs::read_to_string(only.join("report.csv")).unwrap();
     assert_eq!(csv.lines().count(), 1 + 3 + 19, "only the cache section:\n{csv}");
+    std::fs::remove_dir_all(d).unwrap();
+}
+
+/// On a scene whose materials are all GGX (as every imported glTF asset's are) the cache
+/// section measures the glossy receivers' bounce, and the PRT section, which needs a Lambertian
+/// surface, says so instead of measuring nothing.
+#[test]
+fn report_measures_glossy_receivers_and_says_why_prt_is_skipped() {
+    let d = scratch("report-glossy");
+    let mut gltf: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(asset("scenes/cube_on_plane.gltf")).unwrap()).unwrap();
+    for m in gltf["materials"].as_array_mut().unwrap() {
+        m["extensions"].as_object_mut().unwrap().remove("KHR_materials_specular");
+    }
+    let scene = d.join("glossy.gltf");
+    std::fs::write(&scene, gltf.to_string()).unwrap();
+    let scene = scene.to_str().unwrap();
+    let out = d.join("rep");
+    let common = ["--reference-spp", "16", "--out", out.to_str().unwrap()];
+    let o = kage(&[&["report", scene, "--only", "cache"][..], &common].concat());
+    assert!(o.status.success(), "{}", stderr(&o));
+    let md = std::fs::read_to_string(out.join("report.md")).unwrap();
+    assert!(md.contains("(1705 vertices, 0 of them Lambertian;"), "{md}");
+    let csv = std::fs::read_to_string(out.join("report.csv")).unwrap();
+    for line in csv.lines().skip(1) {
+        // rel_rmse, then pixel_rel_rmse, tree_rel_rmse and rays (the quoted config holds commas).
+        let rel: f64 = line.rsplit(',').nth(3).unwrap().parse().unwrap();
+        assert!(rel > 0.0 && rel < 1.0, "measured against a non-empty reference: {line}");
+    }
+    let o = kage(&[&["report", scene, "--only", "prt", "--env", &asset("envmaps/sky.hdr")][..], &common].concat());
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("needs a Lambertian surface and the scene has none"), "{}", stderr(&o));
     std::fs::remove_dir_all(d).unwrap();
 }
 

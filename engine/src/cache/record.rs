@@ -112,7 +112,7 @@ impl Source<'_> {
         }
         let inst = tref.owner as usize;
         let m = r.flat.material_at(inst, self.corner_indices(hit), barycentrics(hit));
-        let glossy = m.metallic > 0.0 || m.specular > 0.0;
+        let glossy = m.has_specular();
         let radiance = match self.glossy {
             Glossy::Reference(spp) if glossy => {
                 let sp = r.surface_at(hit, inst, tref.local as usize, d);

@@ -197,6 +197,11 @@ impl Material {
     pub fn lambertian(albedo: Vec3) -> Self {
         Self { base_color: albedo, metallic: 0.0, roughness: 1.0, specular: 0.0 }
     }
+
+    /// True when the material has a specular lobe (metallic, or a dielectric with specularFactor > 0).
+    pub fn has_specular(&self) -> bool {
+        self.metallic > 0.0 || self.specular > 0.0
+    }
 }
 
 /// A material texture as a glTF `textureInfo` names it: the texture, the UV set it reads and

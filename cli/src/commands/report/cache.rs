@@ -1,12 +1,12 @@
 //! The radiance-cache section: one bounce of indirect light per vertex against the reference's
 //! one-bounce term, for brute-force gathering (64, 256, 1024 rays per vertex) and the HSH cache
 //! (orders 2–6 × accuracy 0.3 and 0.5 — record density —; 64 and 128 rays per record; the
-//! wide blend; without gradients), over the
-//! Lambertian instances. The gather rays' hits are lit by the reference's per-vertex direct
-//! light (exact for Lambertian hit surfaces). "shade" is the whole indirect pass: placing and
-//! gathering the records and every lookup (or the whole brute-force gather). For Lambertian
-//! receivers only bands 0–1 reach the result (the cosine lies in the span of order 2), so the
-//! order matters only through rotation here; it matters for glossy receivers.
+//! wide blend; without gradients), over every receiver, Lambertian and glossy (imported glTF
+//! materials are GGX dielectrics, so on most assets only glossy receivers exist). The gather
+//! rays' hits are lit by the reference's per-vertex direct light (exact for Lambertian hit
+//! surfaces). "shade" is the whole indirect pass: placing and gathering the records and every
+//! lookup (or the whole brute-force gather). For Lambertian receivers only bands 0–1 reach the
+//! result (the cosine lies in the span of order 2); the order matters for glossy receivers.
 
 use super::{Args, Row, Truth, announce};
 use anyhow::Result;
@@ -21,8 +21,7 @@ use std::time::Instant;
 pub fn run(args: &Args, eye: Vec3, rows: &mut Vec<Row>) -> Result<String> {
     let scene = args.scene.load()?;
     let renderer = Renderer::new(&scene);
-    let keep: Vec<bool> =
-        renderer.flat.instances.iter().map(|i| i.material.metallic == 0.0 && i.material.specular == 0.0).collect();
+    let instances = &renderer.flat.instances;
     let direct_spp = (args.reference_spp / 4).max(16);
     let direct: VertexValues = renderer
         .render_vertices(eye, &Settings { spp: direct_spp, seed: 0xD1, ..Settings::default() }, &|_| {})
@@ -34,8 +33,8 @@ pub fn run(args: &Args, eye: Vec3, rows: &mut Vec<Row>) -> Result<String> {
         eye,
         args.reference_spp,
         (1, 1),
-        keep,
-        "one bounce of indirect light (Lambertian instances)",
+        vec![true; instances.len()],
+        "one bounce of indirect light (every receiver)",
     );
     let src = Source { renderer: &renderer, direct: &direct, glossy: Glossy::Reference(GLOSSY_SPP) };
     let n = renderer.vertex_count();
@@ -74,5 +73,12 @@ pub fn run(args: &Args, eye: Vec3, rows: &mut Vec<Row>) -> Result<String> {
     cache_row("hsh-cache-no-gradients", CacheSettings { gradients: false, ..CacheSettings::default() });
     let numerical = kage_engine::cache::record::GradientForm::Numerical;
     cache_row("hsh-cache-numerical-gradients", CacheSettings { gradient_form: numerical, ..CacheSettings::default() });
-    Ok(format!("{} ({n} vertices; hits lit by the reference's direct light at {direct_spp} spp)", truth.line))
+    let lambertian: usize = (0..instances.len())
+        .filter(|&i| !instances[i].material.has_specular())
+        .map(|i| renderer.mesh(i).positions.len())
+        .sum();
+    Ok(format!(
+        "{} ({n} vertices, {lambertian} of them Lambertian; hits lit by the reference's direct light at {direct_spp} spp)",
+        truth.line
+    ))
 }

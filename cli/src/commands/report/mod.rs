@@ -164,13 +164,29 @@ pub fn run(args: &Args) -> Result<()> {
     if has_lights && args.wants(Section::Polygon) {
         header.push(polygon::run(args, eye, &mut rows)?);
     }
+    // PRT transfers diffuse light only: it is measured where the surface is Lambertian.
+    let has_lambertian = scene.world.query::<&kage_engine::scene::Material>().iter().any(|m| !m.has_specular());
+    let mut skipped = None;
     if has_env && args.wants(Section::Prt) {
-        header.push(prt::run(args, &camera, &mut rows)?);
+        if has_lambertian {
+            header.push(prt::run(args, &camera, &mut rows)?);
+        } else {
+            let why = "the PRT section needs a Lambertian surface and the scene has none (PRT transfers the diffuse \
+                       part; the baked section measures the environment on glossy surfaces)";
+            eprintln!("warning: {why}");
+            header.push(format!("PRT: skipped, {why}"));
+            skipped = Some(why);
+        }
     }
     if args.wants(Section::Cache) {
         header.push(cache::run(args, eye, &mut rows)?);
     }
-    anyhow::ensure!(!rows.is_empty(), "{}: none of the chosen sections applies to this scene", scene.source);
+    anyhow::ensure!(
+        !rows.is_empty(),
+        "{}: none of the chosen sections applies to this scene{}",
+        scene.source,
+        skipped.map_or(String::new(), |why| format!(": {why}"))
+    );
     std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
     let title = format!("kage report: {}", scene_name(&scene.source));
     let written = write_files(args, &title, &header.join("\n\n"), &rows)?;
@@ -196,6 +212,11 @@ fn rel(values: impl Iterator<Item = Vec3>, truth: &[Vec3]) -> (f64, f64) {
         count += 3;
     }
     ((num / count.max(1) as f64).sqrt(), if den > 0.0 { (num / den).sqrt() } else { 0.0 })
+}
+
+/// `text` as one CSV field: quoted (inner quotes doubled) when it holds a comma or a quote.
+fn csv_field(text: &str) -> String {
+    if text.contains([',', '"', '\n']) { format!("\"{}\"", text.replace('"', "\"\"")) } else { text.to_string() }
 }
 
 /// Writes the report's files; returns their names.
@@ -225,7 +246,7 @@ fn write_files(args: &Args, title: &str, header: &str, rows: &[Row]) -> Result<V
             csv,
             "{},{},{},{},{},{},{},{},{},{},{}",
             r.method,
-            r.config,
+            csv_field(&r.config),
             r.bake_s,
             r.bake_bytes,
             r.leaves_per_vertex,

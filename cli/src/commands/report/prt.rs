@@ -33,8 +33,7 @@ pub fn run(args: &Args, camera: &Camera, rows: &mut Vec<Row>) -> Result<String> 
     let mut scene = args.scene.load()?;
     scene.remove_polygon_lights();
     let renderer = Renderer::new(&scene);
-    let lambertian = |m: &kage_engine::scene::Material| m.metallic == 0.0 && m.specular == 0.0;
-    let keep: Vec<bool> = renderer.flat.instances.iter().map(|i| lambertian(&i.material)).collect();
+    let keep: Vec<bool> = renderer.flat.instances.iter().map(|i| !i.material.has_specular()).collect();
     let truth =
         Truth::vertices(&renderer, eye, args.reference_spp, (0, 0), keep.clone(), "environment (Lambertian instances)");
     let (w, h) = args.image_size;
