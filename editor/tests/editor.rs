@@ -29,8 +29,15 @@ fn asset(rel: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../assets").join(rel)
 }
 
-/// The tests exercise the WGSL path on lavapipe (auto would pick the CPU there).
-const SHADE_ON: ShadeOn = ShadeOn::Gpu;
+/// What `kage edit` runs by default: the CPU on lavapipe, the GPU on real hardware. Tests of the
+/// GPU path itself (the lights drawn per pixel, WGSL pipelines) ask for it with [`on_gpu`]:
+/// on lavapipe each of its redraws costs seconds, which every edit in every test would pay.
+const SHADE_ON: ShadeOn = ShadeOn::Auto;
+
+/// `o` on the GPU path, lavapipe in CI.
+fn on_gpu(o: Options) -> Options {
+    Options { shade_on: ShadeOn::Gpu, ..o }
+}
 
 fn options(dir: &Path, scene_path: Option<PathBuf>, shader_dir: Option<PathBuf>) -> Options {
     Options {
@@ -138,7 +145,7 @@ fn errors(ed: &Editor) -> Vec<String> {
 #[test]
 fn the_default_scene_bakes_in_the_background_and_every_method_shades() {
     let dir = scratch("default");
-    let mut h = harness(default_scene(), options(&dir, None, None));
+    let mut h = harness(default_scene(), on_gpu(options(&dir, None, None)));
     step_until(&mut h, "the first bakes", settled);
     let ed = &h.state().editor;
     assert!(ed.bakes.prt.is_some() && ed.bakes.lighting.is_some(), "{:?}", ed.log);
@@ -201,7 +208,7 @@ fn the_default_scene_bakes_in_the_background_and_every_method_shades() {
 #[test]
 fn light_moves_reshade_at_once_and_group_moves_rebake_bspvt_incrementally() {
     let dir = scratch("moves");
-    let mut h = harness(default_scene(), options(&dir, None, None));
+    let mut h = harness(default_scene(), on_gpu(options(&dir, None, None)));
     step_until(&mut h, "the first bakes", settled);
     let first = h.state().editor.stats.runs[0].unwrap();
     let before = values(&h);
@@ -426,7 +433,7 @@ fn shader_saves_rebuild_pipelines_and_broken_shaders_keep_the_last_good_one() {
     for f in std::fs::read_dir(&repo_shaders).unwrap().map(|e| e.unwrap().path()) {
         std::fs::copy(&f, shaders.join(f.file_name().unwrap())).unwrap();
     }
-    let mut h = harness(default_scene(), options(&dir, None, Some(shaders.clone())));
+    let mut h = harness(default_scene(), on_gpu(options(&dir, None, Some(shaders.clone()))));
     step_until(&mut h, "the first bakes", settled);
     let good = snapshot(&mut h, "reload-before");
     let generation = h.state().editor.shader_generation;
