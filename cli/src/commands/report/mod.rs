@@ -173,7 +173,6 @@ pub fn run(args: &Args) -> Result<()> {
         } else {
             let why = "the PRT section needs a Lambertian surface and the scene has none (PRT transfers the diffuse \
                        part; the baked section measures the environment on glossy surfaces)";
-            eprintln!("warning: {why}");
             header.push(format!("PRT: skipped, {why}"));
             skipped = Some(why);
         }
@@ -187,6 +186,9 @@ pub fn run(args: &Args) -> Result<()> {
         scene.source,
         skipped.map_or(String::new(), |why| format!(": {why}"))
     );
+    if let Some(why) = skipped {
+        eprintln!("warning: {why}");
+    }
     std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
     let title = format!("kage report: {}", scene_name(&scene.source));
     let written = write_files(args, &title, &header.join("\n\n"), &rows)?;
