@@ -18,7 +18,8 @@ struct View {
     // Toward the sun; w 1 when the depth map holds the scene.
     sun_direction: vec4<f32>,
     // The depth map's lookup: x the normal offset (world), y the depth bias, z a texel in map
-    // coordinates.
+    // coordinates, w the sun's softness (map units of penumbra per unit of depth from the
+    // occluder; 0: a hard sun).
     sun_shadow: vec4<f32>,
 }
 
@@ -507,13 +508,17 @@ fn environment_at(s: Surface, weight: f32) -> vec3<f32> {
     return reflect_environment(s.n, s.v, ggx_alpha(s.roughness), s.f0, s.f90) * weight;
 }
 
-// The sun's visibility at `p` (normal `n`) from its depth map, 3×3 taps each filtered 2×2;
-// outside the map (nothing there casts), seen.
+// The sun's visibility at `p` (normal `n`) from its depth map: a hard sun's 3×3 taps each
+// filtered 2×2, a wide sun's soft shadow (sun_seen_soft); outside the map (nothing there
+// casts), seen.
 fn sun_seen(p: vec3<f32>, n: vec3<f32>) -> f32 {
     let q = view.sun_clip * vec4<f32>(p + n * view.sun_shadow.x, 1.0);
     let uv = vec2<f32>(q.x * 0.5 + 0.5, 0.5 - q.y * 0.5);
     if (any(uv < vec2<f32>(0.0)) || any(uv > vec2<f32>(1.0)) || q.z > 1.0) {
         return 1.0;
+    }
+    if (view.sun_shadow.w > 0.0) {
+        return sun_seen_soft(p, n, uv, q.z);
     }
     var seen = 0.0;
     for (var j = -1; j <= 1; j = j + 1) {
@@ -523,6 +528,54 @@ fn sun_seen(p: vec3<f32>, n: vec3<f32>) -> f32 {
         }
     }
     return seen / 9.0;
+}
+
+// Taps per search and per filter of a wide sun's shadow.
+const SUN_TAPS: i32 = 16;
+
+// A wide sun's visibility at map point `uv` (depth `z`) of `p` (normal `n`), percentage-closer
+// soft shadows: the occluders' mean depth within the widest penumbra one could cast there, then
+// a filter as wide as their penumbra (softness × the depth between), each over SUN_TAPS taps of
+// a Vogel spiral turned per point (kage render turns its rays over the sun's disc per point
+// too). Every tap's depth bias grows with its offset along the receiver's slope, so that a
+// surface does not shadow itself.
+fn sun_seen_soft(p: vec3<f32>, n: vec3<f32>, uv: vec2<f32>, z: f32) -> f32 {
+    let softness = view.sun_shadow.w;
+    let c = max(dot(n, view.sun_direction.xyz), 0.1);
+    let slope = sqrt(max(1.0 - c * c, 0.0)) / c;
+    let turn = fract(sin(dot(p, vec3<f32>(12.9898, 78.233, 37.719))) * 43758.547);
+    let size = vec2<i32>(textureDimensions(sun_depth));
+    let search = max(z * softness, view.sun_shadow.z);
+    var blockers = 0.0;
+    var depth = 0.0;
+    for (var k = 0; k < SUN_TAPS; k = k + 1) {
+        let o = vogel(k, turn) * search;
+        let at = clamp(vec2<i32>((uv + o) * vec2<f32>(size)), vec2<i32>(0), size - vec2<i32>(1));
+        let d = textureLoad(sun_depth, at, 0);
+        if (d < z - view.sun_shadow.y - slope * length(o)) {
+            blockers = blockers + 1.0;
+            depth = depth + d;
+        }
+    }
+    if (blockers == 0.0) {
+        return 1.0;
+    }
+    let width = max((z - depth / blockers) * softness, view.sun_shadow.z);
+    var seen = 0.0;
+    for (var k = 0; k < SUN_TAPS; k = k + 1) {
+        let o = vogel(k, turn + 0.5) * width;
+        let reference = z - view.sun_shadow.y - slope * length(o);
+        seen = seen + textureSampleCompareLevel(sun_depth, sun_sampler, uv + o, reference);
+    }
+    return seen / f32(SUN_TAPS);
+}
+
+// Point `k` of a SUN_TAPS-point Vogel spiral on the unit disc (equal areas), turned by `turn`
+// turns (prt/sun.rs spreads kage render's shadow rays the same way).
+fn vogel(k: i32, turn: f32) -> vec2<f32> {
+    let r = sqrt((f32(k) + 0.5) / f32(SUN_TAPS));
+    let a = f32(k) * 2.399963 + turn * 6.2831853;
+    return r * vec2<f32>(cos(a), sin(a));
 }
 
 // The map's sun at a surface point (its roughness already floored for the sun: Look::sun_at):

@@ -35,6 +35,8 @@ fn an_unlit_scene_is_warned_about() {
         warned.contains("warning:") && warned.contains("nothing lights it") && warned.contains("--env"),
         "{warned}"
     );
+    let said = String::from_utf8_lossy(&o.stdout);
+    assert!(said.contains("indirect: skipped, nothing lights the scene"), "{said}");
     let o = kage(&[&args[..], &["--env", sky.as_str()]].concat());
     assert!(o.status.success() && !stderr(&o).contains("nothing lights it"), "{}", stderr(&o));
 }

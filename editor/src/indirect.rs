@@ -6,12 +6,15 @@
 use glam::Vec3;
 use kage_bake_db::Key;
 use kage_bake_db::records::{self, load_or_place, store_refreshed};
+use kage_engine::bspvt;
 use kage_engine::cache::{
     self,
-    record::{GlossyDirect, Source},
+    record::{Glossy, GlossyDirect, Source},
 };
+use kage_engine::prt::{self, prefilter::Prefiltered};
 use kage_engine::reference::Renderer;
-use kage_engine::scene::{Scene, VertexValues};
+use kage_engine::scene::{FlatScene, Scene, VertexValues};
+use kage_engine::shading::baked::{Bakes, Look};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
@@ -51,6 +54,44 @@ fn receivers(renderer: &Renderer, s: &cache::Settings) -> Vec<(u32, glam::Affine
     let instances = renderer.flat.instances.iter().enumerate();
     instances.map(|(k, i)| (i.mesh, i.world, cache::falls_back(renderer, s, k))).collect()
 }
+/// How gather rays' glossy hits are lit: as the view's method lit the direct result.
+pub enum HitLight {
+    /// As one of the engine's methods offers.
+    Method(GlossyDirect),
+    /// As the baked look lights them, the environment's diffuse, reflection and sun included
+    /// ([`Look::toward`]): what `kage render` does, so the two store the same records.
+    Baked(Box<BakedParts>),
+}
+
+/// What the baked look is shaded from, owned by the worker.
+pub struct BakedParts {
+    /// BSPVT trees (unshadowed placeholders while they bake), where the scene has polygonal lights.
+    pub bspvt: Option<Arc<bspvt::Bake>>,
+    /// PRT transfer, its lighting and settings.
+    pub prt: (prt::Bake, prt::Lighting, prt::Settings),
+    /// The environment prefiltered for its reflection.
+    pub prefiltered: Prefiltered,
+}
+
+impl HitLight {
+    /// Runs `f` with the [`Glossy`] this stands for in `scene` (snapshot `flat`) seen from `eye`.
+    fn with<R>(&self, scene: &Scene, flat: &FlatScene, eye: Vec3, f: impl FnOnce(Glossy) -> R) -> R {
+        match self {
+            Self::Method(direct) => direct.with(flat, f),
+            Self::Baked(b) => {
+                let (bake, lighting, settings) = &b.prt;
+                let bakes = Bakes {
+                    bspvt: b.bspvt.as_deref(),
+                    prt: Some(prt::Parts { bake, lighting, settings }),
+                    prefiltered: Some(&b.prefiltered),
+                };
+                let look = Look::prepare(scene, flat, bakes, eye, &mut prt::SilhouetteMemo::default());
+                f(Glossy::Toward(&|i, corners, bary, to| look.toward(i, corners, bary, to)))
+            }
+        }
+    }
+}
+
 /// Records re-lit per landing of a progressive refresh.
 const REFRESH_BATCH: usize = 64;
 
@@ -59,7 +100,7 @@ pub struct Job {
     /// The scene lit as the view's method lights it.
     pub scene: Scene,
     /// How glossy gather hits are lit, as the direct result was.
-    pub glossy: GlossyDirect,
+    pub glossy: HitLight,
     /// The direct result per instance and vertex.
     pub direct: VertexValues,
     /// Where the view looks from.
@@ -80,7 +121,7 @@ impl Job {
         let start = Instant::now();
         let Self { scene, glossy, direct, eye, settings: s, store, base } = self;
         let renderer = Renderer::new(&scene);
-        let landed = glossy.with(&renderer.flat, |glossy| {
+        let landed = glossy.with(&scene, &renderer.flat, eye, |glossy| {
             let src = Source { renderer: &renderer, direct: &direct, glossy };
             let key = records::key(&src, &s);
             let base = base.and_then(|b| b.fits(&renderer, &s));

@@ -84,8 +84,6 @@ pub struct Stats {
     pub frame: f64,
     /// Seconds of the last shading.
     pub shading: f64,
-    /// Vertices per second of the last finished bake (per technique: BSPVT, PRT).
-    pub bake_rate: [f64; 2],
     /// Seconds from the last edit to its shaded result.
     pub edit_to_shade: f64,
     /// Seconds from the last shader file change to its rebuilt pipeline.

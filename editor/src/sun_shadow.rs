@@ -2,10 +2,13 @@
 //! from the sun (orthographic, over the scene's bounding sphere), looked up at each pixel with
 //! a 3×3 percentage-closer filter — the directional-light shadow map of real-time engines, in
 //! place of the sun's visibility interpolated from the vertices (which drew a lattice's sharp
-//! sun shadow as blobs). `kage render`'s CPU image casts a shadow ray per pixel instead. The
+//! sun shadow as blobs). A wide sun (`Sun::softness`, e.g. `studio.hdr`'s lamp) widens the
+//! filter by the distance to the occluders found around the point (percentage-closer soft
+//! shadows), as `kage render`'s CPU image spreads its shadow rays over the sun's disc. The
 //! map is part of the view's bind group (bindings 1 and 2).
 
 use glam::{Mat4, Vec3};
+use kage_engine::prt::sun::Sun;
 use kage_gpu::Gpu;
 
 /// Texels per side.
@@ -27,6 +30,8 @@ pub struct SunShadow {
     pub texel: f32,
     /// Toward the sun of the last render; `None` when the map holds nothing to look up.
     toward: Option<Vec3>,
+    /// The sun's [`Sun::softness`] of the last render (0: a hard shadow).
+    softness: f32,
 }
 
 /// The view layout's bindings 1 and 2: the map and its comparison sampler.
@@ -73,6 +78,7 @@ impl SunShadow {
             clip: Mat4::IDENTITY,
             texel: 0.0,
             toward: None,
+            softness: 0.0,
         }
     }
 
@@ -82,9 +88,9 @@ impl SunShadow {
         self.toward = None;
     }
 
-    /// True when the map holds the current geometry seen from `direction`.
-    pub fn holds(&self, direction: Vec3) -> bool {
-        self.toward == Some(direction)
+    /// True when the map holds the current geometry seen from `sun`.
+    pub fn holds(&self, sun: &Sun) -> bool {
+        self.toward == Some(sun.direction) && self.softness == sun.softness()
     }
 
     /// The view's `sun_direction`: toward the sun, w 1 when the map was rendered for it.
@@ -92,9 +98,10 @@ impl SunShadow {
         self.toward.map_or([0.0; 4], |d| d.extend(1.0).into())
     }
 
-    /// Aims the map at the sun (`direction`: toward it) over the sphere (`centre`, `radius`)
-    /// and returns the clip-from-world matrix the depth pass draws with.
-    pub fn aim(&mut self, direction: Vec3, (centre, radius): (Vec3, f32)) -> Mat4 {
+    /// Aims the map at `sun` over the sphere (`centre`, `radius`) and returns the
+    /// clip-from-world matrix the depth pass draws with.
+    pub fn aim(&mut self, sun: &Sun, (centre, radius): (Vec3, f32)) -> Mat4 {
+        let direction = sun.direction;
         let up = if direction.cross(Vec3::Y).length_squared() < 1e-6 { Vec3::Z } else { Vec3::Y };
         let eye = centre + direction * (2.0 * radius);
         let view = glam::camera::rh::view::look_at_mat4(eye, centre, up);
@@ -104,6 +111,7 @@ impl SunShadow {
         self.clip = proj * view;
         self.texel = 2.0 * radius / SIZE as f32;
         self.toward = Some(direction);
+        self.softness = sun.softness();
         self.clip
     }
 
@@ -117,10 +125,11 @@ impl SunShadow {
     }
 
     /// The view's `sun_shadow`: the normal offset (world units, 1.5 texels), the depth bias (a
-    /// texel's worth of depth: the depth range is the map's width) and the texel size in map
-    /// coordinates.
+    /// texel's worth of depth: the depth range is the map's width), the texel size in map
+    /// coordinates, and the sun's softness (map units of penumbra per unit of depth between
+    /// occluder and receiver: both span the map's width).
     pub fn params(&self) -> [f32; 4] {
         let texel = 1.0 / SIZE as f32;
-        [1.5 * self.texel, texel, texel, 0.0]
+        [1.5 * self.texel, texel, texel, self.softness]
     }
 }

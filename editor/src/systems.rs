@@ -3,7 +3,7 @@
 //! pass: those run on rayon in the background and land here when done.
 
 use super::bake_job::{BakeJob, ChunkData, Landed};
-use super::indirect::{Indirect, Job};
+use super::indirect::{BakedParts, HitLight, Indirect, Job};
 use super::pick::Seen;
 use super::reload::Change;
 use super::state::Editor;
@@ -23,6 +23,7 @@ use kage_engine::shading::baked::{Look, Polygonal};
 use kage_engine::{bspvt, prt};
 use kage_gpu::bspvt::{BspvtShader, Mode};
 use kage_gpu::prt::PrtShader;
+use std::sync::Arc;
 use std::sync::atomic::Ordering;
 use std::time::Instant;
 
@@ -208,7 +209,7 @@ fn patch(ed: &mut Editor, instance: usize, first: usize, data: ChunkData, patche
     match data {
         ChunkData::Trees(records) => {
             // Copy on write: an indirect job may still hold the previous trees.
-            let bake = std::sync::Arc::make_mut(
+            let bake = Arc::make_mut(
                 ed.bakes.bspvt.get_or_insert_with(|| placeholder_trees(&counts, ed.options.bspvt).into()),
             );
             if !fits(&bake.instances.iter().map(bspvt::BakedInstance::vertices).collect::<Vec<_>>()) {
@@ -342,7 +343,6 @@ fn take(ed: &mut Editor, landed: Landed, patched: &mut [bool; 2]) {
     match landed {
         Landed::Chunk(instance, first, data) => return patch(ed, instance, first, data, patched),
         Landed::Bspvt(Ok((bake, stats))) => {
-            ed.stats.bake_rate[0] = stats.vertices_baked as f64 / stats.seconds.max(1e-9);
             ed.stats.runs[0] = Some(stats);
             ed.info(format!(
                 "BSPVT: {} cached, {} cold, {} warm chunks ({} vertices) in {:.2} s",
@@ -353,7 +353,6 @@ fn take(ed: &mut Editor, landed: Landed, patched: &mut [bool; 2]) {
             upload_bspvt(ed);
         }
         Landed::Prt(Ok((bake, stats))) => {
-            ed.stats.bake_rate[1] = stats.vertices_baked as f64 / stats.seconds.max(1e-9);
             ed.stats.runs[1] = Some(stats);
             ed.info(format!("PRT: {} cached, {} cold chunks in {:.2} s", stats.cached, stats.cold, stats.seconds));
             ed.bakes.prt = Some(bake);
@@ -452,7 +451,7 @@ fn land(ed: &mut Editor, values: VertexValues, start: Instant) {
 /// environment), with what it reads copied.
 struct Background {
     flat: kage_engine::scene::FlatScene,
-    trees: Option<std::sync::Arc<bspvt::Bake>>,
+    trees: Option<Arc<bspvt::Bake>>,
     method: Method,
     eye: Vec3,
 }
@@ -564,6 +563,16 @@ pub fn indirect_system(ed: &mut Editor) {
         ed.workers.indirect = None;
         return;
     }
+    if ed.flat.unlit().is_some() {
+        // Nothing lights the scene, so nothing bounces: no gather, and no bounce of a light
+        // since deleted.
+        ed.workers.indirect = None;
+        if !ed.indirect_values.is_empty() {
+            ed.indirect_values.clear();
+            compose(ed);
+        }
+        return;
+    }
     let landed = ed.workers.indirect.as_ref().map(|w| w.results()).unwrap_or_default();
     if let Some(last) = landed.into_iter().last() {
         ed.indirect_values = last.values;
@@ -591,24 +600,45 @@ pub fn shading(ed: &Editor) -> bool {
     ed.workers.shading.is_some()
 }
 
-/// What the current method offers to light glossy hits toward the cache's records.
-fn glossy_direct(ed: &Editor) -> GlossyDirect {
-    match ed.method {
-        // Baked: glossy hits reflect the polygonal lights toward the records (the environment's
-        // part of them is left out of the bounce here; `kage render` includes it).
-        Method::Bspvt | Method::Baked => {
-            GlossyDirect::Ltc(ed.bakes.bspvt.clone().filter(|b| fits(ed, &b.instances, |i| i.offsets.len() - 1)))
-        }
+/// How the current method lights glossy hits toward the cache's records.
+fn hit_light(ed: &Editor) -> HitLight {
+    let trees = || ed.bakes.bspvt.clone().filter(|b| fits(ed, &b.instances, |i| i.offsets.len() - 1));
+    HitLight::Method(match ed.method {
+        Method::Baked => match baked_parts(ed, trees()) {
+            Some(parts) => return HitLight::Baked(Box::new(parts)),
+            // No environment shaded yet: the baked look is the polygonal lights alone.
+            None => GlossyDirect::Ltc(trees()),
+        },
+        Method::Bspvt => GlossyDirect::Ltc(trees()),
         Method::LtcUnshadowed => GlossyDirect::Ltc(None),
         Method::Prt | Method::PrtSelf => GlossyDirect::PerVertex,
         Method::LtcExactVis | Method::Reference => GlossyDirect::Reference,
+    })
+}
+
+/// The baked look's parts as [`baked`] shades them, where it shades the environment: the PRT
+/// transfer fits the snapshot and the map is prefiltered. Polygonal lights without fitting
+/// trees are lit unshadowed, as the view shows them.
+fn baked_parts(ed: &Editor, trees: Option<Arc<bspvt::Bake>>) -> Option<BakedParts> {
+    let (bake, lighting, prefiltered) =
+        (ed.bakes.prt.as_ref()?, ed.bakes.lighting.as_ref()?, ed.memo.prefiltered.as_ref()?);
+    let n = kage_engine::math::sh::num_coeffs(bake.order);
+    if !fits(ed, &bake.instances, |t| t.len() / n) {
+        return None;
     }
+    let counts = || (0..ed.flat.instances.len()).map(|i| ed.flat.vertex_count(i)).collect::<Vec<_>>();
+    let bspvt = trees.or_else(|| {
+        let unshadowed = || Arc::new(placeholder_trees(&counts(), ed.options.bspvt));
+        (!ed.flat.lights.is_empty()).then(unshadowed)
+    });
+    let prt = (bake.clone(), lighting.clone(), ed.options.prt);
+    Some(BakedParts { bspvt, prt, prefiltered: prefiltered.clone() })
 }
 
 fn spawn_indirect(ed: &mut Editor) -> Worker<Indirect> {
     let job = Job {
         scene: ed.method.lit(&ed.scene),
-        glossy: glossy_direct(ed),
+        glossy: hit_light(ed),
         direct: ed.direct.clone(),
         eye: ed.orbit.eye(),
         settings: ed.options.cache,

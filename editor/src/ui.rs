@@ -505,12 +505,18 @@ fn bake_panel(ui: &mut egui::Ui, ed: &mut Editor) {
             ed.cancel_bake();
         }
     } else {
-        let state = match (&ed.bakes.bspvt, ed.bakes.bspvt_stale) {
-            (Some(_), false) => "BSPVT baked",
-            (Some(_), true) => "BSPVT stale",
-            (None, _) => "BSPVT not baked",
+        let bspvt = match (&ed.bakes.bspvt, ed.bakes.bspvt_stale) {
+            _ if ed.flat.lights.is_empty() => "no polygonal light",
+            (Some(_), false) => "baked",
+            (Some(_), true) => "stale",
+            (None, _) => "not baked",
         };
-        ui.label(format!("{state}; PRT {}", if ed.bakes.prt.is_some() { "baked" } else { "not baked" }));
+        let prt = match &ed.bakes.prt {
+            _ if ed.flat.environment.is_none() => "no environment",
+            Some(_) => "baked",
+            None => "not baked",
+        };
+        ui.label(format!("BSPVT {bspvt}; PRT {prt}"));
         if ui.button("Bake").clicked() {
             ed.bake_now();
         }
@@ -535,12 +541,21 @@ fn statistics(ui: &mut egui::Ui, ed: &Editor) {
     let s = ed.stats;
     ui.label(format!("frame {:.1} ms, shading {:.1} ms", 1e3 * s.frame, 1e3 * s.shading));
     ui.label(format!("edit to shaded frame {:.1} ms", 1e3 * s.edit_to_shade));
-    ui.label(format!("bake: BSPVT {:.0} vertices/s, PRT {:.0} vertices/s", s.bake_rate[0], s.bake_rate[1]));
+    ui.label(format!("bake: BSPVT {}, PRT {}", bake_rate(s.runs[0].as_ref()), bake_rate(s.runs[1].as_ref())));
     ui.label(format!("shader reload {:.1} ms", 1e3 * s.shader_reload));
     let verts: usize = ed.values.iter().map(Vec::len).sum();
     ui.label(format!("{verts} vertices, {} lights", ed.flat.lights.len()));
     if let Some(e) = &ed.shader_error {
         ui.colored_label(egui::Color32::LIGHT_RED, format!("shader error: {e}"));
+    }
+}
+
+/// A technique's last bake rate, or why there is none.
+fn bake_rate(run: Option<&kage_bake_db::RunStats>) -> String {
+    match run {
+        Some(r) if r.vertices_baked > 0 => format!("{:.0} vertices/s", r.vertices_baked as f64 / r.seconds.max(1e-9)),
+        Some(_) => "all cached".into(),
+        None => "—".into(),
     }
 }
 

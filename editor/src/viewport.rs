@@ -474,7 +474,7 @@ impl Viewport {
         };
         let sun = lights.and_then(|l| l.environment.as_ref()).and_then(|e| e.sun.as_ref());
         if let Some(s) = sun.filter(|_| self.lit.is_some()) {
-            self.render_sun(gpu, flat, s.sun.direction);
+            self.render_sun(gpu, flat, &s.sun);
         }
     }
 
@@ -493,18 +493,18 @@ impl Viewport {
         }
         self.vertex_sun = sun.map(|s| s.values.clone());
         if let Some(s) = sun {
-            self.render_sun(gpu, flat, s.sun.direction);
+            self.render_sun(gpu, flat, &s.sun);
         }
     }
 
     /// Renders the sun's depth map of every mesh and light polygon (the shadow rays of `kage
     /// render` see the lights too).
-    fn render_sun(&mut self, gpu: &Gpu, flat: &FlatScene, direction: Vec3) {
+    fn render_sun(&mut self, gpu: &Gpu, flat: &FlatScene, sun: &kage_engine::prt::sun::Sun) {
         // The map depends on the geometry and the sun only: a camera or light move keeps it.
-        if self.sun.holds(direction) {
+        if self.sun.holds(sun) {
             return;
         }
-        let clip = self.sun.aim(direction, flat.bounding_sphere());
+        let clip = self.sun.aim(sun, flat.bounding_sphere());
         let view = View { sun_clip: clip.to_cols_array_2d(), ..Zeroable::zeroed() };
         // The pass binds the view with a stand-in map: it draws into the real one.
         gpu.queue.write_buffer(&self.uniform, 0, bytemuck::bytes_of(&view));

@@ -340,6 +340,55 @@ fn the_indirect_term_waits_for_the_bakes() {
     assert_eq!(gathers, 1, "{:#?}", ed.log);
 }
 
+/// The baked look's bounce lights glossy hits as `kage render` does, the environment's diffuse
+/// term, reflection and sun included: on an imported scene (every material glossy) under a sky,
+/// the editor's bounce equals one gathered with the baked look's `Look::toward`, and lighting
+/// those hits with the polygonal light alone would lose much of it.
+#[test]
+fn the_baked_bounce_lights_glossy_hits_with_the_environment_too() {
+    use kage_editor::systems::gathering;
+    use kage_engine::cache::{
+        self,
+        record::{Glossy, GlossyDirect, Source},
+    };
+    use kage_engine::shading::baked::{Bakes, Look};
+    let dir = scratch("indirect-environment");
+    let mut scene = import::import(&asset("scenes/textured_materials.gltf"), Default::default()).unwrap();
+    let sky = kage_engine::scene::EnvMap::load(&asset("envmaps/sky.hdr")).unwrap();
+    scene.set_environment(kage_engine::scene::EnvironmentLight::new(sky));
+    let mut o = options(&dir, None, None);
+    o.cache.rays = 64;
+    o.indirect = true;
+    let mut h = harness(scene, o);
+    let landed = |ed: &Editor| settled(ed) && !ed.indirect_values.is_empty() && !gathering(ed);
+    step_until(&mut h, "the bakes and the indirect term", landed);
+    let ed = &h.state().editor;
+    assert!(errors(ed).is_empty(), "{:?}", errors(ed));
+    let renderer = kage_engine::reference::Renderer::new(&ed.scene);
+    let flat = &renderer.flat;
+    let pre = kage_engine::prt::prefilter::Prefiltered::new(flat.environment.as_ref().unwrap());
+    let (lighting, eye) = (ed.bakes.lighting.as_ref().unwrap(), ed.orbit.eye());
+    let bakes = Bakes {
+        bspvt: ed.bakes.bspvt.as_deref(),
+        prt: Some(prt::Parts { bake: ed.bakes.prt.as_ref().unwrap(), lighting, settings: &ed.options.prt }),
+        prefiltered: Some(&pre),
+    };
+    let look = Look::prepare(&ed.scene, flat, bakes, eye, &mut prt::SilhouetteMemo::default());
+    let bounce = |glossy: Glossy| {
+        let src = Source { renderer: &renderer, direct: &ed.direct, glossy };
+        cache::shade_vertices(&src, &cache::place_at_vertices(&src, &ed.options.cache), eye)
+    };
+    let toward = |i, corners, bary, to| look.toward(i, corners, bary, to);
+    let expected = bounce(Glossy::Toward(&toward));
+    let lights_alone = GlossyDirect::Ltc(ed.bakes.bspvt.clone()).with(flat, bounce);
+    let total = |v: &[Vec<Vec3>]| v.iter().flatten().map(|x| x.element_sum() as f64).sum::<f64>();
+    let off =
+        ed.indirect_values.iter().flatten().zip(expected.iter().flatten()).map(|(a, b)| (*a - *b).abs().max_element());
+    let (worst, n) = (off.fold(0.0f32, f32::max) as f64, expected.iter().map(Vec::len).sum::<usize>());
+    assert!(worst <= 1e-4 * total(&expected) / n as f64, "off by up to {worst}");
+    assert!(total(&lights_alone) < 0.8 * total(&expected), "{} vs {}", total(&lights_alone), total(&expected));
+}
+
 #[test]
 fn the_cached_indirect_term_lands_in_the_background_follows_edits_and_persists() {
     use kage_editor::systems::gathering;
@@ -863,15 +912,23 @@ fn lights_are_added_groups_duplicated_deleted_and_dropped_files_added_each_one_u
 #[test]
 fn an_unlit_scene_says_why_it_is_black() {
     let d = scratch("unlit");
+    use kage_editor::systems::gathering;
     let mut o = options(&d, None, None);
     o.bake_on_start = false;
+    o.indirect = true;
     let mut scene = kage_engine::scene::Scene::new("test:unlit");
     let mesh = kage_engine::scene::shapes::cuboid(Vec3::splat(0.5));
     let grey = kage_engine::scene::Material::lambertian(Vec3::splat(0.5));
     scene.add_object("box", mesh, grey, glam::Affine3A::IDENTITY);
-    let h = harness(scene, o);
+    let mut h = harness(scene, o);
     let errors = errors(&h.state().editor);
     assert!(errors.iter().any(|e| e.contains("nothing lights it") && e.contains("Quad light")), "{errors:?}");
+    for _ in 0..5 {
+        h.step();
+    }
+    let ed = &h.state().editor;
+    assert!(ed.indirect && !gathering(ed) && ed.indirect_values.is_empty(), "nothing lit bounces: no gather");
+    h.get_by_label("BSPVT no polygonal light; PRT no environment");
 }
 
 /// Receivers are refined before each bake, from the file's meshes, as `kage bake` refines them

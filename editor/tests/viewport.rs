@@ -248,7 +248,9 @@ fn reflection_drawn(map: &str) -> (f64, f64, f64) {
             Vec3::ZERO
         };
         if let Some(sun) = &sun {
-            let lit = sun_light(&flat, &sun.sun, &bvh, (i, hit.corners, hit.weights), hit.position, eye).0;
+            let at = (i, hit.corners, hit.weights);
+            // Many rays over a wide sun's disc: the depth map's filter stands for their mean.
+            let lit = sun_light(&flat, &sun.sun, &bvh, at, hit.position, eye, 64).0;
             rest += lit - hit.interpolate(&sun.values[i]);
         }
         rest + lobes.shade(&flat, hit, eye) + reflected * hit.interpolate(&specular.weights[i])

@@ -136,14 +136,16 @@ fn turned_and_mirrored_groups_shade_like_geometry_baked_in_place() {
     }
 }
 
-/// A sky of 256×128 texels with a 2×2-texel sun `contrast` times the sky's mean, at 50°.
-fn sky_with_sun(contrast: f32) -> EnvironmentLight {
+/// A sky of 256×128 texels with a `side`×`side`-texel sun `contrast` times the sky's mean, at
+/// 50° (2 texels: 1.6° in radius, shadowed hard; 8: 5.8°, with a penumbra).
+fn sky_with_sun(contrast: f32, side: usize) -> EnvironmentLight {
     let (w, h) = (256, 128);
     let texels = (0..w * h)
         .map(|k| {
             let (x, y) = (k % w, k / w);
             let sky = Vec3::new(0.4, 0.6, 1.0) * (1.2 - y as f32 / h as f32);
-            if (40..42).contains(&y) && (96..98).contains(&x) { sky + Vec3::splat(contrast) } else { sky }
+            let sun = (40..40 + side).contains(&y) && (96..96 + side).contains(&x);
+            if sun { sky + Vec3::splat(contrast) } else { sky }
         })
         .collect();
     EnvironmentLight::new(EnvMap::new(w, h, texels, "sky with a sun".into()).unwrap())
@@ -159,7 +161,7 @@ fn a_bright_sun_is_shaded_apart_with_its_shadow() {
     let mut table = String::new();
     for (metallic, roughness, bound) in [(0.0, 0.5, 0.08), (1.0, 0.2, 0.08), (1.0, 0.05, 0.15)] {
         let m = Material { base_color: Vec3::new(0.95, 0.7, 0.35), metallic, roughness, specular: 1.0 };
-        let scene = sphere_over_ground(m, sky_with_sun(1e5));
+        let scene = sphere_over_ground(m, sky_with_sun(1e5, 2));
         let all = |v: VertexValues| v.into_iter().flatten().collect::<Vec<Vec3>>();
         let (ours, truth) = (all(look(&scene, 6, 1024)), all(reference(&scene, 1024)));
         let e = kage_engine::math::relative_rmse(&ours, &truth);
@@ -167,6 +169,25 @@ fn a_bright_sun_is_shaded_apart_with_its_shadow() {
         assert!(e < bound, "metallic {metallic}, roughness {roughness}: {e}\n{table}");
     }
     println!("{table}");
+}
+
+/// A wide sun (8×8 texels, 5.8° in radius, as `studio.hdr`'s lamp is 6.2°) casts a penumbra:
+/// ground vertices along the sphere's shadow edge see part of it (one ray through its centre
+/// saw all of it or nothing), and the ground's light stays close to the reference's.
+#[test]
+fn a_wide_sun_casts_a_penumbra() {
+    let scene = sphere_over_ground(Material::lambertian(Vec3::splat(0.8)), sky_with_sun(1e3, 8));
+    let flat = flatten(&scene);
+    let sun = prt::sun::split_light(flat.environment.as_ref().unwrap()).expect("the sky has a sun").0;
+    assert!(sun.softness() > 0.0, "{sun:?}");
+    let (shadowed, open) = kage_engine::shading::baked::sun_vertices(&flat, &sun, EYE);
+    let seen: Vec<f32> = shadowed[0].iter().zip(&open[0]).filter(|(_, o)| o.x > 0.0).map(|(s, o)| s.x / o.x).collect();
+    let partly = seen.iter().filter(|&&f| f > 0.05 && f < 0.95).count();
+    assert!(partly >= 12, "{partly} of the ground's vertices see part of the sun");
+    let (ours, truth) = (look(&scene, 6, 1024), reference(&scene, 1024));
+    let e = kage_engine::math::relative_rmse(&ours[0], &truth[0]);
+    println!("the ground under a wide sun: {:.2} % from the reference, {partly} vertices in the penumbra", 100.0 * e);
+    assert!(e < 0.05, "{e}");
 }
 
 /// What one frame's environment part is shaded from.
@@ -213,7 +234,7 @@ fn shade_through(
 #[test]
 fn the_environment_part_is_reused_while_only_a_light_moves() {
     let gold = Material { base_color: Vec3::new(0.95, 0.7, 0.35), metallic: 1.0, roughness: 0.3, specular: 1.0 };
-    let mut scene = sphere_over_ground(gold, sky_with_sun(1e3));
+    let mut scene = sphere_over_ground(gold, sky_with_sun(1e3, 2));
     let quad = vec![
         Vec3::new(-0.5, 0.0, -0.5),
         Vec3::new(0.5, 0.0, -0.5),

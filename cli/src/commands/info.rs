@@ -108,11 +108,13 @@ fn describe(scene: &kage_engine::scene::Scene) -> Result<String, std::fmt::Error
             let (d, e) = (sun.direction, sun.irradiance);
             writeln!(
                 out,
-                "  sun (shaded apart by the baked look): toward ({:.3}, {:.3}, {:.3}), {:.2}° radius, irradiance ({:.1}, {:.1}, {:.1})",
+                "  sun (shaded apart by the baked look): toward ({:.3}, {:.3}, {:.3}), {:.2}° radius, its power within {:.2}° ({} shadow), irradiance ({:.1}, {:.1}, {:.1})",
                 d.x,
                 d.y,
                 d.z,
                 sun.angular_radius.to_degrees(),
+                sun.spread.to_degrees(),
+                if sun.softness() > 0.0 { "soft" } else { "hard" },
                 e.x,
                 e.y,
                 e.z

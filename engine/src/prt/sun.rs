@@ -31,9 +31,48 @@ pub struct Sun {
     pub irradiance: Vec3,
     /// Angular radius of a disc of the patch's solid angle (radians).
     pub angular_radius: f32,
+    /// Angular radius of a uniform disc whose power spreads about the direction as the
+    /// patch's does (radians; √2 × the power-weighted RMS angle): what its shadows' penumbrae
+    /// follow. Less than [`Sun::angular_radius`] when the patch's dim rim holds little power.
+    pub spread: f32,
 }
 
+/// Below this spread ([`Sun::spread`], radians, 2°) one ray through the sun's centre decides its shadow:
+/// its penumbra is narrow (`sky.hdr`'s sun, 1.1°: 4 cm at 1 m). Above it the penumbra shows
+/// (`studio.hdr`'s brightest lamp, 6.2°: a panel 3 m up casts a 30 cm one).
+pub const SOFT_RADIUS: f32 = 0.0349;
+/// Shadow rays toward a sun wider than [`SOFT_RADIUS`] per vertex.
+pub const VERTEX_RAYS: usize = 16;
+/// Shadow rays toward a sun wider than [`SOFT_RADIUS`] per image sample or gather hit: a
+/// pixel's samples (16 in `kage render`'s images) and a record's hits each turn the pattern
+/// their own way, and average.
+pub const SAMPLE_RAYS: usize = 4;
+
 impl Sun {
+    /// The tangent of the angle the sun's shadow widens by on each side of its edge, per unit
+    /// of distance to the occluder: 0 for a sun under [`SOFT_RADIUS`], shadowed hard.
+    pub fn softness(&self) -> f32 {
+        if self.spread > SOFT_RADIUS { self.spread.tan() } else { 0.0 }
+    }
+
+    /// The directions a point's shadow rays take toward the sun: its centre for a hard sun,
+    /// else `rays` over its disc at equal areas (a Vogel spiral), the spiral turned by `turn`
+    /// (a fraction of a full turn, 0 to 1; chosen per point, the pattern's offsets average into
+    /// a penumbra instead of drawing `rays` copies of the shadow).
+    pub fn shadow_directions(&self, rays: usize, turn: f32) -> impl Iterator<Item = Vec3> + use<> {
+        let softness = self.softness();
+        let rays = if softness > 0.0 { rays } else { 1 };
+        let (direction, frame) = (self.direction, crate::math::frame::Frame::from_normal(self.direction));
+        (0..rays).map(move |k| {
+            if rays == 1 {
+                return direction;
+            }
+            let (r, angle) = vogel(k, rays, turn);
+            let offset = Vec3::new(angle.cos(), angle.sin(), 0.0) * (r * softness);
+            frame.to_world(Vec3::Z + offset).normalize()
+        })
+    }
+
     /// This map-frame sun under `env`'s rotation and intensity.
     pub fn in_world(self, env: &EnvironmentLight) -> Self {
         Self {
@@ -42,6 +81,14 @@ impl Sun {
             ..self
         }
     }
+}
+
+/// Point `k` of an `n`-point Vogel spiral on the unit disc turned by `turn` turns: its radius
+/// and angle. Point `k` sits at the radius halving the area of its ring (`√((k + ½) / n)`), so
+/// each holds an equal area.
+fn vogel(k: usize, n: usize, turn: f32) -> (f32, f32) {
+    const GOLDEN_ANGLE: f32 = 2.399_963;
+    (((k as f32 + 0.5) / n as f32).sqrt(), k as f32 * GOLDEN_ANGLE + turn * 2.0 * PI)
 }
 
 fn texel_solid_angle(y: usize, w: usize, h: usize) -> f32 {
@@ -99,7 +146,19 @@ pub fn split(map: &EnvMap) -> Option<(Sun, EnvMap)> {
     patch.iter().for_each(|&i| texels[i] = texels[i].min(fill));
     let residual = EnvMap::new(w, h, texels, map.source.clone()).ok()?;
     let angular_radius = (1.0 - omega / (2.0 * PI)).clamp(-1.0, 1.0).acos();
-    Some((Sun { direction: weighted.normalize(), irradiance, angular_radius }, residual))
+    let direction = weighted.normalize();
+    // Each texel's power about the direction: its centre's angle, plus a square texel's own
+    // second moment (Ω/6).
+    let (mut moment, mut weight) = (0.0, 0.0);
+    for &i in &patch {
+        let omega_i = texel_solid_angle(i / w, w, h);
+        let p = luminance((map.texels[i] - fill).max(Vec3::ZERO) * omega_i);
+        let uv = Vec2::new(((i % w) as f32 + 0.5) / w as f32, ((i / w) as f32 + 0.5) / h as f32);
+        moment += p * (uv_to_dir(uv).angle_between(direction).powi(2) + omega_i / 6.0);
+        weight += p;
+    }
+    let spread = (2.0 * moment / weight.max(f32::MIN_POSITIVE)).sqrt();
+    Some((Sun { direction, irradiance, angular_radius, spread }, residual))
 }
 
 /// `env` without its sun (a light of the residual map), and the sun in world space.
@@ -146,11 +205,58 @@ mod tests {
         assert!(peak < 1.0, "the residual keeps no sun: {peak}");
     }
 
+    /// A sun whose 3×3 core holds nearly all its power spreads less than its patch, which a
+    /// dim rim out to 5×5 texels widens: its shadows follow the core.
+    #[test]
+    fn a_dim_rim_widens_the_patch_but_not_the_spread() {
+        let dir = Vec3::new(0.3, 0.8, -0.5).normalize();
+        let core = split(&sky_with_sun(dir, 5e4)).expect("a sun").0;
+        let (w, h) = (128, 64);
+        let mut rimmed = sky_with_sun(dir, 5e4);
+        let uv = dir_to_uv(dir);
+        let (cx, cy) = ((uv.x * w as f32) as isize, (uv.y * h as f32) as isize);
+        for (i, t) in rimmed.texels.iter_mut().enumerate() {
+            let (x, y) = ((i % w) as isize, (i / w) as isize);
+            if (x - cx).abs().max((y - cy).abs()) == 2 {
+                *t += Vec3::splat(1e3);
+            }
+        }
+        let sun = split(&rimmed).expect("a sun").0;
+        assert!(sun.angular_radius > 1.5 * core.angular_radius, "{} vs {}", sun.angular_radius, core.angular_radius);
+        assert!(sun.spread < 0.75 * sun.angular_radius, "{} vs {}", sun.spread, sun.angular_radius);
+        assert!((core.spread / core.angular_radius - 1.0).abs() < 0.25, "a uniform patch: {core:?}");
+    }
+
     #[test]
     fn a_sky_without_a_dominant_source_has_no_sun() {
         assert!(split(&sky_with_sun(Vec3::Y, 0.5)).is_none(), "a faint patch is no sun");
         let uniform = EnvMap::new(8, 4, vec![Vec3::ONE; 32], "uniform".into()).unwrap();
         assert!(split(&uniform).is_none(), "a patch covering the sky is no sun");
+    }
+
+    #[test]
+    fn shadow_rays_cover_a_wide_suns_disc_and_a_narrow_ones_centre() {
+        let sun = |degrees: f32| Sun {
+            direction: Vec3::new(0.3, 0.9, -0.2).normalize(),
+            irradiance: Vec3::ONE,
+            angular_radius: degrees.to_radians(),
+            spread: degrees.to_radians(),
+        };
+        let hard = sun(1.1);
+        assert_eq!(hard.softness(), 0.0);
+        assert_eq!(hard.shadow_directions(VERTEX_RAYS, 0.37).collect::<Vec<_>>(), vec![hard.direction]);
+        let wide = sun(6.2);
+        for turn in [0.0, 0.25, 0.9] {
+            let dirs: Vec<Vec3> = wide.shadow_directions(VERTEX_RAYS, turn).collect();
+            assert_eq!(dirs.len(), VERTEX_RAYS);
+            let within = dirs.iter().all(|d| d.angle_between(wide.direction) <= wide.spread * 1.0001);
+            let mean = dirs.iter().sum::<Vec3>().normalize();
+            assert!(within && mean.angle_between(wide.direction) < 0.1 * wide.spread, "{turn}");
+            // Equal areas: an edge through the centre hides half of the rays, give or take one.
+            let side = wide.direction.any_orthonormal_vector();
+            let hidden = dirs.iter().filter(|d| d.dot(side) > 0.0).count() as i64;
+            assert!((hidden - VERTEX_RAYS as i64 / 2).abs() <= 1, "{turn}: {hidden}");
+        }
     }
 
     #[test]

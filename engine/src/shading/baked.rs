@@ -15,7 +15,7 @@
 use crate::accel::{SceneBvh, offset_ray_origin};
 use crate::bspvt;
 use crate::math::frame::Frame;
-use crate::prt::{self, glossy::Lobe, glossy::Specular, prefilter::Prefiltered, sun::Sun};
+use crate::prt::{self, glossy::Lobe, glossy::Specular, prefilter::Prefiltered, sun, sun::Sun};
 use crate::raster::{self, SurfaceHit};
 use crate::reference::Renderer;
 use crate::scene::{Camera, FlatScene, VertexValues};
@@ -214,7 +214,7 @@ impl<'a> Look<'a> {
                         let poly = self.polygonal.as_ref().map_or(Vec3::ZERO, |poly| poly.values[i][v]);
                         let env = environment.map_or(Vec3::ZERO, |e| {
                             let (p, _) = self.flat.vertex(i, v);
-                            e[i][v] + self.sun_at(i, [v; 3], [1.0, 0.0, 0.0], p, self.eye)
+                            e[i][v] + self.sun_at(i, [v; 3], [1.0, 0.0, 0.0], p, self.eye, sun::VERTEX_RAYS)
                         });
                         poly + env
                     })
@@ -271,7 +271,7 @@ impl<'a> Look<'a> {
         if self.environment.is_none() {
             return Vec3::ZERO;
         }
-        self.environment_without_sun(i, corners, bary, p, to) + self.sun_at(i, corners, bary, p, to)
+        self.environment_without_sun(i, corners, bary, p, to) + self.sun_at(i, corners, bary, p, to, sun::SAMPLE_RAYS)
     }
 
     /// [`Self::environment_at`] without the sun.
@@ -298,9 +298,10 @@ impl<'a> Look<'a> {
         (d, env.specular(self.flat).map_or((Vec3::ZERO, 0.0), |s| s.parts(i, corners, bary, p, to, o)))
     }
 
-    /// The sun's light leaving a point toward `to` ([`sun_light`]).
-    fn sun_at(&self, i: usize, corners: [usize; 3], bary: [f32; 3], p: Vec3, to: Vec3) -> Vec3 {
-        self.sun.as_ref().map_or(Vec3::ZERO, |(sun, bvh)| sun_light(self.flat, sun, bvh, (i, corners, bary), p, to).0)
+    /// The sun's light leaving a point toward `to` ([`sun_light`], `rays` toward a soft sun).
+    fn sun_at(&self, i: usize, corners: [usize; 3], bary: [f32; 3], p: Vec3, to: Vec3, rays: usize) -> Vec3 {
+        let light = |(sun, bvh): &(Sun, SceneBvh)| sun_light(self.flat, sun, bvh, (i, corners, bary), p, to, rays).0;
+        self.sun.as_ref().map_or(Vec3::ZERO, light)
     }
 
     /// A `width × height` image with `spp` samples per pixel through `camera`: the material per
@@ -332,7 +333,8 @@ impl<'a> Look<'a> {
                         s.at(hit.instance, hit.corners, hit.weights, hit.position, self.eye, open)
                     });
                     let albedo = albedo_at(self.flat, hit, self.eye);
-                    let sun = self.sun_at(hit.instance, hit.corners, hit.weights, hit.position, self.eye);
+                    let sun =
+                        self.sun_at(hit.instance, hit.corners, hit.weights, hit.position, self.eye, sun::SAMPLE_RAYS);
                     albedo * light + interpolated(hit, albedo) + s + sun
                 })
             }
@@ -361,13 +363,15 @@ pub fn sun_light(
     at: (usize, [usize; 3], [f32; 3]),
     p: Vec3,
     to: Vec3,
+    rays: usize,
 ) -> (Vec3, bool) {
-    let (open, seen) = sun_parts(flat, sun, bvh, at, p, to);
-    (if seen { open } else { Vec3::ZERO }, seen)
+    let (open, seen) = sun_parts(flat, sun, bvh, at, p, to, rays);
+    (open * seen, seen > 0.0)
 }
 
-/// [`sun_light`] with nothing in the way (zero below the point's horizon), and whether the
-/// sun is seen.
+/// [`sun_light`] with nothing in the way (zero below the point's horizon), and the share of the
+/// sun seen: of its shadow rays ([`Sun::shadow_directions`], turned by a hash of `p`), those
+/// above the point's horizon that escape.
 fn sun_parts(
     flat: &FlatScene,
     sun: &Sun,
@@ -375,18 +379,35 @@ fn sun_parts(
     (i, corners, bary): (usize, [usize; 3], [f32; 3]),
     p: Vec3,
     to: Vec3,
-) -> (Vec3, bool) {
+    rays: usize,
+) -> (Vec3, f32) {
     let n = (0..3).map(|c| flat.vertex(i, corners[c]).1 * bary[c]).sum::<Vec3>().normalize_or_zero();
     let frame = Frame::from_normal(n);
     let wi = frame.to_local(sun.direction);
     if wi.z <= 0.0 {
-        return (Vec3::ZERO, false);
+        return (Vec3::ZERO, 0.0);
     }
-    let seen = !bvh.occluded_past_touching(offset_ray_origin(p, n, sun.direction), sun.direction, f32::INFINITY);
+    let seen = sun_seen(sun, bvh, p, n, rays);
     let mut material = flat.material_at(i, corners, bary);
     material.roughness = material.roughness.max((SUN_ALPHA_FLOOR * sun.angular_radius).sqrt());
     let wo = frame.to_local((to - p).normalize_or_zero());
     (crate::shading::Bsdf::new(&material, wo).eval(wo, wi) * wi.z * sun.irradiance, seen)
+}
+
+/// The share of `sun` a point `p` (normal `n`) sees past `bvh`: its shadow rays turned by a
+/// hash of the point's position, so that neighbouring pixels and vertices average the
+/// pattern's offsets into a penumbra. A ray below the point's horizon is blocked by the
+/// surface itself.
+fn sun_seen(sun: &Sun, bvh: &SceneBvh, p: Vec3, n: Vec3, rays: usize) -> f32 {
+    let bits = p.to_array().iter().fold(0u64, |h, c| crate::math::rng::mix64(h ^ c.to_bits() as u64));
+    let turn = (bits >> 40) as f32 / (1u64 << 24) as f32;
+    let (mut seen, mut cast) = (0, 0);
+    for d in sun.shadow_directions(rays, turn) {
+        cast += 1;
+        let escapes = d.dot(n) > 0.0 && !bvh.occluded_past_touching(offset_ray_origin(p, n, d), d, f32::INFINITY);
+        seen += escapes as u32;
+    }
+    seen as f32 / cast as f32
 }
 
 /// Per instance and vertex: the sun's light toward `eye` as the look adds it, and as it would
@@ -397,8 +418,9 @@ pub fn sun_vertices(flat: &FlatScene, sun: &Sun, eye: Vec3) -> (VertexValues, Ve
     (0..flat.instances.len())
         .map(|i| {
             let at = |v: usize| {
-                let (open, seen) = sun_parts(flat, sun, &bvh, (i, [v; 3], [1.0, 0.0, 0.0]), flat.vertex(i, v).0, eye);
-                (if seen { open } else { Vec3::ZERO }, open)
+                let at = (i, [v; 3], [1.0, 0.0, 0.0]);
+                let (open, seen) = sun_parts(flat, sun, &bvh, at, flat.vertex(i, v).0, eye, sun::VERTEX_RAYS);
+                (open * seen, open)
             };
             let both: Vec<(Vec3, Vec3)> = (0..flat.vertex_count(i)).into_par_iter().map(at).collect();
             both.into_iter().unzip::<_, _, Vec<Vec3>, Vec<Vec3>>()

@@ -516,6 +516,10 @@ fn indirect(
     glossy: Glossy<'_>,
     eye: Vec3,
 ) -> Result<VertexValues> {
+    if renderer.flat.unlit().is_some() {
+        crate::emit("indirect: skipped, nothing lights the scene\n");
+        return Ok(direct.iter().map(|v| vec![Vec3::ZERO; v.len()]).collect());
+    }
     let start = Instant::now();
     let s = kage_engine::cache::Settings {
         order: args.hsh_order as usize,
