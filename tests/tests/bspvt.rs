@@ -5,6 +5,7 @@ use kage_engine::bspvt::memo::SubtreeMemo;
 use kage_engine::bspvt::shade::{PointShader, Visibility};
 use kage_engine::bspvt::{self, Settings, bake_vertex, occluder_bvh, reach::Reach, visibility};
 use kage_engine::math::ltc;
+use kage_engine::math::relative_rmse as rel_rmse;
 use kage_engine::reference::{Renderer, Settings as RefSettings, SurfacePoint};
 use kage_engine::scene::import::{ImportOptions, import};
 use kage_engine::scene::{Material, Scene, flatten, shapes};
@@ -13,12 +14,6 @@ use kage_tests::asset;
 fn quad(h: f32) -> Vec<Vec3> {
     // CCW seen from below: emits towards −Y.
     vec![Vec3::new(-h, 0.0, -h), Vec3::new(h, 0.0, -h), Vec3::new(h, 0.0, h), Vec3::new(-h, 0.0, h)]
-}
-
-fn rel_rmse(x: &[Vec3], r: &[Vec3]) -> f64 {
-    let num: f64 = x.iter().zip(r).map(|(a, b)| (*a - *b).as_dvec3().length_squared()).sum();
-    let den: f64 = r.iter().map(|b| b.as_dvec3().length_squared()).sum();
-    (num / den).sqrt()
 }
 
 /// Shades vertex `v` of instance `i` with all three visibility modes.

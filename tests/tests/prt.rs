@@ -2,6 +2,7 @@
 //! closed forms and the reference integrator. Tolerances are stated where they are used.
 
 use glam::{Affine3A, Quat, Vec3};
+use kage_engine::math::relative_rmse as rel_rmse;
 use kage_engine::prt::{self, Shadows, lighting::Window};
 use kage_engine::reference::{Renderer, Settings};
 use kage_engine::scene::{EnvMap, EnvironmentLight, Material, Scene, environment, flatten, shapes};
@@ -23,10 +24,6 @@ fn reference(scene: &Scene, spp: u32) -> Vec<Vec<Vec3>> {
     let r = Renderer::new(scene);
     let est = r.render_vertices(EYE, &Settings { spp, seed: 11, max_bounces: 0, min_bounces: 0 }, &|_| {});
     est.iter().map(|v| v.iter().map(|e| e.mean).collect()).collect()
-}
-
-fn rel_rmse(x: &[Vec3], r: &[Vec3]) -> f64 {
-    kage_engine::math::relative_rmse(x, r)
 }
 
 /// A `256 × 128` map: uniform `sky` radiance and a 2×2-texel sun of radiance `sun` around `dir`.
