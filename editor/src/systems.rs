@@ -469,7 +469,7 @@ impl Background {
         if vertices <= ed.options.background_shading || !cpu || ed.polygonal_on_gpu() {
             return None;
         }
-        let trees = ed.bakes.bspvt.clone().filter(|b| fits(ed, &b.instances, |i| i.offsets.len() - 1));
+        let trees = ed.bakes.bspvt.clone().filter(|b| trees_fit(ed, b));
         let trees = trees.filter(|_| ed.method != Method::LtcUnshadowed);
         Some(Self { flat: ed.flat.clone(), trees, method: ed.method, eye: ed.orbit.eye() })
     }
@@ -602,7 +602,7 @@ pub fn shading(ed: &Editor) -> bool {
 
 /// How the current method lights glossy hits toward the cache's records.
 fn hit_light(ed: &Editor) -> HitLight {
-    let trees = || ed.bakes.bspvt.clone().filter(|b| fits(ed, &b.instances, |i| i.offsets.len() - 1));
+    let trees = || ed.bakes.bspvt.clone().filter(|b| trees_fit(ed, b));
     HitLight::Method(match ed.method {
         Method::Baked => match baked_parts(ed, trees()) {
             Some(parts) => return HitLight::Baked(Box::new(parts)),
@@ -622,8 +622,7 @@ fn hit_light(ed: &Editor) -> HitLight {
 fn baked_parts(ed: &Editor, trees: Option<Arc<bspvt::Bake>>) -> Option<BakedParts> {
     let (bake, lighting, prefiltered) =
         (ed.bakes.prt.as_ref()?, ed.bakes.lighting.as_ref()?, ed.memo.prefiltered.as_ref()?);
-    let n = kage_engine::math::sh::num_coeffs(bake.order);
-    if !fits(ed, &bake.instances, |t| t.len() / n) {
+    if !transfer_fits(ed, bake) {
         return None;
     }
     let counts = || (0..ed.flat.instances.len()).map(|i| ed.flat.vertex_count(i)).collect::<Vec<_>>();
@@ -654,8 +653,7 @@ fn shade(ed: &mut Editor) -> Option<VertexValues> {
     let eye = ed.orbit.eye();
     match ed.method {
         Method::Bspvt | Method::LtcUnshadowed => {
-            let trees = ed.method == Method::Bspvt
-                && ed.bakes.bspvt.as_deref().is_some_and(|b| fits(ed, &b.instances, |i| i.offsets.len() - 1));
+            let trees = ed.method == Method::Bspvt && ed.bakes.bspvt.as_deref().is_some_and(|b| trees_fit(ed, b));
             Some(polygonal(ed, if trees { Mode::Trees } else { Mode::Unshadowed }, eye))
         }
         Method::LtcExactVis => exact_vis(ed, eye),
@@ -663,6 +661,17 @@ fn shade(ed: &mut Editor) -> Option<VertexValues> {
         Method::Baked => Some(baked(ed, eye)),
         Method::Reference => Some(ed.reference.mean().unwrap_or_else(|| ed.flat.zeros())),
     }
+}
+
+/// True when BSPVT trees fit the current snapshot ([`fits`]).
+fn trees_fit(ed: &Editor, b: &bspvt::Bake) -> bool {
+    fits(ed, &b.instances, |i| i.offsets.len() - 1)
+}
+
+/// True when a PRT transfer fits the current snapshot ([`fits`]).
+fn transfer_fits(ed: &Editor, bake: &prt::Bake) -> bool {
+    let n = kage_engine::math::sh::num_coeffs(bake.order);
+    fits(ed, &bake.instances, |t| t.len() / n)
 }
 
 /// True when a bake's per-instance vertex counts match the current snapshot (a mesh replaced
@@ -709,7 +718,7 @@ fn polygonal(ed: &mut Editor, mode: Mode, eye: Vec3) -> VertexValues {
 /// The complete look per vertex: the polygonal lights (on the GPU when it can), the
 /// environment's diffuse (PRT, with other groups' shadows) and specular terms on the CPU.
 fn baked(ed: &mut Editor, eye: Vec3) -> VertexValues {
-    let trees = ed.bakes.bspvt.as_deref().is_some_and(|b| fits(ed, &b.instances, |i| i.offsets.len() - 1));
+    let trees = ed.bakes.bspvt.as_deref().is_some_and(|b| trees_fit(ed, b));
     let values =
         (!ed.flat.lights.is_empty()).then(|| polygonal(ed, if trees { Mode::Trees } else { Mode::Unshadowed }, eye));
     let bake = ed.bakes.bspvt.as_deref().filter(|_| trees);
@@ -720,8 +729,7 @@ fn baked(ed: &mut Editor, eye: Vec3) -> VertexValues {
     let (Some(bake), Some(light), Some(pre)) = (&ed.bakes.prt, &ed.bakes.lighting, &ed.memo.prefiltered) else {
         return Look::new(&ed.flat, eye, polygonal, None).into_direct();
     };
-    let n = kage_engine::math::sh::num_coeffs(bake.order);
-    if !fits(ed, &bake.instances, |t| t.len() / n) {
+    if !transfer_fits(ed, bake) {
         return Look::new(&ed.flat, eye, polygonal, None).into_direct();
     }
     // A light moved and nothing else: the environment's part is reused.
@@ -786,8 +794,7 @@ fn prt_gpu(ed: &mut Editor, eye: Vec3) -> VertexValues {
     let (Some(bake), Some(light), Some(shader)) = (&ed.bakes.prt, &ed.bakes.lighting, &ed.prt_gpu) else {
         return ed.flat.zeros();
     };
-    let n = kage_engine::math::sh::num_coeffs(bake.order);
-    if !fits(ed, &bake.instances, |t| t.len() / n) {
+    if !transfer_fits(ed, bake) {
         return ed.flat.zeros();
     }
     let shadows = ed.method.prt_shadows().unwrap_or(prt::Shadows::SelfOnly);
