@@ -146,10 +146,10 @@ fn refinement_is_deterministic_on_any_thread_count() {
 }
 
 /// The curve of error against vertices, adaptive (at the default tolerance and at 0.005) against
-/// uniform refinement of the floor, as `docs/benchmarks.md` reports it, with the default trees (64², ε 2), per pixel over geometry
-/// against a 4096-spp reference of the same refined scene (a smooth receiver's new vertices
-/// lie on its Phong surface, so each refinement has its own geometry), and that reference's
-/// own noise:
+/// uniform refinement of the floor, as `docs/benchmarks.md` reports it, with the default trees
+/// (64², ε 2), per pixel over geometry against a 4096-spp reference of the same refined scene (a
+/// smooth receiver's new vertices lie on its Phong surface, so each refinement has its own
+/// geometry), and that reference's own noise:
 /// `cargo test --release -p kage-tests --test receivers error_against_vertices -- --ignored --nocapture --exact`.
 #[test]
 #[ignore]
