@@ -9,8 +9,8 @@
 //! An instance of many triangles (a terrain) is asked in pieces of nearby triangles, each a
 //! pure function of the instance's triangles ([`PIECE`]), so the same holds. Many rays from one
 //! point through one pyramid (a BSPVT tile's texels) first list the few pieces the pyramid can
-//! meet ([`Occluders::seen_from`]) and then ask only those: on a large level a ray no longer
-//! descends the whole terrain's BVH and the top-level tree near its start.
+//! meet ([`Occluders::view`], [`View::narrow`]) and then ask only those, eight boxes at a time:
+//! on a large level a ray no longer descends the whole terrain's BVH, nor the top-level tree.
 
 use super::SceneBvh;
 use super::beam::{self, Beam};
@@ -18,6 +18,7 @@ use super::top_level::{self, TopLevel};
 use crate::scene::Holes;
 use glam::Vec3;
 use std::ops::Range;
+use wide::f32x8;
 
 /// One instance: its pieces and, when it has few triangles, the triangles for a [`Beam`].
 struct Part {
@@ -36,18 +37,10 @@ struct Piece {
 
 /// Triangles per piece at most. An instance with more (a terrain) is cut into pieces of nearby
 /// triangles: a ray from a terrain vertex then descends a piece's shallow BVH near its start,
-/// not the whole terrain's, and a pyramid of rays ([`Occluders::seen_from`]) skips the pieces
+/// not the whole terrain's, and a pyramid of rays ([`Occluders::view`]) skips the pieces
 /// it cannot meet. On the 1M-vertex level, 2048 baked 5 % faster than 1024 (which cut its
 /// boulders in two) and as fast as 4096.
 pub const PIECE: usize = 2048;
-
-/// Pieces [`Occluders::seen_from`] returns at most: past them, asking the top-level tree ray
-/// by ray costs less than asking every piece (8 and 32, with 32 and 128 visits, baked the
-/// 1M-vertex level's eighth 8 % and 4 % slower).
-pub const MAX_SEEN: usize = 16;
-
-/// Nodes of the top-level tree [`Occluders::seen_from`] visits at most.
-pub const MAX_VISITS: usize = 64;
 
 /// Per-instance BVHs answering any-hit queries together, behind a top-level tree over their
 /// pieces' bounds (a ray visits the pieces whose boxes it meets, not every instance: the cost
@@ -147,37 +140,38 @@ impl Occluders {
     }
 
     /// The pieces that a ray from `apex` may meet while its direction `d` stays inside the
-    /// pyramid `sides · d ≥ −slack` (`sides` unit inward normals of planes through `apex`):
-    /// those whose boxes are not wholly outside one of the planes. `None` when there are more
-    /// than [`MAX_SEEN`], or finding them would visit more than [`MAX_VISITS`] nodes of the
-    /// top-level tree: then asking the tree ray by ray costs less.
-    pub fn seen_from(&self, apex: Vec3, sides: &[Vec3; 4], slack: f32) -> Option<Seen> {
-        // A box is outside a plane when its corner farthest inside is outside by more than
-        // `slack` times the box's farthest distance (a bound on every point's), and by more
-        // than the rounding of the sum.
-        let inside = |lo: Vec3, hi: Vec3| {
-            let (a, b) = (lo - apex, hi - apex);
-            let reach = slack * a.abs().max(b.abs()).length();
-            sides.iter().all(|&m| {
-                let (x, y) = (a * m, b * m);
-                x.max(y).element_sum() + reach >= -1e-5 * (x.abs().max(y.abs())).element_sum()
-            })
-        };
-        let piece = |&i: &u32| inside(self.pieces[i as usize].lo, self.pieces[i as usize].hi);
-        let mut seen: Vec<u32> = self.wide.iter().copied().filter(piece).collect();
-        let all = self.tree.each_within(inside, MAX_VISITS, |leaf| {
-            seen.extend(leaf.iter().copied().filter(piece));
-            seen.len() > MAX_SEEN
-        });
-        all.then_some(Seen(seen))
+    /// pyramid `planes · d ≥ −slack` (`planes` unit inward normals of planes through `apex`),
+    /// found by one walk of the top-level tree: those whose boxes are not wholly outside one of
+    /// the planes, and perhaps a few more. Narrower pyramids inside it cut their own lists from
+    /// it ([`View::narrow`]).
+    pub fn view(&self, apex: Vec3, planes: &[Vec3], slack: f32) -> View {
+        let mut ids = self.wide.clone();
+        self.tree.each_within(
+            |lo, hi| outside_none(apex, planes, slack, lo, hi),
+            |leaf| {
+                ids.extend_from_slice(leaf);
+                false
+            },
+        );
+        View::new(apex, ids.iter().map(|&i| (i, &self.pieces[i as usize]))).narrow(planes, slack)
     }
 
-    /// [`Self::occluded`] for a ray that only the pieces `seen` lists may block (see
-    /// [`Self::seen_from`]).
+    /// [`Self::occluded`] for a ray from `view`'s apex that only the pieces `view` lists may
+    /// block: its direction inside the pyramid `view` was made for.
     #[inline(never)]
-    pub fn occluded_among(&self, seen: &Seen, origin: Vec3, dir: Vec3, tmax: f32) -> bool {
-        let ray = self.ray(origin, dir, tmax);
-        seen.0.iter().any(|&i| ray.blocked_by(&self.pieces[i as usize]))
+    pub fn occluded_among(&self, view: &View, dir: Vec3, tmax: f32) -> bool {
+        let ray = self.ray(view.apex, dir, tmax);
+        view.boxes.iter().zip(view.ids.chunks(LANES)).any(|(boxes, ids)| {
+            let mut met = boxes.met_by(ray.inv, tmax);
+            while met != 0 {
+                let piece = &self.pieces[ids[met.trailing_zeros() as usize] as usize];
+                if piece.bvh.occluded_between(ray.origin, ray.dir, ray.near, ray.tmax) {
+                    return true;
+                }
+                met &= met - 1;
+            }
+            false
+        })
     }
 
     /// A query's ray.
@@ -186,8 +180,134 @@ impl Occluders {
     }
 }
 
-/// The pieces rays from one apex within one pyramid may meet (see [`Occluders::seen_from`]).
-pub struct Seen(Vec<u32>);
+/// Whether a box is not wholly outside one of the planes `m · (x − apex) ≥ −slack·|x − apex|`:
+/// its corner farthest inside each plane is inside it, within `slack` times the box's farthest
+/// distance from `apex` (a bound on every point's) and the rounding of the sum.
+fn outside_none(apex: Vec3, planes: &[Vec3], slack: f32, lo: Vec3, hi: Vec3) -> bool {
+    let (a, b) = (lo - apex, hi - apex);
+    let reach = slack * a.abs().max(b.abs()).length();
+    planes.iter().all(|&m| {
+        let (x, y) = (a * m, b * m);
+        x.max(y).element_sum() + reach >= -1e-5 * (x.abs().max(y.abs())).element_sum()
+    })
+}
+
+/// The pieces rays from one apex inside one pyramid may meet ([`Occluders::view`]; for BSPVT, a
+/// vertex's hemisphere, one cube face of it, one tile of a face), with their boxes relative to
+/// the apex [`LANES`] at a time: a narrower pyramid's list is cut from it eight boxes per test,
+/// and a ray tests eight boxes at once.
+pub struct View {
+    apex: Vec3,
+    /// The pieces, in the order the tree found them.
+    ids: Vec<u32>,
+    /// `ids[LANES·k..]`'s boxes less the apex, in `boxes[k]`.
+    boxes: Vec<Boxes>,
+}
+
+impl View {
+    /// The view from `apex` of the `(index, piece)`s.
+    fn new<'a>(apex: Vec3, pieces: impl Iterator<Item = (u32, &'a Piece)>) -> Self {
+        let (ids, corners): (Vec<u32>, Vec<(Vec3, Vec3)>) =
+            pieces.map(|(i, p)| (i, (p.lo - apex, p.hi - apex))).unzip();
+        Self { apex, ids, boxes: corners.chunks(LANES).map(|c| Boxes::new(c.iter().copied())).collect() }
+    }
+
+    /// The pieces listed that a ray from the apex may meet while its direction `d` stays
+    /// inside the pyramid `planes · d ≥ −slack` too: every piece [`outside_none`] keeps, and
+    /// perhaps a few more.
+    pub fn narrow(&self, planes: &[Vec3], slack: f32) -> View {
+        let mut kept = Vec::new();
+        for (k, b) in self.boxes.iter().enumerate() {
+            let mut lanes = b.inside(planes, slack);
+            while lanes != 0 {
+                kept.push(k * LANES + lanes.trailing_zeros() as usize);
+                lanes &= lanes - 1;
+            }
+        }
+        let corner = |v: usize| self.boxes[v / LANES].corners(v % LANES);
+        Self {
+            apex: self.apex,
+            ids: kept.iter().map(|&v| self.ids[v]).collect(),
+            boxes: kept.chunks(LANES).map(|c| Boxes::new(c.iter().map(|&v| corner(v)))).collect(),
+        }
+    }
+
+    /// How many pieces it lists.
+    pub fn len(&self) -> usize {
+        self.ids.len()
+    }
+
+    /// Whether it lists none.
+    pub fn is_empty(&self) -> bool {
+        self.ids.is_empty()
+    }
+}
+
+/// Boxes tested together (one AVX register of `f32`s per coordinate).
+const LANES: usize = 8;
+
+/// Up to [`LANES`] boxes, coordinate by coordinate, relative to a view's apex.
+struct Boxes {
+    lo: [f32x8; 3],
+    hi: [f32x8; 3],
+    /// Each box's farthest distance from the apex (a bound on every point's).
+    reach: f32x8,
+    /// Bit `l` set when lane `l` holds a box.
+    used: u32,
+}
+
+impl Boxes {
+    /// The boxes `(lo, hi)` (at most [`LANES`]).
+    fn new(boxes: impl Iterator<Item = (Vec3, Vec3)>) -> Self {
+        let (mut lo, mut hi, mut used) = ([[0.0; LANES]; 3], [[0.0; LANES]; 3], 0);
+        for (l, (a, b)) in boxes.enumerate() {
+            for k in 0..3 {
+                (lo[k][l], hi[k][l]) = (a[k], b[k]);
+            }
+            used |= 1 << l;
+        }
+        let (lo, hi) = (lo.map(f32x8::new), hi.map(f32x8::new));
+        let far = |k: usize| lo[k].abs().fast_max(hi[k].abs());
+        let reach = (far(0) * far(0) + far(1) * far(1) + far(2) * far(2)).sqrt();
+        Self { lo, hi, reach, used }
+    }
+
+    /// Lane `l`'s box.
+    fn corners(&self, l: usize) -> (Vec3, Vec3) {
+        let at = |v: &[f32x8; 3]| Vec3::from_array(v.map(|c| c.as_array()[l]));
+        (at(&self.lo), at(&self.hi))
+    }
+
+    /// Bit `l` set when lane `l`'s box is not wholly outside one of the planes: [`outside_none`]
+    /// in every lane at once, its rounding bound `1e-5·Σ|mₖ|·farₖ` replaced by the larger
+    /// `2e-5·reach` (Cauchy–Schwarz), so that it keeps every box `outside_none` keeps.
+    #[inline]
+    fn inside(&self, planes: &[Vec3], slack: f32) -> u32 {
+        let bound = self.reach * f32x8::splat(slack + 2e-5);
+        planes.iter().fold(self.used, |kept, m| {
+            let along = |k: usize| {
+                let m = f32x8::splat(m[k]);
+                (self.lo[k] * m).fast_max(self.hi[k] * m)
+            };
+            kept & (along(0) + along(1) + along(2) + bound).simd_ge(f32x8::ZERO).to_bitmask()
+        })
+    }
+
+    /// Bit `l` set when the ray from the apex along the direction whose reciprocal is `inv`
+    /// meets lane `l`'s box within `[0, tmax]`, as [`slab_hits`] says or more: where an axis's
+    /// distances are NaN (0·∞) it is ignored, as `slab_hits` ignores it.
+    #[inline]
+    fn met_by(&self, inv: Vec3, tmax: f32) -> u32 {
+        let (mut near, mut far) = (f32x8::ZERO, f32x8::splat(tmax));
+        for k in 0..3 {
+            let inv = f32x8::splat(inv[k]);
+            let (t1, t2) = (self.lo[k] * inv, self.hi[k] * inv);
+            // AVX's min and max return their second operand where either is NaN.
+            (near, far) = (t1.fast_min(t2).fast_max(near), t1.fast_max(t2).fast_min(far));
+        }
+        near.simd_le(far).to_bitmask() & self.used
+    }
+}
 
 /// A segment as the queries test it.
 struct Ray {
@@ -341,8 +461,9 @@ mod tests {
     }
 
     /// Rays from one point inside a pyramid (or within its slack) get the same answers from the
-    /// pieces [`Occluders::seen_from`] lists as from every instance; the list leaves most pieces
-    /// out, and a pyramid that sees too many gets none.
+    /// pieces its view lists as from every instance, whether the view is made for the pyramid
+    /// ([`Occluders::view`]) or cut from a wider one ([`View::narrow`]); the lists hold every
+    /// piece the scalar test keeps and leave most pieces out.
     #[test]
     fn a_pyramid_of_rays_meets_only_what_it_sees() {
         use rand::Rng;
@@ -356,7 +477,7 @@ mod tests {
             .collect();
         parts.push(terrain(-20.0, 40.0, 40));
         let occ = Occluders::new(&parts);
-        let (mut listed, mut too_many, mut hits, mut n) = (0, 0, 0, 0);
+        let (mut listed, mut hits, mut n) = (0, 0, 0);
         for _ in 0..400 {
             let apex = Vec3::new(r.random_range(-18.0..18.0), 0.3, r.random_range(-18.0..18.0));
             let axis =
@@ -369,11 +490,16 @@ mod tests {
                 let n = (axis + m * w).cross(along).normalize();
                 if n.dot(axis) < 0.0 { -n } else { n }
             });
-            let Some(seen) = occ.seen_from(apex, &sides, slack) else {
-                too_many += 1;
-                continue;
-            };
-            listed += seen.0.len();
+            let made = occ.view(apex, &sides, slack);
+            let cut = occ.view(apex, &[axis], slack).narrow(&sides, slack);
+            let all_planes = [sides[0], sides[1], sides[2], sides[3], axis];
+            for (view, planes) in [(&made, &sides[..]), (&cut, &all_planes[..])] {
+                let scalar = (0..occ.pieces.len() as u32).filter(|&i| {
+                    outside_none(apex, planes, slack, occ.pieces[i as usize].lo, occ.pieces[i as usize].hi)
+                });
+                assert!(scalar.into_iter().all(|i| view.ids.contains(&i)), "{apex} {axis} {w} {slack}");
+            }
+            listed += made.len() + cut.len();
             for _ in 0..50 {
                 let d =
                     (axis + u * r.random_range(-1.5 * w..1.5 * w) + v * r.random_range(-1.5 * w..1.5 * w)).normalize();
@@ -381,13 +507,48 @@ mod tests {
                     continue;
                 }
                 let all = occ.occluded(apex, d, f32::INFINITY);
-                assert_eq!(occ.occluded_among(&seen, apex, d, f32::INFINITY), all, "{apex} {d} {slack}");
+                assert_eq!(occ.occluded_among(&made, d, f32::INFINITY), all, "{apex} {d} {slack}");
+                assert_eq!(occ.occluded_among(&cut, d, f32::INFINITY), all, "{apex} {d} {slack}: cut");
                 (hits, n) = (hits + usize::from(all), n + 1);
             }
         }
         assert!(hits > n / 20 && hits < n, "{hits} of {n} rays blocked: the test tests nothing");
-        assert!(too_many > 0 && too_many < 200, "{too_many} of 400 pyramids saw too many pieces");
-        assert!(listed < (400 - too_many) * occ.pieces.len() / 20, "{listed} pieces listed");
+        assert!(listed < 2 * 400 * occ.pieces.len() / 10, "{listed} pieces listed");
+    }
+
+    /// Eight boxes at once meet every box the scalar slab test meets, and otherwise answer as it
+    /// does but where a ray runs along a box's face through the apex (rays along an axis, boxes
+    /// with a face on the apex's planes included).
+    #[test]
+    fn lanes_meet_what_the_slab_test_meets() {
+        use rand::Rng;
+        let mut r = crate::math::rng::seeded(9);
+        let apex = Vec3::new(0.5, 0.25, -1.0);
+        let (mut n, mut differ) = (0, 0);
+        for _ in 0..2000 {
+            let boxes: Vec<(Vec3, Vec3)> = (0..r.random_range(1..=LANES))
+                .map(|_| {
+                    let c = Vec3::new(r.random_range(-4.0..4.0), r.random_range(-4.0..4.0), r.random_range(-4.0..4.0));
+                    let mut snap = |x: f32| if r.random_range(0..4) == 0 { x.round() } else { x };
+                    let c = Vec3::new(snap(c.x), snap(c.y), snap(c.z));
+                    (c, c + Vec3::new(r.random_range(0.0..2.0), r.random_range(0.0..2.0), r.random_range(0.0..2.0)))
+                })
+                .collect();
+            let lanes = Boxes::new(boxes.iter().map(|&(lo, hi)| (lo - apex, hi - apex)));
+            let mut d = Vec3::new(r.random_range(-1.0..1.0), r.random_range(-1.0..1.0), r.random_range(-1.0..1.0));
+            d[r.random_range(0..3usize)] *= f32::from(r.random_range(0..3u8) != 0);
+            let d = d.normalize_or(Vec3::X);
+            let tmax = [f32::INFINITY, r.random_range(0.0..6.0)][r.random_range(0..2)];
+            let met = lanes.met_by(d.recip(), tmax);
+            for (l, &(lo, hi)) in boxes.iter().enumerate() {
+                let (lane, scalar) = (met >> l & 1 == 1, slab_hits(apex, d.recip(), tmax, lo, hi));
+                assert!(lane || !scalar, "{d} {tmax} {lo} {hi}: the slab test meets it");
+                let on_face = (0..3).any(|k| d[k] == 0.0 && (lo[k] == apex[k] || hi[k] == apex[k]));
+                assert!(lane == scalar || on_face, "{d} {tmax} {lo} {hi}");
+                (n, differ) = (n + 1, differ + usize::from(lane != scalar));
+            }
+        }
+        assert!(differ < n / 100, "{differ} of {n} boxes answered otherwise");
     }
 
     /// A floor point on the line where a box rests on the floor lies in the plane of the box's

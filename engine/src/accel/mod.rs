@@ -10,7 +10,7 @@ mod stored;
 mod top_level;
 
 pub(crate) use instances::slab_hits;
-pub use instances::{Occluders, Seen};
+pub use instances::{Occluders, View};
 
 use crate::math::sampling;
 use crate::scene::{FlatScene, Holes};

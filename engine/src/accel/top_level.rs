@@ -1,11 +1,12 @@
-//! A tree over boxes (the occluders' pieces), for rays that must ask many of them.
+//! A tree over boxes (the occluders' pieces): for rays that must ask many of them, and for
+//! listing the pieces a pyramid of rays may meet ([`super::Occluders::view`]).
 //!
 //! Median splits along the longest axis of the boxes' centres (deterministic: ties by index).
 //! Every node's box is padded around what it holds, so a ray meeting an item's box always meets
 //! its ancestors' boxes, whatever the rounding: the tree finds every item whose box a ray meets.
 //! (An 8-wide tree with one SIMD slab test per node measured no faster on the 1M-vertex level;
-//! opening the child nearer along a ray first, and asking a pyramid's pieces nearest first,
-//! measured no faster or slower: the costly rays there skim the terrain and meet nothing.)
+//! opening the child nearer along a ray first measured no faster or slower, and sorting a
+//! vertex's view of the pieces nearest or farthest first made its bake 10–20 % slower.)
 
 use super::instances::slab_hits;
 use glam::Vec3;
@@ -48,7 +49,6 @@ impl TopLevel {
         let mut found = false;
         self.each_within(
             |lo, hi| slab_hits(o, inv, tmax, lo, hi),
-            usize::MAX,
             |leaf| {
                 found = leaf.iter().any(|&i| hit(i));
                 found
@@ -58,22 +58,13 @@ impl TopLevel {
     }
 
     /// Hands `found` the items of the leaves reached by descending only into the boxes `keep`
-    /// accepts, leaf by leaf, until it returns `true` or `visits` nodes have been opened; `false`
-    /// when stopped either way.
+    /// accepts, leaf by leaf, until it returns `true`; `false` when stopped so.
     #[inline]
-    pub fn each_within(
-        &self,
-        keep: impl Fn(Vec3, Vec3) -> bool,
-        visits: usize,
-        mut found: impl FnMut(&[u32]) -> bool,
-    ) -> bool {
+    pub fn each_within(&self, keep: impl Fn(Vec3, Vec3) -> bool, mut found: impl FnMut(&[u32]) -> bool) -> bool {
         // A balanced tree over at most 2³² items is at most 33 deep.
         let mut stack = [0u32; 64];
         let mut depth = usize::from(!self.nodes.is_empty());
-        for _ in 0..visits {
-            if depth == 0 {
-                return true;
-            }
+        while depth > 0 {
             depth -= 1;
             let node = &self.nodes[stack[depth] as usize];
             if !keep(node.lo, node.hi) {
@@ -86,7 +77,7 @@ impl TopLevel {
                 return false;
             }
         }
-        depth == 0
+        true
     }
 }
 
@@ -171,7 +162,7 @@ mod tests {
             }
             let region = |lo: Vec3, hi: Vec3| lo.x <= 0.0 && hi.x >= -10.0;
             let mut within = Vec::new();
-            assert!(tree.each_within(region, usize::MAX, |leaf| {
+            assert!(tree.each_within(region, |leaf| {
                 within.extend(leaf.iter().copied().filter(|&i| region(boxes[i as usize].0, boxes[i as usize].1)));
                 false
             }));

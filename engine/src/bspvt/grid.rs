@@ -5,6 +5,7 @@
 use super::{node, tiles_per_side};
 use crate::math::cubemap;
 use glam::{DVec2, DVec3};
+use std::ops::Range;
 
 /// A face's tile grid, which depends on the resolution alone.
 pub struct FaceGrid {
@@ -22,12 +23,12 @@ impl FaceGrid {
         [at, at + 1, at + k + 1, at + k + 2]
     }
 
-    /// Inward unit normals of the four planes through the cube's centre that bound tile `t`
-    /// (`k` tiles per side): every direction through the tile is on their positive sides.
-    pub fn sides(&self, t: usize, k: usize) -> [DVec3; 4] {
-        let (i, j) = (t % k, t / k);
+    /// Inward unit normals of the four planes through the cube's centre that bound the block of
+    /// tiles (i, j), `i` in `columns` and `j` in `rows` (`k` tiles per side): every direction
+    /// through the block is on their positive sides.
+    pub fn block_sides(&self, columns: Range<usize>, rows: Range<usize>, k: usize) -> [DVec3; 4] {
         let l = &self.lines;
-        [l[i], -l[i + 1], l[k + 1 + j], -l[k + 2 + j]]
+        [l[columns.start], -l[columns.end], l[k + 1 + rows.start], -l[k + 1 + rows.end]]
     }
 
     fn new(f: usize, res: usize) -> Self {

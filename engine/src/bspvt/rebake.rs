@@ -54,6 +54,7 @@ pub fn rebake_vertex(
     debug_assert!(old.masks.is_sorted_by_key(|m| m.0), "a bake's masks are by tile index");
     let kept = if cold { [&[][..]; 6] } else { layout::vertex_faces(&old.record) };
     let mut out = VertexBake::default();
+    let hemisphere = std::cell::OnceCell::new();
     let faces: [Vec<u8>; 6] = std::array::from_fn(|f| {
         let range = (f * per_face) as u32..((f + 1) * per_face) as u32;
         // The masks are by tile index: the face's are one run of them.
@@ -72,7 +73,8 @@ pub fn rebake_vertex(
         };
         let bits = if cold {
             let reached = edit.reached.as_deref().map(|r| &r[f * per_face..(f + 1) * per_face]);
-            let bits = visibility::cast_face_tiles(occluders, p, n, f, s.res, reached);
+            let hemisphere = hemisphere.get_or_init(|| visibility::hemisphere(occluders, p, n, s.res));
+            let bits = visibility::cast_face_tiles(occluders, hemisphere, p, n, f, s.res, reached);
             out.rays += bits.iter().map(|b| b.live.count_ones() as usize).sum::<usize>();
             bits
         } else {

@@ -3,7 +3,7 @@
 
 use super::grid;
 use super::node::TILE;
-use crate::accel::{Occluders, Seen, offset_ray_origin};
+use crate::accel::{Occluders, View, offset_ray_origin};
 use crate::math::cubemap;
 use glam::{DVec3, Vec3};
 
@@ -38,19 +38,37 @@ impl CubeVisibility {
 /// crosses is cast just above the horizon, so that grazing lights are not cut off by half a
 /// texel.
 pub fn cast(occluders: &Occluders, p: Vec3, n: Vec3, res: usize) -> CubeVisibility {
-    let texels = (0..cubemap::FACES).flat_map(|f| cast_face(occluders, p, n, f, res)).collect();
+    let view = hemisphere(occluders, p, n, res);
+    let texels = (0..cubemap::FACES)
+        .flat_map(|f| TileBits::to_face(&cast_face_tiles(occluders, &view, p, n, f, res, None), res));
+    let texels = texels.collect();
     CubeVisibility { res, texels }
 }
 
 /// The `res²` texel states of face `f` alone (see [`cast`]).
 pub fn cast_face(occluders: &Occluders, p: Vec3, n: Vec3, f: usize, res: usize) -> Vec<u8> {
-    TileBits::to_face(&cast_face_tiles(occluders, p, n, f, res, None), res)
+    TileBits::to_face(&cast_face_tiles(occluders, &hemisphere(occluders, p, n, res), p, n, f, res, None), res)
+}
+
+/// The pieces of `occluders` that rays from a vertex at `p` (unit normal `n`) into the
+/// hemisphere above its horizon may meet, from [`horizon_origin`], for [`cast_face_tiles`].
+pub fn hemisphere(occluders: &Occluders, p: Vec3, n: Vec3, res: usize) -> View {
+    occluders.view(horizon_origin(p, n), &[n], lifted(res))
+}
+
+/// How far outside its tile's pyramid a ray through a texel the horizon crosses may go (`m · d
+/// ≥ −lifted` for each side's inward unit normal `m`: about three texels): rays lifted above
+/// the horizon lie within about a texel of their texel (checked ray by ray).
+fn lifted(res: usize) -> f32 {
+    6.0 / res as f32
 }
 
 /// [`cast_face`] as tiles: every texel above the horizon cast, except in the tiles `reached`
-/// marks `false` (see [`super::reach`]), which are left as if below the horizon.
+/// marks `false` (see [`super::reach`]), which are left as if below the horizon. `hemisphere`
+/// is the vertex's [`hemisphere`].
 pub fn cast_face_tiles(
     occluders: &Occluders,
+    hemisphere: &View,
     p: Vec3,
     n: Vec3,
     f: usize,
@@ -62,26 +80,30 @@ pub fn cast_face_tiles(
         .collect();
     let above = horizon_origin(p, n);
     let every = |_| Ask { ask: u64::MAX, occluded: 0 };
-    // The pieces the rays through the current tile may meet, when they are few. A tile's
-    // texel centres lie inside its pyramid; where some are below the horizon, rays lifted
-    // above it lie within about a texel of it, inside the pyramid widened by `lifted` (checked).
-    let lifted = 6.0 / res as f32;
-    let mut seen: (usize, Option<Seen>, [Vec3; 4]) = (usize::MAX, None, [Vec3::ZERO; 4]);
-    cast_tiles(&Horizon::new(n, f, res), &looks, every, |t, _, d, centred| {
+    // The pieces the rays through this face may meet, and of them those the rays through the
+    // current tile may meet. A tile's texel centres lie inside its pyramid; where some are
+    // below the horizon, rays lifted above it lie within about a texel of it, inside the
+    // pyramids widened by `lifted` (checked ray by ray).
+    let (lifted, k) = (lifted(res), res.div_ceil(TILE));
+    let horizon = Horizon::new(n, f, res);
+    if horizon.below() {
+        return vec![TileBits::default(); k * k];
+    }
+    let block = |columns, rows| grid::with_grids(res, |g| g[f].block_sides(columns, rows, k)).map(|m| m.as_vec3());
+    let face = block(0..k, 0..k);
+    let view = hemisphere.narrow(&face, lifted);
+    let mut seen = (usize::MAX, None, [Vec3::ZERO; 4]);
+    cast_tiles(&horizon, &looks, every, |t, _, d, centred| {
         let o = ray_origin(above, p, n, d);
         let slack = if centred { 0.0 } else { lifted };
         if seen.0 != t {
-            let sides = grid::with_grids(res, |g| g[f].sides(t, res.div_ceil(TILE))).map(|m| m.as_vec3());
-            seen = (t, occluders.seen_from(above, &sides, slack), sides);
+            let tile = block(t % k..t % k + 1, t / k..t / k + 1);
+            seen = (t, Some(view.narrow(&tile, slack)), tile);
         }
-        let within = || centred || seen.2.iter().all(|m| m.dot(d) >= -slack);
+        let within = |planes: &[Vec3]| planes.iter().all(|m| m.dot(d) >= -slack);
         match &seen.1 {
-            Some(among) if o == above && within() => {
-                if occluders.occluded_among(among, o, d, f32::INFINITY) {
-                    OCCLUDED
-                } else {
-                    VISIBLE
-                }
+            Some(among) if o == above && (centred || within(&seen.2) && within(&face)) => {
+                if occluders.occluded_among(among, d, f32::INFINITY) { OCCLUDED } else { VISIBLE }
             }
             _ => cast_ray(occluders, o, d),
         }
@@ -458,10 +480,11 @@ mod tests {
         }
     }
 
-    /// Asking each tile's rays only what its pyramid sees ([`Occluders::seen_from`]) changes no
-    /// texel: over a terrain of several pieces with stones on it, from vertices on the ground
-    /// and on slopes (tiles the horizon crosses included), at a power-of-two resolution and one
-    /// whose last tiles are narrower, every texel equals the ray cast against everything.
+    /// Asking each tile's rays only what its pyramid sees (the vertex's [`hemisphere`] cut to a
+    /// face, then to the tile: [`crate::accel::View::narrow`]) changes no texel: over a
+    /// terrain of several pieces with stones on it, from vertices on the ground and on slopes
+    /// (tiles the horizon crosses included), at a power-of-two resolution and one whose last
+    /// tiles are narrower, every texel equals the ray cast against everything.
     #[test]
     fn asking_what_a_tile_sees_changes_no_texel() {
         use rand::Rng;
