@@ -142,18 +142,22 @@ impl Occluders {
     /// The pieces that a ray from `apex` may meet while its direction `d` stays inside the
     /// pyramid `planes · d ≥ −slack` (`planes` unit inward normals of planes through `apex`),
     /// found by one walk of the top-level tree: those whose boxes are not wholly outside one of
-    /// the planes, and perhaps a few more. Narrower pyramids inside it cut their own lists from
-    /// it ([`View::narrow`]).
+    /// the planes ([`outside_none`]). Narrower pyramids inside it cut their own lists from it
+    /// ([`View::narrow`]).
     pub fn view(&self, apex: Vec3, planes: &[Vec3], slack: f32) -> View {
-        let mut ids = self.wide.clone();
+        let keeps = |i: &&u32| {
+            let p = &self.pieces[**i as usize];
+            outside_none(apex, planes, slack, p.lo, p.hi)
+        };
+        let mut ids: Vec<u32> = self.wide.iter().filter(keeps).copied().collect();
         self.tree.each_within(
             |lo, hi| outside_none(apex, planes, slack, lo, hi),
             |leaf| {
-                ids.extend_from_slice(leaf);
+                ids.extend(leaf.iter().filter(keeps));
                 false
             },
         );
-        View::new(apex, ids.iter().map(|&i| (i, &self.pieces[i as usize]))).narrow(planes, slack)
+        View::new(apex, ids.iter().map(|&i| (i, &self.pieces[i as usize])))
     }
 
     /// [`Self::occluded`] for a ray from `view`'s apex that only the pieces `view` lists may

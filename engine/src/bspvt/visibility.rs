@@ -92,20 +92,22 @@ pub fn cast_face_tiles(
     let block = |columns, rows| grid::with_grids(res, |g| g[f].block_sides(columns, rows, k)).map(|m| m.as_vec3());
     let face = block(0..k, 0..k);
     let view = hemisphere.narrow(&face, lifted);
-    let mut seen = (usize::MAX, None, [Vec3::ZERO; 4]);
+    let mut seen: Option<(usize, View, [Vec3; 4])> = None;
     cast_tiles(&horizon, &looks, every, |t, _, d, centred| {
         let o = ray_origin(above, p, n, d);
         let slack = if centred { 0.0 } else { lifted };
-        if seen.0 != t {
-            let tile = block(t % k..t % k + 1, t / k..t / k + 1);
-            seen = (t, Some(view.narrow(&tile, slack)), tile);
-        }
-        let within = |planes: &[Vec3]| planes.iter().all(|m| m.dot(d) >= -slack);
-        match &seen.1 {
-            Some(among) if o == above && (centred || within(&seen.2) && within(&face)) => {
-                if occluders.occluded_among(among, d, f32::INFINITY) { OCCLUDED } else { VISIBLE }
+        let (_, among, tile) = match &mut seen {
+            Some(s) if s.0 == t => s,
+            s => {
+                let tile = block(t % k..t % k + 1, t / k..t / k + 1);
+                s.insert((t, view.narrow(&tile, slack), tile))
             }
-            _ => cast_ray(occluders, o, d),
+        };
+        let within = |planes: &[Vec3]| planes.iter().all(|m| m.dot(d) >= -slack);
+        if o == above && (centred || within(tile) && within(&face)) {
+            if occluders.occluded_among(among, d, f32::INFINITY) { OCCLUDED } else { VISIBLE }
+        } else {
+            cast_ray(occluders, o, d)
         }
     })
 }
