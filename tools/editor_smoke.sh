@@ -38,13 +38,23 @@ if [ ${#scene[@]} -gt 0 ]; then
   DISPLAY=$display xdotool key Delete
   sleep 2
   DISPLAY=$display xdotool key ctrl+s
-  sleep 4
+  # The save lands when the editor's next frame runs: wait for it (up to 60 s on a busy runner)
+  # rather than for a fixed time.
   python3 - "$work/scene.gltf" <<'PY'
-import json, sys
+import json, sys, time
 path = sys.argv[1]
 roots = lambda p: len(json.load(open(p))["scenes"][0]["nodes"])
-before, after = roots(path + ".bak"), roots(path)
-assert after == before - 1, f"the saved scene has {after} root nodes, the original {before}"
+deadline = time.monotonic() + 60
+while True:
+    try:
+        before, after = roots(path + ".bak"), roots(path)
+        if after == before - 1:
+            break
+    except (OSError, ValueError):  # no backup yet, or one being copied
+        before = after = None
+    found = "no backup written" if before is None else f"{after} root nodes, the original {before}"
+    assert time.monotonic() < deadline, f"no save within 60 s: {found}"
+    time.sleep(0.1)
 print(f"editor smoke test: a click, Delete and Ctrl+S saved the scene with {after} of {before} root nodes")
 PY
 fi
