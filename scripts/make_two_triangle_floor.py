@@ -5,11 +5,11 @@ declared reach. Used for docs/benchmarks.md#receiver-refinement (bake time again
 
     python3 scripts/make_two_triangle_floor.py SIDE OUT.gltf
 """
-import base64
 import json
 import math
-import struct
 import sys
+
+from gltf_buffer import Buffer
 
 
 def cuboid(h):
@@ -65,24 +65,9 @@ def main(side, out):
     }
     nodes = [("floor", [0, 0, 0], 0.7), ("box", [-0.9, 0.6, 0.3], 0.5), ("slab", [1.0, 0.9, -0.6], 0.5),
              ("ball", [0.4, 0.35, 1.3], 0.6), ("light", [0.2, 3.0, 0.1], None)]
-    blob, views, accessors, gl_meshes, materials, gl_nodes = b"", [], [], [], [], []
+    buffer, gl_meshes, materials, gl_nodes = Buffer(), [], [], []
     for name, t, grey in nodes:
-        pos, nrm, idx = meshes[name]
-        attrs = {}
-        for key, data in (("POSITION", pos), ("NORMAL", nrm)):
-            raw = b"".join(struct.pack("<3f", *p) for p in data)
-            views.append({"buffer": 0, "byteOffset": len(blob), "byteLength": len(raw), "target": 34962})
-            acc = {"bufferView": len(views) - 1, "componentType": 5126, "count": len(data), "type": "VEC3"}
-            if key == "POSITION":
-                acc["min"] = [min(p[k] for p in data) for k in range(3)]
-                acc["max"] = [max(p[k] for p in data) for k in range(3)]
-            accessors.append(acc)
-            attrs[key] = len(accessors) - 1
-            blob += raw
-        raw = struct.pack(f"<{len(idx)}I", *idx)
-        views.append({"buffer": 0, "byteOffset": len(blob), "byteLength": len(raw), "target": 34963})
-        accessors.append({"bufferView": len(views) - 1, "componentType": 5125, "count": len(idx), "type": "SCALAR"})
-        blob += raw
+        attrs, indices = buffer.primitive(*meshes[name])
         if grey is None:
             materials.append({"name": "light", "pbrMetallicRoughness": {"baseColorFactor": [0, 0, 0, 1]},
                               "emissiveFactor": [1, 1, 1],
@@ -91,7 +76,7 @@ def main(side, out):
             materials.append({"name": name, "pbrMetallicRoughness": {
                 "baseColorFactor": [grey, grey, grey, 1], "metallicFactor": 0.0, "roughnessFactor": 1.0},
                 "extensions": {"KHR_materials_specular": {"specularFactor": 0.0}}})
-        gl_meshes.append({"name": name, "primitives": [{"attributes": attrs, "indices": len(accessors) - 1,
+        gl_meshes.append({"name": name, "primitives": [{"attributes": attrs, "indices": indices,
                                                         "material": len(materials) - 1}]})
         gl_nodes.append({"name": name, "mesh": len(gl_meshes) - 1, "translation": t})
     # The camera of the test: at (0, 6.5, 6.5) looking at (0, 0, 0.3).
@@ -103,10 +88,10 @@ def main(side, out):
         "asset": {"version": "2.0", "generator": "kage scripts/make_two_triangle_floor.py"},
         "extensionsUsed": ["KHR_materials_emissive_strength", "KHR_materials_specular"],
         "scene": 0, "scenes": [{"nodes": list(range(len(gl_nodes)))}], "nodes": gl_nodes,
-        "meshes": gl_meshes, "materials": materials, "accessors": accessors, "bufferViews": views,
+        "meshes": gl_meshes, "materials": materials,
+        **buffer.tables(),
         "cameras": [{"type": "perspective", "perspective": {"yfov": math.radians(45), "znear": 0.05, "aspectRatio": 16 / 9}}],
-        "buffers": [{"byteLength": len(blob),
-                     "uri": "data:application/octet-stream;base64," + base64.b64encode(blob).decode()}],
+        "buffers": buffer.buffers(),
     }
     with open(out, "w") as f:
         json.dump(doc, f)

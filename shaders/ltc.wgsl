@@ -31,9 +31,10 @@ fn push(p: ptr<function, Poly>, q: vec3<f32>) {
     }
 }
 
-fn side(pl: vec3<f32>, q: vec3<f32>) -> f32 {
-    let d = dot(pl, q);
-    if (abs(d) <= ON_PLANE * length(pl) * length(q)) {
+// dot(pl.xyz, q) − pl.w, or 0 within the rounding of the plane's distance.
+fn side(pl: vec4<f32>, q: vec3<f32>) -> f32 {
+    let d = dot(pl.xyz, q) - pl.w;
+    if (abs(d) <= ON_PLANE * (abs(pl.w) + length(pl.xyz) * length(q))) {
         return 0.0;
     }
     return d;
@@ -41,6 +42,12 @@ fn side(pl: vec3<f32>, q: vec3<f32>) -> f32 {
 
 // Keeps the part of the convex polygon where dot(pl, q) >= 0 (Sutherland–Hodgman).
 fn clip(src: ptr<function, Poly>, pl: vec3<f32>) -> Poly {
+    return clip_plane(src, vec4<f32>(pl, 0.0));
+}
+
+// Keeps the part of the convex polygon where dot(pl.xyz, q) >= pl.w (a plane not through the
+// origin when pl.w != 0).
+fn clip_plane(src: ptr<function, Poly>, pl: vec4<f32>) -> Poly {
     var out: Poly;
     out.n = 0u;
     let n = (*src).n;

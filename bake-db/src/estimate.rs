@@ -153,7 +153,7 @@ mod tests {
             })
             .collect();
         let snapshot = crate::plan::Snapshot { occluders: Vec::new(), hash: Key::from_slice(&[0; 32]) };
-        Plan { bspvt: None, prt: None, jobs, snapshot, reach: kage_engine::bspvt::reach::Reach::Anywhere }
+        Plan { bspvt: None, prt: None, jobs, snapshot, reach: kage_engine::bspvt::reach::Reach::ANYWHERE }
     }
 
     /// The sample is spread over the misses, inside their chunks, and within its bounds.

@@ -218,7 +218,7 @@ impl Plan {
     pub fn work(&self, flat: &FlatScene, job: &Job) -> f64 {
         use rayon::prelude::*;
         match (job.kind, self.bspvt, &self.reach) {
-            (Kind::Bspvt, Some(s), reach @ bspvt::reach::Reach::Within(_)) => {
+            (Kind::Bspvt, Some(s), reach) if reach.bounds_rays() => {
                 let shares: Vec<f64> = job
                     .vertices
                     .clone()
@@ -247,7 +247,7 @@ pub fn plan(
     let bspvt = bspvt.filter(|_| !flat.lights.is_empty());
     let prt = prt.filter(|_| flat.environment.is_some());
     let snapshot = Snapshot::of(flat);
-    let reach = bspvt::reach::Reach::of(&flat.lights);
+    let reach = bspvt::reach::Reach::of_scene(flat);
     let mut jobs = Vec::new();
     if let Some(s) = bspvt {
         for (i, inst) in flat.instances.iter().enumerate() {
@@ -257,8 +257,8 @@ pub fn plan(
                 .u64("res", s.res as u64)
                 .f64("epsilon", s.epsilon)
                 .affine("world", &inst.world);
-            // Lights that may go anywhere add nothing: keys baked before reaches existed stay valid.
-            if reach != bspvt::reach::Reach::Anywhere {
+            // Lights that may go anywhere, without depth, add nothing.
+            if reach != bspvt::reach::Reach::ANYWHERE {
                 base = base.bytes("reach", &reach.key_bytes());
             }
             let id = [inst.id.node, inst.id.mesh, inst.id.primitive];

@@ -476,7 +476,8 @@ impl Context<'_> {
         let Some(bytes) = self.store.get::<u8>(&key)? else { return Ok(None) };
         // The warm re-bake descends the old trees: a damaged chunk bakes cold instead.
         let usable = |r: &Vec<Vec<u8>>| {
-            r.len() == job.vertices.len() && r.iter().all(|rec| bspvt::layout::check_record(rec).is_ok())
+            let res = self.plan.bspvt.map_or(0, |s| s.res);
+            r.len() == job.vertices.len() && r.iter().all(|rec| bspvt::layout::check_record(rec, res).is_ok())
         };
         let Some(records) = decode_records(&bytes).filter(usable) else { return Ok(None) };
         let old = records.into_iter().zip(masks).map(|(record, masks)| bspvt::VertexBake {
@@ -670,8 +671,9 @@ enum Part<'a> {
 }
 
 /// Checks that a chunk holds what its job needs (every BSPVT tree is walked: a damaged one
-/// would panic in the tree descent; a PRT chunk must hold `coeffs` floats per vertex).
-fn part<'a>(store: &Store, job: &Job, bytes: &'a [u8], coeffs: usize) -> Result<Part<'a>> {
+/// would panic in the tree descent; a PRT chunk must hold `coeffs` floats per vertex; `res`
+/// is BSPVT's face resolution).
+fn part<'a>(store: &Store, job: &Job, bytes: &'a [u8], (coeffs, res): (usize, usize)) -> Result<Part<'a>> {
     let malformed = |why: String| {
         let kind = if job.kind == Kind::Bspvt { "BSPVT" } else { "PRT" };
         DbError::Corrupted {
@@ -691,7 +693,7 @@ fn part<'a>(store: &Store, job: &Job, bytes: &'a [u8], coeffs: usize) -> Result<
         .filter(|(o, _)| o.len() == job.vertices.len() + 1)
         .ok_or_else(|| malformed(String::new()))?;
     for (v, w) in offsets.windows(2).enumerate() {
-        bspvt::layout::check_record(&data[w[0] as usize..w[1] as usize])
+        bspvt::layout::check_record(&data[w[0] as usize..w[1] as usize], res)
             .map_err(|e| malformed(format!(": vertex {}: {e}", job.vertices.start + v)))?;
     }
     Ok(Part::Trees(offsets, data))
@@ -717,9 +719,9 @@ fn bakes(store: &Store, flat: &FlatScene, plan: &Plan, chunks: &[&[u8]], stats: 
         None => Vec::new(),
     };
     // Checked chunk by chunk in parallel: walking the trees is most of loading's time.
-    let coeffs = plan.prt.map_or(0, |s| s.order * s.order);
+    let sizes = (plan.prt.map_or(0, |s| s.order * s.order), plan.bspvt.map_or(0, |s| s.res));
     let parts: Vec<Part> =
-        plan.jobs.par_iter().zip(chunks).map(|(job, &bytes)| part(store, job, bytes, coeffs)).collect::<Result<_>>()?;
+        plan.jobs.par_iter().zip(chunks).map(|(job, &bytes)| part(store, job, bytes, sizes)).collect::<Result<_>>()?;
     let mut leaves_bytes = 0usize;
     for (job, part) in plan.jobs.iter().zip(parts) {
         match part {

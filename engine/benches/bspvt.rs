@@ -55,7 +55,7 @@ fn measure(c: &mut Criterion, name: &str, scene: &Scene, step: usize) {
     // 64 vertices spread over the receivers.
     let bake_sample: Vec<(usize, usize)> = verts.iter().step_by(verts.len() / 64).take(64).copied().collect();
     g.throughput(Throughput::Elements(bake_sample.len() as u64));
-    let reach = Reach::of(&flat.lights);
+    let reach = Reach::of_scene(&flat);
     g.bench_function("bake_vertices", |b| {
         // A fresh subtree memo per pass: 64 scattered vertices share few tiles, so this is about
         // the uncached rate (whole bakes, which share many, are measured with `kage bake`).
@@ -87,7 +87,7 @@ fn measure(c: &mut Criterion, name: &str, scene: &Scene, step: usize) {
         let (i, v) = verts[v];
         let (p, n) = flat.vertex(i, v);
         PointShader::new(&table, p, n, eye, &flat.instances[i].material)
-            .shade_counted(&flat.lights, Visibility::Tree(rec))
+            .shade_counted(&flat.lights, Visibility::Tree(rec, tiles.settings().res))
     };
     // LTC pieces per vertex: the edge-gathering hint can only save work where a light is cut
     // into several pieces (their shared edges).

@@ -50,7 +50,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 fn corpus(scene: &Scene) -> SubtreeMemo {
     let flat = flatten(scene);
     let occluders = occluder_bvh(&flat);
-    let (tiles, reach) = (SubtreeMemo::new(&Settings::default()), Reach::of(&flat.lights));
+    let (tiles, reach) = (SubtreeMemo::new(&Settings::default()), Reach::of_scene(&flat));
     let vertices: Vec<(usize, usize)> = flat.vertex_ids().collect();
     vertices.par_iter().for_each(|&(i, v)| {
         let (p, n) = flat.vertex(i, v);

@@ -20,7 +20,8 @@ struct Params {
     vertex_count: u32,
     light_count: u32,
     mode: u32,
-    pad: u32,
+    /// The bake's face resolution (its depth quadtrees' tiles).
+    res: u32,
 }
 
 #[repr(C)]
@@ -60,6 +61,8 @@ pub struct BspvtShader {
     starts: wgpu::Buffer,
     /// Vertices with trees on the device.
     baked: usize,
+    /// The bake's face resolution.
+    res: u32,
 }
 
 impl BspvtShader {
@@ -76,9 +79,13 @@ impl BspvtShader {
                 bytes.extend_from_slice(record);
             }
         }
+        // One start past the last record: where a record ends tells whether depth follows its trees.
+        let baked = starts.len();
+        starts.push(bytes.len() as u32);
         bytes.resize(bytes.len().next_multiple_of(4), 0);
         Ok(Self {
-            baked: starts.len(),
+            baked,
+            res: bake.map_or(0, |b| b.settings.res as u32),
             pipeline: pipeline(gpu, "bspvt", &module)?,
             records: storage(gpu, "bspvt records", &bytes),
             starts: storage(gpu, "bspvt record starts", &starts),
@@ -110,7 +117,8 @@ impl BspvtShader {
             Mode::Unshadowed => 0,
             Mode::Trees => 1,
         };
-        let params = Params { vertex_count: vertices.len() as u32, light_count: lights.len() as u32, mode, pad: 0 };
+        let params =
+            Params { vertex_count: vertices.len() as u32, light_count: lights.len() as u32, mode, res: self.res };
         let out = storage(gpu, "bspvt radiance", &vec![[0.0f32; 4]; vertices.len().max(1)]);
         let overflow = storage(gpu, "bspvt overflow", &[0u32]);
         let buffers = [

@@ -102,9 +102,10 @@ impl Seeds {
     }
 }
 
-/// A pack and a database holding real BSPVT and PRT bakes of a small scene.
+/// A pack and a database holding real BSPVT (with depth: a light in a closed room) and PRT
+/// bakes of a small scene.
 fn baked(dir: &Path) -> (Vec<u8>, Vec<u8>) {
-    let mut scene = import(&asset("scenes/cube_on_plane.gltf"), ImportOptions::default()).unwrap();
+    let mut scene = import(&asset("scenes/cornell_box.gltf"), ImportOptions::default()).unwrap();
     scene.set_environment(EnvironmentLight::new(EnvMap::load(&asset("envmaps/sky.hdr")).unwrap()));
     let flat = flatten(&scene);
     let b = bspvt::Settings { res: 8, epsilon: 2.0 };

@@ -54,6 +54,17 @@ fn bspvt_on_the_gpu_matches_the_cpu_on_the_glossy_teapot() {
     bspvt_agrees(&scene, eye);
 }
 
+/// A light inside a closed room: the shader reads the depth after the trees as the CPU does.
+#[test]
+fn bspvt_on_the_gpu_matches_the_cpu_in_the_cornell_box() {
+    let mut scene = import(&asset("scenes/cornell_box.gltf"), Default::default()).unwrap();
+    for wall in ["floor", "back_wall", "left_wall"] {
+        scene.refine_instances(wall, 300).unwrap();
+    }
+    let eye = scene.first_camera().unwrap().eye();
+    bspvt_agrees(&scene, eye);
+}
+
 #[test]
 fn prt_with_moving_groups_on_the_gpu_matches_the_cpu() {
     let gpu = device();

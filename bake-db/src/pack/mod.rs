@@ -22,10 +22,12 @@ pub use write::write;
 
 /// The extension's name.
 pub const EXTENSION: &str = "KAGE_baked_shadows";
-/// The extension's version this kage writes.
-pub const VERSION: u64 = 2;
-/// The extension's versions this kage reads (2 differs from 1 in number formatting only).
-pub const VERSIONS: std::ops::RangeInclusive<u64> = 1..=2;
+/// The extension's version this kage writes (3: BSPVT records carry depth after their trees).
+pub const VERSION: u64 = 3;
+/// The extension's versions this kage reads (2 differs from 1 in number formatting only; 1 and
+/// 2 hold BSPVT record format 1, without depth: shaded as they were, lights in closed rooms
+/// dark).
+pub const VERSIONS: std::ops::RangeInclusive<u64> = 1..=3;
 
 /// What a pack holds besides its glTF scene.
 pub struct Contents {
@@ -33,6 +35,8 @@ pub struct Contents {
     pub bspvt: Option<bspvt::Bake>,
     /// PRT bake with its lighting and settings, if the pack has one.
     pub prt: Option<(prt::Bake, Lighting, prt::Settings)>,
+    /// What a reader should tell the user about the pack (it still shades).
+    pub warnings: Vec<String>,
 }
 
 /// Everything [`write`](fn@write) needs.
@@ -142,8 +146,8 @@ mod tests {
                 "format": bspvt::layout::FORMAT_VERSION})
         });
         assert!(e.contains("face resolution 1099511627776 is outside"), "{e}");
-        let e = error_after("version", |d| d["extensions"][EXTENSION]["version"] = 3.into());
-        assert!(e.contains("version 3 (this kage reads 1..=2)"), "{e}");
+        let e = error_after("version", |d| d["extensions"][EXTENSION]["version"] = 4.into());
+        assert!(e.contains("version 4 (this kage reads 1..=3)"), "{e}");
         let e = error_after("field", |d| {
             let record = &mut d["meshes"][0]["primitives"][0]["extensions"][EXTENSION]["material"];
             record.as_object_mut().unwrap().remove("roughness");

@@ -48,7 +48,15 @@ pub fn read(path: &Path) -> Result<(Scene, Contents)> {
     let flat = kage_engine::scene::flatten(&scene);
     let bspvt = root.bspvt.as_ref().map(|h| pack.bspvt(h, &instances, &flat)).transpose().map_err(|e| bad(path, e))?;
     let prt = root.prt.as_ref().map(|h| pack.prt(h, &instances, &flat)).transpose().map_err(|e| bad(path, e))?;
-    Ok((scene, Contents { bspvt, prt }))
+    let mut warnings = Vec::new();
+    if root.bspvt.as_ref().is_some_and(|h| h.format < bspvt::layout::FORMAT_VERSION) {
+        warnings.push(format!(
+            "{}: its BSPVT records are format 1, without the occluders' depth: a light inside a \
+             closed room shades dark as it did when the pack was written; export the scene again",
+            path.display()
+        ));
+    }
+    Ok((scene, Contents { bspvt, prt, warnings }))
 }
 
 /// The `KAGE_baked_shadows` entry of an `extensions` object, as record `T`.
@@ -185,9 +193,10 @@ impl Pack<'_> {
 
     /// The BSPVT bake: every instance's offsets and records, checked record by record.
     fn bspvt(&self, h: &schema::BspvtHeader, records: &[schema::Instance], flat: &FlatScene) -> Checked<bspvt::Bake> {
-        if h.format != bspvt::layout::FORMAT_VERSION {
+        // Format 1 is format 2 without depth: its records read as ones whose faces have none.
+        if !(1..=bspvt::layout::FORMAT_VERSION).contains(&h.format) {
             return Err(format!(
-                "BSPVT record format {} (this kage reads {})",
+                "BSPVT record format {} (this kage reads 1..={})",
                 h.format,
                 bspvt::layout::FORMAT_VERSION
             ));
@@ -209,7 +218,7 @@ impl Pack<'_> {
                 }
                 let instance = bspvt::BakedInstance { offsets, data: records.to_vec() };
                 for v in 0..instance.vertices() {
-                    bspvt::layout::check_record(instance.record(v))
+                    bspvt::layout::check_record(instance.record(v), settings.res)
                         .map_err(|e| format!("mesh {k}, vertex {v}: malformed BSPVT record: {e}"))?;
                 }
                 Ok(instance)

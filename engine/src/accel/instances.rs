@@ -139,6 +139,32 @@ impl Occluders {
         self.wide.iter().any(|&i| blocks(i)) || self.tree.any_along(origin, ray.inv, tmax, blocks)
     }
 
+    /// The closest hit on the segment [`Self::occluded`] asks about. Of hits at the same
+    /// distance on several pieces, the one with the least normal bits, so the answer depends on
+    /// the triangles alone, not on the order the pieces are visited in.
+    pub fn closest(&self, origin: Vec3, dir: Vec3, tmax: f32) -> Option<super::PlaneHit> {
+        let ray = self.ray(origin, dir, tmax);
+        let best = std::cell::Cell::new(None::<super::PlaneHit>);
+        let key =
+            |h: super::PlaneHit| (h.t, h.normal.to_array().map(f32::to_bits), h.corner.to_array().map(f32::to_bits));
+        let visit = |i: u32| {
+            let piece = &self.pieces[i as usize];
+            let end = best.get().map_or(tmax, |b| b.t);
+            if slab_hits(origin, ray.inv, end, piece.lo, piece.hi)
+                && let Some(hit) = piece.bvh.closest_between(origin, dir, ray.near, end)
+                && best.get().is_none_or(|b| key(hit).partial_cmp(&key(b)) == Some(std::cmp::Ordering::Less))
+            {
+                best.set(Some(hit));
+            }
+            false
+        };
+        self.wide.iter().for_each(|&i| {
+            visit(i);
+        });
+        self.tree.any_along(origin, ray.inv, tmax, &visit);
+        best.get()
+    }
+
     /// The pieces that a ray from `apex` may meet while its direction `d` stays inside the
     /// pyramid `planes · d ≥ −slack` (`planes` unit inward normals of planes through `apex`),
     /// found by one walk of the top-level tree: those whose boxes are not wholly outside one of

@@ -112,6 +112,13 @@ impl SceneBvh {
         Some(self.hit(slot, origin, dir, t))
     }
 
+    /// The closest hit within `[tmin, tmax]`, as the plane it lies in.
+    pub fn closest_between(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> Option<PlaneHit> {
+        let (slot, t) = self.closest_slot(origin, dir, tmin, tmax, |_, _| true)?;
+        let tri = &self.tris[slot];
+        Some(PlaneHit { t, normal: Vec3::from(tri.ng).normalize_or(dir), corner: tri.v0.into() })
+    }
+
     /// The hit on the triangle in leaf `slot` at `t` along the ray.
     fn hit(&self, slot: usize, origin: Vec3, dir: Vec3, t: f32) -> Hit {
         let p = Vec3A::from(origin) + Vec3A::from(dir) * t;
@@ -244,6 +251,17 @@ pub(crate) fn grid_triangles(n: usize, p: impl Fn(usize, usize) -> Vec3) -> Vec<
 #[inline]
 fn kept(t: f32, counts: impl FnOnce() -> bool) -> f32 {
     if t < f32::INFINITY && !counts() { f32::INFINITY } else { t }
+}
+
+/// A ray's hit as the plane of the triangle it met.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PlaneHit {
+    /// Distance along the (unit) ray direction.
+    pub t: f32,
+    /// The triangle's unit geometric normal (either side).
+    pub normal: Vec3,
+    /// One of the triangle's corners: with `normal`, its plane.
+    pub corner: Vec3,
 }
 
 /// Rays [`SceneBvh::inside`] casts.

@@ -28,7 +28,7 @@ pub fn choose(flat: &FlatScene, budget: f64, eye: Vec3) -> (Settings, String) {
     let sample: Vec<(usize, usize)> = all.into_iter().step_by(step).collect();
     let occ = occluder_bvh(flat);
     let table = ltc::table();
-    let reach = super::Reach::of(&flat.lights);
+    let reach = super::Reach::of_scene(flat);
     let truth_res = 2 * CANDIDATES[CANDIDATES.len() - 1].0;
     let shade = |s: Settings, exact: bool| -> Vec<Vec3> {
         let tiles = SubtreeMemo::new(&s);
@@ -38,9 +38,12 @@ pub fn choose(flat: &FlatScene, budget: f64, eye: Vec3) -> (Settings, String) {
                 let (p, n) = flat.vertex(i, v);
                 let shader = PointShader::new(&table, p, n, eye, &flat.vertex_material(i, v));
                 if exact {
-                    shader.shade(&flat.lights, Visibility::Exact(&visibility::cast(&occ, p, n, s.res)))
+                    shader.shade(&flat.lights, Visibility::Exact(&visibility::cast_with_hits(&occ, p, n, s.res)))
                 } else {
-                    shader.shade(&flat.lights, Visibility::Tree(&bake_vertex(&occ, p, n, &tiles, &reach).record))
+                    shader.shade(
+                        &flat.lights,
+                        Visibility::Tree(&bake_vertex(&occ, p, n, &tiles, &reach).record, tiles.settings().res),
+                    )
                 }
             })
             .collect()

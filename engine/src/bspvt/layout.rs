@@ -9,11 +9,16 @@
 //!
 //! A tree with L leaves has L − 1 splits: (L + 3(L − 1)) bytes ≈ 4 bytes per leaf, 2 bytes per
 //! node on average.
+//!
+//! When some face holds occluders a light could be in front of, the trees are followed by six
+//! more `u16` lengths and each face's depth bytes ([`super::depth`]); a record without them
+//! (all depths empty, or baked before format 2) has its occluders at no known distance.
 
 use super::node::Node;
 
-/// Bumped whenever the layout or the baking algorithm changes what is stored.
-pub const FORMAT_VERSION: u32 = 1;
+/// Bumped whenever the layout or the baking algorithm changes what is stored (2: depth after
+/// the trees).
+pub const FORMAT_VERSION: u32 = 2;
 
 /// Index just past the encoded subtree that starts at byte `i` of a face's bytes.
 pub fn skip_encoded(bytes: &[u8], mut i: usize) -> usize {
@@ -91,6 +96,26 @@ pub fn join_faces(trees: [&[u8]; 6]) -> Vec<u8> {
     out
 }
 
+/// `record` (six face trees, [`join_faces`]) followed by six faces' depth bytes when one is
+/// not empty.
+pub fn with_depths(mut record: Vec<u8>, depths: [&[u8]; 6]) -> Vec<u8> {
+    if depths.iter().any(|d| !d.is_empty()) {
+        depths.iter().for_each(|d| record.extend_from_slice(&(d.len() as u16).to_le_bytes()));
+        depths.iter().for_each(|d| record.extend_from_slice(d));
+    }
+    record
+}
+
+/// The six faces' depth bytes of a well-formed vertex record (all empty when it has none).
+pub fn vertex_depths(record: &[u8]) -> [&[u8]; 6] {
+    let trees: usize =
+        12 + (0..6).map(|f| u16::from_le_bytes([record[2 * f], record[2 * f + 1]]) as usize).sum::<usize>();
+    match record.get(trees..) {
+        Some(rest) if rest.len() >= 12 => vertex_faces(rest),
+        _ => [&record[0..0]; 6],
+    }
+}
+
 /// The six face trees of a vertex record, as byte slices (empty = no tree).
 pub fn vertex_faces(record: &[u8]) -> [&[u8]; 6] {
     let mut faces = [&record[0..0]; 6];
@@ -114,24 +139,50 @@ pub fn tree_counts(record: &[u8]) -> (usize, usize) {
 /// input (never baked by kage) would only exhaust the stack of the recursive descent.
 pub const MAX_DEPTH: usize = 4096;
 
-/// Checks that `record` is a well-formed vertex record (data read from outside, e.g. an asset
-/// pack): a 12-byte header whose six face lengths add up to the rest, and each face empty or
-/// one complete pre-order tree no deeper than [`MAX_DEPTH`].
-pub fn check_record(record: &[u8]) -> Result<(), String> {
-    if record.len() < 12 {
-        return Err(format!("{} bytes, shorter than the 12-byte header", record.len()));
+/// Checks that `record` is a well-formed vertex record at face resolution `res` (data read
+/// from outside, e.g. an asset pack): a 12-byte header whose six face lengths add up to the
+/// trees, each face empty or one complete pre-order tree no deeper than [`MAX_DEPTH`], then
+/// nothing or six depth lengths adding up to the rest, each face's depth well-formed
+/// ([`super::depth::check_face`]).
+pub fn check_record(record: &[u8], res: usize) -> Result<(), String> {
+    let trees = check_trees(record)?;
+    let rest = &record[trees..];
+    if rest.is_empty() {
+        return Ok(());
     }
-    let lengths: [usize; 6] = std::array::from_fn(|f| u16::from_le_bytes([record[2 * f], record[2 * f + 1]]) as usize);
+    let lengths = check_lengths(rest).map_err(|e| format!("depth: {e}"))?;
+    let mut at = 12;
+    for (f, len) in lengths.into_iter().enumerate() {
+        super::depth::check_face(&rest[at..at + len], res).map_err(|e| format!("face {f} depth: {e}"))?;
+        at += len;
+    }
+    Ok(())
+}
+
+/// The six lengths of a 12-byte header that add up to the rest of `bytes`.
+fn check_lengths(bytes: &[u8]) -> Result<[usize; 6], String> {
+    if bytes.len() < 12 {
+        return Err(format!("{} bytes, shorter than the 12-byte header", bytes.len()));
+    }
+    let lengths: [usize; 6] = std::array::from_fn(|f| u16::from_le_bytes([bytes[2 * f], bytes[2 * f + 1]]) as usize);
     let total: usize = lengths.iter().sum();
-    if 12 + total != record.len() {
-        return Err(format!("the face lengths add up to {total} bytes, the record holds {}", record.len() - 12));
+    if 12 + total != bytes.len() {
+        return Err(format!("the face lengths add up to {total} bytes, the record holds {}", bytes.len() - 12));
     }
+    Ok(lengths)
+}
+
+/// Checks a record's header and trees; returns where they end.
+fn check_trees(record: &[u8]) -> Result<usize, String> {
+    let header = record.get(..12).ok_or_else(|| format!("{} bytes, shorter than the 12-byte header", record.len()))?;
+    let end = 12 + (0..6).map(|f| u16::from_le_bytes([header[2 * f], header[2 * f + 1]]) as usize).sum::<usize>();
+    let lengths = check_lengths(record.get(..end).unwrap_or(record))?;
     let mut at = 12;
     for (f, len) in lengths.into_iter().enumerate() {
         check_tree(&record[at..at + len]).map_err(|e| format!("face {f}: {e}"))?;
         at += len;
     }
-    Ok(())
+    Ok(at)
 }
 
 /// One face's bytes: empty, or exactly one pre-order tree no deeper than [`MAX_DEPTH`].
@@ -249,25 +300,41 @@ mod tests {
         let split = Node::Split { angle: 5, offset: 9 };
         let tree = vec![split, Node::Leaf(1.0), split, Node::Leaf(0.0), Node::Leaf(0.5)];
         let record = encode_vertex(&[Some(tree.clone()), None, Some(vec![Node::Leaf(1.0)]), None, None, Some(tree)]);
-        assert_eq!(check_record(&record), Ok(()));
+        assert_eq!(check_record(&record, 64), Ok(()));
         assert_eq!(tree_counts(&record), (3 + 1 + 3, 5 + 1 + 5));
-        assert!(check_record(&record[..8]).unwrap_err().contains("header"));
-        assert!(check_record(&record[..record.len() - 1]).unwrap_err().contains("add up"));
+        assert!(check_record(&record[..8], 64).unwrap_err().contains("header"));
+        assert!(check_record(&record[..record.len() - 1], 64).unwrap_err().contains("add up"));
         // The first face's tree loses its last leaf but keeps its length: a subtree is missing.
         let mut cut = record.clone();
         cut[12 + 8] = 0x80;
-        assert!(check_record(&cut).is_err());
+        assert!(check_record(&cut, 64).is_err());
         // A lone leaf followed by more bytes in one face.
         let extra = join_faces([&[0x7F, 0x7F], &[], &[], &[], &[], &[]]);
-        assert!(check_record(&extra).unwrap_err().contains("after the tree"));
+        assert!(check_record(&extra, 64).unwrap_err().contains("after the tree"));
         // Chains of splits deeper than the limit, leaning left and right (a right chain keeps
         // only two subtrees open at a time), and a right chain exactly at the limit.
-        let face = |t: &[u8]| check_record(&join_faces([t, &[], &[], &[], &[], &[]]));
+        let face = |t: &[u8]| check_record(&join_faces([t, &[], &[], &[], &[], &[]]), 64);
         let deep = [[0x80u8, 0, 0].repeat(MAX_DEPTH + 1), vec![0; MAX_DEPTH + 2]].concat();
         assert!(face(&deep).unwrap_err().contains("deeper"));
         let right = |splits: usize| [[0x80u8, 0, 0, 0x7F].repeat(splits), vec![0]].concat();
         assert!(face(&right(MAX_DEPTH + 1)).unwrap_err().contains("deeper"));
         assert_eq!(face(&right(MAX_DEPTH)), Ok(()));
+        // Depth after the trees: checked face by face, and named when damaged.
+        let tile = [super::super::depth::PLANE, 0, 0, 0, 0, 0x40, 0x20, 0];
+        let mut tiles = [None; 9];
+        tiles[0] = Some(&tile[..]);
+        let depth = super::super::depth::join_tiles(&tiles, 24);
+        let deep = with_depths(record.clone(), [&[], &depth, &[], &[], &[], &[]]);
+        assert_eq!(check_record(&deep, 24), Ok(()));
+        assert_eq!(vertex_depths(&deep)[1], &depth[..]);
+        assert_eq!(vertex_faces(&deep), vertex_faces(&record));
+        assert_eq!(with_depths(record.clone(), [&[]; 6]), record);
+        assert!(check_record(&deep[..deep.len() - 1], 24).unwrap_err().contains("depth"));
+        assert!(check_record(&[&deep[..], &[1]].concat(), 24).unwrap_err().contains("depth"));
+        let mut wrong = deep.clone();
+        // The plane's tag, after the root's split tag.
+        wrong[deep.len() - depth.len() + 1] = 7;
+        assert!(check_record(&wrong, 24).unwrap_err().contains("face 1 depth: tag 7"));
     }
 
     #[test]

@@ -11,6 +11,8 @@
 //! - [`rebake`]: warm re-bakes after an edit, with [`dirty`]: which tiles and texels an edit
 //!   inside a box can change;
 //! - [`reach`]: which tiles the lights can be seen through (the rest bake as occluded, uncast);
+//! - [`depth`]: how far the occluders are, as planes beside the trees, so that what lies
+//!   behind a light (a ceiling) does not hide it;
 //! - [`layout`]: the compact versioned byte layout (≈2 bytes per node);
 //! - [`shade`]: per vertex and light, the light polygon clipped by face frusta and tree planes
 //!   (planes through the vertex) and integrated with LTC, weighted by the leaves' visibility;
@@ -21,6 +23,7 @@
 //! parallel over vertices and deterministic.
 
 pub mod budget;
+pub mod depth;
 pub mod dirty;
 pub mod grid;
 pub mod layout;
@@ -52,8 +55,10 @@ use std::time::Instant;
 /// single-precision searches without restarts, see [`split`]; 6: what touches a ray's start does
 /// not block it, see [`crate::accel::touching_distance`]; 7: an occluder of many triangles is
 /// asked in pieces, see [`crate::accel::Occluders`] — the same texels on every level measured,
-/// but a ray grazing a piece's box may round otherwise than through the whole BVH's boxes).
-pub const ALGORITHM_VERSION: u32 = 7;
+/// but a ray grazing a piece's box may round otherwise than through the whole BVH's boxes; 8:
+/// with declared light reach, a ray ends where it leaves the farthest reach box it meets, see
+/// [`reach::Reach::ray_end`]).
+pub const ALGORITHM_VERSION: u32 = 8;
 
 /// Bake parameters.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -212,7 +217,7 @@ pub fn bake(flat: &FlatScene, s: &Settings, progress: &(dyn Fn(usize) + Sync)) -
     let start = Instant::now();
     let occluders = occluder_bvh(flat);
     let tiles = SubtreeMemo::new(s);
-    let reach = Reach::of(&flat.lights);
+    let reach = Reach::of_scene(flat);
     let done = AtomicUsize::new(0);
     let mut stats = Stats::default();
     let instances = (0..flat.instances.len())
@@ -283,7 +288,7 @@ pub fn shade_vertices(flat: &FlatScene, shadows: Shadows, eye: glam::Vec3) -> Ve
                 .map(|v| match &exact {
                     Some((occluders, res)) => {
                         let (p, normal) = flat.vertex(i, v);
-                        let cube = visibility::cast(occluders, p, normal, *res);
+                        let cube = visibility::cast_with_hits(occluders, p, normal, *res);
                         let table = crate::math::ltc::table();
                         shade::PointShader::new(&table, p, normal, eye, &flat.vertex_material(i, v))
                             .shade(&flat.lights, shade::Visibility::Exact(&cube))
@@ -317,29 +322,59 @@ pub fn shade_point(
     }
     let nearest = corners[(0..3).max_by(|&x, &y| bary[x].total_cmp(&bary[y])).unwrap_or(0)];
     let material = flat.material_at(i, corners, bary);
-    shade_at(flat, bake.map(|b| b.instances[i].record(nearest)), &material, p, n, eye)
+    shade_at(flat, bake.map(|b| (b.instances[i].record(nearest), b.settings.res)), &material, p, n, eye)
 }
 
 /// Outgoing radiance toward `eye` from the polygonal lights at vertex `v` of instance `i`,
 /// shadowed by `bake`'s trees (`None`: unshadowed LTC).
 pub fn shade_vertex(flat: &FlatScene, bake: Option<&Bake>, i: usize, v: usize, eye: glam::Vec3) -> glam::Vec3 {
     let (p, n) = flat.vertex(i, v);
-    shade_at(flat, bake.map(|b| b.instances[i].record(v)), &flat.vertex_material(i, v), p, n, eye)
+    shade_at(flat, bake.map(|b| (b.instances[i].record(v), b.settings.res)), &flat.vertex_material(i, v), p, n, eye)
 }
 
 /// LTC shading of `material` at `p` (normal `n`) toward `eye`, shadowed by a vertex record's
-/// trees (`None`: unshadowed).
+/// trees at its face resolution (`None`: unshadowed).
 fn shade_at(
     flat: &FlatScene,
-    record: Option<&[u8]>,
+    record: Option<(&[u8], usize)>,
     material: &crate::scene::Material,
     p: glam::Vec3,
     n: glam::Vec3,
     eye: glam::Vec3,
 ) -> glam::Vec3 {
     let shader = shade::PointShader::new(&crate::math::ltc::table(), p, n, eye, material);
-    let vis = record.map_or(shade::Visibility::Unshadowed, shade::Visibility::Tree);
+    let vis = record.map_or(shade::Visibility::Unshadowed, |(r, res)| shade::Visibility::Tree(r, res));
     shader.shade(&flat.lights, vis)
+}
+
+/// Share of its unshadowed light below which [`unseen_lights`] names a light.
+pub const UNSEEN_SHARE: f64 = 1e-4;
+
+/// The lights (indices into `flat.lights`) that `bake`'s trees let the receivers see almost
+/// nothing of: over every vertex, the diffuse lobe's integral over the light through the trees
+/// is at most [`UNSEEN_SHARE`] of the unshadowed integral (which is positive: some vertex faces
+/// the light). Such a light is shut in (a closed shade, behind a wall); what an image shows of
+/// it is then its bounce metered up, which commands warn about.
+pub fn unseen_lights(flat: &FlatScene, bake: &Bake) -> Vec<usize> {
+    let table = crate::math::ltc::table();
+    let white = crate::scene::Material::lambertian(glam::Vec3::ONE);
+    let vertices: Vec<(usize, usize)> = flat.vertex_ids().collect();
+    let zero = || vec![[0.0; 2]; flat.lights.len()];
+    let sums = vertices
+        .par_iter()
+        .fold(zero, |mut acc, &(i, v)| {
+            let (p, n) = flat.vertex(i, v);
+            let shader = shade::PointShader::new(&table, p, n, p + n, &white);
+            let through = shader
+                .lobe_integrals(&flat.lights, shade::Visibility::Tree(bake.instances[i].record(v), bake.settings.res));
+            let open = shader.lobe_integrals(&flat.lights, shade::Visibility::Unshadowed);
+            for (a, (t, o)) in acc.iter_mut().zip(through.iter().zip(&open)) {
+                *a = [a[0] + t[0], a[1] + o[0]];
+            }
+            acc
+        })
+        .reduce(zero, |a, b| a.iter().zip(&b).map(|(x, y)| [x[0] + y[0], x[1] + y[1]]).collect());
+    (0..sums.len()).filter(|&l| sums[l][1] > 0.0 && sums[l][0] <= UNSEEN_SHARE * sums[l][1]).collect()
 }
 
 #[cfg(test)]

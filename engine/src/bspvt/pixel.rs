@@ -41,7 +41,9 @@ impl Lobes {
                     .map(|v| {
                         let (p, n) = flat.vertex(i, v);
                         let shader = PointShader::new(&table, p, n, eye, &flat.vertex_material(i, v));
-                        let vis = bake.map_or(Visibility::Unshadowed, |b| Visibility::Tree(b.instances[i].record(v)));
+                        let vis = bake.map_or(Visibility::Unshadowed, |b| {
+                            Visibility::Tree(b.instances[i].record(v), b.settings.res)
+                        });
                         let (radiance, shut) = shader.shade_with_lobes(&flat.lights, vis);
                         let open = match bake {
                             Some(_) => shader.lobe_integrals(&flat.lights, Visibility::Unshadowed),

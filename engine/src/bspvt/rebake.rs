@@ -6,7 +6,7 @@
 use super::memo::SubtreeMemo;
 use super::reach::Reach;
 use super::visibility::{self, Look};
-use super::{VertexBake, dirty, layout, node, tiles_per_side, tree};
+use super::{VertexBake, depth, dirty, layout, node, tiles_per_side, tree};
 use crate::accel::{self, Occluders};
 use std::ops::Range;
 
@@ -53,9 +53,10 @@ pub fn rebake_vertex(
     }
     debug_assert!(old.masks.is_sorted_by_key(|m| m.0), "a bake's masks are by tile index");
     let kept = if cold { [&[][..]; 6] } else { layout::vertex_faces(&old.record) };
+    let kept_depths = if cold { [&[][..]; 6] } else { layout::vertex_depths(&old.record) };
     let mut out = VertexBake::default();
     let hemisphere = std::cell::OnceCell::new();
-    let faces: [Vec<u8>; 6] = std::array::from_fn(|f| {
+    let faces: [(Vec<u8>, Vec<u8>); 6] = std::array::from_fn(|f| {
         let range = (f * per_face) as u32..((f + 1) * per_face) as u32;
         // The masks are by tile index: the face's are one run of them.
         let run = old.masks.partition_point(|m| m.0 < range.start)..old.masks.partition_point(|m| m.0 < range.end);
@@ -63,7 +64,7 @@ pub fn rebake_vertex(
         let dirty = &dirty[f * per_face..(f + 1) * per_face];
         if !dirty.contains(&true) {
             out.masks.extend(old_masks.iter().map(|&(t, m)| (t + range.start, m)));
-            return kept[f].to_vec();
+            return (kept[f].to_vec(), kept_depths[f].to_vec());
         }
         // A face that stored no tree was entirely occluded (or below the horizon: never read).
         let old_tree = match (cold, kept[f].is_empty()) {
@@ -71,10 +72,10 @@ pub fn rebake_vertex(
             (false, true) => vec![node::Node::Leaf(0.0)],
             (false, false) => layout::decode_tree(kept[f]),
         };
+        let reached = edit.reached.as_deref().map(|r| &r[f * per_face..(f + 1) * per_face]);
         let bits = if cold {
-            let reached = edit.reached.as_deref().map(|r| &r[f * per_face..(f + 1) * per_face]);
             let hemisphere = hemisphere.get_or_init(|| visibility::hemisphere(occluders, p, n, s.res));
-            let bits = visibility::cast_face_tiles(occluders, hemisphere, p, n, f, s.res, reached);
+            let bits = visibility::cast_face_tiles(occluders, hemisphere, (p, n), f, s.res, (reached, reach));
             out.rays += bits.iter().map(|b| b.live.count_ones() as usize).sum::<usize>();
             bits
         } else {
@@ -83,10 +84,42 @@ pub fn rebake_vertex(
         let face = tree::rebuild(&bits, tiles, &old_tree, &old_masks);
         out.built += face.built;
         out.masks.extend(face.masks.iter().map(|&(t, m)| (t + range.start, m)));
-        layout::encode_face(face.nodes.as_deref().filter(|t| *t != [node::Node::Leaf(0.0)]))
+        let recast: Vec<bool> = (0..per_face).map(|t| dirty[t] && reached.is_none_or(|r| r[t])).collect();
+        let depth = face.nodes.as_ref().filter(|_| reach.depth).map_or_else(Vec::new, |nodes| {
+            let occluded = occluded_texels((nodes, &face.masks), &bits, (n, f, s.res), (&recast, reached));
+            let new = visibility::cast_depth(occluders, (p, n), f, s.res, (&occluded, reach));
+            out.rays += occluded.iter().map(|m| m.count_ones() as usize).sum::<usize>();
+            let old = depth::split_tiles(kept_depths[f], s.res);
+            let tiles: Vec<Option<&[u8]>> =
+                (0..per_face).map(|t| if recast[t] { new[t].as_deref() } else { old[t].as_deref() }).collect();
+            depth::join_tiles(&tiles, s.res)
+        });
+        let tree = layout::encode_face(face.nodes.as_deref().filter(|t| *t != [node::Node::Leaf(0.0)]));
+        (tree, depth)
     });
-    out.record = layout::join_faces(faces.each_ref().map(Vec::as_slice));
+    out.record = layout::with_depths(
+        layout::join_faces(faces.each_ref().map(|f| f.0.as_slice())),
+        faces.each_ref().map(|f| f.1.as_slice()),
+    );
     out
+}
+
+/// Per tile of a face (row-major), the occluded texels after a (re-)bake of the tiles
+/// `recast` flags (0 for the others): above the horizon in `bits` and not visible in the
+/// face's new tree and masks `tree`. `reached` flags the tiles in reach (`None`: all).
+fn occluded_texels(
+    tree: (&[node::Node], &[(u32, u64)]),
+    bits: &[visibility::TileBits],
+    (n, f, res): (glam::Vec3, usize, usize),
+    (recast, reached): (&[bool], Option<&[bool]>),
+) -> Vec<u64> {
+    let live: Vec<bool> = visibility::live_tiles(n, f, res)
+        .into_iter()
+        .enumerate()
+        .map(|(t, l)| l && reached.is_none_or(|r| r[t]))
+        .collect();
+    let visible = tree::old_visibility(tree.0, tree.1, res, &live, recast);
+    (0..recast.len()).map(|t| if recast[t] { bits[t].live & !visible[t] } else { 0 }).collect()
 }
 
 /// A warm re-bake's view of the changes from one vertex.
@@ -105,6 +138,8 @@ struct Edit<'a> {
     blocked: Vec<bool>,
     /// Per tile, whether a light can be seen through it (`None`: all can; see [`Reach::tiles`]).
     reached: Option<Vec<bool>>,
+    /// Where each ray ends ([`Reach::ray_end`]).
+    reach: &'a Reach,
 }
 
 /// A changed occluder's old or new bounds from the vertex, and how each tile sees them.
@@ -134,13 +169,14 @@ impl<'a> Edit<'a> {
         occluders: &'a Occluders,
         (p, n): (glam::Vec3, glam::Vec3),
         changes: &[Change],
-        reach: &Reach,
+        reach: &'a Reach,
         res: usize,
     ) -> Self {
         let origin = visibility::horizon_origin(p, n);
         let seen = |(lo, hi), instance: Option<usize>| {
             let bounds = dirty::SeenBox::new(p, n, lo, hi);
-            let beam = instance.and_then(|i| occluders.beam(i, origin));
+            // A beam answers for whole rays: where reach ends rays, each ray is cast.
+            let beam = instance.filter(|_| !reach.bounds_rays()).and_then(|i| occluders.beam(i, origin));
             Seen { cover: bounds.tiles(res), bounds, instance, beam }
         };
         let before = changes.iter().filter_map(|c| c.before).map(|b| seen(b, None)).collect();
@@ -151,7 +187,7 @@ impl<'a> Edit<'a> {
             let more = dirty::blocked_tiles(beam, &b.cover, n, res);
             blocked.iter_mut().zip(more).for_each(|(a, b)| *a |= b);
         }
-        Self { occluders, p, n, origin, before, after, blocked, reached: reach.tiles(p, n, res) }
+        Self { occluders, p, n, origin, before, after, blocked, reached: reach.tiles(p, n, res), reach }
     }
 
     /// Face `f`'s tiles after the edit (see [`visibility::cast_tiles`]; `dirty` flags its tiles
@@ -251,9 +287,10 @@ impl<'a> Edit<'a> {
             return visibility::SKIPPED;
         }
         let o = visibility::ray_origin(self.origin, self.p, self.n, d);
+        let end = self.reach.ray_end(o, d);
         let mut cast = |i| {
             *rays += 1;
-            self.occluders.occluded_by(i, o, d, f32::INFINITY)
+            self.occluders.occluded_by(i, o, d, end)
         };
         // The beam's origin is `o` unless rounding put `d` below the horizon.
         let beam = |b: &Seen| b.beam.as_ref().filter(|_| o == self.origin).and_then(|beam| beam.hits(d));
@@ -263,7 +300,7 @@ impl<'a> Edit<'a> {
             (false, true) => visibility::VISIBLE,
             (false, false) => {
                 *rays += 1;
-                visibility::cast_ray(self.occluders, o, d)
+                visibility::cast_ray(self.occluders, o, d, end)
             }
         }
     }

@@ -3,7 +3,8 @@
 //! vertex, so every split is exact 3D polygon clipping — weighted by visibility. The light is
 //! first clipped at the receiver's horizon: below it the trees hold guesses, not visibility.
 
-use super::layout::{skip_encoded, split_codes, vertex_faces};
+use super::depth;
+use super::layout::{skip_encoded, split_codes, vertex_depths, vertex_faces};
 use super::node::dequantise_line;
 use super::visibility::{CubeVisibility, VISIBLE};
 use crate::math::{cubemap, ltc, polygon};
@@ -12,11 +13,12 @@ use crate::shading::Bsdf;
 use glam::{DMat3, DVec3, Vec3};
 
 /// How visibility enters.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Visibility<'a> {
-    /// BSP visibility trees: a baked vertex record.
-    Tree(&'a [u8]),
-    /// The raw cube map, the light clipped exactly per visible texel.
+    /// BSP visibility trees: a baked vertex record, at a face resolution.
+    Tree(&'a [u8], usize),
+    /// The raw cube map, the light clipped exactly per visible texel (and, where the map has
+    /// its occluded texels' first hits, per occluded texel in front of its hit's plane).
     Exact(&'a CubeVisibility),
     /// No shadows.
     Unshadowed,
@@ -138,7 +140,7 @@ impl PointShader {
             }
             match vis {
                 Visibility::Unshadowed => self.piece(&part, tex, 1.0, &mut sum),
-                Visibility::Tree(record) => self.through_trees(record, &part, tex, &mut sum),
+                Visibility::Tree(record, res) => self.through_trees((record, res), &part, tex, &mut sum),
                 Visibility::Exact(cube) => self.through_texels(cube, &part, tex, &mut sum),
             }
         }
@@ -157,15 +159,34 @@ impl PointShader {
         total.as_vec3()
     }
 
-    fn through_trees(&self, record: &[u8], rel: &[DVec3], tex: Option<&TexturedLight>, acc: &mut Sum) {
-        for (f, bytes) in vertex_faces(record).into_iter().enumerate() {
-            if bytes.is_empty() {
+    fn through_trees(&self, (record, res): (&[u8], usize), rel: &[DVec3], tex: Option<&TexturedLight>, acc: &mut Sum) {
+        let (trees, depths) = (vertex_faces(record), vertex_depths(record));
+        for f in 0..cubemap::FACES {
+            if trees[f].is_empty() && depths[f].is_empty() {
                 continue;
             }
             let piece = clip_all(rel, &cubemap::face_frustum(f));
-            if !piece.is_empty() {
-                self.walk(bytes, 0, f, piece, tex, acc);
+            if piece.is_empty() {
+                continue;
             }
+            let leaf = Leaf { face: f, depth: depths[f], res };
+            if trees[f].is_empty() {
+                // No tree: every texel above the horizon is occluded.
+                self.leaf(&leaf, 0.0, &piece, tex, acc);
+            } else {
+                self.walk(trees[f], 0, &leaf, piece, tex, acc);
+            }
+        }
+    }
+
+    /// A piece of a light at a leaf of visibility `v`: the share `v` of the texels see it
+    /// whole; the occluded rest see the parts of it in front of their occluders' depth.
+    fn leaf(&self, leaf: &Leaf, v: f64, piece: &[DVec3], tex: Option<&TexturedLight>, acc: &mut Sum) {
+        if v > 0.0 {
+            self.piece(piece, tex, v, acc);
+        }
+        if v < 1.0 {
+            depth::front(leaf.depth, leaf.face, leaf.res, piece, &mut |part| self.piece(part, tex, 1.0 - v, acc));
         }
     }
 
@@ -174,7 +195,7 @@ impl PointShader {
         &self,
         bytes: &[u8],
         i: usize,
-        face: usize,
+        leaf: &Leaf,
         piece: Vec<DVec3>,
         tex: Option<&TexturedLight>,
         acc: &mut Sum,
@@ -183,17 +204,14 @@ impl PointShader {
             return skip_encoded(bytes, i);
         }
         if bytes[i] & 0x80 == 0 {
-            let v = bytes[i] as f64 / 127.0;
-            if v > 0.0 {
-                self.piece(&piece, tex, v, acc);
-            }
+            self.leaf(leaf, bytes[i] as f64 / 127.0, &piece, tex, acc);
             return i + 1;
         }
         let (angle, offset) = split_codes(bytes, i);
         let ((cos, sin), c) = dequantise_line(angle, offset);
-        let (pos, neg) = polygon::split(piece, cubemap::line_plane(face, cos, sin, -c));
-        let next = self.walk(bytes, i + 3, face, pos, tex, acc);
-        self.walk(bytes, next, face, neg, tex, acc)
+        let (pos, neg) = polygon::split(piece, cubemap::line_plane(leaf.face, cos, sin, -c));
+        let next = self.walk(bytes, i + 3, leaf, pos, tex, acc);
+        self.walk(bytes, next, leaf, neg, tex, acc)
     }
 
     fn through_texels(&self, cube: &CubeVisibility, rel: &[DVec3], tex: Option<&TexturedLight>, acc: &mut Sum) {
@@ -217,7 +235,9 @@ impl PointShader {
             let face = cube.face(f);
             for j in j0..=j1 {
                 for i in i0..=i1 {
-                    if face[j * n + i] != VISIBLE {
+                    // An occluded texel sees the part of the light in front of its hit's plane.
+                    let hit = cube.hits.get((f * n + j) * n + i).copied().flatten();
+                    if face[j * n + i] != VISIBLE && hit.is_none() {
                         continue;
                     }
                     let planes = [
@@ -226,14 +246,25 @@ impl PointShader {
                         cubemap::line_plane(f, 0.0, 1.0, -edge(j)),
                         cubemap::line_plane(f, 0.0, -1.0, edge(j + 1)),
                     ];
-                    let texel_piece = clip_all(&piece, &planes);
-                    if !texel_piece.is_empty() {
+                    let mut texel_piece = clip_all(&piece, &planes);
+                    if let Some(h) = hit.filter(|_| face[j * n + i] != VISIBLE) {
+                        let normal = h.n.as_dvec3();
+                        texel_piece = polygon::clip_below(&texel_piece, normal, normal.dot(h.q.as_dvec3()));
+                    }
+                    if texel_piece.len() >= 3 {
                         self.piece(&texel_piece, tex, 1.0, acc);
                     }
                 }
             }
         }
     }
+}
+
+/// A face being descended: its index, its depth bytes, the face resolution.
+struct Leaf<'a> {
+    face: usize,
+    depth: &'a [u8],
+    res: usize,
 }
 
 /// What the pieces integrated so far add up to, and their count.

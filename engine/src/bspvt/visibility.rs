@@ -1,8 +1,10 @@
 //! Per-vertex visibility cube maps, ray-cast with the BVH. Texels entirely below the vertex's
 //! horizon are never cast: LTC clips there, so their visibility cannot matter.
 
+use super::depth;
 use super::grid;
 use super::node::TILE;
+use super::reach::Reach;
 use crate::accel::{Occluders, View, offset_ray_origin};
 use crate::math::cubemap;
 use glam::{DVec3, Vec3};
@@ -17,12 +19,14 @@ pub const BELOW: u8 = 2;
 pub const SKIPPED: u8 = 3;
 
 /// A visibility cube map: 6 faces of `res × res` texels, row-major per face.
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct CubeVisibility {
     /// Face resolution.
     pub res: usize,
     /// `6·res²` texel states.
     pub texels: Vec<u8>,
+    /// Per texel, an occluded one's first hit (`None` for the others, or when not cast for).
+    pub hits: Vec<Option<depth::Hit>>,
 }
 
 impl CubeVisibility {
@@ -39,15 +43,35 @@ impl CubeVisibility {
 /// texel.
 pub fn cast(occluders: &Occluders, p: Vec3, n: Vec3, res: usize) -> CubeVisibility {
     let view = hemisphere(occluders, p, n, res);
-    let texels = (0..cubemap::FACES)
-        .flat_map(|f| TileBits::to_face(&cast_face_tiles(occluders, &view, p, n, f, res, None), res));
-    let texels = texels.collect();
-    CubeVisibility { res, texels }
+    let tiles: Vec<Vec<TileBits>> = (0..cubemap::FACES)
+        .map(|f| cast_face_tiles(occluders, &view, (p, n), f, res, (None, &Reach::ANYWHERE)))
+        .collect();
+    let texels = tiles.iter().flat_map(|t| TileBits::to_face(t, res)).collect();
+    CubeVisibility { res, texels, hits: Vec::new() }
+}
+
+/// [`cast`] with every occluded texel's first hit, for exact visibility with depth.
+pub fn cast_with_hits(occluders: &Occluders, p: Vec3, n: Vec3, res: usize) -> CubeVisibility {
+    let mut cube = cast(occluders, p, n, res);
+    let k = res.div_ceil(TILE);
+    cube.hits = vec![None; cube.texels.len()];
+    for f in 0..cubemap::FACES {
+        let tiles = TileBits::from_face(cube.face(f), res);
+        let occluded: Vec<u64> = tiles.iter().map(|t| t.live & !t.visible & !t.skipped).collect();
+        for (t, hits) in first_hits(occluders, (p, n), f, res, (&occluded, &Reach::ANYWHERE)).into_iter().enumerate() {
+            for (b, hit) in hits.into_iter().enumerate().filter(|(_, h)| h.is_some()) {
+                let (i, j) = ((t % k) * TILE + b % TILE, (t / k) * TILE + b / TILE);
+                cube.hits[(f * res + j) * res + i] = hit;
+            }
+        }
+    }
+    cube
 }
 
 /// The `res²` texel states of face `f` alone (see [`cast`]).
 pub fn cast_face(occluders: &Occluders, p: Vec3, n: Vec3, f: usize, res: usize) -> Vec<u8> {
-    TileBits::to_face(&cast_face_tiles(occluders, &hemisphere(occluders, p, n, res), p, n, f, res, None), res)
+    let view = hemisphere(occluders, p, n, res);
+    TileBits::to_face(&cast_face_tiles(occluders, &view, (p, n), f, res, (None, &Reach::ANYWHERE)), res)
 }
 
 /// The pieces of `occluders` that rays from a vertex at `p` (unit normal `n`) into the
@@ -64,16 +88,16 @@ fn lifted(res: usize) -> f32 {
 }
 
 /// [`cast_face`] as tiles: every texel above the horizon cast, except in the tiles `reached`
-/// marks `false` (see [`super::reach`]), which are left as if below the horizon. `hemisphere`
-/// is the vertex's [`hemisphere`].
+/// marks `false` (see [`super::reach`]), which are left as if below the horizon; each ray
+/// looks for occluders up to where `reach` ends it ([`Reach::ray_end`]). `hemisphere` is the
+/// vertex's [`hemisphere`].
 pub fn cast_face_tiles(
     occluders: &Occluders,
     hemisphere: &View,
-    p: Vec3,
-    n: Vec3,
+    (p, n): (Vec3, Vec3),
     f: usize,
     res: usize,
-    reached: Option<&[bool]>,
+    (reached, reach): (Option<&[bool]>, &Reach),
 ) -> Vec<TileBits> {
     let looks: Vec<Look> = (0..res.div_ceil(TILE).pow(2))
         .map(|t| if reached.is_none_or(|r| r[t]) { Look::Cast } else { Look::Unreached })
@@ -104,12 +128,80 @@ pub fn cast_face_tiles(
             }
         };
         let within = |planes: &[Vec3]| planes.iter().all(|m| m.dot(d) >= -slack);
+        let end = reach.ray_end(o, d);
         if o == above && (centred || within(tile) && within(&face)) {
-            if occluders.occluded_among(among, d, f32::INFINITY) { OCCLUDED } else { VISIBLE }
+            if occluders.occluded_among(among, d, end) { OCCLUDED } else { VISIBLE }
         } else {
-            cast_ray(occluders, o, d)
+            cast_ray(occluders, o, d, end)
         }
     })
+}
+
+/// Each tile's depth subtree ([`depth::encode_tile`]) of face `f` for a vertex at `p` (unit
+/// normal `n`) from its `occluded` texels' first hits, rays as the coverage cast them, ending
+/// where `reach` ends them; `None` for tiles with no occluded texel.
+pub fn cast_depth(
+    occluders: &Occluders,
+    (p, n): (Vec3, Vec3),
+    f: usize,
+    res: usize,
+    (occluded, reach): (&[u64], &Reach),
+) -> Vec<Option<Vec<u8>>> {
+    let k = res.div_ceil(TILE);
+    let hits = first_hits(occluders, (p, n), f, res, (occluded, reach));
+    hits.iter().enumerate().map(|(t, h)| depth::encode_tile(h, tile_size(t, k, res))).collect()
+}
+
+/// The texel width and height of tile `t` (`k` per side) at face resolution `res`.
+fn tile_size(t: usize, k: usize, res: usize) -> (usize, usize) {
+    let (i0, j0) = ((t % k) * TILE, (t / k) * TILE);
+    ((i0 + TILE).min(res) - i0, (j0 + TILE).min(res) - j0)
+}
+
+/// Per tile of face `f` (row-major), the first hits of the `occluded` texels (masks as in
+/// [`TileBits`], bits as their index) of a vertex at `p` (unit normal `n`), rays as the
+/// coverage cast them, ending where `reach` ends them.
+pub fn first_hits(
+    occluders: &Occluders,
+    (p, n): (Vec3, Vec3),
+    f: usize,
+    res: usize,
+    (occluded, reach): (&[u64], &Reach),
+) -> Vec<[Option<depth::Hit>; TILE * TILE]> {
+    let mut hits = vec![[None; TILE * TILE]; occluded.len()];
+    cast_occluded((p, n), f, res, occluded, |t, bit, o, d| {
+        hits[t][bit.trailing_zeros() as usize] = Some(first_hit(occluders, (o, d), reach.ray_end(o, d), p));
+    });
+    hits
+}
+
+/// Calls `ray(tile, bit, origin, direction)` for each `occluded` texel of face `f` of the
+/// vertex at `p` (unit normal `n`), tile by tile, in bit order within a tile, with the rays
+/// the coverage cast.
+fn cast_occluded(
+    (p, n): (Vec3, Vec3),
+    f: usize,
+    res: usize,
+    occluded: &[u64],
+    mut ray: impl FnMut(usize, u64, Vec3, Vec3),
+) {
+    let looks: Vec<Look> = occluded.iter().map(|&m| if m != 0 { Look::Cast } else { Look::Unreached }).collect();
+    let above = horizon_origin(p, n);
+    let asks = |t: usize| Ask { ask: occluded[t], occluded: 0 };
+    cast_tiles(&Horizon::new(n, f, res), &looks, asks, |t, bit, d, _| {
+        if occluded[t] & bit != 0 {
+            ray(t, bit, ray_origin(above, p, n, d), d);
+        }
+        SKIPPED
+    });
+}
+
+/// The first hit of the ray from `o` along `d` within `end`, relative to the vertex at `p`; a
+/// ray the coverage found blocked but no closest hit confirms (rounding at a grazing edge) is
+/// met at its start, so that nothing shows in front of it.
+fn first_hit(occluders: &Occluders, (o, d): (Vec3, Vec3), end: f32, p: Vec3) -> depth::Hit {
+    let met = occluders.closest(o, d, end).unwrap_or(crate::accel::PlaneHit { t: 0.0, normal: d, corner: o });
+    depth::Hit::new(o + d * met.t - p, met.normal, met.corner - p)
 }
 
 /// The direction cast for texel (i, j) of face `f` above the horizon of unit normal `nd`:
@@ -378,9 +470,10 @@ pub enum Look {
     Unreached,
 }
 
-/// Whether the ray from `origin` (see [`ray_origin`]) in direction `d` reaches the sky.
-pub fn cast_ray(occluders: &Occluders, origin: Vec3, d: Vec3) -> u8 {
-    if occluders.occluded(origin, d, f32::INFINITY) { OCCLUDED } else { VISIBLE }
+/// Whether the ray from `origin` (see [`ray_origin`]) in direction `d` meets no occluder
+/// before `end` (infinite: reaches the sky).
+pub fn cast_ray(occluders: &Occluders, origin: Vec3, d: Vec3, end: f32) -> u8 {
+    if occluders.occluded(origin, d, end) { OCCLUDED } else { VISIBLE }
 }
 
 /// Where every ray from a vertex at `p` (unit normal `n`) into the hemisphere above its
@@ -426,7 +519,11 @@ mod tests {
                 let full = cast_face(&occ, Vec3::ZERO, n, f, res);
                 let live = live_tiles(n, f, res);
                 let texel = |_, _, d: Vec3, _| {
-                    if d.x > 0.0 { cast_ray(&occ, offset_ray_origin(Vec3::ZERO, n, d), d) } else { SKIPPED }
+                    if d.x > 0.0 {
+                        cast_ray(&occ, offset_ray_origin(Vec3::ZERO, n, d), d, f32::INFINITY)
+                    } else {
+                        SKIPPED
+                    }
                 };
                 let height =
                     |i: usize, j: usize| cubemap::face_to_dir(f, cubemap::texel_center(i, j, res)).dot(n.as_dvec3());
@@ -521,7 +618,7 @@ mod tests {
                     let every = |_| Ask { ask: u64::MAX, occluded: 0 };
                     let looks = vec![Look::Cast; res.div_ceil(TILE).pow(2)];
                     let full = cast_tiles(&Horizon::new(n, f, res), &looks, every, |_, _, d, _| {
-                        cast_ray(&occ, ray_origin(above, at, n, d), d)
+                        cast_ray(&occ, ray_origin(above, at, n, d), d, f32::INFINITY)
                     });
                     let full = TileBits::to_face(&full, res);
                     assert_eq!(cast_face(&occ, at, n, f, res), full, "res {res}, vertex {at}, normal {n}, face {f}");

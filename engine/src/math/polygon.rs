@@ -1,5 +1,6 @@
 //! Polygons seen from the origin: clipping by planes through the origin (cube-face frusta,
-//! BSP lines, the horizon) and solid angles of spherical polygons.
+//! BSP lines, the horizon) and by planes in front of it (occluders' depth), and solid angles
+//! of spherical polygons.
 //!
 //! Vertices within a relative tolerance of a plane are treated as lying on it: they are kept
 //! and never produce a second, nearly identical intersection point, so repeated clipping by a
@@ -12,10 +13,24 @@ pub const ON_PLANE: f64 = 1e-12;
 
 /// Keeps the part of convex polygon `poly` where `n · p ≥ 0` (Sutherland–Hodgman).
 pub fn clip(poly: &[DVec3], n: DVec3) -> Vec<DVec3> {
-    let side = |p: DVec3| {
+    keep(poly, |p| {
         let d = n.dot(p);
         if d.abs() <= ON_PLANE * n.length() * p.length() { 0.0 } else { d }
-    };
+    })
+}
+
+/// Keeps the part of convex polygon `poly` where `n · p ≤ c`: what lies in front of the plane
+/// `n · p = c` (not through the origin) seen from the origin, for `c > 0`.
+pub fn clip_below(poly: &[DVec3], n: DVec3, c: f64) -> Vec<DVec3> {
+    keep(poly, |p| {
+        let d = c - n.dot(p);
+        if d.abs() <= ON_PLANE * (c.abs() + n.length() * p.length()) { 0.0 } else { d }
+    })
+}
+
+/// The part of convex polygon `poly` where `side(p) ≥ 0`, `side` affine and exactly 0 on the
+/// boundary (Sutherland–Hodgman); empty when fewer than three vertices remain.
+fn keep(poly: &[DVec3], side: impl Fn(DVec3) -> f64) -> Vec<DVec3> {
     let mut out = Vec::with_capacity(poly.len() + 2);
     for i in 0..poly.len() {
         let (a, b) = (poly[i], poly[(i + 1) % poly.len()]);
@@ -79,6 +94,21 @@ pub fn enclosed_solid_angle(poly: &[DVec3]) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Clipping below a plane keeps what is in front of it: the parts on both sides add up
+    /// to the whole polygon's solid angle, and every kept vertex is in front.
+    #[test]
+    fn clipping_below_a_plane_partitions_the_polygon() {
+        let poly = vec![DVec3::new(-1.0, 2.0, -1.0), DVec3::new(1.0, 2.0, -1.0), DVec3::new(1.0, 3.0, 1.0)];
+        let (n, c) = (DVec3::new(0.2, 1.0, 0.1).normalize(), 2.3);
+        let front = clip_below(&poly, n, c);
+        let back = clip_below(&poly, -n, -c);
+        assert!(front.iter().all(|p| n.dot(*p) <= c + 1e-12) && !front.is_empty() && !back.is_empty());
+        let whole = solid_angle(&poly);
+        assert!((solid_angle(&front) + solid_angle(&back) - whole).abs() < 1e-12 * whole.abs(), "{front:?}");
+        assert_eq!(clip_below(&poly, n, 10.0), poly);
+        assert!(clip_below(&poly, n, 0.5).is_empty());
+    }
     use std::f64::consts::PI;
 
     fn square(z: f64, h: f64) -> Vec<DVec3> {

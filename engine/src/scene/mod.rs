@@ -122,6 +122,11 @@ impl Scene {
         propagate_transforms(&mut self.world);
     }
 
+    /// The name of `entity` (its glTF node's), if it has one.
+    pub fn name_of(&self, entity: hecs::Entity) -> Option<String> {
+        self.world.get::<&Name>(entity).ok().map(|n| n.0.clone())
+    }
+
     /// Refines the mesh of every instance named `name` (its own node's name, or its rigid
     /// group's) to `target` vertices with [`refine::refine`]; returns how many instances changed.
     pub fn refine_instances(&mut self, name: &str, target: usize) -> crate::Result<usize> {

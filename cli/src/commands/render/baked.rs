@@ -30,6 +30,9 @@ pub(super) fn run(job: &Job) -> Result<Outputs> {
         None => bake(args, scene, renderer)?,
     };
     let (flat, eye) = (&renderer.flat, camera.eye());
+    if let Some(b) = &bakes.bspvt {
+        super::warn_unseen(scene, flat, b);
+    }
     let start = Instant::now();
     let prefiltered = flat.environment.as_ref().map(Prefiltered::new);
     let parts = Bakes {

@@ -190,6 +190,7 @@ pub fn run(args: &Args) -> Result<()> {
     let (mut scene, pack) = match &args.pack {
         Some(path) => {
             let (scene, contents) = kage_bake_db::pack::read(path)?;
+            contents.warnings.iter().for_each(|w| eprintln!("warning: {w}"));
             (scene, Some(contents))
         }
         None => {
@@ -358,6 +359,9 @@ fn per_vertex(job: &Job, method: Method) -> Result<Outputs> {
     } else {
         bspvt::shade_vertices(&renderer.flat, kind, camera.eye())
     };
+    if let bspvt::Shadows::Trees(bake) = kind {
+        warn_unseen(scene, &renderer.flat, bake);
+    }
     let evals = renderer.vertex_count() * renderer.flat.lights.len();
     let secs = start.elapsed().as_secs_f64();
     crate::emit(&format!(
@@ -368,6 +372,28 @@ fn per_vertex(job: &Job, method: Method) -> Result<Outputs> {
     let glossy =
         if method == Method::LtcExactVis { GlossyDirect::Reference } else { GlossyDirect::Ltc(bake.map(Into::into)) };
     Ok(Outputs { image, vertices: Some(values), glossy })
+}
+
+/// Warns about the lights that `bake`'s trees let almost no receiver see
+/// ([`bspvt::unseen_lights`]), naming them and the likely cause, so that a dark image is not
+/// taken for a lit one metered up.
+pub(crate) fn warn_unseen(scene: &Scene, flat: &kage_engine::scene::FlatScene, bake: &bspvt::Bake) {
+    let unseen = bspvt::unseen_lights(flat, bake);
+    if unseen.is_empty() {
+        return;
+    }
+    let name = |l: usize| scene.name_of(flat.lights[l].entity).unwrap_or_else(|| format!("#{l}"));
+    let names: Vec<String> = unseen.iter().map(|&l| format!("'{}'", name(l))).collect();
+    eprintln!(
+        "warning: {}: the baked visibility lets almost no receiver see {} of {} light(s) ({}): less than {} of \
+         their unshadowed light. Such a light is shut in — in a closed box or shade, behind a wall, under the \
+         floor, facing a wall it touches — so the image shows little but its bounce",
+        scene.source,
+        unseen.len(),
+        flat.lights.len(),
+        names.join(", "),
+        bspvt::UNSEEN_SHARE,
+    );
 }
 
 /// Bakes BSPVT without a database, printing the bake statistics.
