@@ -836,6 +836,17 @@ fn indirect_light_adds_to_per_vertex_methods() {
     }
     let o = kage(&["render", &scene, "--method", "reference", "--indirect", "cache"]);
     assert!(!o.status.success() && stderr(&o).contains("--bounces"), "{}", stderr(&o));
+    // The cache chooses its bounces from the error budget and says so; --bounces fixes them,
+    // and each bounce only adds light; --bounces 0 leaves the direct light.
+    let (chosen, _) = run(&["--indirect", "cache", "--cache-rays", "64"]);
+    assert!(chosen.contains("% budget)"), "{chosen}");
+    let (one, single) = run(&["--indirect", "cache", "--cache-rays", "64", "--bounces", "1"]);
+    let (three, triple) = run(&["--indirect", "cache", "--cache-rays", "64", "--bounces", "3"]);
+    assert!(one.contains("1 bounce (given)") && three.contains("3 bounces (given)"), "{one}{three}");
+    assert!(triple.iter().zip(&single).all(|(a, b)| a.radiance.cmpge(b.radiance).all()));
+    assert!(triple.iter().zip(&single).any(|(a, b)| a.radiance != b.radiance));
+    let (none, flat) = run(&["--indirect", "cache", "--bounces", "0"]);
+    assert!(!none.contains("indirect (") && flat.iter().zip(&direct).all(|(a, b)| a.radiance == b.radiance), "{none}");
     // With a bake database the records persist: the second run reads them and shades the same.
     let db = d.join("bake.redb");
     let cached = ["--indirect", "cache", "--cache-rays", "64", "--db", db.to_str().unwrap()];

@@ -160,8 +160,8 @@ impl Job {
                     None => (cache::place_at_vertices(&src, &s), "gathered".to_string()),
                 },
             };
-            let values = cache::shade_vertices(&src, &cache, eye);
-            Some((cache, note, values, key))
+            let (values, bounced) = cache::bounce(&src, &cache, eye, cache::Bounces::default());
+            Some((cache, format!("{note}, {bounced}"), values, key))
         });
         let Some((cache, note, values, key)) = landed else { return };
         let what = format!("{} records {note}, {:.2} s", cache.records.len(), start.elapsed().as_secs_f64());

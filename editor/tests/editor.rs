@@ -340,9 +340,9 @@ fn the_indirect_term_waits_for_the_bakes() {
     assert_eq!(gathers, 1, "{:#?}", ed.log);
 }
 
-/// The baked look's bounce lights glossy hits as `kage render` does, the environment's diffuse
+/// The baked look's bounces light glossy hits as `kage render` does, the environment's diffuse
 /// term, reflection and sun included: on an imported scene (every material glossy) under a sky,
-/// the editor's bounce equals one gathered with the baked look's `Look::toward`, and lighting
+/// the editor's bounces equal those gathered with the baked look's `Look::toward`, and lighting
 /// those hits with the polygonal light alone would lose much of it.
 #[test]
 fn the_baked_bounce_lights_glossy_hits_with_the_environment_too() {
@@ -376,7 +376,8 @@ fn the_baked_bounce_lights_glossy_hits_with_the_environment_too() {
     let look = Look::prepare(&ed.scene, flat, bakes, eye, &mut prt::SilhouetteMemo::default());
     let bounce = |glossy: Glossy| {
         let src = Source { renderer: &renderer, direct: &ed.direct, glossy };
-        cache::shade_vertices(&src, &cache::place_at_vertices(&src, &ed.options.cache), eye)
+        let records = cache::place_at_vertices(&src, &ed.options.cache);
+        cache::bounce(&src, &records, eye, cache::Bounces::default()).0
     };
     let toward = |i, corners, bary, to| look.toward(i, corners, bary, to);
     let expected = bounce(Glossy::Toward(&toward));

@@ -1,8 +1,9 @@
 //! Shared helpers for kage's cross-crate integration tests (`tests/tests/*.rs`).
 
+use glam::Vec3;
 use kage_engine::bspvt;
 use kage_engine::prt::{self, prefilter::Prefiltered};
-use kage_engine::scene::{FlatScene, Scene, flatten};
+use kage_engine::scene::{FlatScene, PolygonLight, Scene, Transform, flatten};
 use kage_engine::shading::baked::{Bakes, Look};
 use std::path::{Path, PathBuf};
 
@@ -56,4 +57,40 @@ pub fn with_node_extras(rel: &str, dir: &Path, node: &str, extras: serde_json::V
     let path = dir.join(Path::new(rel).file_name().expect("a file name"));
     std::fs::write(&path, serde_json::to_vec(&doc).expect("serialisable")).expect("scratch is writable");
     path
+}
+
+/// A move of a light's corners (world space).
+pub type LightMove = fn(&mut Vec<Vec3>);
+
+/// Moves every polygonal light of `scene` by `mv`, applied to its corners in world space.
+pub fn move_lights(scene: &mut Scene, mv: LightMove) {
+    for (light, t) in scene.world.query_mut::<(&mut PolygonLight, &Transform)>() {
+        let mut world: Vec<Vec3> = light.points.iter().map(|p| t.world.transform_point3(*p)).collect();
+        mv(&mut world);
+        light.points = world.iter().map(|p| t.world.inverse().transform_point3(*p)).collect();
+    }
+}
+
+/// The Cornell box's light poses, from the light as built: moved 15 cm toward the red wall and
+/// turned 20° about its normal (still in the ceiling's plane); lowered 15 cm and tilted 20°;
+/// down behind the tall block, 5 cm from it, facing the camera (the block shadows the floor in
+/// front).
+pub const CORNELL_POSES: [LightMove; 3] = [
+    |points| {
+        let (c, turn) = (centre(points), glam::Quat::from_rotation_y(20f32.to_radians()));
+        points.iter_mut().for_each(|p| *p = c + Vec3::new(0.15, 0.0, 0.0) + turn * (*p - c));
+    },
+    |points| {
+        let (c, tilt) = (centre(points), glam::Quat::from_rotation_x(20f32.to_radians()));
+        points.iter_mut().for_each(|p| *p = c - Vec3::new(0.0, 0.15, 0.0) + tilt * (*p - c));
+    },
+    |points| {
+        let (c, face) = (centre(points), glam::Quat::from_rotation_x(90f32.to_radians()));
+        points.iter_mut().for_each(|p| *p = Vec3::new(0.37, 0.15, 0.51) + face * (*p - c));
+    },
+];
+
+/// The mean of `points`.
+fn centre(points: &[Vec3]) -> Vec3 {
+    points.iter().sum::<Vec3>() / points.len() as f32
 }

@@ -8,8 +8,8 @@ use kage_engine::math::ltc;
 use kage_engine::math::relative_rmse as rel_rmse;
 use kage_engine::reference::{Renderer, Settings as RefSettings, SurfacePoint};
 use kage_engine::scene::import::{ImportOptions, import};
-use kage_engine::scene::{Material, Mesh, PolygonLight, Scene, Transform, flatten, shapes};
-use kage_tests::asset;
+use kage_engine::scene::{Material, Mesh, Scene, flatten, shapes};
+use kage_tests::{CORNELL_POSES, LightMove, asset, move_lights};
 
 fn quad(h: f32) -> Vec<Vec3> {
     // CCW seen from below: emits towards −Y.
@@ -341,7 +341,7 @@ fn a_declared_light_reach_bakes_less_and_shades_the_same() {
 /// scene puts it (1 mm under the ceiling) and then moved by each of `moves` (world points in
 /// place), against the reference's (2048 paths per vertex): the relative RMSE, and the
 /// radiance of the ceiling's vertices.
-fn cornell(name: &str, moves: &[fn(&mut Vec<Vec3>)]) -> Vec<(f64, Vec<Vec3>)> {
+fn cornell(name: &str, moves: &[LightMove]) -> Vec<(f64, Vec<Vec3>)> {
     // Walls of a few hundred vertices: per-vertex errors are then not those of the corners alone.
     let load = || {
         let mut scene = import(&asset(name), ImportOptions::default()).unwrap();
@@ -356,16 +356,12 @@ fn cornell(name: &str, moves: &[fn(&mut Vec<Vec3>)]) -> Vec<(f64, Vec<Vec3>)> {
     let eye = load().first_camera().unwrap().eye();
     let on_ceiling = |i: usize| (0..r.flat.vertex_count(i)).all(|v| (r.vertex(i, v).0.y - 0.5488).abs() < 1e-4);
     let ceiling = (0..r.flat.instances.len()).find(|&i| on_ceiling(i)).unwrap();
-    let identity: fn(&mut Vec<Vec3>) = |_| {};
+    let identity: LightMove = |_| {};
     std::iter::once(&identity)
         .chain(moves)
         .map(|mv| {
             let mut scene = load();
-            for (light, t) in scene.world.query_mut::<(&mut PolygonLight, &Transform)>() {
-                let mut world: Vec<Vec3> = light.points.iter().map(|p| t.world.transform_point3(*p)).collect();
-                mv(&mut world);
-                light.points = world.iter().map(|p| t.world.inverse().transform_point3(*p)).collect();
-            }
+            move_lights(&mut scene, *mv);
             let moved = Renderer::new(&scene);
             let lit = bspvt::shade_vertices(&moved.flat, bspvt::Shadows::Trees(&bake), eye);
             let settings = RefSettings { spp: 2048, seed: 3, max_bounces: 0, min_bounces: 0 };
@@ -384,23 +380,7 @@ fn cornell(name: &str, moves: &[fn(&mut Vec<Vec3>)]) -> Vec<(f64, Vec<Vec3>)> {
 /// matches. Declared `"fixed"`, rays stop at the light and the depth has nothing to add.
 #[test]
 fn a_light_in_a_closed_room_lights_it_as_the_reference_does() {
-    let turned: fn(&mut Vec<Vec3>) = |points| {
-        let c = points.iter().sum::<Vec3>() / points.len() as f32;
-        let turn = glam::Quat::from_rotation_y(20f32.to_radians());
-        points.iter_mut().for_each(|p| *p = c + Vec3::new(0.15, 0.0, 0.0) + turn * (*p - c));
-    };
-    let tilted: fn(&mut Vec<Vec3>) = |points| {
-        let c = points.iter().sum::<Vec3>() / points.len() as f32;
-        let tilt = glam::Quat::from_rotation_x(20f32.to_radians());
-        points.iter_mut().for_each(|p| *p = c - Vec3::new(0.0, 0.15, 0.0) + tilt * (*p - c));
-    };
-    // Down behind the tall block, facing the camera: the block shadows the floor in front.
-    let behind: fn(&mut Vec<Vec3>) = |points| {
-        let c = points.iter().sum::<Vec3>() / points.len() as f32;
-        let face = glam::Quat::from_rotation_x(90f32.to_radians());
-        points.iter_mut().for_each(|p| *p = Vec3::new(0.37, 0.15, 0.51) + face * (*p - c));
-    };
-    let undeclared = vec![turned, tilted, behind];
+    let undeclared = CORNELL_POSES.to_vec();
     for (name, moves) in [("scenes/cornell_box.gltf", undeclared), ("scenes/cornell_box_fixed.gltf", vec![])] {
         for (k, (error, ceiling)) in cornell(name, &moves).into_iter().enumerate() {
             eprintln!("{name}, light pose {k}: bspvt {error:.4} from the reference per vertex");

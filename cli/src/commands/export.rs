@@ -64,7 +64,7 @@ pub fn run(args: &Args) -> Result<()> {
     Ok(())
 }
 
-/// The preview: the baked look toward `eye`, with the radiance cache's bounce.
+/// The preview: the baked look toward `eye`, with the radiance cache's bounces.
 fn preview(
     scene: &kage_engine::scene::Scene,
     trees: Option<&bspvt::Bake>,
@@ -76,6 +76,13 @@ fn preview(
     let prefiltered = flat.environment.as_ref().map(prt::prefilter::Prefiltered::new);
     let bakes = Bakes { bspvt: trees, prt, prefiltered: prefiltered.as_ref() };
     let look = Look::prepare(scene, flat, bakes, eye, &mut prt::SilhouetteMemo::default());
-    let bounce = crate::commands::render::baked::bounce(&look, &renderer, &cache::Settings::default(), eye);
+    let bounce = crate::commands::render::baked::bounce(
+        &look,
+        &renderer,
+        &cache::Settings::default(),
+        eye,
+        cache::Bounces::default(),
+    )
+    .0;
     look.with_indirect(bounce).vertex_values()
 }

@@ -1,6 +1,9 @@
 //! Hemispherical-harmonic radiance caching (Gautron et al. 2004, Křivánek et al.
-//! 2005; equations H1–H23 as labelled in the article of `docs/references.md`): one bounce of indirect light from sparse records.
+//! 2005; equations H1–H23 as labelled in the article of `docs/references.md`): indirect light
+//! from sparse records.
 //!
+//! - [`bounces`]: the bounces after the first, from the records re-lit, and how many a budget
+//!   chooses;
 //! - [`record`]: gathering a record (HSH coefficients, analytic translational gradients,
 //!   harmonic mean distance);
 //! - this module: placement by the Ward/Křivánek criterion (a new record where no existing one
@@ -16,7 +19,10 @@
 //! (Funk–Hecke) instead of rotating the record ([`Cache::irradiance_at`]; equal to rotating to
 //! 1e-9).
 
+pub mod bounces;
 pub mod record;
+
+pub use bounces::{Bounced, Bounces, bounce};
 
 use crate::accel::Hit;
 use crate::math::hsh;
@@ -114,6 +120,7 @@ pub struct Refresh {
 }
 
 /// Records with a uniform grid over their areas of influence.
+#[derive(Clone)]
 pub struct Cache {
     /// The records, in creation order (record `i` gathered with ray stream `i`).
     pub records: Vec<Record>,
@@ -526,13 +533,17 @@ pub fn gather_vertices(src: &Source, rays: usize, eye: Vec3) -> VertexValues {
     let values: Vec<Vec3> = vertices(src)
         .par_iter()
         .enumerate()
-        .map(|(k, &(i, v, p, n))| {
-            let wo = crate::math::frame::Frame::from_normal(n).to_local((eye - p).normalize_or(n));
-            let bsdf = crate::shading::Bsdf::new(&src.renderer.flat.vertex_material(i, v), wo);
-            record::gather_bsdf(src, p, n, &bsdf, wo, side, k as u64)
-        })
+        .map(|(k, &(i, v, p, n))| gather_one(src, (i, v, p, n), eye, side, k as u64))
         .collect();
     split(src, values)
+}
+
+/// Brute-force gathering at vertex `v` of instance `i` (at `p`, normal `n`) toward `eye`:
+/// `side²` BSDF-sampled rays from ray stream `index`.
+fn gather_one(src: &Source, (i, v, p, n): (usize, usize, Vec3, Vec3), eye: Vec3, side: usize, index: u64) -> Vec3 {
+    let wo = crate::math::frame::Frame::from_normal(n).to_local((eye - p).normalize_or(n));
+    let bsdf = crate::shading::Bsdf::new(&src.renderer.flat.vertex_material(i, v), wo);
+    record::gather_bsdf(src, p, n, &bsdf, wo, side, index)
 }
 
 /// Per-instance vectors from a flat list in vertex order.

@@ -44,6 +44,15 @@ pub struct Estimate {
     pub std_error: Vec3,
 }
 
+/// The estimates' own relative standard error: RMS of their standard errors over RMS of their
+/// means (0 when every mean is 0).
+pub fn relative_standard_error<'a>(estimates: impl IntoIterator<Item = &'a Estimate>) -> f64 {
+    let (se, mean) = estimates.into_iter().fold((0.0, 0.0), |(a, b), e| {
+        (a + e.std_error.as_dvec3().length_squared(), b + e.mean.as_dvec3().length_squared())
+    });
+    if mean > 0.0 { (se / mean).sqrt() } else { 0.0 }
+}
+
 /// Running sums for an [`Estimate`] (f64, so long runs do not lose precision).
 #[derive(Clone, Copy, Debug, Default)]
 pub struct Accumulator {

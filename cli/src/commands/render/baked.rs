@@ -145,10 +145,16 @@ fn bake(args: &Args, scene: &Scene, renderer: &Renderer) -> Result<Loaded> {
     Ok(Loaded { bspvt: out.bspvt, prt })
 }
 
-/// One bounce per vertex from an in-memory radiance cache with `settings`, lit by `look`'s
-/// direct light (glossy hits reflect it toward the records).
-pub(crate) fn bounce(look: &Look, renderer: &Renderer, settings: &cache::Settings, eye: glam::Vec3) -> VertexValues {
+/// `bounces` bounces per vertex from an in-memory radiance cache with `settings`, lit by
+/// `look`'s direct light (glossy hits reflect it toward the records), and how many.
+pub(crate) fn bounce(
+    look: &Look,
+    renderer: &Renderer,
+    settings: &cache::Settings,
+    eye: glam::Vec3,
+    bounces: cache::Bounces,
+) -> (VertexValues, cache::Bounced) {
     let toward = |i, corners, bary, to| look.toward(i, corners, bary, to);
     let src = Source { renderer, direct: look.direct_vertices(), glossy: Glossy::Toward(&toward) };
-    cache::indirect_vertices(&src, settings, eye).0
+    cache::bounce(&src, &cache::place_at_vertices(&src, settings), eye, bounces)
 }

@@ -12,8 +12,8 @@ use anyhow::{Context, Result, bail};
 use clap::builder::TypedValueParser as _;
 use glam::Vec3;
 use kage_bake_db::pack::Contents;
-use kage_engine::cache::Blend;
 use kage_engine::cache::record::{Glossy, GlossyDirect, GradientForm, Source};
+use kage_engine::cache::{Blend, Bounces};
 use kage_engine::output::{ImageFormat, VertexRow, write_image, write_vertex_csv};
 use kage_engine::reference::{Estimate, Renderer, Settings};
 use kage_engine::scene::VertexValues;
@@ -89,9 +89,11 @@ pub struct Args {
     /// Seed of the random streams.
     #[arg(long, default_value_t = 0)]
     seed: u64,
-    /// Indirect bounces for the reference (0 = direct lighting only).
-    #[arg(long, default_value_t = 0)]
-    bounces: u32,
+    /// Indirect bounces: the reference's (default 0, direct lighting only), or the radiance
+    /// cache's and `--indirect reference`'s (default: the cache chooses as many as the error
+    /// budget needs, 2 % unless --error-budget says otherwise; 0 = direct light only)
+    #[arg(long)]
+    bounces: Option<u32>,
     /// PNG exposure: stops (radiance × 2^EV, then clamped), or `auto` to meter the image.
     #[arg(long, default_value = "auto", allow_negative_numbers = true)]
     exposure: Exposure,
@@ -150,7 +152,20 @@ pub struct Args {
 impl Args {
     /// Where the bounce comes from: `--indirect`, else the method's default.
     fn indirect(&self) -> Indirect {
-        self.indirect.unwrap_or(if self.method == Method::Baked { Indirect::Cache } else { Indirect::None })
+        match (self.indirect, self.bounces) {
+            (_, Some(0)) => Indirect::None,
+            (Some(i), _) => i,
+            (None, _) if self.method == Method::Baked => Indirect::Cache,
+            (None, _) => Indirect::None,
+        }
+    }
+
+    /// The cache's bounces: `--bounces`, else as many as the error budget needs.
+    fn cache_bounces(&self) -> Bounces {
+        match self.bounces {
+            Some(n) => Bounces::Fixed(n as usize),
+            None => Bounces::Budget(self.error_budget.unwrap_or(kage_engine::cache::bounces::DEFAULT_BUDGET)),
+        }
     }
 }
 
@@ -296,7 +311,7 @@ struct Outputs {
 
 fn reference(job: &Job) -> Result<Outputs> {
     let Job { args, renderer, camera, want_image, .. } = *job;
-    let settings = Settings { spp: args.spp, seed: args.seed, max_bounces: args.bounces, min_bounces: 0 };
+    let settings = Settings { spp: args.spp, seed: args.seed, max_bounces: args.bounces.unwrap_or(0), min_bounces: 0 };
     let mut image = None;
     if want_image {
         let (w, h) = args.size;
@@ -570,16 +585,17 @@ fn indirect(
                 Some(store) => kage_bake_db::records::load_or_place(store, scene, &src, &s)?,
                 None => (kage_engine::cache::place_at_vertices(&src, &s), false),
             };
-            let v = kage_engine::cache::shade_vertices(&src, &cache, eye);
+            let (v, bounced) = kage_engine::cache::bounce(&src, &cache, eye, args.cache_bounces());
             let from = if stored { " from the bake database" } else { "" };
-            (v, format!("{} records{from}, {} rays", cache.records.len(), cache.rays()))
+            (v, format!("{bounced}; {} records{from}, {} rays", cache.records.len(), cache.rays()))
         }
         Indirect::Gather => {
             let v = kage_engine::cache::gather_vertices(&src, s.rays, eye);
             (v, format!("{} rays", renderer.vertex_count() * s.side().pow(2)))
         }
         _ => {
-            let settings = Settings { spp: args.spp, seed: args.seed, max_bounces: 1, min_bounces: 1 };
+            let settings =
+                Settings { spp: args.spp, seed: args.seed, max_bounces: args.bounces.unwrap_or(1), min_bounces: 1 };
             let est = renderer.render_vertices(eye, &settings, &|_| {});
             let v = est.iter().map(|e| e.iter().map(|x| x.mean).collect()).collect();
             (v, format!("{} paths per vertex", args.spp))
@@ -633,10 +649,7 @@ fn vertex_rows(renderer: &Renderer, per_instance: &[Vec<Vec3>]) -> Vec<VertexRow
 
 /// Prints time and the estimate's own relative standard error.
 fn report(what: &str, est: &[Estimate], start: Instant) {
-    let (num, den) = est.iter().fold((0.0f64, 0.0f64), |(n, d), e| {
-        (n + e.std_error.length_squared() as f64, d + e.mean.length_squared() as f64)
-    });
-    let rel = if den > 0.0 { (num / den).sqrt() } else { 0.0 };
+    let rel = kage_engine::reference::relative_standard_error(est);
     crate::emit(&format!(
         "{what}: {} estimates in {:.2} s, relative standard error {:.4}\n",
         est.len(),

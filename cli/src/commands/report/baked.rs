@@ -1,6 +1,6 @@
 //! The baked-look section: `--method baked` (BSPVT trees + PRT with its specular term + the HSH
-//! cache's bounce, bakes in memory with the parameters `kage render` plans) against the full
-//! reference with one bounce, per vertex and per pixel over the pixels whose primary ray hits
+//! cache's bounces, bakes in memory with the parameters `kage render` plans) against the full
+//! reference with as many bounces, per vertex and per pixel over the pixels whose primary ray hits
 //! geometry; next to it, each light's direct term alone against the reference of that light
 //! alone (the polygonal lights through the trees, the environment through PRT), so that the
 //! whole's error can be traced to its parts.
@@ -21,7 +21,7 @@ use std::time::Instant;
 /// Which lights a row shades.
 #[derive(Clone, Copy, PartialEq, Eq)]
 enum Part {
-    /// Everything, with one bounce.
+    /// Everything, with the bounces the error budget chooses.
     Whole,
     /// The polygonal lights' direct term.
     Polygonal,
@@ -61,15 +61,6 @@ pub fn run(args: &Args, camera: &Camera, rows: &mut Vec<Row>) -> Result<String> 
 fn measure(args: &Args, scene: &Scene, renderer: &Renderer, camera: &Camera, part: Part) -> Result<(Row, String)> {
     let eye = camera.eye();
     let flat = &renderer.flat;
-    let bounces = u32::from(part == Part::Whole);
-    let what = match part {
-        Part::Whole => "baked look against the full reference (direct + one bounce)",
-        Part::Polygonal => "baked look, polygonal lights alone (direct)",
-        Part::Environment => "baked look, environment alone (direct)",
-    };
-    let truth =
-        Truth::vertices(renderer, eye, args.reference_spp, (0, bounces), vec![true; flat.instances.len()], what);
-    let (pixels, noise) = reference_image(args, renderer, camera, bounces);
     let t = Instant::now();
     let trees = (!flat.lights.is_empty()).then(|| bspvt::bake(flat, &bspvt::Settings::default(), &|_| {}));
     let prt_parts = flat.environment.as_ref().map(|_| {
@@ -95,15 +86,26 @@ fn measure(args: &Args, scene: &Scene, renderer: &Renderer, camera: &Camera, par
         parts.push(format!("PRT order {}, {} regions", s.order, l.regions.len()));
     }
     let mut config = parts.join("; ");
+    let mut bounces = 0;
     if part == Part::Whole {
         let s = cache::Settings::default();
-        let bounce = crate::commands::render::baked::bounce(&look, renderer, &s, eye);
-        config = format!("{config}; cache order {}, accuracy {}", s.order, s.accuracy);
+        let (bounce, bounced) =
+            crate::commands::render::baked::bounce(&look, renderer, &s, eye, cache::Bounces::default());
+        bounces = bounced.count as u32;
+        config = format!("{config}; cache order {}, accuracy {}, {bounced}", s.order, s.accuracy);
         look = look.with_indirect(bounce);
     }
     let (w, h) = args.image_size;
     let image = look.render(renderer, camera, w, h, 4);
     let shade_s = t.elapsed().as_secs_f64();
+    let what = match part {
+        Part::Whole => format!("baked look against the full reference (direct + {bounces} bounces)"),
+        Part::Polygonal => "baked look, polygonal lights alone (direct)".to_string(),
+        Part::Environment => "baked look, environment alone (direct)".to_string(),
+    };
+    let truth =
+        Truth::vertices(renderer, eye, args.reference_spp, (0, bounces), vec![true; flat.instances.len()], &what);
+    let (pixels, noise) = reference_image(args, renderer, camera, bounces);
     let hits = raster::shade_image(renderer, camera, w, h, 4, &|_| Vec3::ONE);
     let pick =
         |v: &[Vec3]| -> Vec<Vec3> { v.iter().zip(&hits).filter(|(_, m)| **m == Vec3::ONE).map(|(p, _)| *p).collect() };
@@ -138,8 +140,5 @@ fn reference_image(args: &Args, renderer: &Renderer, camera: &Camera, bounces: u
     let settings = Settings { spp: args.reference_image_spp, seed: 0xBA6E, max_bounces: bounces, min_bounces: 0 };
     let est = renderer.render_image(camera, w, h, &settings, &|r| pb.set_position(r as u64));
     pb.finish_and_clear();
-    let (se, mean) = est.iter().fold((0.0, 0.0), |(a, b), e| {
-        (a + e.std_error.as_dvec3().length_squared(), b + e.mean.as_dvec3().length_squared())
-    });
-    (est.iter().map(|e| e.mean).collect(), (se / f64::max(mean, f64::MIN_POSITIVE)).sqrt())
+    (est.iter().map(|e| e.mean).collect(), kage_engine::reference::relative_standard_error(&est))
 }

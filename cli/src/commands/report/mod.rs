@@ -110,10 +110,7 @@ impl Truth {
         pb.finish_and_clear();
         let secs = start.elapsed().as_secs_f64();
         let est: Vec<_> = est.into_iter().zip(&keep).filter(|(_, k)| **k).map(|(e, _)| e).collect();
-        let (se2, mean2) = est.iter().flatten().fold((0.0, 0.0), |(a, b), e| {
-            (a + e.std_error.as_dvec3().length_squared(), b + e.mean.as_dvec3().length_squared())
-        });
-        let se = (se2 / mean2.max(f64::MIN_POSITIVE)).sqrt();
+        let se = kage_engine::reference::relative_standard_error(est.iter().flatten());
         Self {
             values: est.iter().flatten().map(|e| e.mean).collect(),
             keep,
