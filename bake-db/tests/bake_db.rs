@@ -594,7 +594,7 @@ fn a_refreshed_cache_is_stored_under_the_new_lightings_key_with_a_cold_placement
     let (mut c, from_db) = load_or_place(&store, &before, &src0, &s).unwrap();
     assert!(!from_db);
     let lights = cache::moved_lights(&r0.flat.lights, &r1.flat.lights);
-    c.refresh(&src1, &Change { old_direct: &d0, moved: &lights });
+    c.refresh(&src1, &Change { old_direct: Some(&d0), moved: &lights });
     let key = kage_bake_db::records::key(&src1, &s);
     store_refreshed(&store, &moved, &src1, &key, &c, 0.0).unwrap();
     let (loaded, from_db) = load_or_place(&store, &moved, &src1, &s).unwrap();

@@ -32,7 +32,7 @@ pub enum Space {
 /// The gizmo's options, as the viewport toolbar sets them.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Settings {
-    /// Move or turn.
+    /// Move, turn or scale.
     pub mode: Mode,
     /// World or local axes.
     pub space: Space,

@@ -187,7 +187,7 @@ fn refreshed(
     partial: &dyn Fn(&cache::Cache),
 ) -> Option<(cache::Cache, String)> {
     let moved = cache::moved_lights(&base.lights, &src.renderer.flat.lights);
-    let change = cache::record::Change { old_direct: &base.direct, moved: &moved };
+    let change = cache::record::Change { old_direct: Some(&base.direct), moved: &moved };
     let done = base.cache.refresh_progressively(src, &change, REFRESH_BATCH, &mut |c, so_far| {
         if stop.load(Ordering::Relaxed) {
             return false;

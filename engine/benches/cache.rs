@@ -37,7 +37,7 @@ fn bench(c: &mut Criterion) {
     let mut cache = cache::place_at_vertices(&source(0), &s);
     let mut at = 0;
     let mut step = |cache: &mut cache::Cache| {
-        let change = Change { old_direct: &states[at].1, moved: &moved };
+        let change = Change { old_direct: Some(&states[at].1), moved: &moved };
         at = 1 - at;
         cache.refresh(&source(at), &change)
     };

@@ -318,7 +318,7 @@ fn a_refresh_relights_only_what_changed_and_equals_fresh_gathers() {
     // sphere see only the ground and the sky, so they stand.
     let (same, tinted) = room_lit_from(Vec3::new(1.5, 3.0, 0.5), [1.0, 0.5]);
     let src = Source { renderer: &same, direct: &tinted, glossy: Glossy::Reference(GLOSSY_SPP) };
-    let done = cache.refresh(&src, &Change { old_direct: &old_direct, moved: &[] });
+    let done = cache.refresh(&src, &Change { old_direct: Some(&old_direct), moved: &[] });
     check(&cache, &src);
     let n = cache.records.len();
     assert_eq!((done.recast, done.gathered), (0, 0), "{done:?}");
@@ -329,7 +329,7 @@ fn a_refresh_relights_only_what_changed_and_equals_fresh_gathers() {
     let (after, moved_direct) = room_lit_from(Vec3::new(-1.0, 2.5, -1.0), [1.0, 0.5]);
     let moved = kage_engine::cache::moved_lights(&same.flat.lights, &after.flat.lights);
     let src = Source { renderer: &after, direct: &moved_direct, glossy: Glossy::Reference(GLOSSY_SPP) };
-    let done = cache.refresh(&src, &Change { old_direct: &tinted, moved: &moved });
+    let done = cache.refresh(&src, &Change { old_direct: Some(&tinted), moved: &moved });
     check(&cache, &src);
     assert!(done.recast > 0 && done.recast * 10 < cache.rays(), "{} of {} rays re-cast", done.recast, cache.rays());
     // Record places do not depend on lighting: the refreshed cache is the cold placement
@@ -342,7 +342,7 @@ fn a_refresh_relights_only_what_changed_and_equals_fresh_gathers() {
         &Source { renderer: &same, direct: &tinted, glossy: Glossy::Reference(GLOSSY_SPP) },
         &s,
     );
-    let change = Change { old_direct: &tinted, moved: &moved };
+    let change = Change { old_direct: Some(&tinted), moved: &moved };
     let mut landings = Vec::new();
     let total = progressive.refresh_progressively(&src, &change, 64, &mut |c, so_far| {
         landings.push((so_far.visited, c.records[..so_far.visited] == cache.records[..so_far.visited]));
@@ -360,7 +360,7 @@ fn a_refresh_relights_only_what_changed_and_equals_fresh_gathers() {
 
     // Stored records carry no hits: a refresh gathers them anew.
     let mut stored = kage_engine::cache::from_records(&src, &s, cache.records.clone());
-    let done = stored.refresh(&src, &Change { old_direct: &moved_direct, moved: &[] });
+    let done = stored.refresh(&src, &Change { old_direct: Some(&moved_direct), moved: &[] });
     assert_eq!(done.gathered, n);
     check(&stored, &src);
 }

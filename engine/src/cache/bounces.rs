@@ -95,7 +95,6 @@ impl std::fmt::Display for Bounced {
 pub fn bounce(src: &Source, cache: &Cache, eye: Vec3, bounces: Bounces) -> (VertexValues, Bounced) {
     let mut last = shade_vertices(src, cache, eye);
     let mut total = last.clone();
-    let mut lit_by = src.direct.to_vec();
     let mut relit: Option<Cache> = None;
     let mut count = 1;
     let stop = loop {
@@ -114,10 +113,13 @@ pub fn bounce(src: &Source, cache: &Cache, eye: Vec3, bounces: Bounces) -> (Vert
         }
         let next_src = Source { renderer: src.renderer, direct: &last, glossy: Glossy::PerVertex };
         let records = relit.get_or_insert_with(|| cache.clone());
-        records.refresh(&next_src, &Change { old_direct: &lit_by, moved: &[] });
+        // Every record is integrated again (no ray is cast): the first bounce lit glossy hits
+        // toward the record, the next ones by their per-vertex value, so an unchanged corner
+        // does not mean an unchanged hit.
+        records.refresh(&next_src, &Change { old_direct: None, moved: &[] });
         let next = shade_vertices(&next_src, records, eye);
         total.iter_mut().flatten().zip(next.iter().flatten()).for_each(|(t, n)| *t += *n);
-        lit_by = std::mem::replace(&mut last, next);
+        last = next;
         count += 1;
     };
     (total, Bounced { count, stop })

@@ -416,8 +416,10 @@ impl Ray {
 /// lights were added or removed), which rays crossing them must be cast again. The receivers'
 /// geometry is the same.
 pub struct Change<'a> {
-    /// Per instance and vertex: the direct radiance the record was gathered with.
-    pub old_direct: &'a [Vec<Vec3>],
+    /// Per instance and vertex: the direct radiance the record was gathered with; `None` when
+    /// every hit's light may have changed (a further bounce, whose glossy hits are lit
+    /// otherwise than the first's).
+    pub old_direct: Option<&'a [Vec<Vec3>]>,
     /// Boxes of moved geometry, old and new places.
     pub moved: &'a [(Vec3, Vec3)],
 }
@@ -458,7 +460,7 @@ pub fn relight(
             relit.changed |= again != *hit;
             *hit = again;
         }
-        relit.changed |= hit.is_some_and(|h| src.changed(h, change.old_direct));
+        relit.changed |= hit.is_some_and(|h| change.old_direct.is_none_or(|old| src.changed(h, old)));
     }
     let record = relit.changed.then(|| integrate(src, p, frame, params, &dirs, hits, index));
     (record, relit)
