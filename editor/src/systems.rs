@@ -348,6 +348,10 @@ fn take(ed: &mut Editor, landed: Landed, patched: &mut [bool; 2]) {
                 "BSPVT: {} cached, {} cold, {} warm chunks ({} vertices) in {:.2} s",
                 stats.cached, stats.cold, stats.warm, stats.vertices_baked, stats.seconds
             ));
+            // A light the trees shut in shows only its bounce, metered up: say so.
+            if let Some(warning) = bspvt::unseen_warning(&ed.scene, &ed.flat, &bake) {
+                ed.error(format!("warning: {warning}"));
+            }
             ed.bakes.bspvt = Some(bake.into());
             ed.bakes.bspvt_stale = false;
             upload_bspvt(ed);

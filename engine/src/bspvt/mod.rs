@@ -377,6 +377,26 @@ pub fn unseen_lights(flat: &FlatScene, bake: &Bake) -> Vec<usize> {
     (0..sums.len()).filter(|&l| sums[l][1] > 0.0 && sums[l][0] <= UNSEEN_SHARE * sums[l][1]).collect()
 }
 
+/// What to tell a user about [`unseen_lights`] in `scene` (snapshot `flat`): the lights named
+/// and the likely cause; `None` when every light is seen.
+pub fn unseen_warning(scene: &crate::scene::Scene, flat: &FlatScene, bake: &Bake) -> Option<String> {
+    let unseen = unseen_lights(flat, bake);
+    if unseen.is_empty() {
+        return None;
+    }
+    let name = |l: usize| scene.name_of(flat.lights[l].entity).unwrap_or_else(|| format!("#{l}"));
+    let names: Vec<String> = unseen.iter().map(|&l| format!("'{}'", name(l))).collect();
+    Some(format!(
+        "{}: the baked visibility lets almost no receiver see {} of {} light(s) ({}): less than {UNSEEN_SHARE} of \
+         their unshadowed light. Such a light is shut in — in a closed box or shade, behind a wall, under the \
+         floor, facing a wall it touches — so the image shows little but its bounce",
+        scene.source,
+        unseen.len(),
+        flat.lights.len(),
+        names.join(", "),
+    ))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -393,22 +393,9 @@ fn per_vertex(job: &Job, method: Method) -> Result<Outputs> {
 /// ([`bspvt::unseen_lights`]), naming them and the likely cause, so that a dark image is not
 /// taken for a lit one metered up.
 pub(crate) fn warn_unseen(scene: &Scene, flat: &kage_engine::scene::FlatScene, bake: &bspvt::Bake) {
-    let unseen = bspvt::unseen_lights(flat, bake);
-    if unseen.is_empty() {
-        return;
+    if let Some(warning) = bspvt::unseen_warning(scene, flat, bake) {
+        eprintln!("warning: {warning}");
     }
-    let name = |l: usize| scene.name_of(flat.lights[l].entity).unwrap_or_else(|| format!("#{l}"));
-    let names: Vec<String> = unseen.iter().map(|&l| format!("'{}'", name(l))).collect();
-    eprintln!(
-        "warning: {}: the baked visibility lets almost no receiver see {} of {} light(s) ({}): less than {} of \
-         their unshadowed light. Such a light is shut in — in a closed box or shade, behind a wall, under the \
-         floor, facing a wall it touches — so the image shows little but its bounce",
-        scene.source,
-        unseen.len(),
-        flat.lights.len(),
-        names.join(", "),
-        bspvt::UNSEEN_SHARE,
-    );
 }
 
 /// Bakes BSPVT without a database, printing the bake statistics.
