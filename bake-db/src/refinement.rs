@@ -1,14 +1,14 @@
-//! Receiver refinement ([`receivers::refine`]) kept in the store's memos: a scene loaded again
-//! with the same lights, geometry and settings reads its refined meshes instead of refining
-//! (0.4 s on the built-in scene, over a minute at a million vertices). The memo's name is
-//! [`receivers::key`], which hashes everything refinement reads, so a kept refinement is the
-//! computed one byte for byte.
+//! Receiver refinement ([`receivers::refine`]) kept in the store's memos, one per instance: a
+//! scene loaded again reads the refined meshes of the instances whose shadows did not change
+//! instead of refining them (0.4 s on the built-in scene, over a minute at a million
+//! vertices). A memo's name is the instance's [`receivers::keys`] entry, which hashes
+//! everything its refinement reads, so a kept refinement is the computed one byte for byte.
 //!
 //! Like every memo it costs only time: an entry checks its own hash and its meshes when read
 //! (a damaged one is refined again), and `gc` drops it.
 
 use crate::{DbError, Store};
-use kage_engine::receivers::{self, Refinement, Report, Settings};
+use kage_engine::receivers::{self, Receiver, Refinement, Report, Settings};
 use kage_engine::scene::Scene;
 
 /// Why a scene could not be refined through the store.
@@ -23,17 +23,32 @@ pub enum RefineError {
 }
 
 /// Refines `scene`'s receivers from their source meshes as [`receivers::refine`] does, reading
-/// the refinement from `store` when it holds it and keeping it there otherwise (a read-only
-/// store only reads). True when it was read.
-pub fn refine(store: &Store, scene: &mut Scene, settings: &Settings) -> Result<(Report, bool), RefineError> {
+/// each instance's refinement from `store` when it holds it (named by its [`receivers::keys`]
+/// entry) and keeping the others there (a read-only store only reads). Also says how many
+/// instances were read.
+pub fn refine(store: &Store, scene: &mut Scene, settings: &Settings) -> Result<(Report, usize), RefineError> {
     scene.restore_source_meshes();
-    let name = format!("receiver refinement {}", &receivers::key(scene, settings).to_hex()[..32]);
-    if let Some(kept) = store.memo(&name)?.and_then(|b| Refinement::from_bytes(&b)).filter(|k| k.fits(scene)) {
-        return Ok((kept.apply(scene), true));
-    }
-    let refinement = Refinement::of(scene, settings)?;
+    let names: Vec<String> =
+        receivers::keys(scene, settings).iter().map(|k| format!("receiver {}", &k.to_hex()[..32])).collect();
+    let kept = names
+        .iter()
+        .map(|name| Ok(store.memo(name)?.and_then(|b| Receiver::from_bytes(&b))))
+        .collect::<Result<Vec<_>, DbError>>()?;
+    let read: Vec<bool> = kept.iter().map(Option::is_some).collect();
+    let refinement = Refinement::of(scene, settings, kept)?;
     if !store.read_only() {
-        store.put_memos(&[(name, refinement.to_bytes())])?;
+        let fresh = names.into_iter().zip(refinement.receivers()).zip(&read).filter(|(_, read)| !**read);
+        store.put_memos(&fresh.map(|((name, r), _)| (name, r.to_bytes())).collect::<Vec<_>>())?;
     }
-    Ok((refinement.apply(scene), false))
+    Ok((refinement.apply(scene), read.iter().filter(|r| **r).count()))
+}
+
+/// What [`refine`] read, for a front end's refinement line: empty when nothing was read,
+/// else ", K of N instances kept in the bake database".
+pub fn kept_note(kept: usize, instances: usize) -> String {
+    match kept {
+        0 => String::new(),
+        k if k == instances => format!(", all {k} instances kept in the bake database"),
+        k => format!(", {k} of {instances} instances kept in the bake database"),
+    }
 }

@@ -44,9 +44,9 @@ pub struct SceneArgs {
     #[arg(long = "refine", value_name = "NODE=VERTICES", value_parser = parse_refine)]
     pub refinements: Vec<(String, usize)>,
     /// Refine every receiver where the lights' and the environment's shadows need vertices,
-    /// adding at most VERTICES over the scene (adaptive: for each light where it is, or over
-    /// its declared reach; docs/receivers.md). Default
-    /// 6000 (0 turns it off; the editor refines again before each bake).
+    /// until interpolation meets --refine-tolerance, adding at most VERTICES to each instance
+    /// (adaptive: for each light where it is, or over its declared reach; docs/receivers.md).
+    /// Default 6000 (0 turns it off; the editor refines again before each bake).
     #[arg(long, value_name = "VERTICES", env = "KAGE_REFINE_RECEIVERS")]
     pub refine_receivers: Option<usize>,
     /// Largest visibility error (0–1, a share of the light) interpolation between an edge's
@@ -165,13 +165,17 @@ impl SceneArgs {
         }
         if let Some(settings) = self.receiver_settings()?.filter(|_| refine) {
             let (budget, t) = (settings.budget, settings.tolerance);
+            let started = std::time::Instant::now();
             let (report, kept) = match store {
                 Some(store) => kage_bake_db::refinement::refine(store, &mut scene, &settings)?,
-                None => (kage_engine::receivers::refine(&mut scene, &settings)?, false),
+                None => (kage_engine::receivers::refine(&mut scene, &settings)?, 0),
             };
             let (before, after) = report.iter().fold((0, 0), |(b, a), (x, y)| (b + x, a + y));
-            let from = if kept { ", kept in the bake database" } else { "" };
-            eprintln!("refined receivers: {before} → {after} vertices (budget {budget}, tolerance {t}{from})");
+            let from = kage_bake_db::refinement::kept_note(kept, report.len());
+            let seconds = started.elapsed().as_secs_f64();
+            eprintln!(
+                "refined receivers: {before} → {after} vertices in {seconds:.2} s (at most {budget} more each, tolerance {t}{from})"
+            );
             for (i, (b, a)) in report.iter().enumerate().filter(|(_, (b, a))| a > b) {
                 eprintln!("  instance {i:3}: {b} → {a} vertices (+{})", a - b);
             }

@@ -286,7 +286,7 @@ fn refine_receivers(ed: &mut Editor) {
     let was = meshes(&ed.flat);
     let refined = match ed.store.clone() {
         Some(store) => kage_bake_db::refinement::refine(&store, &mut ed.scene, &settings).map_err(|e| e.to_string()),
-        None => kage_engine::receivers::refine(&mut ed.scene, &settings).map(|r| (r, false)).map_err(|e| e.to_string()),
+        None => kage_engine::receivers::refine(&mut ed.scene, &settings).map(|r| (r, 0)).map_err(|e| e.to_string()),
     };
     let (report, kept) = match refined {
         Ok(r) => r,
@@ -306,13 +306,13 @@ fn refine_receivers(ed: &mut Editor) {
         ed.restart_reference();
     }
     ed.info(format!(
-        "receivers refined: {} to {} vertices in {:.2} s (budget {}, tolerance {}{})",
+        "receivers refined: {} to {} vertices in {:.2} s (at most {} more each, tolerance {}{})",
         refined.vertices.0,
         refined.vertices.1,
         refined.seconds,
         settings.budget,
         settings.tolerance,
-        if kept { ", kept in the bake database" } else { "" }
+        kage_bake_db::refinement::kept_note(kept, report.len())
     ));
     ed.bakes.receivers = Some(refined);
 }

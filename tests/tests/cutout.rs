@@ -104,7 +104,7 @@ fn bake_keys_follow_the_cutout() {
         let lattice = flat.instances.iter().position(|i| i.group == lattice_group(s)).unwrap();
         // Per job: its kind, whether it is the lattice's, its key.
         let jobs: Vec<_> = plan.jobs.iter().map(|j| (j.kind, j.instance == lattice, j.key)).collect();
-        (jobs, receivers::key(s, &receivers::Settings::default()))
+        (jobs, receivers::keys(s, &receivers::Settings::default()))
     };
     let (a, b, solid) = (keys(&s), keys(&with_cutoff(&s, Some(0.6))), keys(&with_cutoff(&s, None)));
     assert_eq!(a, keys(&s.duplicate()), "keys are a function of the scene");

@@ -15,6 +15,7 @@
 use super::SceneBvh;
 use super::beam::{self, Beam};
 use super::top_level::{self, TopLevel};
+use crate::math::sampling;
 use crate::scene::Holes;
 use glam::Vec3;
 use std::ops::Range;
@@ -33,6 +34,8 @@ struct Piece {
     lo: Vec3,
     hi: Vec3,
     bvh: SceneBvh,
+    /// The instance it belongs to.
+    owner: usize,
 }
 
 /// Triangles per piece at most. An instance with more (a terrain) is cut into pieces of nearby
@@ -93,7 +96,7 @@ impl Occluders {
                 let (lo, hi) = bounds(triangles.iter().flatten());
                 // Padding keeps the box test conservative for rays that graze it.
                 let pad = Vec3::splat(1e-4 * (hi - lo).length() + 1e-6);
-                Piece { lo: lo - pad, hi: hi + pad, bvh: bvh(i, &triangles).cut(&holes) }
+                Piece { lo: lo - pad, hi: hi + pad, bvh: bvh(i, &triangles).cut(&holes), owner: i }
             })
             .collect();
         let mut first = 0;
@@ -134,8 +137,18 @@ impl Occluders {
     // Out of line: inlined into the cold bake's texel loop it ran 3–4 % slower (measured).
     #[inline(never)]
     pub fn occluded(&self, origin: Vec3, dir: Vec3, tmax: f32) -> bool {
+        self.occluded_if(origin, dir, tmax, |_| true)
+    }
+
+    /// [`Self::occluded`] by the instances `keep` accepts (by index) alone: as if the others
+    /// were not there.
+    #[inline]
+    pub fn occluded_if(&self, origin: Vec3, dir: Vec3, tmax: f32, keep: impl Fn(usize) -> bool) -> bool {
         let ray = self.ray(origin, dir, tmax);
-        let blocks = |i: u32| ray.blocked_by(&self.pieces[i as usize]);
+        let blocks = |i: u32| {
+            let piece = &self.pieces[i as usize];
+            keep(piece.owner) && ray.blocked_by(piece)
+        };
         self.wide.iter().any(|&i| blocks(i)) || self.tree.any_along(origin, ray.inv, tmax, blocks)
     }
 
@@ -143,6 +156,17 @@ impl Occluders {
     /// distance on several pieces, the one with the least normal bits, so the answer depends on
     /// the triangles alone, not on the order the pieces are visited in.
     pub fn closest(&self, origin: Vec3, dir: Vec3, tmax: f32) -> Option<super::PlaneHit> {
+        self.closest_if(origin, dir, tmax, |_| true)
+    }
+
+    /// [`Self::closest`] among the instances `keep` accepts (by index).
+    pub fn closest_if(
+        &self,
+        origin: Vec3,
+        dir: Vec3,
+        tmax: f32,
+        keep: impl Fn(usize) -> bool,
+    ) -> Option<super::PlaneHit> {
         let ray = self.ray(origin, dir, tmax);
         let best = std::cell::Cell::new(None::<super::PlaneHit>);
         let key =
@@ -150,7 +174,8 @@ impl Occluders {
         let visit = |i: u32| {
             let piece = &self.pieces[i as usize];
             let end = best.get().map_or(tmax, |b| b.t);
-            if slab_hits(origin, ray.inv, end, piece.lo, piece.hi)
+            if keep(piece.owner)
+                && slab_hits(origin, ray.inv, end, piece.lo, piece.hi)
                 && let Some(hit) = piece.bvh.closest_between(origin, dir, ray.near, end)
                 && best.get().is_none_or(|b| key(hit).partial_cmp(&key(b)) == Some(std::cmp::Ordering::Less))
             {
@@ -163,6 +188,23 @@ impl Occluders {
         });
         self.tree.any_along(origin, ray.inv, tmax, &visit);
         best.get()
+    }
+
+    /// [`SceneBvh::inside`] among the instances `keep` accepts (by index): whether most of
+    /// [`super::INSIDE_RAYS`] rays over `p`'s hemisphere first meet one of their triangles from
+    /// behind.
+    pub fn inside_if(&self, p: Vec3, n: Vec3, keep: impl Fn(usize) -> bool) -> bool {
+        let frame = crate::math::frame::Frame::from_normal(n);
+        let rays = super::INSIDE_RAYS;
+        let behind = (0..rays)
+            .filter(|&k| {
+                let d = frame.to_world(sampling::cosine_hemisphere(sampling::hammersley(k, rays)));
+                // `PlaneHit::normal` is obvhs' negated geometric normal: from behind, n · d < 0.
+                self.closest_if(super::offset_ray_origin(p, n, d), d, f32::MAX, &keep)
+                    .is_some_and(|hit| hit.normal.dot(d) < 0.0)
+            })
+            .count();
+        2 * behind >= rays as usize
     }
 
     /// The pieces that a ray from `apex` may meet while its direction `d` stays inside the
