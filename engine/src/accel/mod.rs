@@ -7,7 +7,7 @@
 pub mod beam;
 mod instances;
 mod stored;
-mod top_level;
+pub(crate) mod top_level;
 
 pub(crate) use instances::slab_hits;
 pub use instances::{Occluders, View};

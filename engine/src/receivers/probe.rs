@@ -3,6 +3,7 @@
 //! ([`Near`]) and no others, so that a receiver's refinement depends on them alone.
 
 use crate::accel::Occluders;
+use crate::accel::top_level::TopLevel;
 use crate::math::color::luminance;
 use crate::math::sampling::{hammersley, uniform_sphere, uniform_triangle};
 use crate::scene::{EnvironmentLight, FlatLight, FlatScene};
@@ -56,6 +57,8 @@ pub(super) struct Scope {
     /// points (a ray leaving the plane does not meet it again), and its own BVH, which every
     /// ray from a floor would descend near its start, is left out of its lists.
     planar: Vec<bool>,
+    /// A tree over `bounds`, so that finding what meets a box costs the log of the instances.
+    tree: TopLevel,
 }
 
 impl Scope {
@@ -69,9 +72,10 @@ impl Scope {
         let lights = views.len();
         views.extend(flat.environment.as_ref().map(environment_view));
         let triangles: Vec<Vec<[Vec3; 3]>> = (0..flat.instances.len()).map(|i| flat.occluder_triangles(i)).collect();
-        let bounds = triangles.iter().map(|t| bounds(t.iter().flatten())).collect();
+        let bounds: Vec<_> = triangles.iter().map(|t| bounds(t.iter().flatten())).collect();
         let planar = triangles.iter().map(|t| planar(t)).collect();
-        Self { views, lights, bounds, group_of, planar }
+        let tree = box_tree(&bounds);
+        Self { views, lights, bounds, group_of, planar, tree }
     }
 
     /// The instances that can shadow instance `i`.
@@ -86,16 +90,31 @@ impl Scope {
         // Room for the probes' ray origins, lifted off the receiver along its normals.
         let boxes: Vec<(Vec3, Vec3)> = boxes.into_iter().map(padded).collect();
         let grown = (own.0 - (own.1 - own.0).length(), own.1 + (own.1 - own.0).length());
-        let meets =
-            |j: usize, b: &(Vec3, Vec3)| self.bounds[j].is_some_and(|o| overlap(o, *b)) && !(j == i && self.planar[i]);
-        let all = 0..self.bounds.len();
-        let lights = all.clone().filter(|&j| boxes.iter().any(|b| meets(j, b))).map(|j| j as u32).collect();
-        let has_environment = self.views.len() > self.lights;
-        let environment = all
-            .filter(|&j| has_environment && self.group_of[j] == self.group_of[i] && meets(j, &padded(grown)))
-            .map(|j| j as u32)
-            .collect();
+        let lights = self.meeting(&boxes, |j| !(j == i && self.planar[i]));
+        let environment = if self.views.len() > self.lights {
+            self.meeting(&[padded(grown)], |j| self.group_of[j] == self.group_of[i] && !(j == i && self.planar[i]))
+        } else {
+            Vec::new()
+        };
         Near { lights, environment }
+    }
+
+    /// The instances `keep` accepts whose bounds meet one of `boxes`, ascending.
+    fn meeting(&self, boxes: &[(Vec3, Vec3)], keep: impl Fn(usize) -> bool) -> Vec<u32> {
+        let mut found = Vec::new();
+        for &b in boxes {
+            self.tree.each_within(
+                |lo, hi| overlap((lo, hi), b),
+                |leaf| {
+                    let meets = |j: &&u32| self.bounds[**j as usize].is_some_and(|o| overlap(o, b));
+                    found.extend(leaf.iter().filter(meets).filter(|&&j| keep(j as usize)));
+                    false
+                },
+            );
+        }
+        found.sort_unstable();
+        found.dedup();
+        found
     }
 }
 
@@ -176,6 +195,12 @@ fn among(list: &[u32]) -> impl Fn(usize) -> bool + '_ {
 /// The bounds of `points` (`None` when there are none).
 fn bounds<'p>(points: impl Iterator<Item = &'p Vec3>) -> Option<(Vec3, Vec3)> {
     points.fold(None, |b, &p| Some(b.map_or((p, p), |(lo, hi): (Vec3, Vec3)| (lo.min(p), hi.max(p)))))
+}
+
+/// A tree over the boxes of the instances that have one.
+fn box_tree(bounds: &[Option<(Vec3, Vec3)>]) -> TopLevel {
+    let boxes: Vec<(Vec3, Vec3)> = bounds.iter().map(|b| b.unwrap_or((Vec3::ZERO, Vec3::ZERO))).collect();
+    TopLevel::new(&boxes, (0..bounds.len() as u32).filter(|&j| bounds[j as usize].is_some()).collect())
 }
 
 /// Whether `triangles` (at least one) lie in one plane, within 10⁻⁵ of their extent.
@@ -297,6 +322,26 @@ mod tests {
         assert!(planar(&floor));
         assert!(!planar(&[floor[0], [Vec3::ZERO, Vec3::X, Vec3::Y]]));
         assert!(!planar(&[]));
+    }
+
+    /// The tree finds what meets a box exactly as testing every instance does.
+    #[test]
+    fn the_tree_finds_every_instance_a_box_meets() {
+        let at = |k: u32| Vec3::new((k * 7 % 13) as f32, (k * 5 % 11) as f32, (k * 3 % 17) as f32);
+        let bounds: Vec<Option<(Vec3, Vec3)>> =
+            (0..300).map(|k| (k % 29 != 0).then(|| (at(k), at(k) + Vec3::splat(0.5 + (k % 4) as f32)))).collect();
+        let tree = box_tree(&bounds);
+        let n = bounds.len();
+        let scope = Scope { views: Vec::new(), lights: 0, bounds, group_of: vec![0; n], planar: vec![false; n], tree };
+        let mut found = 0;
+        for k in 0..40 {
+            let b = (at(k) - Vec3::splat(2.0), at(k) + Vec3::splat(2.0));
+            let brute: Vec<u32> =
+                (0..n as u32).filter(|&j| scope.bounds[j as usize].is_some_and(|o| overlap(o, b))).collect();
+            assert_eq!(scope.meeting(&[b], |_| true), brute, "box {k}");
+            found += brute.len();
+        }
+        assert!(found > 40, "the boxes meet instances: {found}");
     }
 
     /// Two boxes meet when they share a point, faces touching included.
