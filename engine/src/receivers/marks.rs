@@ -16,14 +16,15 @@ pub(super) struct Memo {
     edge: HashMap<[u32; 2], [f32; 2]>,
 }
 
-/// The edges of `mesh` (placed by `world`, shadowed by `near`) whose visibility interpolates
-/// badly, with their error × world length; probes only the vertices and edges `memo` lacks,
-/// and keeps them there.
+/// The edges of `mesh` (placed by `world`, shadowed by `near`) longer than `shortest` whose
+/// visibility interpolates worse than `tolerance`, with their error × world length; probes
+/// only the vertices and edges `memo` lacks, and keeps them there (a shorter edge is never
+/// split, so its midpoint is not probed).
 pub(super) fn marked(
     mesh: &Adaptive,
     (world, near): (&glam::Affine3A, &Near),
     probe: &Probe,
-    tolerance: f32,
+    (tolerance, shortest): (f32, f32),
     memo: &mut Memo,
 ) -> Vec<Mark> {
     let (p, n) = (mesh.positions(), mesh.normals());
@@ -33,7 +34,8 @@ pub(super) fn marked(
     let new: Vec<Vec<f32>> = (memo.vertex.len()..p.len()).into_par_iter().map(|i| at(p[i], n[i])).collect();
     memo.vertex.extend(new);
     let vertex = &memo.vertex;
-    let edges = mesh.edges();
+    let length = |a: u32, b: u32| world.transform_point3(p[a as usize]).distance(world.transform_point3(p[b as usize]));
+    let edges: Vec<[u32; 2]> = mesh.edges().into_iter().filter(|&[a, b]| length(a, b) > shortest).collect();
     let fresh: Vec<([u32; 2], [f32; 2])> = edges
         .par_iter()
         .filter(|e| !memo.edge.contains_key(*e))
@@ -46,7 +48,6 @@ pub(super) fn marked(
         })
         .collect();
     memo.edge.extend(fresh);
-    let length = |a: u32, b: u32| world.transform_point3(p[a as usize]).distance(world.transform_point3(p[b as usize]));
     edges
         .into_iter()
         .filter_map(|[a, b]| {

@@ -6,18 +6,20 @@
 //! its instances receive different shadows), from its source mesh, in rounds:
 //! 1. **Seed**: edges longer than the seed length are split, so that no shadow fits inside a
 //!    triangle unseen. The seed length is half the smallest footprint among what can shadow
-//!    the instance (its shadows are about that size), but no shorter than seeding a quarter of
-//!    the instance's cap would make it (spacing ∝ √(area / cap)).
+//!    the instance (its shadows are about that size) and at most a sixteenth of its diagonal
+//!    (the bounce across a plain wall needs vertices too), but no shorter than seeding a
+//!    quarter of the instance's cap would make it (spacing ∝ √(area / cap)).
 //! 2. **Refine**: each edge's ends and midpoint are tested for the visibility `V` of every
 //!    view of what lights the scene ([`probe`]): a light where it is (the share of 49 fixed
 //!    points spread over it that the point sees in front of both), every cell of a light's
 //!    declared reach box, and the environment (the luminance-weighted share of fixed
 //!    directions that the point sees past its own group). An edge is split when, for some view
 //!    and side, what its pixels are shaded with misses the truth at its midpoint by more than
-//!    the tolerance ([`marks`]). Refinement stops when no edge misses (the error decides), after
-//!    [`Settings::rounds`] rounds, or when the instance's cap is spent: the marks of a round
-//!    are then split largest error × world length first (in steps of 2^¼, by place within a
-//!    step, see `split_worst`).
+//!    the tolerance ([`marks`]), while it is longer than `√(2 · area / cap)` (the spacing at
+//!    which the whole surface would cost the cap). Refinement stops when no such edge misses
+//!    (the error and that spacing decide), after [`Settings::rounds`] rounds, or when the cap
+//!    is spent: the marks of a round are then split largest error × world length first (in
+//!    steps of 2^¼, by place within a step, see `split_worst`).
 //!
 //! **Local**: an instance's refinement is a pure function of its own mesh and placement, the
 //! lights' views and the instances that can shadow it ([`probe::Near`]: those between it and
@@ -222,8 +224,8 @@ fn refined(
         if mesh.vertices() >= total {
             break;
         }
-        let mut marks = marks::marked(&mesh, (&inst.world, &near), probe, settings.tolerance, &mut memo);
-        marks.retain(|m| world_length(&mesh, &inst.world, &m.2) > shortest);
+        let criterion = (settings.tolerance, shortest);
+        let mut marks = marks::marked(&mesh, (&inst.world, &near), probe, criterion, &mut memo);
         if marks.is_empty() {
             break;
         }
