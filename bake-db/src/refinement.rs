@@ -25,8 +25,13 @@ pub enum RefineError {
 /// Refines `scene`'s receivers from their source meshes as [`receivers::refine`] does, reading
 /// each instance's refinement from `store` when it holds it (named by its [`receivers::keys`]
 /// entry) and keeping the others there (a read-only store only reads). Also says how many
-/// instances were read.
-pub fn refine(store: &Store, scene: &mut Scene, settings: &Settings) -> Result<(Report, usize), RefineError> {
+/// instances were read. `progress` hears the instances done so far.
+pub fn refine(
+    store: &Store,
+    scene: &mut Scene,
+    settings: &Settings,
+    progress: &(dyn Fn(usize) + Sync),
+) -> Result<(Report, usize), RefineError> {
     scene.restore_source_meshes();
     let names: Vec<String> =
         receivers::keys(scene, settings).iter().map(|k| format!("receiver {}", &k.to_hex()[..32])).collect();
@@ -35,7 +40,7 @@ pub fn refine(store: &Store, scene: &mut Scene, settings: &Settings) -> Result<(
         .map(|name| Ok(store.memo(name)?.and_then(|b| Receiver::from_bytes(&b))))
         .collect::<Result<Vec<_>, DbError>>()?;
     let read: Vec<bool> = kept.iter().map(Option::is_some).collect();
-    let refinement = Refinement::of(scene, settings, kept)?;
+    let refinement = Refinement::of(scene, settings, kept, progress)?;
     if !store.read_only() {
         let fresh = names.into_iter().zip(refinement.receivers()).zip(&read).filter(|(_, read)| !**read);
         store.put_memos(&fresh.map(|((name, r), _)| (name, r.to_bytes())).collect::<Vec<_>>())?;

@@ -844,17 +844,17 @@ fn a_kept_refinement_equals_the_computed_one_and_a_damaged_entry_is_refined_agai
     let n = report.len();
     assert!(report.iter().any(|(b, a)| a > b), "the scene is refined: {report:?}");
     let mut first = scene("");
-    assert_eq!(refine(&store, &mut first, &settings).unwrap(), (report.clone(), 0), "refined and kept");
+    assert_eq!(refine(&store, &mut first, &settings, &|_| {}).unwrap(), (report.clone(), 0), "refined and kept");
     let mut again = scene("");
-    assert_eq!(refine(&store, &mut again, &settings).unwrap(), (report.clone(), n), "read back");
+    assert_eq!(refine(&store, &mut again, &settings, &|_| {}).unwrap(), (report.clone(), n), "read back");
     assert!(hashes(&first) == hashes(&computed) && hashes(&again) == hashes(&computed));
     assert_eq!(entries().len(), n, "one entry per instance");
     // Refining a refined scene through the store reads the same entries.
-    assert_eq!(refine(&store, &mut again, &settings).unwrap().1, n, "a refined scene reads the same entries");
+    assert_eq!(refine(&store, &mut again, &settings, &|_| {}).unwrap().1, n, "a refined scene reads the same entries");
     assert_eq!(hashes(&again), hashes(&computed));
 
     let mut moved = scene("move");
-    let read = refine(&store, &mut moved, &settings).unwrap().1;
+    let read = refine(&store, &mut moved, &settings, &|_| {}).unwrap().1;
     assert!(read < n && entries().len() == 2 * n - read, "a moved box re-refines what it shadows: {read} of {n} read");
 
     let ground = receivers::keys(&scene(""), &settings)[0];
@@ -863,7 +863,7 @@ fn a_kept_refinement_equals_the_computed_one_and_a_damaged_entry_is_refined_agai
     damaged[10] ^= 1;
     store.put_memos(&[(name.clone(), damaged.clone())]).unwrap();
     let mut a = scene("");
-    assert_eq!(refine(&store, &mut a, &settings).unwrap().1, n - 1, "the damaged entry is refined again");
+    assert_eq!(refine(&store, &mut a, &settings, &|_| {}).unwrap().1, n - 1, "the damaged entry is refined again");
     assert!(hashes(&a) == hashes(&computed), "and equals the computed one");
     assert!(store.memo(&name).unwrap().unwrap() != damaged, "and replaced");
 
@@ -872,7 +872,7 @@ fn a_kept_refinement_equals_the_computed_one_and_a_damaged_entry_is_refined_agai
     let before = read_only.memos().unwrap().len();
     let mut c = scene("");
     c.pose_group(c.find_group("box b").unwrap(), Quat::IDENTITY, Vec3::new(0.2, 0.0, 0.0));
-    assert!(refine(&read_only, &mut c, &settings).unwrap().1 < n, "a new scene is refined");
+    assert!(refine(&read_only, &mut c, &settings, &|_| {}).unwrap().1 < n, "a new scene is refined");
     assert_eq!(read_only.memos().unwrap().len(), before, "a read-only store keeps nothing");
 }
 
@@ -907,12 +907,12 @@ fn edits_with_refinement_on_give_a_cold_bakes_bytes() {
     ];
     for (what, mut before, mut after) in edits {
         let store = Store::open(&scratch(&format!("edit-refined-{what}"))).unwrap();
-        refine(&store, &mut before, &settings).unwrap();
+        refine(&store, &mut before, &settings, &|_| {}).unwrap();
         bake(&store, &before);
         let fresh = Store::open(&scratch(&format!("edit-refined-{what}-cold"))).unwrap();
         let mut cold = after.duplicate();
-        let (_, read) = refine(&store, &mut after, &settings).unwrap();
-        refine(&fresh, &mut cold, &settings).unwrap();
+        let (_, read) = refine(&store, &mut after, &settings, &|_| {}).unwrap();
+        refine(&fresh, &mut cold, &settings, &|_| {}).unwrap();
         let keys = |store: &Store, s: &Scene| {
             let p = plan(store, s, &flatten(s), Some(BSPVT), Some(prt_settings())).unwrap();
             p.jobs.iter().map(|j| j.key).collect::<Vec<_>>()
@@ -947,7 +947,7 @@ fn a_refined_receiver_rebakes_only_near_a_moved_shadow() {
         let mut s = scene("");
         let g = s.find_group("box a").unwrap();
         s.pose_group(g, Quat::IDENTITY, Vec3::new(by, 0.0, 0.0));
-        refine(&Store::open(&scratch(&format!("near-{by}-refine"))).unwrap(), &mut s, &settings).unwrap();
+        refine(&Store::open(&scratch(&format!("near-{by}-refine"))).unwrap(), &mut s, &settings, &|_| {}).unwrap();
         s
     };
     let (before, after) = (refined(0.0), refined(0.3));
@@ -994,7 +994,7 @@ fn a_re_refined_curved_occluder_rebakes_only_what_sees_its_changed_triangles() {
         s.add_object("shade", shapes::cuboid(Vec3::splat(0.08)), Material::lambertian(Vec3::ONE), shade);
         let light = s.find_group("light").unwrap();
         s.pose_group(light, Quat::IDENTITY, Vec3::new(by, 0.0, 0.0));
-        refine(&Store::open(&scratch(&format!("curved-{by}-refine"))).unwrap(), &mut s, &settings).unwrap();
+        refine(&Store::open(&scratch(&format!("curved-{by}-refine"))).unwrap(), &mut s, &settings, &|_| {}).unwrap();
         s
     };
     let sphere = |s: &Scene| {

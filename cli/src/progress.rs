@@ -21,3 +21,26 @@ pub fn with_bar<T>(total: usize, what: &str, work: impl FnOnce(&(dyn Fn(usize) +
     pb.finish_and_clear();
     out
 }
+
+/// Runs `work` under a bar whose length `work` reports with each step, as (done, total).
+pub fn with_sized_bar<T>(what: &str, work: impl FnOnce(&dyn Fn(usize, usize)) -> T) -> T {
+    let pb = bar(0, what);
+    let out = work(&|done, total| {
+        pb.set_length(total as u64);
+        pb.set_position(done as u64);
+    });
+    pb.finish_and_clear();
+    out
+}
+
+/// Runs `work` under a spinner labelled `what` that shows the time spent, for work whose
+/// steps are not counted (timing a bake's sample).
+pub fn with_spinner<T>(what: &str, work: impl FnOnce() -> T) -> T {
+    let pb = ProgressBar::new_spinner();
+    pb.set_style(ProgressStyle::with_template("{spinner} {msg} ({elapsed})").expect("valid template"));
+    pb.set_message(what.to_string());
+    pb.enable_steady_tick(std::time::Duration::from_millis(200));
+    let out = work();
+    pb.finish_and_clear();
+    out
+}

@@ -129,7 +129,9 @@ impl SceneArgs {
 
     fn load_refined(&self, refine: bool, store: Option<&kage_bake_db::Store>) -> Result<Scene> {
         let mut scene = match &self.scene {
-            Some(path) => scene::import::import(path, self.import_options())?,
+            Some(path) => crate::progress::with_sized_bar("importing", |progress| {
+                scene::import::import_reporting(path, self.import_options(), progress)
+            })?,
             None => scene::default_scene(),
         };
         for w in &scene.warnings {
@@ -164,22 +166,52 @@ impl SceneArgs {
             scene.pose_group(g, Quat::IDENTITY, *offset);
         }
         if let Some(settings) = self.receiver_settings()?.filter(|_| refine) {
-            let (budget, t) = (settings.budget, settings.tolerance);
-            let started = std::time::Instant::now();
-            let (report, kept) = match store {
-                Some(store) => kage_bake_db::refinement::refine(store, &mut scene, &settings)?,
-                None => (kage_engine::receivers::refine(&mut scene, &settings)?, 0),
-            };
-            let (before, after) = report.iter().fold((0, 0), |(b, a), (x, y)| (b + x, a + y));
-            let from = kage_bake_db::refinement::kept_note(kept, report.len());
-            let seconds = started.elapsed().as_secs_f64();
-            eprintln!(
-                "refined receivers: {before} → {after} vertices in {seconds:.2} s (at most {budget} more each, tolerance {t}{from})"
-            );
-            for (i, (b, a)) in report.iter().enumerate().filter(|(_, (b, a))| a > b) {
-                eprintln!("  instance {i:3}: {b} → {a} vertices (+{})", a - b);
-            }
+            refine_receivers(&mut scene, &settings, store)?;
         }
         Ok(scene)
     }
 }
+
+/// Refines `scene`'s receivers (through `store`'s memos when given) under a progress bar, and
+/// prints what it did: the refinement line, and the instances it refined (the first
+/// [`LISTED`]).
+fn refine_receivers(
+    scene: &mut Scene,
+    settings: &kage_engine::receivers::Settings,
+    store: Option<&kage_bake_db::Store>,
+) -> Result<()> {
+    let instances = scene.world.query_mut::<&scene::MeshRef>().into_iter().count();
+    let capped = settings.for_instances(instances);
+    if capped.budget < settings.budget {
+        eprintln!(
+            "warning: receiver refinement: {instances} instances at {} vertices each would add more than {}; each instance's cap lowered to {} (--refine-receivers sets it)",
+            settings.budget,
+            kage_engine::receivers::SCENE_ALLOWANCE,
+            capped.budget
+        );
+    }
+    let started = std::time::Instant::now();
+    let (report, kept) = crate::progress::with_bar(instances, "refining", |progress| match store {
+        Some(store) => kage_bake_db::refinement::refine(store, scene, settings, progress),
+        None => Ok((kage_engine::receivers::refine_reporting(scene, settings, progress)?, 0)),
+    })?;
+    let (before, after) = report.iter().fold((0, 0), |(b, a), (x, y)| (b + x, a + y));
+    let from = kage_bake_db::refinement::kept_note(kept, report.len());
+    eprintln!(
+        "refined receivers: {before} → {after} vertices in {:.2} s (at most {} more each, tolerance {}{from})",
+        started.elapsed().as_secs_f64(),
+        capped.budget,
+        settings.tolerance
+    );
+    let grown: Vec<_> = report.iter().enumerate().filter(|(_, (b, a))| a > b).collect();
+    for (i, (b, a)) in grown.iter().take(LISTED) {
+        eprintln!("  instance {i:3}: {b} → {a} vertices (+{})", a - b);
+    }
+    if grown.len() > LISTED {
+        eprintln!("  … {} more instances refined", grown.len() - LISTED);
+    }
+    Ok(())
+}
+
+/// Refined instances listed one per line; the rest are counted.
+const LISTED: usize = 32;

@@ -285,7 +285,9 @@ fn refine_receivers(ed: &mut Editor) {
     };
     let was = meshes(&ed.flat);
     let refined = match ed.store.clone() {
-        Some(store) => kage_bake_db::refinement::refine(&store, &mut ed.scene, &settings).map_err(|e| e.to_string()),
+        Some(store) => {
+            kage_bake_db::refinement::refine(&store, &mut ed.scene, &settings, &|_| {}).map_err(|e| e.to_string())
+        }
         None => kage_engine::receivers::refine(&mut ed.scene, &settings).map(|r| (r, 0)).map_err(|e| e.to_string()),
     };
     let (report, kept) = match refined {
@@ -310,7 +312,7 @@ fn refine_receivers(ed: &mut Editor) {
         refined.vertices.0,
         refined.vertices.1,
         refined.seconds,
-        settings.budget,
+        settings.for_instances(report.len()).budget,
         settings.tolerance,
         kage_bake_db::refinement::kept_note(kept, report.len())
     ));

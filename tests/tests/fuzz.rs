@@ -5,15 +5,20 @@
 //! - no panic (a panic hook counts them), and none even contained as an error
 //!   (`kage_engine::error::contain`) except inside the storage library on a damaged database
 //!   page, which the store turns into an error by design;
-//! - no run longer than [`TIME_BOUND`];
+//! - no run longer than 10 s plus 4 µs per input byte ([`time_bound`]);
 //! - no run allocating more than 64 MiB plus 64 bytes per input byte above what was live before
-//!   it ([`MEMORY_ALLOWANCE`]; inputs are under 1 MB; the allocator is instrumented);
+//!   it ([`MEMORY_ALLOWANCE`]; the allocator is instrumented);
 //! - no file outside the scene's folder read: a URI that leads outside (in any spelling) or to a
 //!   special file must fail the import.
 //!
 //! The mutants are seeded (a failure reproduces); one that breaks a rule is written to
 //! `target/fuzz-failures/` to become a regression test. `KAGE_FUZZ_MUTANTS` sets the total
 //! (default 10,000, split across the kinds as [`KINDS`] says).
+//!
+//! Besides the mutants, files the harness writes that hold many of one thing ([`COUNTS`]:
+//! 10⁵–10⁶ nodes, lights, primitives, instances, materials) are loaded as `kage info` loads
+//! them — imported and their receivers refined — under the same rules: each costs what it
+//! holds, or is refused with an error naming its count and kage's limit.
 
 use kage_bake_db::pack::{self, Export};
 use kage_bake_db::{Store, plan};
@@ -28,14 +33,18 @@ use rand_pcg::Pcg64;
 use serde_json::{Value, json};
 use std::alloc::System;
 use std::path::{Path, PathBuf};
+use std::sync::Mutex;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 
 #[global_allocator]
 static GLOBAL: &PeakMemAlloc<System> = &INSTRUMENTED_SYSTEM;
 
-/// Longest a run may take.
-const TIME_BOUND: Duration = Duration::from_secs(10);
+/// Longest a run on `bytes` of input may take: 10 s, plus 4 µs per byte (a 5 MB file of 10⁵
+/// instances is imported and refined in about 12 s on two cores).
+fn time_bound(bytes: usize) -> Duration {
+    Duration::from_secs(10) + Duration::from_micros(4 * bytes as u64)
+}
 /// Most a run may allocate above what was live before it: proportional to the input, a fixed
 /// allowance plus [`MEMORY_PER_BYTE`] per byte of it.
 const MEMORY_ALLOWANCE: usize = 64 << 20;
@@ -44,6 +53,9 @@ const MEMORY_ALLOWANCE: usize = 64 << 20;
 const MEMORY_PER_BYTE: usize = 64;
 
 static PANICS: AtomicUsize = AtomicUsize::new(0);
+
+/// Held by each test while it measures: the allocator's peak is the process's.
+static MEASURING: Mutex<()> = Mutex::new(());
 
 /// The kinds of input and their shares of the budget (per ten thousand).
 const KINDS: [(Kind, usize); 7] = [
@@ -390,8 +402,18 @@ struct Tally {
     most_memory: usize,
 }
 
+/// Which rule a run of `took` allocating `used` on `bytes` of input broke, if one.
+fn over_bounds(took: Duration, used: usize, bytes: usize) -> Option<String> {
+    if took > time_bound(bytes) {
+        return Some(format!("took {took:?} on {bytes} bytes (bound {:?})", time_bound(bytes)));
+    }
+    (used > MEMORY_ALLOWANCE + MEMORY_PER_BYTE * bytes)
+        .then(|| format!("allocated {} MB from {bytes} bytes", used >> 20))
+}
+
 #[test]
 fn mutants_load_or_fail_cleanly_within_time_and_memory_and_never_read_outside_the_scene() {
+    let _measuring = MEASURING.lock().unwrap_or_else(|e| e.into_inner());
     std::panic::set_hook(Box::new(|info| {
         PANICS.fetch_add(1, Ordering::SeqCst);
         eprintln!("PANIC: {info}");
@@ -419,11 +441,7 @@ fn mutants_load_or_fail_cleanly_within_time_and_memory_and_never_read_outside_th
                 _ if caught > 0 && kind != Kind::Database => Some("a panic inside a parser (contained)".into()),
                 Err(e) => Some(e.clone()),
                 Ok(true) if mutant.must_fail => Some("a URI outside the scene folder was read".into()),
-                _ if took > TIME_BOUND => Some(format!("took {took:?}")),
-                _ if used > MEMORY_ALLOWANCE + MEMORY_PER_BYTE * mutant.bytes => {
-                    Some(format!("allocated {} MB from {} bytes", used >> 20, mutant.bytes))
-                }
-                _ => None,
+                _ => over_bounds(took, used, mutant.bytes),
             };
             if let Some(why) = broke {
                 failures.push(keep(&mutant.path, &format!("{kind:?}: {why}")));
@@ -445,4 +463,137 @@ fn mutants_load_or_fail_cleanly_within_time_and_memory_and_never_read_outside_th
     }
     let _ = std::panic::take_hook();
     assert!(failures.is_empty(), "{} mutants broke a rule:\n{}", failures.len(), failures.join("\n"));
+}
+
+/// What a count-heavy file holds many of.
+#[derive(Clone, Copy, Debug)]
+enum Count {
+    /// Empty nodes, children of one node.
+    Nodes,
+    /// Nodes placing a small quad light (kage refuses more than `MAX_LIGHTS`).
+    Lights,
+    /// Primitives of one mesh placed once.
+    Primitives,
+    /// Nodes placing one small quad each, on a grid above a ground.
+    Instances,
+    /// Materials, each on a primitive of one mesh.
+    Materials,
+}
+
+/// The count-heavy files and how many each holds.
+const COUNTS: [(Count, usize); 5] = [
+    (Count::Nodes, 1_000_000),
+    (Count::Lights, 1_000_000),
+    (Count::Primitives, 100_000),
+    (Count::Instances, 100_000),
+    (Count::Materials, 100_000),
+];
+
+/// A `.gltf` in `dir` (its buffer beside it) holding a 10 m ground, a 1 m quad light 3 m above
+/// it facing down, and `n` of `count`, made of 2 cm quads.
+fn count_heavy(count: Count, n: usize, dir: &Path) -> PathBuf {
+    let quad = |h: f32| [[-h, 0.0, -h], [h, 0.0, -h], [h, 0.0, h], [-h, 0.0, h]];
+    let mut bin: Vec<u8> =
+        [quad(0.01), quad(5.0), quad(0.5)].iter().flatten().flatten().flat_map(|c| c.to_le_bytes()).collect();
+    // Upward (+Y) and downward triangles over the four corners.
+    bin.extend([0u16, 2, 1, 0, 3, 2, 0, 1, 2, 0, 2, 3].iter().flat_map(|i| i.to_le_bytes()));
+    std::fs::write(dir.join("counts.bin"), &bin).unwrap();
+    let view = |offset: usize, length: usize| json!({"buffer": 0, "byteOffset": offset, "byteLength": length});
+    let points = |view: usize, h: f32| json!({"bufferView": view, "componentType": 5126, "count": 4, "type": "VEC3", "min": [-h, 0, -h], "max": [h, 0, h]});
+    let up = |material: usize| json!({"attributes": {"POSITION": 0}, "indices": 3, "material": material});
+    let mut nodes = vec![json!({"mesh": 1}), json!({"mesh": 2, "translation": [0, 3, 0]})];
+    let mut meshes = vec![
+        json!({"primitives": [up(1)]}),
+        json!({"primitives": [{"attributes": {"POSITION": 1}, "indices": 3, "material": 1}]}),
+        json!({"primitives": [{"attributes": {"POSITION": 2}, "indices": 4, "material": 0}]}),
+    ];
+    let mut materials = vec![
+        json!({"emissiveFactor": [1, 1, 1]}),
+        json!({"pbrMetallicRoughness": {"baseColorFactor": [0.8, 0.8, 0.8, 1]}}),
+    ];
+    let side = (n as f32).sqrt().ceil() as usize;
+    let grid = |i: usize| json!([(i % side) as f32 * 0.05 - 2.5, 0.5, (i / side) as f32 * 0.05 - 2.5]);
+    match count {
+        Count::Nodes => {
+            nodes.push(json!({"children": (3..3 + n).collect::<Vec<_>>()}));
+            nodes.extend((0..n).map(|_| json!({})));
+        }
+        Count::Lights => nodes.extend((0..n).map(|i| json!({"mesh": 2, "translation": grid(i)}))),
+        Count::Primitives => {
+            meshes[0] = json!({"primitives": vec![up(1); n]});
+            nodes.push(json!({"mesh": 0, "translation": [0, 0.5, 0]}));
+        }
+        Count::Instances => nodes.extend((0..n).map(|i| json!({"mesh": 0, "translation": grid(i)}))),
+        Count::Materials => {
+            materials.extend((0..n).map(|_| json!({"pbrMetallicRoughness": {"baseColorFactor": [0.5, 0.5, 0.5, 1]}})));
+            meshes[0] = json!({"primitives": (0..n).map(|i| up(2 + i)).collect::<Vec<_>>()});
+            nodes.push(json!({"mesh": 0, "translation": [0, 0.5, 0]}));
+        }
+    }
+    let roots: Vec<usize> = match count {
+        Count::Nodes => vec![0, 1, 2],
+        Count::Primitives | Count::Materials => vec![0, 1, 2],
+        Count::Lights | Count::Instances => (0..nodes.len()).collect(),
+    };
+    let doc = json!({
+        "asset": {"version": "2.0"},
+        "scene": 0,
+        "scenes": [{"nodes": roots}],
+        "nodes": nodes,
+        "meshes": meshes,
+        "materials": materials,
+        "buffers": [{"byteLength": bin.len(), "uri": "counts.bin"}],
+        "bufferViews": [view(0, 48), view(48, 48), view(96, 48), view(144, 12), view(156, 12)],
+        "accessors": [points(0, 0.01), points(1, 5.0), points(2, 0.5),
+            {"bufferView": 3, "componentType": 5123, "count": 6, "type": "SCALAR"},
+            {"bufferView": 4, "componentType": 5123, "count": 6, "type": "SCALAR"}],
+    });
+    let path = dir.join(format!("{count:?}.gltf").to_lowercase());
+    std::fs::write(&path, serde_json::to_vec(&doc).unwrap()).unwrap();
+    path
+}
+
+/// Loads a file as `kage info` does: imported, then its receivers refined by default.
+fn import_and_refine(path: &Path) -> Result<kage_engine::scene::Scene, String> {
+    let mut scene = import(path, ImportOptions::default()).map_err(|e| e.to_string())?;
+    kage_engine::receivers::refine(&mut scene, &Default::default()).map_err(|e| e.to_string())?;
+    Ok(scene)
+}
+
+#[test]
+fn files_of_many_nodes_lights_primitives_instances_and_materials_cost_what_they_hold() {
+    let _measuring = MEASURING.lock().unwrap_or_else(|e| e.into_inner());
+    let dir = scratch!("fuzz-counts");
+    let mut failures = Vec::new();
+    for (count, n) in COUNTS {
+        let path = count_heavy(count, n, &dir);
+        let bytes = std::fs::metadata(&path).unwrap().len() as usize;
+        GLOBAL.reset_peak_memory();
+        let start = Instant::now();
+        let loaded = import_and_refine(&path);
+        let (took, used) = (start.elapsed(), GLOBAL.get_peak_memory());
+        eprintln!(
+            "{count:?} ×{n}: {} in {:.2} s, {} MB allocated, from {:.1} MB",
+            loaded
+                .as_ref()
+                .map_or_else(|e| format!("refused ({e})"), |s| format!("{} instances", flatten(s).instances.len())),
+            took.as_secs_f64(),
+            used >> 20,
+            bytes as f64 / 1e6
+        );
+        let refused = matches!(count, Count::Lights);
+        let broke = match &loaded {
+            Ok(_) if refused => Some("loaded past kage's light limit".to_string()),
+            Err(e) if refused && !(e.contains(&(n + 1).to_string()) && e.contains("4096")) => {
+                Some(format!("refused without naming the count and the limit: {e}"))
+            }
+            Err(e) if !refused => Some(e.clone()),
+            _ => over_bounds(took, used, bytes),
+        };
+        if let Some(why) = broke {
+            failures.push(keep(&path, &format!("{count:?}: {why}")));
+        }
+        let _ = std::fs::remove_file(path);
+    }
+    assert!(failures.is_empty(), "{} count-heavy files broke a rule:\n{}", failures.len(), failures.join("\n"));
 }

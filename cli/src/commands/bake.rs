@@ -173,11 +173,16 @@ fn bake_once(args: &Args, store: &Store) -> Result<()> {
     Ok(())
 }
 
+/// Rows of the plan listed one per line; the rest are counted.
+const LISTED: usize = 32;
+
 /// Per instance and technique: chunks, cached, vertices to bake, estimated seconds (from a
 /// sample of the misses baked on this machine, see `kage_bake_db::estimate`).
 pub fn print_plan(store: &Store, scene: &Scene, flat: &FlatScene, plan: &Plan, planning_s: f64) -> Result<()> {
     let threads = rayon::current_num_threads();
-    let estimate = kage_bake_db::estimate::estimate(store, scene, flat, plan)?;
+    let estimate = crate::progress::with_spinner("timing a sample of the bake", || {
+        kage_bake_db::estimate::estimate(store, scene, flat, plan)
+    })?;
     // (chunks, cached, vertices to bake, their seconds on one worker).
     let mut rows: BTreeMap<(usize, Kind), (usize, usize, usize, f64)> = BTreeMap::new();
     for j in &plan.jobs {
@@ -205,12 +210,15 @@ pub fn print_plan(store: &Store, scene: &Scene, flat: &FlatScene, plan: &Plan, p
     if plan.jobs.is_empty() {
         out += "  nothing to bake: no polygonal light and no environment\n";
     }
-    for ((i, kind), (chunks, cached, vertices, seconds)) in &rows {
+    for ((i, kind), (chunks, cached, vertices, seconds)) in rows.iter().take(LISTED) {
         let est = seconds / threads as f64;
         let kind = kind.name();
         out += &format!(
             "  instance {i:3} {kind:5}: {chunks:3} chunks, {cached:3} cached, {vertices:6} vertices to bake, ~{est:.1} s\n"
         );
+    }
+    if rows.len() > LISTED {
+        out += &format!("  … {} more rows (instance and technique)\n", rows.len() - LISTED);
     }
     let misses = plan.misses().count();
     out += &format!(

@@ -61,6 +61,23 @@ impl Default for Settings {
     }
 }
 
+/// Most vertices refinement may add to a whole scene: with each instance's cap, a file of
+/// many instances would otherwise cost the cap times their count (10⁵ pebbles at 6,000 each).
+pub const SCENE_ALLOWANCE: usize = 2_000_000;
+
+impl Settings {
+    /// These settings for a scene of `instances` instances: the cap halved until every
+    /// instance at its cap stays within [`SCENE_ALLOWANCE`] (halved, not divided, so adding or
+    /// deleting an object changes the cap, and every key, only when the count crosses a step).
+    pub fn for_instances(self, instances: usize) -> Self {
+        let mut budget = self.budget;
+        while budget.saturating_mul(instances) > SCENE_ALLOWANCE {
+            budget /= 2;
+        }
+        Self { budget, ..self }
+    }
+}
+
 /// What refinement did, per instance in snapshot order: (vertices before, after).
 pub type Report = Vec<(usize, usize)>;
 
@@ -69,8 +86,17 @@ pub type Report = Vec<(usize, usize)>;
 /// meshes ([`crate::scene::SourceMesh`]), so refining a refined scene again equals refining it
 /// once.
 pub fn refine(scene: &mut Scene, settings: &Settings) -> crate::Result<Report> {
+    refine_reporting(scene, settings, &|_| {})
+}
+
+/// [`refine`], calling `progress` with the number of instances refined so far.
+pub fn refine_reporting(
+    scene: &mut Scene,
+    settings: &Settings,
+    progress: &(dyn Fn(usize) + Sync),
+) -> crate::Result<Report> {
     scene.restore_source_meshes();
-    let refinement = Refinement::of(scene, settings, Vec::new())?;
+    let refinement = Refinement::of(scene, settings, Vec::new(), progress)?;
     Ok(refinement.apply(scene))
 }
 
@@ -85,6 +111,7 @@ pub const VERSION: u32 = 7;
 /// views, so its keys). Equal keys refine to the same mesh.
 pub fn keys(scene: &Scene, settings: &Settings) -> Vec<blake3::Hash> {
     let flat = flatten(scene);
+    let settings = settings.for_instances(flat.instances.len());
     let scope = Scope::new(&flat);
     let mut common = blake3::Hasher::new();
     common.update(b"kage receiver refinement\0");
@@ -151,9 +178,16 @@ impl Refinement {
     /// Refines `scene` as it stands (call [`Scene::restore_source_meshes`] first to start from
     /// the source meshes), taking each instance's refinement from `kept` (by snapshot index)
     /// where it holds one for the instance's source mesh, and refining the others: with
-    /// `kept` read under [`keys`], the same as refining all.
-    pub fn of(scene: &Scene, settings: &Settings, mut kept: Vec<Option<Receiver>>) -> crate::Result<Self> {
+    /// `kept` read under [`keys`], the same as refining all. Each instance's cap is
+    /// [`Settings::for_instances`]'s; `progress` hears the instances done so far.
+    pub fn of(
+        scene: &Scene,
+        settings: &Settings,
+        mut kept: Vec<Option<Receiver>>,
+        progress: &(dyn Fn(usize) + Sync),
+    ) -> crate::Result<Self> {
         let flat = flatten(scene);
+        let settings = &settings.for_instances(flat.instances.len());
         let sources: Vec<usize> = flat.instances.iter().map(|i| flat.meshes[i.mesh as usize].positions.len()).collect();
         kept.resize(sources.len(), None);
         let kept: Vec<Option<Receiver>> =
@@ -161,14 +195,19 @@ impl Refinement {
         let scope = Scope::new(&flat);
         let idle = (flat.lights.is_empty() && flat.environment.is_none()) || settings.budget == 0;
         let probe = (!idle && kept.iter().any(Option::is_none)).then(|| Probe::new(&flat, &scope));
+        let done = std::sync::atomic::AtomicUsize::new(0);
         let receivers = kept
             .into_par_iter()
             .enumerate()
-            .map(|(i, k)| match (k, &probe) {
-                (Some(k), _) => Ok(k),
-                (None, None) => Ok(Receiver { before: sources[i], refined: None }),
-                (None, Some(probe)) => refined(&flat, i, probe, settings)
-                    .map_err(|why| crate::Error::Invalid(format!("{}: refining a receiver: {why}", scene.source))),
+            .map(|(i, k)| {
+                let receiver = match (k, &probe) {
+                    (Some(k), _) => Ok(k),
+                    (None, None) => Ok(Receiver { before: sources[i], refined: None }),
+                    (None, Some(probe)) => refined(&flat, i, probe, settings)
+                        .map_err(|why| crate::Error::Invalid(format!("{}: refining a receiver: {why}", scene.source))),
+                };
+                progress(done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1);
+                receiver
             })
             .collect::<crate::Result<_>>()?;
         Ok(Self { receivers })
@@ -183,6 +222,8 @@ impl Refinement {
     /// `scene` must be the one refined (with its source meshes).
     pub fn apply(self, scene: &mut Scene) -> Report {
         let flat = flatten(scene);
+        let entities: std::collections::HashMap<PrimitiveId, hecs::Entity> =
+            scene.world.query::<(hecs::Entity, &PrimitiveId)>().iter().map(|(e, id)| (*id, e)).collect();
         let mut report = Vec::new();
         for (inst, Receiver { before, refined }) in flat.instances.iter().zip(self.receivers) {
             let Some(Refined { mesh, flat }) = refined else {
@@ -190,13 +231,8 @@ impl Refinement {
                 continue;
             };
             report.push((before, mesh.positions.len()));
-            let entity = scene
-                .world
-                .query::<(hecs::Entity, &PrimitiveId)>()
-                .iter()
-                .find(|(_, id)| **id == inst.id)
-                .map(|(e, _)| e);
-            scene.set_refined_mesh(entity.expect("the snapshot's instances are the world's"), mesh, flat);
+            let entity = entities.get(&inst.id).expect("the snapshot's instances are the world's");
+            scene.set_refined_mesh(*entity, mesh, flat);
         }
         report
     }
@@ -316,4 +352,25 @@ fn world_area(mesh: &Adaptive, world: &glam::Affine3A) -> f32 {
 fn world_length(mesh: &Adaptive, world: &glam::Affine3A, e: &[u32; 2]) -> f32 {
     let p = mesh.positions();
     world.transform_point3(p[e[0] as usize]).distance(world.transform_point3(p[e[1] as usize]))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The cap stands while every instance at it fits the scene's allowance, and is halved
+    /// (so it moves only when the count crosses a step) until they do; off stays off.
+    #[test]
+    fn the_cap_is_halved_until_the_scene_fits_its_allowance() {
+        let cap = |budget, n| Settings { budget, ..Settings::default() }.for_instances(n).budget;
+        assert_eq!(cap(6000, 333), 6000);
+        assert_eq!(cap(6000, 334), 3000);
+        assert_eq!(cap(6000, 100_001), 11);
+        assert_eq!(cap(6000, 3_000_000), 0);
+        assert_eq!(cap(0, 10), 0);
+        for n in [1, 500, 10_000, 1_000_000] {
+            assert!(cap(6000, n) * n <= SCENE_ALLOWANCE, "{n} instances");
+            assert_eq!(Settings::default().for_instances(n).for_instances(n).budget, cap(6000, n), "idempotent");
+        }
+    }
 }

@@ -35,7 +35,8 @@ pub(super) enum View {
 pub(super) struct Near {
     /// For the lights' views: those whose bounds meet the box around the receiver and a
     /// view's points (a segment from the one to the other lies in it), or the receiver's own
-    /// bounds (what it may be inside); the receiver itself unless it is planar.
+    /// bounds (what it may be inside); not the receiver when it is planar, nor what lies in its
+    /// plane.
     pub lights: Vec<u32>,
     /// For the environment's: those of the receiver's group within the receiver's bounds
     /// grown by their diagonal — farther occluders' shadows are too soft to need vertices.
@@ -53,10 +54,12 @@ pub(super) struct Scope {
     pub bounds: Vec<Option<(Vec3, Vec3)>>,
     /// Per instance, its group's rank among the groups (for the environment's lists).
     group_of: Vec<usize>,
-    /// Per instance, whether its triangles lie in one plane: then they cannot shadow its own
-    /// points (a ray leaving the plane does not meet it again), and its own BVH, which every
-    /// ray from a floor would descend near its start, is left out of its lists.
-    planar: Vec<bool>,
+    /// Per instance, the plane its triangles lie in (unit normal, offset), if they do: then
+    /// neither they nor other instances lying in that plane can shadow its points (a ray
+    /// leaving the plane does not meet it again), and they are left out of its lists — its
+    /// own BVH, which every ray from a floor would descend near its start, and the tiles
+    /// beside it in a floor of many.
+    plane: Vec<Option<(Vec3, f32)>>,
     /// A tree over `bounds`, so that finding what meets a box costs the log of the instances.
     tree: TopLevel,
 }
@@ -73,9 +76,9 @@ impl Scope {
         views.extend(flat.environment.as_ref().map(environment_view));
         let triangles: Vec<Vec<[Vec3; 3]>> = (0..flat.instances.len()).map(|i| flat.occluder_triangles(i)).collect();
         let bounds: Vec<_> = triangles.iter().map(|t| bounds(t.iter().flatten())).collect();
-        let planar = triangles.iter().map(|t| planar(t)).collect();
+        let plane = triangles.iter().map(|t| plane(t)).collect();
         let tree = box_tree(&bounds);
-        Self { views, lights, bounds, group_of, planar, tree }
+        Self { views, lights, bounds, group_of, plane, tree }
     }
 
     /// The instances that can shadow instance `i`.
@@ -90,21 +93,45 @@ impl Scope {
         // Room for the probes' ray origins, lifted off the receiver along its normals.
         let boxes: Vec<(Vec3, Vec3)> = boxes.into_iter().map(padded).collect();
         let grown = (own.0 - (own.1 - own.0).length(), own.1 + (own.1 - own.0).length());
-        let lights = self.meeting(&boxes, |j| !(j == i && self.planar[i]));
+        // A subtree lying in a planar receiver's plane (tiles beside a tile) holds nothing near.
+        let descend = |b| !self.box_in_plane_of(i, b);
+        let lights = self.meeting(&boxes, descend, |j| !self.in_plane_of(i, j));
         let environment = if self.views.len() > self.lights {
-            self.meeting(&[padded(grown)], |j| self.group_of[j] == self.group_of[i] && !(j == i && self.planar[i]))
+            let keep = |j| self.group_of[j] == self.group_of[i] && !self.in_plane_of(i, j);
+            self.meeting(&[padded(grown)], descend, keep)
         } else {
             Vec::new()
         };
         Near { lights, environment }
     }
 
-    /// The instances `keep` accepts whose bounds meet one of `boxes`, ascending.
-    fn meeting(&self, boxes: &[(Vec3, Vec3)], keep: impl Fn(usize) -> bool) -> Vec<u32> {
+    /// Whether instance `j` lies in instance `i`'s plane (`i` itself, when it has one).
+    fn in_plane_of(&self, i: usize, j: usize) -> bool {
+        self.plane[i].is_some() && (j == i || self.bounds[j].is_some_and(|b| self.box_in_plane_of(i, b)))
+    }
+
+    /// Whether the box `(lo, hi)` lies in instance `i`'s plane (false when it has none), to
+    /// within 2·10⁻⁴ of its diagonal: more than the tree pads its boxes by, so that a subtree
+    /// of tiles is left whole.
+    fn box_in_plane_of(&self, i: usize, (lo, hi): (Vec3, Vec3)) -> bool {
+        let Some((n, d)) = self.plane[i] else { return false };
+        let slack = 1e-5 * (1.0 + d.abs()) + 2e-4 * (hi - lo).length();
+        let corners = (0..8).map(|c| Vec3::select(glam::BVec3::new(c & 1 != 0, c & 2 != 0, c & 4 != 0), hi, lo));
+        corners.into_iter().all(|p| (n.dot(p) - d).abs() <= slack)
+    }
+
+    /// The instances `keep` accepts whose bounds meet one of `boxes`, ascending, in the tree
+    /// below nodes `descend` accepts the boxes of.
+    fn meeting(
+        &self,
+        boxes: &[(Vec3, Vec3)],
+        descend: impl Fn((Vec3, Vec3)) -> bool,
+        keep: impl Fn(usize) -> bool,
+    ) -> Vec<u32> {
         let mut found = Vec::new();
         for &b in boxes {
             self.tree.each_within(
-                |lo, hi| overlap((lo, hi), b),
+                |lo, hi| overlap((lo, hi), b) && descend((lo, hi)),
                 |leaf| {
                     let meets = |j: &&u32| self.bounds[**j as usize].is_some_and(|o| overlap(o, b));
                     found.extend(leaf.iter().filter(meets).filter(|&&j| keep(j as usize)));
@@ -204,13 +231,12 @@ fn box_tree(bounds: &[Option<(Vec3, Vec3)>]) -> TopLevel {
 }
 
 /// Whether `triangles` (at least one) lie in one plane, within 10⁻⁵ of their extent.
-fn planar(triangles: &[[Vec3; 3]]) -> bool {
-    let normal = triangles.iter().map(|[a, b, c]| (b - a).cross(c - a)).find(|n| *n != Vec3::ZERO);
-    let Some(n) = normal.map(Vec3::normalize) else { return false };
-    let Some((lo, hi)) = bounds(triangles.iter().flatten()) else { return false };
+fn plane(triangles: &[[Vec3; 3]]) -> Option<(Vec3, f32)> {
+    let n = triangles.iter().map(|[a, b, c]| (b - a).cross(c - a)).find(|n| *n != Vec3::ZERO)?.normalize();
+    let (lo, hi) = bounds(triangles.iter().flatten())?;
     let d = n.dot(triangles[0][0]);
     let slack = 1e-5 * (hi - lo).length();
-    triangles.iter().flatten().all(|p| (n.dot(*p) - d).abs() <= slack)
+    triangles.iter().flatten().all(|p| (n.dot(*p) - d).abs() <= slack).then_some((n, d))
 }
 
 /// A box grown by 10⁻³ of its largest coordinate (and 10⁻³): more than a probe's ray origin
@@ -319,9 +345,25 @@ mod tests {
     #[test]
     fn a_floor_is_planar_and_a_box_is_not() {
         let floor = [[Vec3::ZERO, Vec3::X, Vec3::Z], [Vec3::X, Vec3::new(1.0, 0.0, 1.0), Vec3::Z]];
-        assert!(planar(&floor));
-        assert!(!planar(&[floor[0], [Vec3::ZERO, Vec3::X, Vec3::Y]]));
-        assert!(!planar(&[]));
+        let (n, d) = plane(&floor).expect("planar");
+        assert!((n.abs() - Vec3::Y).length() < 1e-6 && d.abs() < 1e-6, "{n} {d}");
+        assert!(plane(&[floor[0], [Vec3::ZERO, Vec3::X, Vec3::Y]]).is_none());
+        assert!(plane(&[]).is_none());
+    }
+
+    /// A tile beside a planar tile in its plane cannot shadow it and is not near it; a tile
+    /// just above the plane, or beside a box, is.
+    #[test]
+    fn tiles_in_one_plane_do_not_shadow_each_other() {
+        let tile = |x: f32, y: f32| Some((Vec3::new(x, y, 0.0), Vec3::new(x + 1.0, y, 1.0)));
+        let bounds =
+            vec![tile(0.0, 0.0), tile(1.5, 0.0), tile(3.0, 0.01), tile(0.0, 0.0).map(|(lo, hi)| (lo, hi + Vec3::Y))];
+        let tree = box_tree(&bounds);
+        let plane = vec![Some((Vec3::Y, 0.0)), Some((Vec3::Y, 0.0)), Some((Vec3::Y, 0.01)), None];
+        let scope = Scope { views: Vec::new(), lights: 0, bounds, group_of: vec![0; 4], plane, tree };
+        let [a, b, c, d] = [0, 1, 2, 3].map(|j| scope.in_plane_of(0, j));
+        assert!(a && b && !c && !d, "itself and the tile beside it, not the raised tile or the box");
+        assert!(!scope.in_plane_of(3, 0), "a box has no plane");
     }
 
     /// The tree finds what meets a box exactly as testing every instance does.
@@ -332,13 +374,13 @@ mod tests {
             (0..300).map(|k| (k % 29 != 0).then(|| (at(k), at(k) + Vec3::splat(0.5 + (k % 4) as f32)))).collect();
         let tree = box_tree(&bounds);
         let n = bounds.len();
-        let scope = Scope { views: Vec::new(), lights: 0, bounds, group_of: vec![0; n], planar: vec![false; n], tree };
+        let scope = Scope { views: Vec::new(), lights: 0, bounds, group_of: vec![0; n], plane: vec![None; n], tree };
         let mut found = 0;
         for k in 0..40 {
             let b = (at(k) - Vec3::splat(2.0), at(k) + Vec3::splat(2.0));
             let brute: Vec<u32> =
                 (0..n as u32).filter(|&j| scope.bounds[j as usize].is_some_and(|o| overlap(o, b))).collect();
-            assert_eq!(scope.meeting(&[b], |_| true), brute, "box {k}");
+            assert_eq!(scope.meeting(&[b], |_| true, |_| true), brute, "box {k}");
             found += brute.len();
         }
         assert!(found > 40, "the boxes meet instances: {found}");

@@ -257,6 +257,25 @@ pub fn world_extent(scene: &crate::scene::Scene) -> Result<(), String> {
     Ok(())
 }
 
+/// The file places at most [`super::MAX_LIGHTS`] emissive primitives (each at least one light
+/// polygon), counted before any mesh is read: a file of a million placed lights is refused at
+/// once, naming its count.
+pub fn light_count(doc: &gltf::Document) -> Result<(), String> {
+    let emissive = |p: gltf::Primitive| {
+        let m = p.material();
+        m.emissive_factor().iter().any(|&c| c > 0.0) && m.emissive_strength().is_none_or(|s| s > 0.0)
+    };
+    let per_mesh: Vec<usize> = doc.meshes().map(|m| m.primitives().filter(|p| emissive(p.clone())).count()).collect();
+    let placed: usize = doc.nodes().filter_map(|n| n.mesh()).map(|m| per_mesh[m.index()]).sum();
+    match placed > super::MAX_LIGHTS {
+        true => Err(format!(
+            "the file places {placed} emissive primitives, more than kage's limit of {} light polygons (every light is shaded at every vertex and pixel)",
+            super::MAX_LIGHTS
+        )),
+        false => Ok(()),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -25,6 +25,9 @@ use std::collections::HashMap;
 use std::path::Path;
 use std::sync::Arc;
 
+/// Nodes imported between two progress reports.
+const PROGRESS_STEP: usize = 4096;
+
 /// Extensions whose data kage reads; any other *required* extension is refused.
 pub const SUPPORTED_EXTENSIONS: &[&str] =
     &["KHR_materials_emissive_strength", "KHR_materials_specular", "KHR_texture_transform"];
@@ -42,11 +45,21 @@ pub struct ImportOptions {
     pub color_set: u32,
 }
 
+/// Most light polygons a scene may hold: every light is shaded at every vertex and pixel (and
+/// probed by receiver refinement at every vertex), so a frame's cost grows with their count; at
+/// this many an 800×600 image already takes minutes on the CPU.
+pub const MAX_LIGHTS: usize = 4096;
+
 /// Imports a `.gltf` or `.glb` file.
 pub fn import(path: &Path, options: ImportOptions) -> Result<Scene> {
+    import_reporting(path, options, &|_, _| {})
+}
+
+/// [`import`], calling `progress` with the nodes imported so far and their total.
+pub fn import_reporting(path: &Path, options: ImportOptions, progress: &dyn Fn(usize, usize)) -> Result<Scene> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
     // Last line of defence: the gltf crate has panicked on malformed input before.
-    crate::error::contain(|| Importer::run(path, &bytes, options))
+    crate::error::contain(|| Importer::run(path, &bytes, options, progress))
         .unwrap_or_else(|what| Err(Error::gltf(path, format!("malformed glTF (the parser failed: {what})"))))
 }
 
@@ -69,10 +82,14 @@ struct Importer<'a> {
     group_count: u32,
     /// Instances and lights spawned into the current group.
     members: usize,
+    /// Light polygons spawned so far (at most [`MAX_LIGHTS`]).
+    lights: usize,
+    /// Imported mesh index → its light polygons, so a light placed many times is split once.
+    light_polygons: HashMap<u32, std::rc::Rc<[Vec<u32>]>>,
 }
 
 impl<'a> Importer<'a> {
-    fn run(path: &'a Path, bytes: &[u8], options: ImportOptions) -> Result<Scene> {
+    fn run(path: &'a Path, bytes: &[u8], options: ImportOptions, progress: &dyn Fn(usize, usize)) -> Result<Scene> {
         let err = |m: String| Error::gltf(path, m);
         checks::glb_header(bytes).map_err(err)?;
         let raw = gltf::Gltf::from_slice_without_validation(bytes)
@@ -85,6 +102,7 @@ impl<'a> Importer<'a> {
         if let Some(ext) = doc.extensions_required().find(|e| !SUPPORTED_EXTENSIONS.contains(e)) {
             return Err(err(format!("requires extension {ext}, which kage does not support")));
         }
+        checks::light_count(&doc).map_err(err)?;
         let root = files::Root::for_scene(path, options.allow_root.as_deref()).map_err(err)?;
         let buffers = load_buffers(&doc, base_dir(path), &root, blob, zeros)
             .map_err(|e| err(format!("cannot load buffer data: {e}")))?;
@@ -110,8 +128,10 @@ impl<'a> Importer<'a> {
             world,
             group_count: 0,
             members: 0,
+            lights: 0,
+            light_polygons: HashMap::new(),
         };
-        imp.import_nodes()?;
+        imp.import_nodes(progress)?;
         propagate_transforms(&mut imp.scene.world);
         checks::world_extent(&imp.scene).map_err(err)?;
         Ok(imp.scene)
@@ -151,9 +171,10 @@ impl<'a> Importer<'a> {
         (0..is_child.len()).filter(|&i| !is_child[i]).collect()
     }
 
-    fn import_nodes(&mut self) -> Result<()> {
+    fn import_nodes(&mut self, progress: &dyn Fn(usize, usize)) -> Result<()> {
         let doc = std::rc::Rc::clone(&self.doc);
-        let mut seen = vec![false; doc.nodes().len()];
+        let (total, mut done) = (doc.nodes().len(), 0);
+        let mut seen = vec![false; total];
         for root in self.roots() {
             let node = doc.nodes().nth(root).expect("checked index");
             let pose =
@@ -176,6 +197,10 @@ impl<'a> Importer<'a> {
                 }
                 let node = doc.nodes().nth(index).expect("checked index");
                 self.import_node(&node, group, pose, local)?;
+                done += 1;
+                if done % PROGRESS_STEP == 0 {
+                    progress(done, total);
+                }
                 for child in node.children() {
                     let m = node_matrix(&child)
                         .ok_or_else(|| self.error(format!("nodes[{}]: transform is not finite", child.index())))?;
@@ -237,13 +262,21 @@ impl<'a> Importer<'a> {
                     Some(info) => Some(self.texture(&info.texture(), Channels::Srgb, &where_)?),
                     None => None,
                 };
-                let m = self.scene.meshes[mesh_index as usize].clone();
-                let polys = light::polygons(&m);
+                let polys = self.light_polygons(mesh_index);
                 if polys.is_empty() {
                     return Err(self.error(format!("{where_}: emitter has zero area")));
                 }
+                self.lights += polys.len();
+                if self.lights > MAX_LIGHTS {
+                    return Err(self.error(format!(
+                        "{where_}: more than {MAX_LIGHTS} light polygons (kage's limit: every light is shaded at every vertex and pixel); its emitters split into {} with this node's",
+                        self.lights
+                    )));
+                }
+                let m = &self.scene.meshes[mesh_index as usize];
                 let id = PrimitiveId { node: node_id, mesh: mesh.index() as u32, primitive: prim.index() as u32 };
-                for (polygon, poly) in polys.into_iter().enumerate() {
+                let mut spawned = Vec::with_capacity(polys.len());
+                for (polygon, poly) in polys.iter().enumerate() {
                     let uvs = if texture.is_some() && !m.uvs.is_empty() {
                         poly.iter().map(|&i| m.uvs[i as usize]).collect()
                     } else {
@@ -256,11 +289,11 @@ impl<'a> Importer<'a> {
                         .transpose()
                         .map_err(|m| self.error(format!("{node_name}: {m}")))?;
                     let light = PolygonLight { points, uvs, radiance: emissive, texture, reach };
-                    lights += 1;
-                    let emitter = Emitter { id, polygon: polygon as u32 };
-                    self.scene.world.spawn((light, member, transform, NodeId(node_id), emitter));
-                    self.members += 1;
+                    spawned.push((light, member, transform, NodeId(node_id), Emitter { id, polygon: polygon as u32 }));
                 }
+                lights += spawned.len();
+                self.members += spawned.len();
+                self.scene.world.spawn_batch(spawned);
             } else {
                 let pbr = mat.pbr_metallic_roughness();
                 let c = pbr.base_color_factor();
@@ -288,6 +321,12 @@ impl<'a> Importer<'a> {
         }
         self.unused_reach(declared, lights, &node_name);
         Ok(())
+    }
+
+    /// The light polygons of imported mesh `index` (see [`light::polygons`]), split once.
+    fn light_polygons(&mut self, index: u32) -> std::rc::Rc<[Vec<u32>]> {
+        let meshes = &self.scene.meshes;
+        self.light_polygons.entry(index).or_insert_with(|| light::polygons(&meshes[index as usize]).into()).clone()
     }
 
     /// Warns of a light reach declared on a node that has no light.
