@@ -9,9 +9,10 @@
 //! - **BSPVT** (polygonal lights present): visibility depends on the whole scene, so a chunk's
 //!   key covers its vertices, its instance's world transform, and the occluder snapshot (every
 //!   instance's id, occluding mesh's hash — with its cut-out's mask, if any — and world
-//!   transform). Its *slot* (the key without the snapshot) remembers the last artefact baked
-//!   there and the snapshot it saw — the lineage that lets an edit re-bake only the cube faces
-//!   that can see what changed.
+//!   transform). Its *slot* (its instance, transform and place: the vertex the chunk ends at)
+//!   remembers the last artefact baked there, the snapshot it saw and its vertices — the
+//!   lineage that lets an edit re-bake only the cube faces that can see what changed, of every
+//!   vertex the chunk still holds.
 //! - **PRT** (an environment present): a chunk's key covers its vertices, the instance's
 //!   transform relative to its group, and the group's own occluding geometry in the group's
 //!   frame — never where the group is.
@@ -263,9 +264,17 @@ pub fn plan(
             }
             let id = [inst.id.node, inst.id.mesh, inst.id.primitive];
             for vertices in chunks(flat, i) {
-                let base = base.clone().bytes("vertices", &chunk_content(flat, i, &vertices));
-                let key = base.clone().bytes("occluders", snapshot.hash.as_bytes()).finish();
-                let slot = base.bytes("id", bytemuck::cast_slice(&id)).finish();
+                let content = chunk_content(flat, i, &vertices);
+                let key =
+                    base.clone().bytes("vertices", &content).bytes("occluders", snapshot.hash.as_bytes()).finish();
+                // The chunk's place: the vertex it ends at, a content-defined cut that
+                // vertices added or dropped elsewhere in the chunk leave where it is.
+                let end = vertex_bits(flat, i, vertices.end - 1);
+                let slot = base
+                    .clone()
+                    .bytes("id", bytemuck::cast_slice(&id))
+                    .bytes("ends at", bytemuck::cast_slice(&end))
+                    .finish();
                 jobs.push(Job { kind: Kind::Bspvt, instance: i, vertices, key, slot: Some(slot), cached: false });
             }
         }
@@ -298,12 +307,8 @@ pub fn plan(
 /// change the chunks there; past the next cut the chunks are the same as before.
 pub fn chunks(flat: &FlatScene, i: usize) -> Vec<Range<usize>> {
     let mesh = flat.mesh(i);
-    let bits = |v: usize| -> [u32; 6] {
-        let (p, n) = (mesh.positions[v].to_array(), mesh.normals[v].to_array());
-        [p[0], p[1], p[2], n[0], n[1], n[2]].map(f32::to_bits)
-    };
     let cut_after = |v: usize| {
-        let b = bits(v);
+        let b = vertex_bits(flat, i, v);
         let h = (0..3).fold(0u64, |h, k| mix64(h ^ ((b[2 * k] as u64) << 32 | b[2 * k + 1] as u64)));
         h.is_multiple_of((CHUNK - MIN_CHUNK) as u64)
     };
@@ -320,6 +325,13 @@ pub fn chunks(flat: &FlatScene, i: usize) -> Vec<Range<usize>> {
         out.push(start..mesh.positions.len());
     }
     out
+}
+
+/// The bits of vertex `v` of instance `i`: its position and normal (mesh frame).
+pub fn vertex_bits(flat: &FlatScene, i: usize, v: usize) -> [u32; 6] {
+    let mesh = flat.mesh(i);
+    let (p, n) = (mesh.positions[v].to_array(), mesh.normals[v].to_array());
+    [p[0], p[1], p[2], n[0], n[1], n[2]].map(f32::to_bits)
 }
 
 /// What a chunk's bake reads of its own vertices: their positions and normals (mesh frame).

@@ -8,7 +8,9 @@
 //! visibility changed are built again, most of them found in the subtree memo the store keeps
 //! between runs; the other tiles' subtrees are kept. The lineage keeps, beside the previous
 //! artefact's key and the occluders it saw, the visible-texel masks of every vertex's mixed
-//! tiles (uniform tiles need none), so the texels not cast again keep their exact old state.
+//! tiles (uniform tiles need none), so the texels not cast again keep their exact old state,
+//! and the vertices' positions and normals: a chunk whose vertices changed (a receiver refined
+//! again) re-bakes warm each vertex its lineage holds, and cold only the new ones.
 //! The result is byte-identical to a cold bake, because a ray's result against an occluder
 //! depends on that occluder alone and a face's tree is its tiles' subtrees joined by a fixed
 //! grid (`bspvt::node::TILE`).
@@ -33,12 +35,13 @@ const IN_FLIGHT: usize = 2 * BATCH;
 /// Longest a finished artefact waits before it is committed.
 const FLUSH_EVERY: Duration = Duration::from_millis(250);
 
-/// A slot's previous vertex bakes and the occluders that changed since.
-type Lineage = (Vec<bspvt::VertexBake>, Vec<bspvt::Change>);
+/// A slot's previous bake of each of a chunk's vertices (`None`: the vertex is new) and the
+/// occluders that changed since.
+type Lineage = (Vec<Option<bspvt::VertexBake>>, Vec<bspvt::Change>);
 
-/// First bytes of a lineage entry (its layout's version): entries written before masks were
-/// kept lack it, and their chunks bake cold once.
-const LINEAGE_MAGIC: &[u8; 4] = b"kgl2";
+/// First bytes of a lineage entry (its layout's version): entries of an older layout (before
+/// masks, or before vertices were kept) lack it, and their chunks bake cold once.
+const LINEAGE_MAGIC: &[u8; 4] = b"kgl3";
 
 /// What a run did.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -425,6 +428,9 @@ impl Context<'_> {
             Kind::Bspvt => {
                 let (baked, warm) = self.bake_bspvt(job)?;
                 if let Some((_, v)) = &mut lineage {
+                    v.extend_from_slice(&(job.vertices.len() as u32).to_le_bytes());
+                    let bits = job.vertices.clone().map(|k| crate::plan::vertex_bits(self.flat, job.instance, k));
+                    bits.for_each(|b| v.extend_from_slice(bytemuck::cast_slice(&b)));
                     baked.iter().for_each(|b| encode_masks(&b.masks, v));
                 }
                 let touched = baked.iter().filter(|b| b.rays > 0).count();
@@ -449,43 +455,43 @@ impl Context<'_> {
         let (occ, tiles) =
             (self.occluders.expect("built for BSPVT misses"), self.tiles.expect("loaded for BSPVT misses"));
         let vertex = |v: usize| self.flat.vertex(job.instance, v);
-        let (old, changed) = match self.lineage_of(job)? {
-            Some((old, changed)) => (Some(old), changed),
-            None => (None, Vec::new()),
-        };
-        let warm = old.is_some();
-        let old = old.unwrap_or_else(|| vec![bspvt::VertexBake::default(); job.vertices.len()]);
+        let (old, changed) = self.lineage_of(job)?.unwrap_or_else(|| (vec![None; job.vertices.len()], Vec::new()));
+        let warm = old.iter().any(Option::is_some);
+        let cold = bspvt::VertexBake::default();
         let baked = job
             .vertices
             .clone()
             .zip(&old)
             .map(|(v, old)| {
                 let (p, n) = vertex(v);
-                bspvt::rebake_vertex(occ, p, n, (tiles, &self.plan.reach), old, &changed)
+                // A new vertex bakes cold: no change needs looking at.
+                let (old, changed) = old.as_ref().map_or((&cold, &[][..]), |old| (old, &changed[..]));
+                bspvt::rebake_vertex(occ, p, n, (tiles, &self.plan.reach), old, changed)
             })
             .collect();
         Ok((baked, warm))
     }
 
-    /// The slot's previous vertex bakes and every occluder that changed since, when the
-    /// lineage is usable.
+    /// The slot's previous bake of each of the chunk's vertices that it holds (matched by
+    /// position and normal) and every occluder that changed since, when the lineage is usable.
     fn lineage_of(&self, job: &Job) -> Result<Option<Lineage>> {
         let Some(slot) = job.slot else { return Ok(None) };
         let Some(entry) = self.store.lineage(&slot)? else { return Ok(None) };
-        let Some((key, then, masks)) = decode_lineage(&entry, job.vertices.len()) else { return Ok(None) };
+        let Some(Then { key, occluders, vertices, masks }) = decode_lineage(&entry) else { return Ok(None) };
         let Some(bytes) = self.store.get::<u8>(&key)? else { return Ok(None) };
         // The warm re-bake descends the old trees: a damaged chunk bakes cold instead.
         let usable = |r: &Vec<Vec<u8>>| {
             let res = self.plan.bspvt.map_or(0, |s| s.res);
-            r.len() == job.vertices.len() && r.iter().all(|rec| bspvt::layout::check_record(rec, res).is_ok())
+            r.len() == vertices.len() && r.iter().all(|rec| bspvt::layout::check_record(rec, res).is_ok())
         };
         let Some(records) = decode_records(&bytes).filter(usable) else { return Ok(None) };
-        let old = records.into_iter().zip(masks).map(|(record, masks)| bspvt::VertexBake {
-            record,
-            masks,
-            ..Default::default()
-        });
-        Ok(Some((old.collect(), self.changes(&then)?)))
+        let mut old: HashMap<[u32; 6], bspvt::VertexBake> = vertices
+            .into_iter()
+            .zip(records.into_iter().zip(masks))
+            .map(|(bits, (record, masks))| (bits, bspvt::VertexBake { record, masks, ..Default::default() }))
+            .collect();
+        let now = job.vertices.clone().map(|v| old.remove(&crate::plan::vertex_bits(self.flat, job.instance, v)));
+        Ok(Some((now.collect(), self.changes(&occluders)?)))
     }
 
     /// Every occluder that changed since the snapshot `then`, a re-refined curved one by the
@@ -573,23 +579,39 @@ fn encode_masks(masks: &[(u32, u64)], out: &mut Vec<u8>) {
     }
 }
 
-/// A lineage entry's artefact key, occluder snapshot and per-vertex masks for a chunk of
-/// `vertices` vertices (`None` when malformed or of an older layout).
-fn decode_lineage(entry: &[u8], vertices: usize) -> Option<(Key, Vec<Occluder>, Vec<bspvt::tree::Masks>)> {
+/// What a lineage entry remembers of a chunk's last bake.
+struct Then {
+    /// The artefact's key.
+    key: Key,
+    /// The occluder snapshot it saw.
+    occluders: Vec<Occluder>,
+    /// Its vertices' position and normal bits ([`crate::plan::vertex_bits`]).
+    vertices: Vec<[u32; 6]>,
+    /// Its vertices' visible-texel masks.
+    masks: Vec<bspvt::tree::Masks>,
+}
+
+/// A lineage entry: magic, artefact key, occluder snapshot (u32 length, then its bytes),
+/// u32 vertex count, each vertex's bits, then each vertex's masks (`None` when malformed or
+/// of an older layout).
+fn decode_lineage(entry: &[u8]) -> Option<Then> {
     let rest = entry.strip_prefix(LINEAGE_MAGIC)?;
     let key = Key::from_slice(rest.get(..32)?);
     let len = u32::from_le_bytes(rest.get(32..36)?.try_into().ok()?) as usize;
-    let occluders = decode_occluders(rest.get(36..36 + len)?)?;
+    let occluders = decode_occluders(rest.get(36..36usize.checked_add(len)?)?)?;
     let mut at = &rest[36 + len..];
-    let mut masks = Vec::with_capacity(vertices);
     let mut take = |n: usize| -> Option<&[u8]> {
         let (head, tail) = at.split_at_checked(n)?;
         at = tail;
         Some(head)
     };
-    for _ in 0..vertices {
-        let count = u32::from_le_bytes(take(4)?.try_into().ok()?) as usize;
-        let pairs = take(count.checked_mul(12)?)?;
+    let count = u32::from_le_bytes(take(4)?.try_into().ok()?) as usize;
+    let bits = take(count.checked_mul(24)?)?;
+    let vertices = bits.chunks_exact(24).map(bytemuck::pod_read_unaligned::<[u32; 6]>).collect();
+    let mut masks = Vec::with_capacity(count);
+    for _ in 0..count {
+        let n = u32::from_le_bytes(take(4)?.try_into().ok()?) as usize;
+        let pairs = take(n.checked_mul(12)?)?;
         masks.push(
             pairs
                 .chunks_exact(12)
@@ -602,7 +624,7 @@ fn decode_lineage(entry: &[u8], vertices: usize) -> Option<(Key, Vec<Occluder>, 
                 .collect(),
         );
     }
-    at.is_empty().then_some((key, occluders, masks))
+    at.is_empty().then_some(Then { key, occluders, vertices, masks })
 }
 
 /// A BSPVT chunk: u32 count, count + 1 u32 offsets, then the records.

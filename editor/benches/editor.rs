@@ -8,6 +8,11 @@
 //!   (includes the watcher's 150 ms debounce).
 //!
 //! The first run bakes into `target/bench-editor/bake.redb`; later runs find it cached.
+//!
+//! And on the built-in scene as `kage edit` opens it (receivers refined, the bounce on):
+//! - `group_drag_to_shadows`: the box moved to a placement it has never had, from the end of
+//!   the drag (refinement, the incremental bake, the bounce) until a frame shows the shadows of
+//!   the new placement. Its database starts empty each run, so no placement is cached.
 
 #[path = "../tests/common/mod.rs"]
 mod common;
@@ -67,6 +72,80 @@ fn teapot_editor() -> Harness<'static, App> {
     }
     h.step();
     h
+}
+
+/// The editor on the built-in scene with `kage edit`'s defaults, its first bake done.
+fn builtin_editor() -> Harness<'static, App> {
+    let work = root().join("target/bench-editor");
+    std::fs::create_dir_all(&work).unwrap();
+    let db = work.join("builtin.redb");
+    let _ = std::fs::remove_file(&db);
+    let options = Options {
+        scene_path: None,
+        env_path: None,
+        import: Default::default(),
+        shader_dir: None,
+        db_path: db,
+        bspvt: bspvt::Settings::default(),
+        prt: prt::Settings::default(),
+        cache: Default::default(),
+        prt_budget: None,
+        refine: Some(kage_engine::receivers::Settings::default()),
+        bake_on_start: true,
+        indirect: true,
+        shade_on: shade_on(),
+        background_shading: usize::MAX,
+    };
+    let mut h = harness(kage_engine::scene::default_scene(), options);
+    settle(&mut h);
+    h
+}
+
+/// Steps the editor until its bake job has landed and been taken in, then renders a frame.
+fn settle(h: &mut Harness<App>) {
+    h.step();
+    while h.state().editor.job.is_some() {
+        h.step();
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    h.step();
+    h.render().unwrap();
+}
+
+fn group_drag(c: &mut Criterion) {
+    let mut h = builtin_editor();
+    let group = h.state().editor.outline().into_iter().find_map(|(s, name, _)| match s {
+        Selection::Group(g) if name.ends_with(": box") => Some(g),
+        _ => None,
+    });
+    let group = group.expect("the built-in scene has a box");
+    let mut g = c.benchmark_group(format!("editor_builtin_{:?}", shade_on()));
+    g.sample_size(10);
+    let mut k = 0.0;
+    g.bench_function("group_drag_to_shadows", |b| {
+        b.iter_custom(|iterations| {
+            let mut took = Duration::ZERO;
+            for _ in 0..iterations {
+                // Out and back by steps never taken before: every placement is new.
+                k += 1.0;
+                let offset = Vec3::new(if k % 2.0 == 1.0 { 0.3 } else { -0.3 } + 0.002 * k, 0.0, 0.0);
+                h.state_mut().editor.move_group(group, offset, Quat::IDENTITY);
+                let start = std::time::Instant::now();
+                settle(&mut h);
+                took += start.elapsed();
+            }
+            took
+        })
+    });
+    g.finish();
+    let ed = &h.state().editor;
+    let refined = ed.bakes.receivers.as_ref().map_or(0.0, |r| r.seconds);
+    let errors: Vec<&str> = ed.log.iter().filter(|l| l.error).map(|l| l.text.as_str()).collect();
+    assert!(errors.is_empty(), "the editor must measure a working state: {errors:#?}");
+    let bspvt = ed.stats.runs[0].map_or(String::new(), |r| {
+        format!("; BSPVT {} cold, {} warm, {} cached chunks in {:.2} s", r.cold, r.warm, r.cached, r.seconds)
+    });
+    println!("last drag: receivers refined in {refined:.2} s{bspvt}");
 }
 
 fn vertices(h: &Harness<App>) -> usize {
@@ -135,5 +214,5 @@ fn bench(c: &mut Criterion) {
     );
 }
 
-criterion_group!(benches, bench);
+criterion_group!(benches, bench, group_drag);
 criterion_main!(benches);
