@@ -145,7 +145,9 @@ fn group_drag(c: &mut Criterion) {
     let bspvt = ed.stats.runs[0].map_or(String::new(), |r| {
         format!("; BSPVT {} cold, {} warm, {} cached chunks in {:.2} s", r.cold, r.warm, r.cached, r.seconds)
     });
-    println!("last drag: receivers refined in {refined:.2} s{bspvt}");
+    let prt = ed.stats.runs[1]
+        .map_or(String::new(), |r| format!("; PRT {} cold, {} cached chunks in {:.2} s", r.cold, r.cached, r.seconds));
+    println!("last drag: receivers refined in {refined:.2} s{bspvt}{prt}");
 }
 
 fn vertices(h: &Harness<App>) -> usize {
