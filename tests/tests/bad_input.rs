@@ -177,6 +177,19 @@ fn synthetic_files_are_rejected_clearly() {
     assert!(err.contains("shear.gltf") && err.contains("must be rigid: shear"), "{err}");
     let mirrored = import(&asset("scenes/cube_on_plane_mirrored_light.gltf"), ImportOptions::default()).unwrap();
     mirrored.check_rigid_groups().expect("a uniform mirror is rigid");
+    // One emitter placed once, its 4,097 triangles in a fan that is not flat: one light
+    // polygon each, past kage's limit.
+    let n = kage_engine::scene::import::MAX_LIGHTS + 1;
+    let rim = (0..=n).map(|k| {
+        let a = k as f32 / n as f32 * std::f32::consts::PI;
+        [a.cos(), 0.1 * (k % 2) as f32, -a.sin()]
+    });
+    let fan: Vec<[f32; 3]> = std::iter::once([0.0, 0.0, 0.0]).chain(rim).collect();
+    let indices: Vec<u32> = (1..=n as u32).flat_map(|k| [0, k, k + 1]).collect();
+    let many = write_gltf(&dir, "many_light_polygons", &fan, &indices, |d| {
+        d["materials"][0]["emissiveFactor"] = json!([1.0, 1.0, 1.0]);
+    });
+    expect_error(&many, "more than 4096 light polygons");
     std::fs::remove_dir_all(dir).unwrap();
 }
 

@@ -261,11 +261,8 @@ pub fn world_extent(scene: &crate::scene::Scene) -> Result<(), String> {
 /// polygon), counted before any mesh is read: a file of a million placed lights is refused at
 /// once, naming its count.
 pub fn light_count(doc: &gltf::Document) -> Result<(), String> {
-    let emissive = |p: gltf::Primitive| {
-        let m = p.material();
-        m.emissive_factor().iter().any(|&c| c > 0.0) && m.emissive_strength().is_none_or(|s| s > 0.0)
-    };
-    let per_mesh: Vec<usize> = doc.meshes().map(|m| m.primitives().filter(|p| emissive(p.clone())).count()).collect();
+    let emissive = |p: &gltf::Primitive| super::emission(&p.material()).max_element() > 0.0;
+    let per_mesh: Vec<usize> = doc.meshes().map(|m| m.primitives().filter(emissive).count()).collect();
     let placed: usize = doc.nodes().filter_map(|n| n.mesh()).map(|m| per_mesh[m.index()]).sum();
     match placed > super::MAX_LIGHTS {
         true => Err(format!(

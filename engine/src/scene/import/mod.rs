@@ -50,6 +50,12 @@ pub struct ImportOptions {
 /// this many an 800×600 image already takes minutes on the CPU.
 pub const MAX_LIGHTS: usize = 4096;
 
+/// The radiance a material emits: its emissive factor times its strength (a light when any
+/// channel is positive).
+fn emission(m: &gltf::Material) -> Vec3 {
+    Vec3::from_array(m.emissive_factor()) * m.emissive_strength().unwrap_or(1.0)
+}
+
 /// Imports a `.gltf` or `.glb` file.
 pub fn import(path: &Path, options: ImportOptions) -> Result<Scene> {
     import_reporting(path, options, &|_, _| {})
@@ -248,7 +254,7 @@ impl<'a> Importer<'a> {
             let where_ =
                 format!("meshes[{}] ('{}') primitives[{}]", mesh.index(), mesh.name().unwrap_or(""), prim.index());
             let mat = prim.material();
-            let emissive = Vec3::from_array(mat.emissive_factor()) * mat.emissive_strength().unwrap_or(1.0);
+            let emissive = emission(&mat);
             let Some(mesh_index) = self.mesh(&mesh, &prim, &deform, &where_)? else {
                 if emissive.max_element() > 0.0 {
                     return Err(self.error(format!("{where_}: emitter has zero area")));
