@@ -9,7 +9,9 @@
 //!
 //! The first run bakes into `target/bench-editor/bake.redb`; later runs find it cached.
 //!
-//! And on the built-in scene as `kage edit` opens it (receivers refined, the bounce on):
+//! And on the built-in scene as `kage edit` opens it (receivers refined, the bounce on, the
+//! lights shaded where `--shade-on auto` puts them: per vertex on the CPU on lavapipe;
+//! `KAGE_SHADE_ON=gpu` for the per-pixel path):
 //! - `group_drag_to_shadows`: the box moved to a placement it has never had, from the end of
 //!   the drag (refinement, the incremental bake, the bounce) until a frame shows the shadows of
 //!   the new placement. Its database starts empty each run, so no placement is cached.
@@ -29,9 +31,14 @@ use kage_engine::{bspvt, prt};
 use std::path::PathBuf;
 use std::time::Duration;
 
-/// `KAGE_SHADE_ON=cpu` measures the CPU path for polygonal lights; the default, the GPU's.
-fn shade_on() -> ShadeOn {
-    if std::env::var("KAGE_SHADE_ON").as_deref() == Ok("cpu") { ShadeOn::Cpu } else { ShadeOn::Gpu }
+/// Where polygonal lights shade: `KAGE_SHADE_ON` (`cpu`, `gpu` or `auto`), else `default`.
+fn shade_on(default: ShadeOn) -> ShadeOn {
+    match std::env::var("KAGE_SHADE_ON").as_deref() {
+        Ok("cpu") => ShadeOn::Cpu,
+        Ok("gpu") => ShadeOn::Gpu,
+        Ok("auto") => ShadeOn::Auto,
+        _ => default,
+    }
 }
 
 fn root() -> PathBuf {
@@ -62,7 +69,8 @@ fn teapot_editor() -> Harness<'static, App> {
         refine: None,
         bake_on_start: true,
         indirect: false,
-        shade_on: shade_on(),
+        // The GPU path by default, so lavapipe's numbers compare across commits.
+        shade_on: shade_on(ShadeOn::Gpu),
         background_shading: usize::MAX,
     };
     let mut h = harness(scene, options);
@@ -93,7 +101,8 @@ fn builtin_editor() -> Harness<'static, App> {
         refine: Some(kage_engine::receivers::Settings::default()),
         bake_on_start: true,
         indirect: true,
-        shade_on: shade_on(),
+        // As `kage edit` does: on a CPU device (lavapipe) the lights shade per vertex on the CPU.
+        shade_on: shade_on(ShadeOn::Auto),
         background_shading: usize::MAX,
     };
     let mut h = harness(kage_engine::scene::default_scene(), options);
@@ -119,7 +128,7 @@ fn group_drag(c: &mut Criterion) {
         _ => None,
     });
     let group = group.expect("the built-in scene has a box");
-    let mut g = c.benchmark_group(format!("editor_builtin_{:?}", shade_on()));
+    let mut g = c.benchmark_group(format!("editor_builtin_{:?}", h.state().editor.options.shade_on));
     g.sample_size(10);
     let mut k = 0.0;
     g.bench_function("group_drag_to_shadows", |b| {
@@ -158,7 +167,7 @@ fn bench(c: &mut Criterion) {
     let mut h = teapot_editor();
     let errors: Vec<&str> = h.state().editor.log.iter().filter(|l| l.error).map(|l| l.text.as_str()).collect();
     assert!(errors.is_empty(), "the editor must measure a working state: {errors:#?}");
-    let mut g = c.benchmark_group(format!("editor_teapot_{}v_{:?}", vertices(&h), shade_on()));
+    let mut g = c.benchmark_group(format!("editor_teapot_{}v_{:?}", vertices(&h), h.state().editor.options.shade_on));
     g.sample_size(10);
     g.bench_function("frame_ui", |b| b.iter(|| h.step()));
     g.bench_function("frame_rendered", |b| {

@@ -13,7 +13,7 @@ use wgpu::util::DeviceExt;
 
 /// `Sky` of preview.wgsl: cos and sin of the rotation about +Y, the intensity.
 #[repr(C)]
-#[derive(Clone, Copy, Pod, Zeroable)]
+#[derive(Clone, Copy, PartialEq, Pod, Zeroable)]
 struct Params {
     rotation_intensity: [f32; 4],
 }
@@ -22,6 +22,8 @@ struct Params {
 pub struct Sky {
     map: Arc<EnvMap>,
     params: wgpu::Buffer,
+    /// What `params` holds.
+    shown: Params,
     /// Group 1 of the sky pipeline.
     pub bind: wgpu::BindGroup,
 }
@@ -33,11 +35,21 @@ impl Sky {
             Some(same) => same,
             None => upload(gpu, layout, &env.map),
         };
-        let (sin, cos) = env.rotation.sin_cos();
-        let params = Params { rotation_intensity: [cos, sin, env.intensity, 0.0] };
-        gpu.queue.write_buffer(&sky.params, 0, bytemuck::bytes_of(&params));
+        let mut sky = sky;
+        sky.shown = params(env);
+        gpu.queue.write_buffer(&sky.params, 0, bytemuck::bytes_of(&sky.shown));
         sky
     }
+
+    /// True when this shows `env` as it is (its map, rotation and intensity).
+    pub fn shows(&self, env: &EnvironmentLight) -> bool {
+        Arc::ptr_eq(&self.map, &env.map) && self.shown == params(env)
+    }
+}
+
+fn params(env: &EnvironmentLight) -> Params {
+    let (sin, cos) = env.rotation.sin_cos();
+    Params { rotation_intensity: [cos, sin, env.intensity, 0.0] }
 }
 
 /// The map as an RGBA f32 texture read texel by texel, and its bind group.
@@ -45,9 +57,10 @@ fn upload(gpu: &Gpu, layout: &wgpu::BindGroupLayout, map: &Arc<EnvMap>) -> Sky {
     let texels: Vec<Vec4> = map.texels.iter().map(|t| t.extend(1.0)).collect();
     let size = [map.width as u32, map.height as u32];
     let view = texture_2d(gpu, "preview sky", size, wgpu::TextureFormat::Rgba32Float, bytemuck::cast_slice(&texels));
+    let shown = Params { rotation_intensity: [1.0, 0.0, 1.0, 0.0] };
     let params = gpu.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
         label: Some("preview sky"),
-        contents: bytemuck::bytes_of(&Params { rotation_intensity: [1.0, 0.0, 1.0, 0.0] }),
+        contents: bytemuck::bytes_of(&shown),
         usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
     });
     let bind = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
@@ -58,7 +71,7 @@ fn upload(gpu: &Gpu, layout: &wgpu::BindGroupLayout, map: &Arc<EnvMap>) -> Sky {
             wgpu::BindGroupEntry { binding: 1, resource: params.as_entire_binding() },
         ],
     });
-    Sky { map: map.clone(), params, bind }
+    Sky { map: map.clone(), params, shown, bind }
 }
 
 /// Group 1 of the sky pipeline: the map and its parameters.

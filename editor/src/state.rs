@@ -84,6 +84,9 @@ pub struct Stats {
     pub frame: f64,
     /// Seconds of the last shading.
     pub shading: f64,
+    /// Seconds the viewport's last drawn frame took to record and submit (on a CPU device,
+    /// to render).
+    pub draw: f64,
     /// Seconds from the last edit to its shaded result.
     pub edit_to_shade: f64,
     /// Seconds from the last shader file change to its rebuilt pipeline.
@@ -122,6 +125,10 @@ pub struct Bakes {
     pub lighting: Option<prt::Lighting>,
     /// Frames in which streamed chunks updated the preview.
     pub streamed: usize,
+    /// Landed but not yet shown: BSPVT chunks, PRT chunks (previews are spaced while a bake runs).
+    pub unshown: [bool; 2],
+    /// When the last preview of streamed chunks was shown.
+    pub shown_at: Option<Instant>,
     /// What receiver refinement last did (`None`: not refined).
     pub receivers: Option<Refined>,
 }
@@ -230,6 +237,8 @@ pub struct Editor {
     pub dragging: bool,
     /// Per instance and vertex: the displayed radiance (or the error overlay's colours).
     pub values: VertexValues,
+    /// Bumped whenever `values` is set: the viewport uploads them once per change.
+    pub values_revision: u64,
     /// Per instance and vertex: the method's radiance, plus the cached indirect term when on
     /// (what the overlay compares).
     pub radiance: VertexValues,
@@ -344,6 +353,7 @@ impl Editor {
             outside_change: false,
             dragging: false,
             values: Vec::new(),
+            values_revision: 0,
             radiance: Vec::new(),
             direct: Vec::new(),
             indirect: options.indirect,

@@ -181,23 +181,42 @@ pub fn bake_system(ed: &mut Editor) {
     let Some(job) = &mut ed.job else { return };
     let landed = job.landed();
     let running = job.running();
-    let mut patched = [false; 2];
+    let mut patched = ed.bakes.unshown;
     for l in landed {
         take(ed, l, &mut patched);
     }
-    if patched[0] {
-        upload_bspvt(ed);
-    }
-    if patched[1] {
-        upload_prt(ed);
-    }
-    if patched.contains(&true) {
-        ed.bakes.streamed += 1;
-        ed.dirty.shade = true;
+    ed.bakes.unshown = patched;
+    if patched.contains(&true) && (!running || preview_due(ed)) {
+        show_patches(ed);
     }
     if !running {
         ed.job = None;
     }
+}
+
+/// While a bake runs, a preview of what landed is due once the last one is this many times its
+/// own cost (shading and drawing) ago: previews take at most a fifth of the machine from the
+/// bake. On a GPU that is tens of previews a second; on a CPU device, whose frame of per-pixel
+/// lights takes a second of both cores, one every few seconds.
+const PREVIEW_SPACING: f64 = 8.0;
+
+fn preview_due(ed: &Editor) -> bool {
+    let cost = ed.stats.shading + ed.stats.draw;
+    ed.bakes.shown_at.is_none_or(|t| t.elapsed().as_secs_f64() >= PREVIEW_SPACING * cost)
+}
+
+/// Puts the patched bakes on the device and re-shades from them.
+fn show_patches(ed: &mut Editor) {
+    let [bspvt, prt] = std::mem::take(&mut ed.bakes.unshown);
+    if bspvt {
+        upload_bspvt(ed);
+    }
+    if prt {
+        upload_prt(ed);
+    }
+    ed.bakes.streamed += 1;
+    ed.bakes.shown_at = Some(Instant::now());
+    ed.dirty.shade = true;
 }
 
 /// Writes a streamed chunk into the preview's bakes (BSPVT, PRT: `patched`). A bake that does
@@ -246,12 +265,13 @@ fn placeholder_trees(counts: &[usize], settings: bspvt::Settings) -> bspvt::Bake
     bspvt::Bake { settings, instances, stats: Default::default() }
 }
 
-/// Puts the current BSPVT trees on the device (the CPU path reads them in place).
+/// Puts the current BSPVT trees on the device when a GPU shader holds them (the CPU path reads
+/// them in place; a shader made later takes the trees of its time).
 fn upload_bspvt(ed: &mut Editor) {
-    let Some(bake) = &ed.bakes.bspvt else { return };
-    match BspvtShader::new(&ed.gpu, &ed.shaders, Some(bake)) {
-        Ok(s) => ed.bspvt_gpu = Some(s),
-        Err(e) => ed.error(format!("BSPVT on the GPU: {e} (shading on the CPU)")),
+    let (Some(shader), Some(bake)) = (&mut ed.bspvt_gpu, &ed.bakes.bspvt) else { return };
+    if let Err(e) = shader.set_bake(&ed.gpu, Some(bake)) {
+        ed.bspvt_gpu = None;
+        ed.error(format!("BSPVT on the GPU: {e} (shading on the CPU)"));
     }
 }
 
@@ -356,13 +376,13 @@ fn take(ed: &mut Editor, landed: Landed, patched: &mut [bool; 2]) {
             }
             ed.bakes.bspvt = Some(bake.into());
             ed.bakes.bspvt_stale = false;
-            upload_bspvt(ed);
+            patched[0] = true;
         }
         Landed::Prt(Ok((bake, stats))) => {
             ed.stats.runs[1] = Some(stats);
             ed.info(format!("PRT: {} cached, {} cold chunks in {:.2} s", stats.cached, stats.cold, stats.seconds));
             ed.bakes.prt = Some(bake);
-            upload_prt(ed);
+            patched[1] = true;
         }
         Landed::Bspvt(Err(DbError::Cancelled { done })) | Landed::Prt(Err(DbError::Cancelled { done })) => {
             ed.info(format!("bake cancelled; {done} vertices committed stay in the database"))
@@ -507,7 +527,12 @@ fn compose(ed: &mut Editor) {
     } else {
         ed.direct.clone()
     };
-    ed.values = if ed.overlay { overlay(ed) } else { ed.radiance.clone() };
+    let values = if ed.overlay { overlay(ed) } else { ed.radiance.clone() };
+    // A landing that changes nothing on screen (a bounce re-lit by the same light) draws nothing.
+    if values != ed.values {
+        ed.values = values;
+        ed.values_revision += 1;
+    }
     if ed.metering {
         meter_exposure(ed);
     }
@@ -699,7 +724,7 @@ fn polygonal(ed: &mut Editor, mode: Mode, eye: Vec3) -> VertexValues {
     }
     let gpu = ed.gpu.clone();
     if ed.bspvt_gpu.is_none() && ed.polygonal_on_gpu() {
-        match BspvtShader::new(&gpu, &ed.shaders, None) {
+        match BspvtShader::new(&gpu, &ed.shaders, ed.bakes.bspvt.as_deref()) {
             Ok(s) => ed.bspvt_gpu = Some(s),
             Err(e) => ed.error(format!("BSPVT on the GPU: {e}")),
         }

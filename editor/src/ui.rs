@@ -16,6 +16,8 @@ pub struct App {
     /// The editor's state (public for tests).
     pub editor: Editor,
     viewport: Option<Viewport>,
+    /// The revision of the editor's values the viewport holds.
+    values_revision: Option<u64>,
     last_frame: Option<Instant>,
     /// The last pack or save written, for the status line.
     status: String,
@@ -52,6 +54,7 @@ impl App {
         Self {
             editor,
             viewport,
+            values_revision: None,
             last_frame: None,
             status: String::new(),
             drag: None,
@@ -79,17 +82,24 @@ impl App {
             ed.error(format!("preview shader: {e}"));
             ed.shader_error = Some(e);
         }
+        let mut uploaded = false;
         if meshes || ed.dirty.meshes {
             vp.upload_geometry(ed.gpu(), &ed.flat);
             ed.dirty.meshes = false;
+            uploaded = true;
         }
         if ed.dirty.per_pixel {
             vp.upload_prt(ed.gpu(), &ed.flat, ed.per_pixel.as_ref());
             vp.upload_lights(ed.gpu(), &ed.flat, ed.pixel_lights.as_ref());
             vp.upload_sun(ed.gpu(), &ed.flat, ed.vertex_sun.as_ref());
             ed.dirty.per_pixel = false;
+            uploaded = true;
         }
-        vp.upload_radiance(ed.gpu(), &ed.values);
+        // The radiance buffers hold values less the per-pixel terms: new terms re-upload them.
+        if uploaded || self.values_revision != Some(ed.values_revision) {
+            vp.upload_radiance(ed.gpu(), &ed.values);
+            self.values_revision = Some(ed.values_revision);
+        }
         vp.set_environment(ed.gpu(), ed.flat.environment.as_ref());
     }
 }
@@ -131,6 +141,11 @@ impl eframe::App for App {
 }
 
 impl App {
+    /// Frames the viewport has drawn (one per change to what it shows; 0 without a device).
+    pub fn frames_drawn(&self) -> u64 {
+        self.viewport.as_ref().map_or(0, Viewport::frames_drawn)
+    }
+
     /// The window's title (a `*` marks unsaved edits), the prompt when it is closed with edits
     /// unsaved or the scene file changed under them, and the Save As dialog.
     fn window(&mut self, ctx: &egui::Context) {
@@ -225,6 +240,7 @@ impl App {
         self.editor.aspect = rect.width() / rect.height().max(1.0);
         let ed = &self.editor;
         let id = vp.paint(ed.gpu(), &mut rs.renderer.write(), px, &ed.orbit, ed.exposure, ed.overlay);
+        self.editor.stats.draw = vp.draw_seconds();
         let uv = egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0));
         ui.painter().image(id, rect, uv, egui::Color32::WHITE);
         super::interaction::paint(ui, &self.editor, rect, self.drag.as_ref());

@@ -313,6 +313,25 @@ pub struct Viewport {
     samples: u32,
     /// The shader generation the pipeline was built from.
     pub generation: u64,
+    /// Bumped by every change to what a frame shows but the view.
+    revision: u64,
+    /// What the target's last frame was drawn from: a frame from the same is not drawn again
+    /// (on a CPU device a frame of per-pixel lights costs a second of both cores).
+    drawn: Option<Drawn>,
+    /// Seconds the last drawn frame took to record and submit.
+    draw_seconds: f64,
+    /// Frames drawn for display so far.
+    frames_drawn: u64,
+}
+
+/// The inputs of one drawn frame.
+#[derive(PartialEq)]
+struct Drawn {
+    size: [u32; 2],
+    view_proj: [f32; 16],
+    eye: Vec3,
+    output: Output,
+    revision: u64,
 }
 
 /// Where a light polygon emits: its centre, the normal of its emitting side and its radiance.
@@ -398,6 +417,10 @@ impl Viewport {
             target: None,
             samples,
             generation: 0,
+            revision: 0,
+            drawn: None,
+            draw_seconds: 0.0,
+            frames_drawn: 0,
         })
     }
 
@@ -405,6 +428,7 @@ impl Viewport {
     pub fn reload(&mut self, gpu: &Gpu, shaders: &Shaders, generation: u64) -> Result<(), kage_gpu::ShaderError> {
         self.generation = generation;
         self.pipelines = self.build(gpu, shaders, (COLOR, self.samples))?;
+        self.revision += 1;
         Ok(())
     }
 
@@ -426,6 +450,16 @@ impl Viewport {
         build_pipelines(gpu, shaders, layouts, target)
     }
 
+    /// Seconds the last drawn frame took to record and submit (a CPU device renders it then).
+    pub fn draw_seconds(&self) -> f64 {
+        self.draw_seconds
+    }
+
+    /// Frames drawn for display so far ([`Viewport::paint`] skips those whose inputs match the last).
+    pub fn frames_drawn(&self) -> u64 {
+        self.frames_drawn
+    }
+
     /// Whether this device draws PRT per pixel.
     pub fn per_pixel_prt(&self) -> bool {
         self.pipelines.prt.is_some()
@@ -445,6 +479,15 @@ impl Viewport {
     /// Shows `env` behind the geometry (`None`: the background colour); the map is uploaded
     /// again only when it changed, its rotation and intensity every call.
     pub fn set_environment(&mut self, gpu: &Gpu, env: Option<&EnvironmentLight>) {
+        let same = match (&self.sky, env) {
+            (Some(sky), Some(env)) => sky.shows(env),
+            (None, None) => true,
+            _ => false,
+        };
+        if same {
+            return;
+        }
+        self.revision += 1;
         let old = self.sky.take();
         self.sky = env.map(|e| Sky::new(gpu, &self.sky_layout, e, old));
     }
@@ -452,6 +495,7 @@ impl Viewport {
     /// Draws the receivers with PRT per pixel from `frame`'s terms (`None`, or a device that
     /// cannot: per-vertex radiance).
     pub fn upload_prt(&mut self, gpu: &Gpu, flat: &FlatScene, frame: Option<&prt::Frame>) {
+        self.revision += 1;
         self.prt = match (frame, &self.prt_layout) {
             (Some(f), Some(layout)) => Some(prt_draw(gpu, layout, flat, f)),
             _ => None,
@@ -462,6 +506,7 @@ impl Viewport {
     /// light the shader does not take — textured, more than 8 corners: per-vertex radiance).
     /// Call after [`Viewport::upload_geometry`] of the same snapshot.
     pub fn upload_lights(&mut self, gpu: &Gpu, flat: &FlatScene, lights: Option<&PixelLights>) {
+        self.revision += 1;
         let chain = lights.and_then(|l| l.environment.as_ref()).map(|e| &e.prefiltered);
         if let Some(chain) = chain.filter(|c| self.mips.as_ref().is_none_or(|m| !m.source.same_chain(c))) {
             self.mips = Some(Mips { source: chain.clone(), buffer: mip_buffer(gpu, chain) });
@@ -484,6 +529,7 @@ impl Viewport {
     /// `None`, or values that do not fit the snapshot: the sun stays in the vertices. Call
     /// after [`Viewport::upload_geometry`] and [`Viewport::upload_lights`] of the same snapshot.
     pub fn upload_sun(&mut self, gpu: &Gpu, flat: &FlatScene, sun: Option<&VertexSun>) {
+        self.revision += 1;
         let counts = || (0..flat.instances.len()).map(|i| flat.vertex_count(i));
         let fits = |v: &VertexValues| v.iter().map(Vec::len).eq(counts());
         let sun = sun.filter(|s| self.meshes.len() == flat.instances.len() && fits(&s.values) && fits(&s.open));
@@ -528,6 +574,7 @@ impl Viewport {
     /// Uploads every instance's world-space triangles with its base-colour texture, and every
     /// light polygon.
     pub fn upload_geometry(&mut self, gpu: &Gpu, flat: &FlatScene) {
+        self.revision += 1;
         self.sun.clear();
         let plain = detail::bind_group(gpu, &self.detail_layout, flat, detail::Textures::default());
         let mut textures = std::collections::HashMap::new();
@@ -564,6 +611,7 @@ impl Viewport {
     /// Uploads per-instance vertex radiance (ignored when the shapes disagree: a new snapshot
     /// is on its way).
     pub fn upload_radiance(&mut self, gpu: &Gpu, values: &[Vec<Vec3>]) {
+        self.revision += 1;
         if values.len() != self.meshes.len() {
             return;
         }
@@ -600,13 +648,22 @@ impl Viewport {
     ) -> egui::TextureId {
         let size = [size[0].clamp(1, 4096), size[1].clamp(1, 4096)];
         if self.target.as_ref().is_none_or(|t| t.size != size) {
+            self.drawn = None;
             let old = self.target.take().and_then(|t| t.id);
             self.target = Some(make_target(gpu, (size, self.samples), renderer, old));
         }
-        let target = self.target.as_ref().expect("made above");
-        let background = wgpu::Color { r: 0.02, g: 0.02, b: 0.025, a: 1.0 };
         let output = if raw { Output::Overlay } else { Output::Display(exposure) };
-        self.draw(gpu, &self.pipelines, &target.frame, size, orbit, output, background);
+        let view_proj = orbit.view_proj(size[0] as f32 / size[1] as f32).to_cols_array();
+        let drawn = Drawn { size, view_proj, eye: orbit.eye(), output, revision: self.revision };
+        let target = self.target.as_ref().expect("made above");
+        if self.drawn.as_ref() != Some(&drawn) {
+            let start = std::time::Instant::now();
+            let background = wgpu::Color { r: 0.02, g: 0.02, b: 0.025, a: 1.0 };
+            self.draw(gpu, &self.pipelines, &target.frame, size, orbit, output, background);
+            self.drawn = Some(drawn);
+            self.draw_seconds = start.elapsed().as_secs_f64();
+            self.frames_drawn += 1;
+        }
         target.id.expect("registered with egui")
     }
 

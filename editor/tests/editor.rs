@@ -319,6 +319,34 @@ fn the_preview_refines_batch_by_batch_while_the_bakes_stream_in() {
     assert!(ed.bakes.streamed >= previews.len(), "{} preview updates", ed.bakes.streamed);
 }
 
+/// The viewport draws a frame only when what it shows changed (on lavapipe a frame of per-pixel
+/// lights takes a second of both cores, which idle frames would take from a bake).
+#[test]
+fn the_viewport_draws_a_frame_only_when_what_it_shows_changed() {
+    let dir = scratch("draws");
+    let mut h = harness(default_scene(), options(&dir, None, None));
+    step_until(&mut h, "the bakes", settled);
+    let frames = |h: &mut Harness<App>, n: usize| {
+        let before = h.state().frames_drawn();
+        for _ in 0..n {
+            h.step();
+            h.render().unwrap();
+        }
+        h.state().frames_drawn() - before
+    };
+    frames(&mut h, 3);
+    assert_eq!(frames(&mut h, 4), 0, "an idle editor draws nothing");
+    let ed = &mut h.state_mut().editor;
+    ed.metering = false;
+    ed.exposure += 1.0;
+    assert_eq!(frames(&mut h, 3), 1, "a new exposure is one frame");
+    h.state_mut().editor.orbit.yaw += 0.2;
+    // The view moves (a frame), its re-shade lands (another); then nothing.
+    let moved = frames(&mut h, 6);
+    assert!((1..=3).contains(&moved), "{moved} frames for one view change");
+    assert_eq!(frames(&mut h, 4), 0);
+}
+
 /// With the bounce on from the start, no gather runs while the first bake does (its direct
 /// light changes with every chunk that lands): the term is gathered once, after the bakes.
 #[test]

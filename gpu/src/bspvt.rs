@@ -57,6 +57,11 @@ pub enum Mode {
 /// The BSPVT shading pipeline with a bake's trees resident on the device.
 pub struct BspvtShader {
     pipeline: wgpu::ComputePipeline,
+    trees: Trees,
+}
+
+/// A bake's vertex records on the device.
+struct Trees {
     records: wgpu::Buffer,
     starts: wgpu::Buffer,
     /// Vertices with trees on the device.
@@ -65,11 +70,9 @@ pub struct BspvtShader {
     res: u32,
 }
 
-impl BspvtShader {
-    /// Builds the pipeline from `shaders` and uploads the trees of `bake` (every instance's
-    /// records, in instance order; `None` for unshadowed shading only).
-    pub fn new(gpu: &Gpu, shaders: &Shaders, bake: Option<&Bake>) -> Result<Self, GpuError> {
-        let module = shaders.module(&gpu.device, "bspvt.wgsl")?;
+impl Trees {
+    /// Every instance's records of `bake`, in instance order (none for `None`).
+    fn upload(gpu: &Gpu, bake: Option<&Bake>) -> Result<Self, GpuError> {
         let (mut bytes, mut starts) = (Vec::new(), Vec::new());
         for inst in bake.map_or(&[][..], |b| &b.instances[..]) {
             for v in 0..inst.offsets.len() - 1 {
@@ -86,10 +89,27 @@ impl BspvtShader {
         Ok(Self {
             baked,
             res: bake.map_or(0, |b| b.settings.res as u32),
-            pipeline: pipeline(gpu, "bspvt", &module)?,
             records: storage(gpu, "bspvt records", &bytes),
             starts: storage(gpu, "bspvt record starts", &starts),
         })
+    }
+}
+
+impl BspvtShader {
+    /// Builds the pipeline from `shaders` and uploads the trees of `bake` (every instance's
+    /// records, in instance order; `None` for unshadowed shading only).
+    pub fn new(gpu: &Gpu, shaders: &Shaders, bake: Option<&Bake>) -> Result<Self, GpuError> {
+        let module = shaders.module(&gpu.device, "bspvt.wgsl")?;
+        let trees = Trees::upload(gpu, bake)?;
+        Ok(Self { pipeline: pipeline(gpu, "bspvt", &module)?, trees })
+    }
+
+    /// Replaces the trees on the device with `bake`'s, keeping the pipeline: a bake streaming
+    /// in chunks re-uploads its records many times, and building the pipeline again takes
+    /// seconds on a CPU device.
+    pub fn set_bake(&mut self, gpu: &Gpu, bake: Option<&Bake>) -> Result<(), GpuError> {
+        self.trees = Trees::upload(gpu, bake)?;
+        Ok(())
     }
 
     /// Rebuilds the pipeline from `shaders` (hot reload); on error the previous one stays.
@@ -108,7 +128,7 @@ impl BspvtShader {
         lights: &[FlatLight],
         mode: Mode,
     ) -> Result<Vec<Vec3>, GpuError> {
-        if mode == Mode::Trees && self.baked != shaders.len() {
+        if mode == Mode::Trees && self.trees.baked != shaders.len() {
             return Err(GpuError::Unsupported("BSPVT shading needs a bake of every vertex".into()));
         }
         let vertices: Vec<GpuVertex> = shaders.iter().map(gpu_vertex).collect();
@@ -118,15 +138,15 @@ impl BspvtShader {
             Mode::Trees => 1,
         };
         let params =
-            Params { vertex_count: vertices.len() as u32, light_count: lights.len() as u32, mode, res: self.res };
+            Params { vertex_count: vertices.len() as u32, light_count: lights.len() as u32, mode, res: self.trees.res };
         let out = storage(gpu, "bspvt radiance", &vec![[0.0f32; 4]; vertices.len().max(1)]);
         let overflow = storage(gpu, "bspvt overflow", &[0u32]);
         let buffers = [
             &uniform(gpu, "bspvt params", &params),
             &storage(gpu, "bspvt vertices", &vertices),
             &storage(gpu, "bspvt lights", &lights),
-            &self.starts,
-            &self.records,
+            &self.trees.starts,
+            &self.trees.records,
             &out,
             &overflow,
         ];

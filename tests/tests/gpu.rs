@@ -47,6 +47,24 @@ fn bspvt_on_the_gpu_matches_the_cpu_on_the_default_scene() {
     bspvt_agrees(&default_scene(), Vec3::new(0.0, 3.0, 6.0));
 }
 
+/// The editor gives streamed trees to a shader built before them: the pipeline kept, the
+/// records replaced, the same radiance as a shader built with them.
+#[test]
+fn trees_given_to_a_built_shader_shade_as_a_shader_built_with_them() {
+    let gpu = device();
+    let flat = flatten(&default_scene());
+    let bake = bspvt::bake(&flat, &bspvt::Settings { res: 16, epsilon: 2.0 }, &|_| {});
+    let eye = Vec3::new(0.0, 3.0, 6.0);
+    let built = gpu_bspvt::BspvtShader::new(&gpu, &Shaders::embedded(), Some(&bake)).unwrap();
+    let mut given = gpu_bspvt::BspvtShader::new(&gpu, &Shaders::embedded(), None).unwrap();
+    let trees = |s: &gpu_bspvt::BspvtShader| gpu_bspvt::shade_vertices(&gpu, s, &flat, gpu_bspvt::Mode::Trees, eye);
+    assert!(trees(&given).is_err(), "no trees yet: shading with them is refused");
+    given.set_bake(&gpu, Some(&bake)).unwrap();
+    let (a, b) = (trees(&built).unwrap(), trees(&given).unwrap());
+    assert!(a.iter().flatten().any(|v| v.max_element() > 0.0));
+    assert_eq!(a, b);
+}
+
 #[test]
 fn bspvt_on_the_gpu_matches_the_cpu_on_the_glossy_teapot() {
     let scene = import(&asset("scenes/teapot_quad_light.gltf"), Default::default()).unwrap();
