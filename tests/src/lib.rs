@@ -1,4 +1,8 @@
-//! Shared helpers for kage's cross-crate integration tests (`tests/tests/*.rs`).
+//! Shared helpers for kage's cross-crate integration tests (`tests/tests/*.rs`), and the
+//! measurements `cargo xtask measure` runs.
+
+pub mod floor;
+pub mod measure;
 
 use glam::Vec3;
 use kage_engine::bspvt;

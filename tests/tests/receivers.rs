@@ -2,113 +2,10 @@
 //! gets its shadows, the refined meshes stay sound, and refinement is deterministic.
 
 use glam::{Affine3A, Quat, Vec3};
-use kage_engine::math::relative_rmse;
-use kage_engine::raster;
+use kage_engine::bspvt;
 use kage_engine::receivers::{self, Settings};
-use kage_engine::reference::{self, Renderer};
-use kage_engine::scene::{
-    Camera, EnvMap, EnvironmentLight, Material, Mesh, MeshRef, NO_LIGHT, PolygonLight, Scene, flatten, shapes,
-};
-use kage_engine::shading::baked::{Bakes, Look};
-use kage_engine::{bspvt, prt};
-
-/// An 8 m floor of two triangles with two boxes and a ball on it, each its own rigid group or,
-/// with `one_group`, all members of the floor's, and the camera.
-fn floor_and_objects(name: &str, one_group: bool) -> Scene {
-    let mut s = Scene::new(name);
-    let h = 4.0;
-    let corners = vec![Vec3::new(-h, 0.0, -h), Vec3::new(-h, 0.0, h), Vec3::new(h, 0.0, h), Vec3::new(h, 0.0, -h)];
-    let (floor, _) = Mesh::new(corners, None, vec![], vec![[0, 1, 2], [0, 2, 3]], false).unwrap();
-    let grey = |c: f32| Material::lambertian(Vec3::splat(c));
-    let g = s.add_object("floor", floor, grey(0.7), Affine3A::IDENTITY);
-    let at = |x: f32, y: f32, z: f32| Affine3A::from_translation(Vec3::new(x, y, z));
-    let objects = [
-        ("box", shapes::cuboid(Vec3::new(0.4, 0.6, 0.4)), grey(0.5), at(-0.9, 0.6, 0.3)),
-        ("slab", shapes::cuboid(Vec3::new(0.8, 0.05, 0.3)), grey(0.5), at(1.0, 0.9, -0.6)),
-        ("ball", shapes::sphere(0.35, 16, 8), grey(0.6), at(0.4, 0.35, 1.3)),
-    ];
-    for (name, mesh, material, pose) in objects {
-        if one_group {
-            s.add_member(g, name, mesh, material, pose);
-        } else {
-            s.add_object(name, mesh, material, pose);
-        }
-    }
-    s.add_camera(Camera::look_at(Vec3::new(0.0, 6.5, 6.5), Vec3::new(0.0, 0.0, 0.3), 45f32.to_radians()));
-    s
-}
-
-/// The floor and objects as separate groups, a 1 m quad light 3 m up.
-fn two_triangle_floor() -> Scene {
-    let mut s = floor_and_objects("test:two-triangle-floor", false);
-    let q = 0.5;
-    let quad = vec![Vec3::new(-q, 0.0, -q), Vec3::new(q, 0.0, -q), Vec3::new(q, 0.0, q), Vec3::new(-q, 0.0, q)];
-    // Counter-clockwise seen from below: the light faces down.
-    s.add_light("light", quad, Vec3::splat(12.0), Affine3A::from_translation(Vec3::new(0.2, 3.0, 0.1)));
-    s
-}
-
-const SIZE: (usize, usize) = (160, 90);
-
-/// A 256-spp direct-light reference of `scene` with `seed`.
-fn reference(r: &Renderer, camera: &Camera, seed: u64) -> Vec<Vec3> {
-    reference_with(r, camera, seed, 256)
-}
-
-/// A direct-light reference of `scene` with `seed` at `spp` samples a pixel.
-fn reference_with(r: &Renderer, camera: &Camera, seed: u64, spp: u32) -> Vec<Vec3> {
-    let settings = reference::Settings { spp, seed, max_bounces: 0, min_bounces: 0 };
-    r.render_image(camera, SIZE.0, SIZE.1, &settings, &|_| {}).iter().map(|e| e.mean).collect()
-}
-
-/// Relative RMSE of `ours` against `truth` over the pixels that see geometry.
-fn over_geometry(r: &Renderer, camera: &Camera, ours: &[Vec3], truth: &[Vec3]) -> f64 {
-    let hits = raster::shade_image(r, camera, SIZE.0, SIZE.1, 4, &|_| Vec3::ONE);
-    let pick =
-        |v: &[Vec3]| -> Vec<Vec3> { v.iter().zip(&hits).filter(|(_, m)| **m == Vec3::ONE).map(|(p, _)| *p).collect() };
-    relative_rmse(&pick(ours), &pick(truth))
-}
-
-/// The part of [`over_geometry`] from the pixels whose samples all see instance 0 (the floor):
-/// the squares of the floor's part and of the rest's (objects, and pixels at silhouettes, where
-/// 4 samples of coverage meet the reference's many) add up to the square of the whole.
-fn floor_part(r: &Renderer, camera: &Camera, ours: &[Vec3], truth: &[Vec3]) -> f64 {
-    let hits = raster::shade_image(r, camera, SIZE.0, SIZE.1, 4, &|_| Vec3::ONE);
-    let floor = raster::shade_image(r, camera, SIZE.0, SIZE.1, 4, &|h| Vec3::splat((h.instance == 0) as u8 as f32));
-    let sum = |keep: &dyn Fn(usize) -> bool, f: &dyn Fn(usize) -> f64| {
-        (0..truth.len()).filter(|&k| keep(k)).map(f).sum::<f64>()
-    };
-    let all = sum(&|k| hits[k] == Vec3::ONE, &|k| truth[k].as_dvec3().length_squared());
-    let error = sum(&|k| floor[k] == Vec3::ONE, &|k| (ours[k] - truth[k]).as_dvec3().length_squared());
-    (error / all).sqrt()
-}
-
-/// Relative RMSE per pixel over geometry of the baked look (polygonal lights: BSPVT + LTC;
-/// the environment: PRT, diffuse) against the reference, and the scene's vertex count.
-fn error(scene: &Scene) -> (f64, usize) {
-    let camera = scene.first_camera().unwrap();
-    let r = Renderer::new(scene);
-    let ours = look_image(scene, 32);
-    (over_geometry(&r, &camera, &ours, &reference(&r, &camera, 5)), vertices(scene))
-}
-
-/// The baked look's image of `scene` (polygonal lights: BSPVT at `res`² faces, ε 2, + LTC;
-/// the environment: PRT, diffuse) through its first camera.
-fn look_image(scene: &Scene, res: usize) -> Vec<Vec3> {
-    let flat = flatten(scene);
-    let camera = scene.first_camera().unwrap();
-    let r = Renderer::new(scene);
-    let trees = (!flat.lights.is_empty()).then(|| bspvt::bake(&flat, &bspvt::Settings { res, epsilon: 2.0 }, &|_| {}));
-    let ps = prt::Settings::default();
-    let env = flat
-        .environment
-        .as_ref()
-        .map(|_| (prt::bake(scene, &flat, &ps, &|_| {}), prt::Lighting::new(scene, &ps).unwrap()));
-    let parts = env.as_ref().map(|(bake, lighting)| prt::Parts { bake, lighting, settings: &ps });
-    let bakes = Bakes { bspvt: trees.as_ref(), prt: parts, prefiltered: None };
-    let look = Look::prepare(scene, &flat, bakes, camera.eye(), &mut prt::SilhouetteMemo::default());
-    look.render(&r, &camera, SIZE.0, SIZE.1, 4)
-}
+use kage_engine::scene::{Camera, EnvMap, EnvironmentLight, Material, Mesh, MeshRef, NO_LIGHT, Scene, flatten, shapes};
+use kage_tests::floor::{error, one_group_under_the_sky, refined, two_triangle_floor, vertices, with_reach};
 
 #[test]
 fn a_two_triangle_floor_gets_its_shadows() {
@@ -145,109 +42,10 @@ fn refinement_is_deterministic_on_any_thread_count() {
     assert_eq!(refined(1), refined(2));
 }
 
-/// The curve of error against vertices, adaptive (at the default tolerance and at 0.005) against
-/// uniform refinement of the floor, as `docs/benchmarks.md` reports it, with the default trees
-/// (64², ε 2), per pixel over geometry against a 4096-spp reference of the same refined scene (a
-/// smooth receiver's new vertices lie on its Phong surface, so each refinement has its own
-/// geometry), and that reference's own noise:
-/// `cargo test --release -p kage-tests --test receivers error_against_vertices -- --ignored --nocapture --exact`.
-#[test]
-#[ignore]
-fn error_against_vertices() {
-    let (s, camera) = (two_triangle_floor(), two_triangle_floor().first_camera().unwrap());
-    let r = Renderer::new(&s);
-    let noise =
-        over_geometry(&r, &camera, &reference_with(&r, &camera, 6, 4096), &reference_with(&r, &camera, 5, 4096));
-    eprintln!("the reference's own noise (seed 6 against seed 5): {noise:.4}");
-    let measure = |scene: &Scene| {
-        let r = Renderer::new(scene);
-        let (ours, truth) = (look_image(scene, 64), reference_with(&r, &camera, 5, 4096));
-        let (whole, floor) = (over_geometry(&r, &camera, &ours, &truth), floor_part(&r, &camera, &ours, &truth));
-        format!("{whole:.5}, the floor's part {floor:.5} ({} vertices)", vertices(scene))
-    };
-    for tolerance in [Settings::default().tolerance, 0.005] {
-        let budgets: Vec<usize> = std::env::var("KAGE_BUDGETS").map_or_else(
-            |_| vec![250, 300, 350, 500, 1000, 2000, 3000, 4000, 6000, 8000, 12000, 16000],
-            |b| b.split(',').map(|x| x.parse().unwrap()).collect(),
-        );
-        for budget in budgets {
-            let mut s = two_triangle_floor();
-            receivers::refine(&mut s, &Settings { budget, tolerance, ..Settings::default() }).unwrap();
-            eprintln!("adaptive, tolerance {tolerance}, budget {budget}: {}", measure(&s));
-        }
-    }
-    for floor in [2000usize, 4000, 8000, 16000, 32000, 50000] {
-        let mut uniform = two_triangle_floor();
-        uniform.refine_instances("floor", floor).unwrap();
-        eprintln!("uniform, floor {floor}: {}", measure(&uniform));
-    }
-}
-
-/// Where adaptive refinement stops gaining, measured: BSPVT's own error at the refined floor's
-/// vertices (the visible share of the light's diffuse lobe, the tree against a 64 × 64 grid of
-/// shadow rays over the light), at 64² and 128² faces, over the vertices in a penumbra, and at
-/// one vertex under the slab's edge (`docs/receivers.md#where-adaptive-stops-gaining`).
-/// `cargo test --release -p kage-tests --test receivers bspvt_error_at_refined_vertices -- --ignored --nocapture --exact`.
-#[test]
-#[ignore]
-fn bspvt_error_at_refined_vertices() {
-    let s = refined(two_triangle_floor(), Settings::default().budget);
-    let flat = flatten(&s);
-    let occluders = kage_engine::accel::SceneBvh::new(&flat.select(|r| r.light == NO_LIGHT).0);
-    let light = &flat.lights[0];
-    let truth = |p: Vec3| {
-        let (mut seen, mut all) = (0.0f64, 0.0f64);
-        for (i, j) in (0..64).flat_map(|i| (0..64).map(move |j| (i, j))) {
-            let [u, w] = [i, j].map(|k| (k as f32 + 0.5) / 64.0);
-            let q = light.points[0] + u * (light.points[1] - light.points[0]) + w * (light.points[3] - light.points[0]);
-            let (dist, dir) = ((q - p).length(), (q - p).normalize());
-            let weight = (dir.y.max(0.0) * (-dir.dot(light.normal)).max(0.0) / (dist * dist)) as f64;
-            all += weight;
-            seen += if occluders.occluded(p + Vec3::Y * 1e-4, dir, dist * 0.999) { 0.0 } else { weight };
-        }
-        seen / all
-    };
-    let floor: Vec<(usize, Vec3, f64)> = (0..flat.vertex_count(0))
-        .map(|v| (v, flat.vertex(0, v).0))
-        .map(|(v, p)| (v, p, truth(p)))
-        .filter(|(_, _, t)| (0.02..0.98).contains(t))
-        .collect();
-    let camera = s.first_camera().unwrap();
-    for res in [64, 128] {
-        let bake = bspvt::bake(&flat, &bspvt::Settings { res, epsilon: 2.0 }, &|_| {});
-        let mut inside = bspvt::pixel::Inside::default();
-        let (lobes, _) = bspvt::pixel::Lobes::at_vertices(&flat, Some(&bake), camera.eye(), inside.flags(&flat));
-        let share = |v: usize| {
-            let [shadowed, unshadowed] = lobes.vertex(0, v)[0][0];
-            (shadowed / unshadowed) as f64
-        };
-        let errors: Vec<f64> = floor.iter().map(|&(v, _, t)| share(v) - t).collect();
-        let rms = (errors.iter().map(|e| e * e).sum::<f64>() / errors.len() as f64).sqrt();
-        let worst = errors.iter().fold(0.0f64, |m, e| m.max(e.abs()));
-        eprintln!("{res}²: {} penumbra vertices, error RMS {rms:.4}, worst {worst:.4}", errors.len());
-        for &(v, p, t) in floor.iter().filter(|(_, p, _)| p.distance(Vec3::new(0.875, 0.0, -0.375)) < 1e-3) {
-            eprintln!("  vertex at {p}: the tree {:.4}, the truth {t:.4}", share(v));
-        }
-    }
-}
-
-/// The floor scene with its light promising to stay within `reach`.
-fn with_reach(mut s: Scene, reach: [Vec3; 2]) -> Scene {
-    for light in s.world.query_mut::<&mut PolygonLight>() {
-        light.reach = Some(reach);
-    }
-    s
-}
-
 /// `s` with its light moved by `by`.
 fn moved(mut s: Scene, by: Vec3) -> Scene {
     let g = s.find_group("light").unwrap();
     s.pose_group(g, Quat::IDENTITY, by);
-    s
-}
-
-fn refined(mut s: Scene, budget: usize) -> Scene {
-    receivers::refine(&mut s, &Settings { budget, ..Settings::default() }).unwrap();
     s
 }
 
@@ -341,27 +139,6 @@ fn with_far_object(mut s: Scene) -> Scene {
     s
 }
 
-/// What refining a light without a declared reach for every place it could go would cost: the
-/// floor scene's light declared free to go anywhere above the floor, against refinement for
-/// where it is, by budget (error at the light's place), as `docs/receivers.md` reports it.
-#[test]
-#[ignore]
-fn anywhere_against_where_it_is() {
-    let room = [Vec3::new(-4.0, 0.5, -4.0), Vec3::new(4.0, 6.0, 4.0)];
-    for budget in [2000usize, 6000, 12000, 24000] {
-        let (here, n) = error(&refined(two_triangle_floor(), budget));
-        let (anywhere, m) = error(&refined(with_reach(two_triangle_floor(), room), budget));
-        eprintln!("budget {budget}: for where it is {here:.4} ({n}), for anywhere above the floor {anywhere:.4} ({m})");
-    }
-}
-
-/// The floor scene's objects as one rigid group (one glTF node) under a sky, no polygonal
-/// light: the floor's shadows are the group's own, which PRT bakes per vertex.
-fn one_group_under_the_sky() -> Scene {
-    let s = floor_and_objects("test:one-group-sky", true);
-    s.with_environment(EnvironmentLight::new(EnvMap::procedural_sky(256, 128, Vec3::new(-0.5, 0.6, -0.4))))
-}
-
 /// The environment drives refinement as the polygonal lights do: under a sky with no polygonal
 /// light, a floor of two triangles gets the shadows its own group casts on it.
 #[test]
@@ -444,31 +221,6 @@ fn tiny_budgets_single_triangles_and_unlit_scenes() {
     unlit.add_object("floor", shapes::grid(2.0, 2), Material::lambertian(Vec3::ONE), Affine3A::IDENTITY);
     let report = receivers::refine(&mut unlit, &Settings::default()).unwrap();
     assert_eq!(report, vec![(9, 9)]);
-}
-
-fn vertices(s: &Scene) -> usize {
-    let flat = flatten(s);
-    flat.instances.iter().map(|i| flat.meshes[i.mesh as usize].positions.len()).sum()
-}
-
-/// The environment's part of the refinement, measured: the one-group scene under each map,
-/// seeded only (0 rounds) against refined, and the reference's own noise, as
-/// `docs/receivers.md` reports it.
-#[test]
-#[ignore]
-fn environment_error_against_vertices() {
-    for map in ["studio", "city", "sky"] {
-        let env = || EnvironmentLight::new(EnvMap::load(&kage_tests::asset(&format!("envmaps/{map}.hdr"))).unwrap());
-        let s = one_group_under_the_sky().with_environment(env());
-        let (camera, r) = (s.first_camera().unwrap(), Renderer::new(&s));
-        let noise = over_geometry(&r, &camera, &reference(&r, &camera, 6), &reference(&r, &camera, 5));
-        for (budget, rounds) in [(1000, 0), (1000, 12), (4000, 0), (4000, 12), (8000, 12)] {
-            let mut t = one_group_under_the_sky().with_environment(env());
-            receivers::refine(&mut t, &Settings { budget, rounds, ..Settings::default() }).unwrap();
-            let (e, n) = error(&t);
-            eprintln!("{map} (reference noise {noise:.4}), budget {budget}, {rounds} rounds: {e:.4} ({n} vertices)");
-        }
-    }
 }
 
 /// Areas of instance `i`'s world triangles.

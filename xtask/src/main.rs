@@ -1,5 +1,6 @@
 //! `cargo xtask`: developer tasks that regenerate the tables kage ships as source or bytes,
-//! and generate the large benchmark scene.
+//! generate the large benchmark scene, and run the measurements that take too long for the
+//! suite (`measure`).
 //!
 //! They are not part of the user's `kage` binary. The tables' output is committed, and a test
 //! beside each table checks the committed data against its generator; the level is generated
@@ -50,6 +51,39 @@ enum Task {
         #[arg(short, long, default_value = "engine/src/math/ggx_albedo.bin")]
         output: PathBuf,
     },
+    /// Run one of receiver refinement's measurements on the two-triangle floor (minutes each),
+    /// printing what `docs/receivers.md` and `docs/benchmarks.md` report.
+    Measure {
+        #[command(subcommand)]
+        what: Measure,
+    },
+}
+
+#[derive(Subcommand)]
+enum Measure {
+    /// Per-pixel error against vertices, adaptive against uniform refinement (4096-spp reference).
+    ErrorCurve {
+        /// Budgets to refine at (comma-separated).
+        #[arg(long, value_delimiter = ',', default_values_t = kage_tests::measure::CURVE_BUDGETS)]
+        budgets: Vec<usize>,
+    },
+    /// BSPVT's own error at the refined floor's penumbra vertices, at 64² and 128² faces.
+    BspvtAtVertices,
+    /// Refinement for a light that may go anywhere above the floor against for where it is.
+    Anywhere,
+    /// The environment's part of refinement, under each of the repository's maps.
+    Environment,
+}
+
+/// Runs a measurement; it prints its own lines.
+fn measure(what: Measure) {
+    use kage_tests::measure::*;
+    match what {
+        Measure::ErrorCurve { budgets } => error_curve(&budgets),
+        Measure::BspvtAtVertices => bspvt_at_refined_vertices(),
+        Measure::Anywhere => anywhere_against_where_it_is(),
+        Measure::Environment => environment_refinement(),
+    }
 }
 
 fn main() -> Result<()> {
@@ -76,6 +110,11 @@ fn main() -> Result<()> {
         Task::GgxAlbedo { output } => {
             write(&output, &ggx::albedo_table_bytes())?;
             (output, format!("{0}×{0} albedo entries per term", ggx::ALBEDO_N))
+        }
+        Task::Measure { what } => {
+            measure(what);
+            println!("measured in {:.1} s", start.elapsed().as_secs_f64());
+            return Ok(());
         }
     };
     println!("{what} in {:.1} s → {}", start.elapsed().as_secs_f64(), output.display());
