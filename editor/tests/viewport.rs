@@ -197,11 +197,11 @@ fn reflection_drawn(map: &str) -> (f64, f64, f64) {
     use kage_editor::viewport::{PixelEnvironment, PixelLights, PixelSun};
     use kage_engine::accel::SceneBvh;
     use kage_engine::bspvt::{self, pixel::Inside, pixel::Lobes};
+    use kage_engine::material::Bsdf;
     use kage_engine::math::ggx;
     use kage_engine::prt::prefilter::Prefiltered;
     use kage_engine::raster::shade_image;
     use kage_engine::scene::Material;
-    use kage_engine::shading::Bsdf;
     use kage_engine::shading::baked::{Bakes, EnvironmentMemo, Look, Polygonal, sun_light, sun_vertices};
     let gpu = Gpu::new().expect("a wgpu device (lavapipe without a GPU)");
     let mut scene = import::import(&asset("scenes/two_triangle_floor.gltf"), Default::default()).unwrap();

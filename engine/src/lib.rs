@@ -27,6 +27,7 @@ pub mod accel;
 pub mod bspvt;
 pub mod cache;
 pub mod error;
+pub mod material;
 pub mod math;
 pub mod output;
 pub mod prt;

@@ -179,7 +179,7 @@ pub fn shade_vertices(
             (0..n).map(move |v| flat.vertex(i, v).0)
         })
         .collect();
-    let albedo: Vec<Vec3> = kage_engine::prt::vertex_albedo(flat, eye).concat();
+    let albedo: Vec<Vec3> = kage_engine::material::albedo::at_vertices(flat, eye).concat();
     let values = shader.shade(gpu, posed, &positions, &albedo)?;
     Ok(crate::per_instance(flat, values))
 }

@@ -7,9 +7,9 @@ use super::depth;
 use super::layout::{skip_encoded, split_codes, vertex_depths, vertex_faces};
 use super::node::dequantise_line;
 use super::visibility::{CubeVisibility, VISIBLE};
+use crate::material::Bsdf;
 use crate::math::{cubemap, ltc, polygon};
 use crate::scene::{FlatLight, Material};
-use crate::shading::Bsdf;
 use glam::{DMat3, DVec3, Vec3};
 
 /// How visibility enters.

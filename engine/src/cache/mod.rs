@@ -384,7 +384,7 @@ impl Cache {
 
     /// Radiance leaving toward local `wo` for a BSDF, from incoming-radiance coefficients in the
     /// same frame: `Σ c_k b_k` with `b_k = ∫ f(ωi, wo) cos θi H_k(ωi) dωi` (H5 with cos θ).
-    pub fn outgoing(&self, c: &[DVec3], bsdf: &crate::shading::Bsdf, wo: Vec3) -> Vec3 {
+    pub fn outgoing(&self, c: &[DVec3], bsdf: &crate::material::Bsdf, wo: Vec3) -> Vec3 {
         if !bsdf.has_specular() {
             return bsdf.diffuse_albedo() * self.irradiance(c) / std::f32::consts::PI;
         }
@@ -468,7 +468,7 @@ pub fn falls_back(renderer: &crate::reference::Renderer, s: &Settings, i: usize)
     let m = &flat.instances[i].material;
     let vertices = (0..flat.vertex_count(i)).filter(|_| flat.varies(i));
     let smoothest = vertices.map(|v| flat.vertex_material(i, v).roughness).fold(m.roughness, f32::min);
-    crate::shading::Bsdf::new(m, Vec3::Z).has_specular() && smoothest < s.glossy_fallback
+    crate::material::Bsdf::new(m, Vec3::Z).has_specular() && smoothest < s.glossy_fallback
 }
 
 /// [`falls_back`] for every instance.
@@ -505,7 +505,7 @@ pub fn shade_vertices(src: &Source, cache: &Cache, eye: Vec3) -> VertexValues {
         .map(|(k, &(i, v, p, n))| {
             let frame = crate::math::frame::Frame::from_normal(n);
             let wo = frame.to_local((eye - p).normalize_or(n));
-            let bsdf = crate::shading::Bsdf::new(&src.renderer.flat.vertex_material(i, v), wo);
+            let bsdf = crate::material::Bsdf::new(&src.renderer.flat.vertex_material(i, v), wo);
             if back[i] {
                 return record::gather_bsdf(src, p, n, &bsdf, wo, s.side(), k as u64);
             }
@@ -542,7 +542,7 @@ pub fn gather_vertices(src: &Source, rays: usize, eye: Vec3) -> VertexValues {
 /// `side²` BSDF-sampled rays from ray stream `index`.
 fn gather_one(src: &Source, (i, v, p, n): (usize, usize, Vec3, Vec3), eye: Vec3, side: usize, index: u64) -> Vec3 {
     let wo = crate::math::frame::Frame::from_normal(n).to_local((eye - p).normalize_or(n));
-    let bsdf = crate::shading::Bsdf::new(&src.renderer.flat.vertex_material(i, v), wo);
+    let bsdf = crate::material::Bsdf::new(&src.renderer.flat.vertex_material(i, v), wo);
     record::gather_bsdf(src, p, n, &bsdf, wo, side, index)
 }
 

@@ -472,7 +472,7 @@ pub fn gather_bsdf(
     src: &Source,
     p: Vec3,
     n: Vec3,
-    bsdf: &crate::shading::Bsdf,
+    bsdf: &crate::material::Bsdf,
     wo: Vec3,
     side: usize,
     index: u64,

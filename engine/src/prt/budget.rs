@@ -165,7 +165,7 @@ fn exact_other_term(flat: &FlatScene, env: &EnvironmentLight, sample: &[(usize, 
             SceneBvh::new(&tris).cut(&holes)
         })
         .collect();
-    let albedos = super::head_on_albedos(flat);
+    let albedos = crate::material::albedo::head_on(flat);
     sample
         .par_iter()
         .enumerate()

@@ -20,9 +20,9 @@
 
 use super::prefilter::Prefiltered;
 use super::{Bake, Posed};
+use crate::material::Bsdf;
 use crate::math::{ggx, sh};
 use crate::scene::FlatScene;
-use crate::shading::Bsdf;
 use glam::{DVec3, Vec3};
 
 /// Below this fraction of the unoccluded cosine at the normal, the reconstruction at `d` is

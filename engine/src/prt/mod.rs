@@ -25,13 +25,11 @@ pub mod sun;
 pub mod transfer;
 
 use crate::accel::SceneBvh;
-use crate::math::frame::Frame as ShadingFrame;
+use crate::material::albedo;
 use crate::math::sh;
 use crate::raster::{self, Primary, SurfaceHit};
 use crate::scene::VertexValues;
 use crate::scene::{FlatScene, Holes, InGroup, PrimitiveId, RigidGroup, Scene, Transform, group_triangles};
-use crate::shading::Bsdf;
-use crate::shading::detail;
 use glam::{Affine3A, DMat3, DVec3, Vec3};
 use lighting::{NegativeLobes, RgbCoeffs, Window};
 use rayon::prelude::*;
@@ -326,29 +324,6 @@ impl Posed {
     }
 }
 
-/// Per instance and vertex: the diffuse albedo seen from `eye` (the BSDF's, view-dependent
-/// through the specular layer's energy).
-pub fn vertex_albedo(flat: &FlatScene, eye: Vec3) -> VertexValues {
-    (0..flat.instances.len())
-        .map(|i| {
-            let count = flat.vertex_count(i);
-            (0..count).into_par_iter().map(|v| albedo_at(flat, i, v, eye)).collect()
-        })
-        .collect()
-}
-
-/// Per instance, the diffuse albedo seen head-on (along the normal): what shading that must
-/// serve every view (a bake plan's measurements) weights with.
-pub(crate) fn head_on_albedos(flat: &FlatScene) -> Vec<Vec3> {
-    flat.instances.iter().map(|i| Bsdf::new(&i.material, Vec3::Z).diffuse_albedo()).collect()
-}
-
-fn albedo_at(flat: &FlatScene, i: usize, v: usize, eye: Vec3) -> Vec3 {
-    let (p, normal) = flat.vertex(i, v);
-    let wo = ShadingFrame::from_normal(normal).to_local((eye - p).normalize_or(normal));
-    Bsdf::new(&flat.vertex_material(i, v), wo).diffuse_albedo()
-}
-
 /// Per instance and vertex, the terms per-pixel PRT shading interpolates (see [`Frame::vertex_terms`]).
 pub struct VertexTerms<'a> {
     /// `Ls` (RGB, albedo not applied).
@@ -433,13 +408,13 @@ impl Frame {
         s: &Settings,
     ) -> Self {
         let posed = Posed::new(scene, flat, bake.order, light, shadows, s, &mut SilhouetteMemo::default());
-        let albedo = head_on_albedos(flat);
+        let albedo = albedo::head_on(flat);
         Self::from_posed_with(flat, bake, posed, &|i, _| albedo[i])
     }
 
     /// Reconstructs `Ls` and `T(v, w_i)` per vertex from `bake` under lighting already posed.
     pub fn from_posed(flat: &FlatScene, bake: &Bake, posed: Posed, eye: Vec3) -> Self {
-        Self::from_posed_with(flat, bake, posed, &|i, v| albedo_at(flat, i, v, eye))
+        Self::from_posed_with(flat, bake, posed, &|i, v| albedo::at_vertex(flat, i, v, eye))
     }
 
     /// [`Frame::from_posed`] with `albedo(instance, vertex)`.
@@ -585,7 +560,7 @@ impl Frame {
 
     /// A `width × height` image with `spp` samples per pixel, the other groups' shadows
     /// evaluated per sample (see [`Frame::shade_grid`]) and the diffuse albedo too where the
-    /// material varies (textures, vertex colours: [`detail::albedo_at`]); misses show the environment.
+    /// material varies (textures, vertex colours: [`albedo::at_hit`]); misses show the environment.
     pub fn render(
         &self,
         r: &crate::reference::Renderer,
@@ -597,11 +572,7 @@ impl Frame {
         let (grid, side) = raster::primary_grid(r, camera, width, height, spp);
         let (flat, eye) = (&r.flat, camera.eye());
         let albedo = |h: &SurfaceHit| {
-            if flat.varies(h.instance) {
-                detail::albedo_at(flat, h, eye)
-            } else {
-                h.interpolate(&self.albedo[h.instance])
-            }
+            if flat.varies(h.instance) { albedo::at_hit(flat, h, eye) } else { h.interpolate(&self.albedo[h.instance]) }
         };
         raster::downsample(&self.shade_grid(&grid, width * side, &|h, l, _| albedo(h) * l), width, height, side)
     }

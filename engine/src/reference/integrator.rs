@@ -2,11 +2,11 @@
 
 use super::{Accumulator, Estimate, Settings};
 use crate::accel::{Hit, SceneBvh, offset_ray_origin};
+use crate::material::Bsdf;
 use crate::math::distribution::Distribution1D;
 use crate::math::frame::Frame;
 use crate::math::{rng, sampling};
 use crate::scene::{Camera, FlatScene, Material, Mesh, NO_LIGHT, Scene, flatten};
-use crate::shading::Bsdf;
 use glam::{Vec2, Vec3};
 use rand::Rng;
 use rayon::prelude::*;

@@ -14,12 +14,13 @@
 
 use crate::accel::{SceneBvh, offset_ray_origin};
 use crate::bspvt;
+use crate::material::albedo;
+use crate::material::detail::Detail;
 use crate::math::frame::Frame;
 use crate::prt::{self, glossy::Lobe, glossy::Specular, prefilter::Prefiltered, sun, sun::Sun};
 use crate::raster::{self, SurfaceHit};
 use crate::reference::Renderer;
 use crate::scene::{Camera, FlatScene, VertexValues};
-use crate::shading::detail::{Detail, albedo_at};
 use glam::Vec3;
 use rayon::prelude::*;
 
@@ -332,7 +333,7 @@ impl<'a> Look<'a> {
                     let s = specular.as_ref().map_or(Vec3::ZERO, |s| {
                         s.at(hit.instance, hit.corners, hit.weights, hit.position, self.eye, open)
                     });
-                    let albedo = albedo_at(self.flat, hit, self.eye);
+                    let albedo = albedo::at_hit(self.flat, hit, self.eye);
                     let sun =
                         self.sun_at(hit.instance, hit.corners, hit.weights, hit.position, self.eye, sun::SAMPLE_RAYS);
                     albedo * light + interpolated(hit, albedo) + s + sun
@@ -342,7 +343,7 @@ impl<'a> Look<'a> {
                 .par_iter()
                 .map(|p| match p {
                     raster::Primary::Miss(l) | raster::Primary::Emitter(l) => *l,
-                    raster::Primary::Surface(hit) => interpolated(hit, albedo_at(self.flat, hit, self.eye)),
+                    raster::Primary::Surface(hit) => interpolated(hit, albedo::at_hit(self.flat, hit, self.eye)),
                 })
                 .collect(),
         };
@@ -391,7 +392,7 @@ fn sun_parts(
     let mut material = flat.material_at(i, corners, bary);
     material.roughness = material.roughness.max((SUN_ALPHA_FLOOR * sun.angular_radius).sqrt());
     let wo = frame.to_local((to - p).normalize_or_zero());
-    (crate::shading::Bsdf::new(&material, wo).eval(wo, wi) * wi.z * sun.irradiance, seen)
+    (crate::material::Bsdf::new(&material, wo).eval(wo, wi) * wi.z * sun.irradiance, seen)
 }
 
 /// The share of `sun` a point `p` (normal `n`) sees past `bvh`: its shadow rays turned by a

@@ -5,11 +5,11 @@
 
 use crate::accel::offset_ray_origin;
 use crate::bspvt::shade::{PointShader, Visibility};
+use crate::material::Bsdf;
 use crate::math::frame::Frame;
 use crate::math::{ltc, rng, sampling};
 use crate::reference::Renderer;
 use crate::scene::VertexValues;
-use crate::shading::Bsdf;
 use glam::{DVec3, Vec2, Vec3};
 use rand::Rng;
 use rayon::prelude::*;

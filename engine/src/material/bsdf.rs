@@ -19,6 +19,8 @@ pub struct Bsdf {
     alpha: f32,
     /// Probability of sampling the specular lobe.
     p_spec: f32,
+    /// [`Material::has_specular`] of the material.
+    specular: bool,
 }
 
 impl Bsdf {
@@ -32,15 +34,13 @@ impl Bsdf {
         let mu = wo.z.abs();
         let e_dielectric = ggx::directional_albedo(mu, m.roughness, dielectric_f0, Vec3::splat(s));
         let diffuse = m.base_color * (1.0 - metallic) * (Vec3::ONE - e_dielectric).max(Vec3::ZERO) / PI;
-        let spec_albedo = if wo.z > 0.0 && (f0.max_element() > 0.0 || f90.max_element() > 0.0) {
-            luminance(ggx::directional_albedo(mu, m.roughness, f0, f90))
-        } else {
-            0.0
-        };
+        let specular = m.has_specular();
+        let spec_albedo =
+            if wo.z > 0.0 && specular { luminance(ggx::directional_albedo(mu, m.roughness, f0, f90)) } else { 0.0 };
         let diffuse_albedo = luminance(diffuse) * PI;
         let total = spec_albedo + diffuse_albedo;
         let p_spec = if total > 0.0 { spec_albedo / total } else { 0.0 };
-        Self { diffuse, f0, f90, alpha: ggx::alpha_from_roughness(m.roughness), p_spec }
+        Self { diffuse, f0, f90, alpha: ggx::alpha_from_roughness(m.roughness), p_spec, specular }
     }
 
     /// Diffuse albedo (base colour × (1 − metallic) × (1 − dielectric albedo)).
@@ -58,9 +58,9 @@ impl Bsdf {
         self.f90
     }
 
-    /// True when the material has a specular lobe (not a specularFactor-0 dielectric).
+    /// True when the material has a specular lobe ([`Material::has_specular`]).
     pub fn has_specular(&self) -> bool {
-        self.f0.max_element() > 0.0 || self.f90.max_element() > 0.0
+        self.specular
     }
 
     /// True when the BSDF reflects nothing (e.g. a black emitter's back).
@@ -100,6 +100,27 @@ mod tests {
     use super::*;
     use crate::math::rng;
     use rand::Rng;
+
+    /// One definition: the BSDF has a specular lobe exactly when its material says so, and a
+    /// black metal has one (F0 black, F90 1: it reflects at grazing angles).
+    #[test]
+    fn the_bsdf_and_its_material_agree_on_the_specular_lobe() {
+        for metallic in [0.0, 1e-6, 0.5, 1.0] {
+            for specular in [0.0, 1e-6, 1.0] {
+                for base_color in [Vec3::ZERO, Vec3::splat(0.5)] {
+                    let m = Material { base_color, metallic, roughness: 0.4, specular };
+                    let wo = Vec3::new(0.6, 0.0, 0.8);
+                    let b = Bsdf::new(&m, wo);
+                    assert_eq!(b.has_specular(), m.has_specular(), "{m:?}");
+                    let grazing = Vec3::new(-0.95, 0.0, 0.05).normalize();
+                    let lobe = b.eval(Vec3::new(0.95, 0.0, 0.05).normalize(), grazing) - b.diffuse;
+                    assert_eq!(lobe.max_element() > 0.0, m.has_specular(), "{m:?}: {lobe}");
+                }
+            }
+        }
+        let black_metal = Material { base_color: Vec3::ZERO, metallic: 1.0, roughness: 0.4, specular: 0.0 };
+        assert!(black_metal.has_specular());
+    }
 
     #[test]
     fn lambertian_material_is_exactly_lambertian() {

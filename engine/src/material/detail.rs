@@ -5,20 +5,10 @@
 //! for light proportional to the diffuse albedo (PRT's, the bounce's); elsewhere it keeps the
 //! texture's pattern over per-vertex lighting.
 
-use crate::prt;
+use crate::material::albedo;
 use crate::raster::SurfaceHit;
 use crate::scene::{FlatScene, VertexValues};
-use crate::shading::Bsdf;
 use glam::Vec3;
-
-/// The diffuse albedo of the material at `hit` (textures and vertex colours sampled there),
-/// seen from `eye`.
-pub fn albedo_at(flat: &FlatScene, hit: &SurfaceHit, eye: Vec3) -> Vec3 {
-    let n = (0..3).map(|c| flat.vertex(hit.instance, hit.corners[c]).1 * hit.weights[c]).sum::<Vec3>();
-    let mu = n.normalize_or_zero().dot((eye - hit.position).normalize_or_zero());
-    let material = flat.material_at(hit.instance, hit.corners, hit.weights);
-    Bsdf::new(&material, Vec3::new(0.0, 0.0, mu)).diffuse_albedo()
-}
 
 /// What rescales per-vertex light at image samples of a snapshot seen from one eye.
 pub struct Detail<'a> {
@@ -33,7 +23,7 @@ impl<'a> Detail<'a> {
     /// instance's material varies).
     pub fn new(flat: &'a FlatScene, eye: Vec3) -> Self {
         let varies = (0..flat.instances.len()).any(|i| flat.varies(i));
-        Self { flat, eye, vertices: varies.then(|| prt::vertex_albedo(flat, eye)) }
+        Self { flat, eye, vertices: varies.then(|| albedo::at_vertices(flat, eye)) }
     }
 
     /// The factor for light interpolated from `hit`'s vertices.
@@ -41,10 +31,10 @@ impl<'a> Detail<'a> {
         if !self.varies(hit) {
             return Vec3::ONE;
         }
-        self.scale_for(hit, albedo_at(self.flat, hit, self.eye))
+        self.scale_for(hit, albedo::at_hit(self.flat, hit, self.eye))
     }
 
-    /// [`Self::scale`] given the albedo at the sample, `at` (the caller's [`albedo_at`]).
+    /// [`Self::scale`] given the albedo at the sample, `at` (the caller's [`albedo::at_hit`]).
     pub fn scale_for(&self, hit: &SurfaceHit, at: Vec3) -> Vec3 {
         match &self.vertices {
             Some(v) if self.varies(hit) => ratio(at, hit.interpolate(&v[hit.instance])),
