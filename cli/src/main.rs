@@ -8,6 +8,7 @@
 mod commands;
 mod db_args;
 mod exposure;
+mod named_arg;
 mod progress;
 mod prt_args;
 mod scene_args;

@@ -4,27 +4,6 @@
 use kage_engine::prt::{self, lighting::Window};
 use kage_engine::scene::{FlatScene, Scene};
 
-/// Window choices on the command line.
-#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
-pub enum WindowArg {
-    /// No window.
-    None,
-    /// Hanning window.
-    Hanning,
-    /// Lanczos σ factors.
-    Lanczos,
-}
-
-impl From<WindowArg> for Window {
-    fn from(w: WindowArg) -> Self {
-        match w {
-            WindowArg::None => Window::None,
-            WindowArg::Hanning => Window::Hanning,
-            WindowArg::Lanczos => Window::Lanczos,
-        }
-    }
-}
-
 /// PRT parameters; without --sh-order, --regions and --sh-window they come from the plan.
 #[derive(clap::Args, Debug, Clone)]
 pub struct PrtArgs {
@@ -35,8 +14,8 @@ pub struct PrtArgs {
     #[arg(long, value_parser = within(prt::REGION_COUNTS))]
     pub regions: Option<u32>,
     /// Window against SH ringing; default: chosen from the error budget.
-    #[arg(long, value_enum)]
-    pub sh_window: Option<WindowArg>,
+    #[arg(long, value_parser = crate::named_arg::named::<Window>())]
+    pub sh_window: Option<Window>,
     /// Transfer directions per vertex (stratified; rounded down to a square).
     #[arg(long, default_value_t = 1024, value_parser = within(prt::DIRECTION_COUNTS))]
     pub directions: u32,
@@ -61,7 +40,7 @@ impl PrtArgs {
         (self.sh_order.is_some() || self.regions.is_some() || self.sh_window.is_some()).then(|| prt::Settings {
             order: self.sh_order.map_or(base.order, |n| n as usize),
             regions: self.regions.map_or(base.regions, |q| q as usize),
-            window: self.sh_window.map_or(base.window, Window::from),
+            window: self.sh_window.unwrap_or(base.window),
             ..base
         })
     }

@@ -957,8 +957,12 @@ fn help_describes_the_commands_and_every_method() {
     assert!(!text.contains("later"), "{text}");
     let o = kage(&["render", "--help"]);
     let text = String::from_utf8(o.stdout).unwrap();
-    for m in kage_engine::shading::Method::ALL {
+    use kage_engine::named::Named;
+    for &m in kage_engine::shading::Method::ALL {
         assert!(text.contains(&format!("{}:", m.name())) && text.contains(m.about()), "{} missing:\n{text}", m.name());
+    }
+    for &b in kage_engine::cache::Blend::ALL {
+        assert!(text.contains(&format!("{}:", b.name())) && text.contains(b.about()), "{} missing:\n{text}", b.name());
     }
     let o = kage(&["render", "--method", "baked-look"]);
     assert!(!o.status.success() && stderr(&o).contains("ltc-exact-vis"), "{}", stderr(&o));

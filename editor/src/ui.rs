@@ -6,6 +6,7 @@ use super::systems::run_frame;
 use super::viewport::Viewport;
 use eframe::egui;
 use glam::{Quat, Vec3};
+use kage_engine::named::Named;
 use kage_engine::scene::{EnvironmentLight, Material, PolygonLight, Transform};
 use kage_engine::shading::Method;
 use std::sync::atomic::Ordering;
@@ -349,7 +350,7 @@ fn methods(ui: &mut egui::Ui, ed: &mut Editor) {
     ui.heading("Method");
     let mut method = ed.method;
     ui.horizontal_wrapped(|ui| {
-        for m in Method::ALL {
+        for &m in Method::ALL {
             ui.selectable_value(&mut method, m, m.name());
         }
     });

@@ -29,6 +29,7 @@ pub mod cache;
 pub mod error;
 pub mod material;
 pub mod math;
+pub mod named;
 pub mod output;
 pub mod prt;
 pub mod raster;

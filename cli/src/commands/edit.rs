@@ -33,7 +33,7 @@ pub struct Args {
     no_indirect: bool,
     /// Where polygonal lights shade: auto (the GPU unless it is a CPU emulation), gpu (per
     /// pixel in the viewport), cpu (per vertex).
-    #[arg(long, value_enum, default_value = "auto")]
+    #[arg(long, default_value = "auto", value_parser = crate::named_arg::named::<state::ShadeOn>())]
     shade_on: state::ShadeOn,
     /// Scenes with more receiver vertices than this re-shade on the CPU in the background,
     /// keeping the last shading on screen meanwhile (the UI stays responsive on large levels).

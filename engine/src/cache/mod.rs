@@ -26,6 +26,7 @@ pub use bounces::{Bounced, Bounces, bounce};
 
 use crate::accel::Hit;
 use crate::math::hsh;
+use crate::named::Named;
 use crate::scene::VertexValues;
 use glam::{DMat3, DVec3, Vec3};
 use record::{Change, Record, Source};
@@ -50,6 +51,26 @@ pub enum Blend {
     /// 1/a, so a point blends its neighbourhood's records instead of copying the nearest one:
     /// records of few rays average out their noise (measured: docs/radiance-cache.md).
     Wide,
+}
+
+impl Named for Blend {
+    const ALL: &'static [Blend] = &[Blend::Ward, Blend::Wide];
+
+    fn name(self) -> &'static str {
+        match self {
+            Self::Ward => "ward",
+            Self::Wide => "wide",
+        }
+    }
+
+    fn about(self) -> &'static str {
+        match self {
+            Self::Ward => "H19 as written: records with weight above 1/a, weighted by it",
+            Self::Wide => {
+                "twice Ward's reach, weights capped at 1/a: for dense records of few rays (e.g. --cache-accuracy 0.2 --cache-rays 64)"
+            }
+        }
+    }
 }
 
 impl Blend {

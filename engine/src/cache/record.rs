@@ -263,6 +263,24 @@ pub enum GradientForm {
     Numerical,
 }
 
+impl crate::named::Named for GradientForm {
+    const ALL: &'static [GradientForm] = &[GradientForm::Analytic, GradientForm::Numerical];
+
+    fn name(self) -> &'static str {
+        match self {
+            Self::Analytic => "analytic",
+            Self::Numerical => "numerical",
+        }
+    }
+
+    fn about(self) -> &'static str {
+        match self {
+            Self::Analytic => "closed form (H9–H18)",
+            Self::Numerical => "hit points held fixed while the record moves a small step (H7–H8)",
+        }
+    }
+}
+
 /// What a gather computes: HSH order, `side²` rays, the clamp of R_i and the gradient form.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Params {

@@ -23,6 +23,26 @@ pub enum Window {
     Lanczos,
 }
 
+impl crate::named::Named for Window {
+    const ALL: &'static [Window] = &[Window::None, Window::Hanning, Window::Lanczos];
+
+    fn name(self) -> &'static str {
+        match self {
+            Self::None => "none",
+            Self::Hanning => "hanning",
+            Self::Lanczos => "lanczos",
+        }
+    }
+
+    fn about(self) -> &'static str {
+        match self {
+            Self::None => "no window",
+            Self::Hanning => "Hanning window",
+            Self::Lanczos => "Lanczos σ factors",
+        }
+    }
+}
+
 impl Window {
     /// The factor of band `l` at order `order`.
     pub fn factor(self, l: usize, order: usize) -> f64 {

@@ -3,6 +3,7 @@
 //! [`crate::prt::Shadows`]) say which shadows a technique computes; this says what a user
 //! chose.
 
+use crate::named::Named;
 use crate::scene::Scene;
 use std::fmt;
 use std::str::FromStr;
@@ -38,9 +39,8 @@ pub enum Lights {
     Environment,
 }
 
-impl Method {
-    /// Every method, in menu order.
-    pub const ALL: [Method; 7] = [
+impl Named for Method {
+    const ALL: &'static [Method] = &[
         Method::Baked,
         Method::Bspvt,
         Method::LtcUnshadowed,
@@ -50,8 +50,7 @@ impl Method {
         Method::Reference,
     ];
 
-    /// The name on the command line and in menus.
-    pub fn name(self) -> &'static str {
+    fn name(self) -> &'static str {
         match self {
             Method::Baked => "baked",
             Method::Reference => "reference",
@@ -63,8 +62,7 @@ impl Method {
         }
     }
 
-    /// One line on what it computes (the CLI's help).
-    pub fn about(self) -> &'static str {
+    fn about(self) -> &'static str {
         match self {
             Method::Baked => {
                 "the whole look: polygonal lights (BSPVT + LTC), the environment (PRT, glossy and metal too), one bounce (radiance cache)"
@@ -77,7 +75,9 @@ impl Method {
             Method::PrtSelf => "environment: PRT with self-shadowing only, per vertex",
         }
     }
+}
 
+impl Method {
     /// The lights it shades.
     pub fn lights(self) -> Lights {
         match self {
@@ -131,10 +131,7 @@ impl FromStr for Method {
     type Err = String;
 
     fn from_str(s: &str) -> Result<Self, Self::Err> {
-        Method::ALL.into_iter().find(|m| m.name() == s).ok_or_else(|| {
-            let names: Vec<&str> = Method::ALL.iter().map(|m| m.name()).collect();
-            format!("unknown method '{s}' (methods: {})", names.join(", "))
-        })
+        Method::named(s)
     }
 }
 
@@ -145,7 +142,7 @@ mod tests {
     /// Every name parses back to its method, and the names are distinct.
     #[test]
     fn names_round_trip() {
-        for m in Method::ALL {
+        for &m in Method::ALL {
             assert_eq!(m.name().parse::<Method>(), Ok(m));
             assert_eq!(m.to_string(), m.name());
         }

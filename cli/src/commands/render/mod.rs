@@ -5,11 +5,11 @@ pub(crate) mod baked;
 
 use crate::db_args::DbArgs;
 use crate::exposure::Exposure;
+use crate::named_arg::named;
 use crate::progress::{bar, with_bar};
 use crate::prt_args::PrtArgs;
 use crate::scene_args::SceneArgs;
 use anyhow::{Context, Result, bail};
-use clap::builder::TypedValueParser as _;
 use glam::Vec3;
 use kage_bake_db::pack::Contents;
 use kage_engine::cache::record::{Glossy, GlossyDirect, GradientForm, Source};
@@ -37,32 +37,13 @@ pub enum Indirect {
     Reference,
 }
 
-/// The radiance cache's gradient form (`--gradient`).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-pub enum Gradient {
-    /// Closed form (H9–H18).
-    Analytic,
-    /// Hit points held fixed while the record moves a small step (H7–H8).
-    Numerical,
-}
-
-/// How radiance-cache lookups blend records (`--cache-blend`).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-pub enum BlendArg {
-    /// H19 as written: records with weight above 1/a, weighted by it.
-    Ward,
-    /// Twice Ward's reach, weights capped at 1/a: for dense records of few rays (e.g.
-    /// `--cache-accuracy 0.2 --cache-rays 64`).
-    Wide,
-}
-
 /// Arguments of `kage render`.
 #[derive(clap::Args, Debug)]
 pub struct Args {
     #[command(flatten)]
     scene: SceneArgs,
     /// Shading method.
-    #[arg(long, default_value = "baked", value_parser = method_parser())]
+    #[arg(long, default_value = "baked", value_parser = named::<Method>())]
     method: Method,
     /// Samples per pixel / per vertex.
     #[arg(long, default_value_t = 64)]
@@ -127,14 +108,14 @@ pub struct Args {
     #[arg(long, default_value_t = 0.3)]
     cache_accuracy: f32,
     /// How lookups blend the records.
-    #[arg(long, value_enum, default_value_t = BlendArg::Ward)]
-    cache_blend: BlendArg,
+    #[arg(long, default_value = "ward", value_parser = named::<Blend>())]
+    cache_blend: Blend,
     /// Interpolate without the records' translational gradients.
     #[arg(long)]
     no_gradients: bool,
     /// How the records' gradients are computed: analytic (H9–H18) or numerical (H7–H8).
-    #[arg(long, value_enum, default_value_t = Gradient::Analytic)]
-    gradient: Gradient,
+    #[arg(long, default_value = "analytic", value_parser = named::<GradientForm>())]
+    gradient: GradientForm,
     /// Shade from an asset pack written by `kage export` (its scene and bakes) instead of a scene.
     #[arg(long, conflicts_with = "scene")]
     pack: Option<PathBuf>,
@@ -170,11 +151,6 @@ impl Args {
 }
 
 /// Parses `--method` from the engine's method names, listing each with its description.
-fn method_parser() -> impl clap::builder::TypedValueParser<Value = Method> {
-    let names = Method::ALL.map(|m| clap::builder::PossibleValue::new(m.name()).help(m.about()));
-    clap::builder::PossibleValuesParser::new(names).map(|name| name.parse::<Method>().expect("clap checked the name"))
-}
-
 pub(crate) fn parse_size(s: &str) -> Result<(usize, usize), String> {
     let (w, h) = s.split_once(['x', 'X']).ok_or("expected WxH, e.g. 640x360")?;
     let p =
@@ -554,14 +530,8 @@ fn indirect(
         rays: args.cache_rays as usize,
         accuracy: args.cache_accuracy,
         gradients: !args.no_gradients,
-        gradient_form: match args.gradient {
-            Gradient::Analytic => GradientForm::Analytic,
-            Gradient::Numerical => GradientForm::Numerical,
-        },
-        blend: match args.cache_blend {
-            BlendArg::Ward => Blend::Ward,
-            BlendArg::Wide => Blend::Wide,
-        },
+        gradient_form: args.gradient,
+        blend: args.cache_blend,
         ..Default::default()
     };
     let src = Source { renderer, direct, glossy };
