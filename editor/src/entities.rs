@@ -3,7 +3,7 @@
 //! step ([`Stored::Presence`]: the entities with all their components) and a geometry change,
 //! so the bakes it needs run incrementally in the background.
 
-use super::history::{Snapshot, Stored};
+use super::history::Snapshot;
 use super::state::{Editor, Selection};
 use glam::{Affine3A, Vec3};
 use kage_engine::scene::{Emitter, InGroup, MeshRef, NodeId, PolygonLight, PrimitiveId, RigidGroup, Transform};
@@ -51,10 +51,10 @@ impl Editor {
     pub fn add_light(&mut self, shape: Shape) -> hecs::Entity {
         let name = format!("{} light", if shape == Shape::Quad { "quad" } else { "disc" });
         let pose = Affine3A::from_translation(self.orbit.target + Vec3::Y * 2.0);
-        let group = self.scene.add_light(&name, shape.points(), NEW_RADIANCE, pose);
-        let light = self.scene.members(group)[0];
+        let group = self.doc.scene.add_light(&name, shape.points(), NEW_RADIANCE, pose);
+        let light = self.doc.scene.members(group)[0];
         self.added(vec![group, light]);
-        self.selection = Selection::Light(light);
+        self.doc.selection = Selection::Light(light);
         self.info(format!("added a {name}"));
         light
     }
@@ -63,16 +63,16 @@ impl Editor {
     /// returns the copy, selected.
     pub fn duplicate(&mut self, sel: Selection) -> Option<Selection> {
         let (source_group, members, copy) = match sel {
-            Selection::Group(g) => (g, self.scene.members(g), None),
-            Selection::Light(e) => (self.scene.world.get::<&InGroup>(e).ok()?.group, vec![e], Some(e)),
+            Selection::Group(g) => (g, self.doc.scene.members(g), None),
+            Selection::Light(e) => (self.doc.scene.world.get::<&InGroup>(e).ok()?.group, vec![e], Some(e)),
             _ => return None,
         };
-        let pose = self.scene.world.get::<&Transform>(source_group).ok()?.world;
-        let name = self.scene.world.get::<&kage_engine::scene::Name>(source_group).map(|n| n.0.clone()).ok()?;
+        let pose = self.doc.scene.world.get::<&Transform>(source_group).ok()?.world;
+        let name = self.doc.scene.world.get::<&kage_engine::scene::Name>(source_group).map(|n| n.0.clone()).ok()?;
         let world = Affine3A::from_translation(COPY_OFFSET) * pose;
-        let index = self.scene.next_group_index();
-        let mut next = self.scene.next_node();
-        let group = self.scene.world.spawn((
+        let index = self.doc.scene.next_group_index();
+        let mut next = self.doc.scene.next_node();
+        let group = self.doc.scene.world.spawn((
             RigidGroup { index },
             Transform { world },
             kage_engine::scene::Name(format!("{name} copy")),
@@ -83,9 +83,9 @@ impl Editor {
         let mut nodes: HashMap<u32, u32> = HashMap::new();
         let mut spawned = vec![group];
         for m in members {
-            let snapshot = self.scene.components(m)?;
-            let e = self.scene.world.spawn(&snapshot);
-            let w = &self.scene.world;
+            let snapshot = self.doc.scene.components(m)?;
+            let e = self.doc.scene.world.spawn(&snapshot);
+            let w = &self.doc.scene.world;
             let mut renumber = |old: u32| {
                 *nodes.entry(old).or_insert_with(|| {
                     next += 1;
@@ -106,34 +106,34 @@ impl Editor {
             }
             spawned.push(e);
         }
-        kage_engine::scene::propagate_transforms(&mut self.scene.world);
+        kage_engine::scene::propagate_transforms(&mut self.doc.scene.world);
         let light = copy.and(spawned.get(1).copied());
         self.added(spawned);
-        self.selection = light.map_or(Selection::Group(group), Selection::Light);
+        self.doc.selection = light.map_or(Selection::Group(group), Selection::Light);
         self.info(format!("duplicated '{name}'"));
-        Some(self.selection)
+        Some(self.doc.selection)
     }
 
     /// Deletes a group with its members, or a light (with its group when it was the last member).
     pub fn delete(&mut self, sel: Selection) {
         let mut doomed = match sel {
-            Selection::Group(g) => [vec![g], self.scene.members(g)].concat(),
+            Selection::Group(g) => [vec![g], self.doc.scene.members(g)].concat(),
             Selection::Light(e) => vec![e],
             _ => return,
         };
         if let Selection::Light(e) = sel
-            && let Ok(group) = self.scene.world.get::<&InGroup>(e).map(|m| m.group)
-            && self.scene.members(group).len() == 1
+            && let Ok(group) = self.doc.scene.world.get::<&InGroup>(e).map(|m| m.group)
+            && self.doc.scene.members(group).len() == 1
         {
             doomed.push(group);
         }
         let before: Vec<(hecs::Entity, Option<Snapshot>)> =
-            doomed.iter().map(|e| (*e, self.scene.components(*e).map(Snapshot::new))).collect();
+            doomed.iter().map(|e| (*e, self.doc.scene.components(*e).map(Snapshot::new))).collect();
         doomed.iter().for_each(|e| {
-            let _ = self.scene.world.despawn(*e);
+            let _ = self.doc.scene.world.despawn(*e);
         });
         self.record(before);
-        self.selection = Selection::None;
+        self.doc.selection = Selection::None;
         self.info(format!("deleted {} entities", doomed.len()));
     }
 
@@ -152,12 +152,12 @@ impl Editor {
             .fold([Vec3::MAX, Vec3::MIN], |[lo, hi], p| [lo.min(*p), hi.max(*p)]);
         let foot = if lo.x <= hi.x { Vec3::new(0.5 * (lo.x + hi.x), lo.y, 0.5 * (lo.z + hi.z)) } else { Vec3::ZERO };
         let pose = Affine3A::from_translation(self.orbit.target - foot);
-        let (meshes, textures) = (self.scene.meshes.len() as u32, self.scene.textures.len() as u32);
-        self.scene.meshes.extend(dropped.meshes.iter().cloned());
-        self.scene.textures.extend(dropped.textures.iter().cloned());
-        let index = self.scene.next_group_index();
-        let mut next = self.scene.next_node();
-        let group = self.scene.world.spawn((
+        let (meshes, textures) = (self.doc.scene.meshes.len() as u32, self.doc.scene.textures.len() as u32);
+        self.doc.scene.meshes.extend(dropped.meshes.iter().cloned());
+        self.doc.scene.textures.extend(dropped.textures.iter().cloned());
+        let index = self.doc.scene.next_group_index();
+        let mut next = self.doc.scene.next_node();
+        let group = self.doc.scene.world.spawn((
             RigidGroup { index },
             Transform { world: pose },
             kage_engine::scene::Name(stem.clone()),
@@ -171,8 +171,8 @@ impl Editor {
             }
             next += 1;
             let snapshot = dropped.components(e).expect("queried just now");
-            let copy = self.scene.world.spawn(&snapshot);
-            let w = &self.scene.world;
+            let copy = self.doc.scene.world.spawn(&snapshot);
+            let w = &self.doc.scene.world;
             *w.get::<&mut InGroup>(copy).expect("members have one") = InGroup { group, local: t.world };
             if let Ok(mut r) = w.get::<&mut MeshRef>(copy) {
                 r.index += meshes;
@@ -189,16 +189,16 @@ impl Editor {
                     slot.texture += textures;
                 }
             }
-            let _ = self.scene.world.remove_one::<Emitter>(copy);
-            if self.scene.world.get::<&NodeId>(copy).is_ok() {
-                self.scene.world.insert_one(copy, NodeId(next)).expect("spawned just now");
+            let _ = self.doc.scene.world.remove_one::<Emitter>(copy);
+            if self.doc.scene.world.get::<&NodeId>(copy).is_ok() {
+                self.doc.scene.world.insert_one(copy, NodeId(next)).expect("spawned just now");
             }
             spawned.push(copy);
         }
-        kage_engine::scene::propagate_transforms(&mut self.scene.world);
+        kage_engine::scene::propagate_transforms(&mut self.doc.scene.world);
         let count = spawned.len() - 1;
         self.added(spawned);
-        self.selection = Selection::Group(group);
+        self.doc.selection = Selection::Group(group);
         self.info(format!("added {} ({count} meshes and lights) as group '{stem}'", path.display()));
         Ok(group)
     }
@@ -209,10 +209,8 @@ impl Editor {
     }
 
     fn record(&mut self, before: Vec<(hecs::Entity, Option<Snapshot>)>) {
-        self.history.seal();
-        self.history.record(Stored::Presence(before));
-        self.history.seal();
-        self.geometry_edited();
+        let change = self.doc.record_presence(before);
+        self.apply(change);
     }
 }
 

@@ -24,12 +24,12 @@ fn beside_scene(ed: &Editor, suffix: &str) -> PathBuf {
 /// meshes (refinement is the bake's business: reopening the file refines again from them).
 fn write(ed: &mut Editor, path: PathBuf, with_bakes: bool) -> String {
     let source = (!with_bakes).then(|| {
-        let mut s = ed.scene.duplicate();
+        let mut s = ed.doc.scene.duplicate();
         s.restore_source_meshes();
         let flat = flatten(&s);
         (s, flat)
     });
-    let (scene, flat) = source.as_ref().map_or((&ed.scene, &ed.flat), |(s, f)| (s, f));
+    let (scene, flat) = source.as_ref().map_or((&ed.doc.scene, &ed.flat), |(s, f)| (s, f));
     let radiance = preview(ed, flat);
     let prt = match (&ed.bakes.prt, &ed.bakes.lighting) {
         (Some(bake), Some(lighting)) if with_bakes => {
@@ -90,9 +90,9 @@ pub fn save_as(ed: &mut Editor, to: &Path) -> String {
     let Some(from) = ed.options.scene_path.clone() else {
         return write(ed, to.to_path_buf(), false);
     };
-    match super::source::save(&ed.scene, &ed.baseline, &from, to) {
+    match super::source::save(&ed.doc.scene, ed.doc.baseline(), &from, to) {
         Ok(saved) => {
-            ed.mark_saved();
+            ed.doc.mark_saved();
             if to != from {
                 ed.options.scene_path = Some(to.to_path_buf());
                 ed.start_watching();

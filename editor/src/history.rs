@@ -7,9 +7,8 @@
 //! merge until [`History::seal`] ends the gesture (the UI seals whenever no pointer button is
 //! down).
 
-use super::state::Editor;
 use glam::Affine3A;
-use kage_engine::scene::{EnvironmentLight, InGroup, Material, MeshRef, PolygonLight, Transform};
+use kage_engine::scene::{Material, MeshRef, PolygonLight};
 
 /// The stored values of one editable thing.
 #[derive(Clone, Debug, PartialEq)]
@@ -30,7 +29,7 @@ pub enum Stored {
 
 /// Every component of one entity, to spawn it again exactly as it was.
 #[derive(Clone)]
-pub struct Snapshot(std::sync::Arc<hecs::BuiltEntityClone>);
+pub struct Snapshot(pub(crate) std::sync::Arc<hecs::BuiltEntityClone>);
 
 impl Snapshot {
     /// Keeps `components`.
@@ -144,110 +143,6 @@ impl History {
     /// Forgets everything (the scene was replaced, e.g. re-imported: its entities are new).
     pub fn clear(&mut self) {
         *self = Self::default();
-    }
-}
-
-impl Editor {
-    /// Records the current values of `target` before an edit changes them.
-    pub(super) fn remember(&mut self, target: Target) {
-        if let Some(now) = self.stored(target) {
-            self.history.record(now);
-        }
-    }
-
-    /// Undoes the newest step; false when there is none.
-    pub fn undo(&mut self) -> bool {
-        let Some(before) = self.history.pop_undo() else { return false };
-        if let Some(now) = self.swap_in(before) {
-            self.history.push_redo(now);
-        }
-        true
-    }
-
-    /// Redoes the newest undone step; false when there is none.
-    pub fn redo(&mut self) -> bool {
-        let Some(after) = self.history.pop_redo() else { return false };
-        if let Some(now) = self.swap_in(after) {
-            self.history.push_undo(now);
-        }
-        true
-    }
-
-    /// The current values of `target` (`None` when it no longer exists).
-    pub(super) fn stored(&self, target: Target) -> Option<Stored> {
-        let w = &self.scene.world;
-        Some(match target {
-            Target::Group(e) => Stored::Group(e, w.get::<&Transform>(e).ok()?.world),
-            Target::Light(e) => {
-                Stored::Light(e, w.get::<&InGroup>(e).ok()?.local, (*w.get::<&PolygonLight>(e).ok()?).clone())
-            }
-            Target::Material(e) => Stored::Material(e, *w.get::<&Material>(e).ok()?),
-            // The source: a refinement is redone from it by the bake that follows.
-            Target::Mesh(e) => Stored::Mesh(e, self.scene.source_mesh(e)?),
-            Target::Environment => {
-                let env = w.query::<&EnvironmentLight>().iter().next().map(|e| (e.intensity, e.rotation))?;
-                Stored::Environment(env.0, env.1)
-            }
-            // A set of entities is read by `presence`, from its list.
-            Target::Presence(_) => return None,
-        })
-    }
-
-    /// Whether the entities of `list` exist now, with their components.
-    fn presence(&self, list: &[(hecs::Entity, Option<Snapshot>)]) -> Stored {
-        Stored::Presence(list.iter().map(|(e, _)| (*e, self.scene.components(*e).map(Snapshot::new))).collect())
-    }
-
-    /// Writes `values` into the world and returns the values they replaced, marking what must
-    /// be redone as the original edit did.
-    fn swap_in(&mut self, values: Stored) -> Option<Stored> {
-        let now = match &values {
-            Stored::Presence(list) => self.presence(list),
-            other => self.stored(other.target())?,
-        };
-        let w = &mut self.scene.world;
-        match values {
-            Stored::Presence(list) => {
-                for (e, components) in list {
-                    match components {
-                        Some(c) => w.spawn_at(e, &*c.0),
-                        None => {
-                            let _ = w.despawn(e);
-                        }
-                    }
-                }
-                kage_engine::scene::propagate_transforms(w);
-                self.selection = super::state::Selection::None;
-                self.dirty.geometry = true;
-                self.dirty.meshes = true;
-            }
-            Stored::Group(e, pose) => {
-                w.get::<&mut Transform>(e).ok()?.world = pose;
-                kage_engine::scene::propagate_transforms(w);
-                self.dirty.geometry = true;
-                self.dirty.meshes = true;
-            }
-            Stored::Light(e, local, light) => {
-                w.get::<&mut InGroup>(e).ok()?.local = local;
-                *w.get::<&mut PolygonLight>(e).ok()? = light;
-            }
-            Stored::Material(e, m) => *w.get::<&mut Material>(e).ok()? = m,
-            Stored::Mesh(e, m) => {
-                self.scene.set_source_mesh(e, m);
-                self.dirty.geometry = true;
-                self.dirty.meshes = true;
-            }
-            Stored::Environment(intensity, rotation) => {
-                for env in w.query_mut::<&mut EnvironmentLight>() {
-                    (env.intensity, env.rotation) = (intensity, rotation);
-                }
-                self.dirty.environment = true;
-            }
-        }
-        self.dirty.pose = true;
-        self.restart_reference();
-        self.edited();
-        Some(now)
     }
 }
 

@@ -32,7 +32,7 @@ pub fn handle(ui: &egui::Ui, ed: &mut Editor, rect: egui::Rect, response: &egui:
     if response.drag_started_by(egui::PointerButton::Primary) {
         let from = ui.input(|i| i.pointer.press_origin()).map(to_view);
         let mode = ed.gizmo.mode;
-        *drag = placement(ed, ed.selection)
+        *drag = placement(ed, ed.doc.selection)
             .zip(from)
             .and_then(|(at, from)| at.grab(mode, &view, from).map(|axis| Drag::new(at, mode, axis, from)));
     }
@@ -41,7 +41,7 @@ pub fn handle(ui: &egui::Ui, ed: &mut Editor, rect: egui::Rect, response: &egui:
             let settings = ed.gizmo;
             let edit = response.interact_pointer_pos().and_then(|p| d.step(&view, to_view(p), &settings));
             if let Some(edit) = edit {
-                apply(ed, ed.selection, edit);
+                apply(ed, ed.doc.selection, edit);
             }
         }
         _ => orbit_drag(ui, ed, rect, response),
@@ -54,7 +54,7 @@ pub fn handle(ui: &egui::Ui, ed: &mut Editor, rect: egui::Rect, response: &egui:
     if response.clicked()
         && let Some(p) = response.interact_pointer_pos()
     {
-        ed.selection = ed.pick(uv(p), aspect);
+        ed.doc.selection = ed.pick(uv(p), aspect);
     }
     let idle = !ui.input(|i| i.pointer.any_down());
     ed.hover = match response.hover_pos() {
@@ -71,7 +71,7 @@ fn keys(ui: &egui::Ui, ed: &mut Editor) {
     }
     let pressed = |k: egui::Key| ui.input(|i| i.key_pressed(k));
     if pressed(egui::Key::Escape) {
-        ed.selection = Selection::None;
+        ed.doc.selection = Selection::None;
     }
     for (key, mode) in [(egui::Key::W, Mode::Translate), (egui::Key::E, Mode::Rotate), (egui::Key::R, Mode::Scale)] {
         if pressed(key) {
@@ -102,7 +102,7 @@ fn orbit_drag(ui: &egui::Ui, ed: &mut Editor, rect: egui::Rect, response: &egui:
 /// Where the gizmo of `sel` stands: a group at its origin, a light at its polygon's centre, with
 /// the world's axes or the selection's own ([`Editor::gizmo`]'s space).
 pub fn placement(ed: &Editor, sel: Selection) -> Option<Placement> {
-    let w = &ed.scene.world;
+    let w = &ed.doc.scene.world;
     let (origin, frame) = match sel {
         Selection::Group(g) => {
             let pose = w.get::<&Transform>(g).ok()?.world;
@@ -131,15 +131,15 @@ pub fn apply(ed: &mut Editor, sel: Selection, edit: Edit) {
         (Selection::Group(g), Edit::Scale(f)) => ed.scale_group(g, f),
         (Selection::Light(e), Edit::Move(v)) => ed.move_light(e, v, Quat::IDENTITY),
         (Selection::Light(e), Edit::Scale(f)) => {
-            let radiance = ed.scene.world.get::<&kage_engine::scene::PolygonLight>(e).map(|l| l.radiance);
+            let radiance = ed.doc.scene.world.get::<&kage_engine::scene::PolygonLight>(e).map(|l| l.radiance);
             if let Ok(radiance) = radiance {
                 ed.set_light(e, radiance, f);
             }
         }
         (Selection::Light(e), Edit::Turn(q)) => {
             // A light turns in its group's frame: the world rotation seen from there.
-            let group = ed.scene.world.get::<&InGroup>(e).map(|m| m.group).ok();
-            let pose = group.and_then(|g| ed.scene.world.get::<&Transform>(g).ok().map(|t| t.world));
+            let group = ed.doc.scene.world.get::<&InGroup>(e).map(|m| m.group).ok();
+            let pose = group.and_then(|g| ed.doc.scene.world.get::<&Transform>(g).ok().map(|t| t.world));
             let (_, turn, _) = pose.unwrap_or(Affine3A::IDENTITY).to_scale_rotation_translation();
             ed.move_light(e, Vec3::ZERO, turn.inverse() * q * turn);
         }
@@ -153,11 +153,11 @@ pub fn paint(ui: &egui::Ui, ed: &Editor, rect: egui::Rect, drag: Option<&Drag>) 
     let orbit = ed.orbit;
     let view = View { orbit: &orbit, size: Vec2::new(rect.width(), rect.height()) };
     let at = |p: Vec2| rect.min + egui::vec2(p.x, p.y);
-    for (sel, colour, width) in [(ed.hover, HOVER, 1.0), (ed.selection, SELECTED, 2.0)] {
-        if sel == Selection::None || (sel == ed.selection && colour == HOVER) {
+    for (sel, colour, width) in [(ed.hover, HOVER, 1.0), (ed.doc.selection, SELECTED, 2.0)] {
+        if sel == Selection::None || (sel == ed.doc.selection && colour == HOVER) {
             continue;
         }
-        if let Some([lo, hi]) = super::pick::bounds(&ed.scene, &ed.flat, sel) {
+        if let Some([lo, hi]) = super::pick::bounds(&ed.doc.scene, &ed.flat, sel) {
             for (a, b) in box_edges(lo, hi) {
                 if let (Some(a), Some(b)) = (view.pixel(a), view.pixel(b)) {
                     painter.line_segment([at(a), at(b)], egui::Stroke::new(width, colour));
@@ -165,7 +165,7 @@ pub fn paint(ui: &egui::Ui, ed: &Editor, rect: egui::Rect, drag: Option<&Drag>) 
             }
         }
     }
-    let Some(place) = placement(ed, ed.selection) else { return };
+    let Some(place) = placement(ed, ed.doc.selection) else { return };
     let handles = place.handles(ed.gizmo.mode, &view);
     for (k, line) in handles.iter().enumerate() {
         let colour = if drag.is_some_and(|d| d.axis == k) { ACTIVE } else { AXES[k] };

@@ -14,6 +14,7 @@
 pub mod bake_job;
 pub mod camera;
 pub mod detail;
+pub mod document;
 pub mod entities;
 pub mod files;
 pub mod gizmo;

@@ -4,17 +4,15 @@
 
 use super::bake_job::BakeJob;
 use super::camera::Orbit;
-use super::history::Target;
+use super::document::{Change, Document};
 use super::reload::Watcher;
 use super::worker::Worker;
-use glam::{Affine3A, Quat, Vec3};
+use glam::{Quat, Vec3};
 use kage_bake_db::Store;
 use kage_engine::named::Named;
 use kage_engine::scene::VertexValues;
-use kage_engine::scene::import::reach::contains;
 use kage_engine::scene::{
-    Camera, EnvironmentLight, FlatScene, InGroup, Material, Name, PolygonLight, PrimitiveId, RigidGroup, Scene,
-    Transform, flatten,
+    Camera, FlatScene, InGroup, Material, Name, PolygonLight, PrimitiveId, RigidGroup, Scene, flatten,
 };
 use kage_engine::shading::Method;
 use kage_engine::{bspvt, prt};
@@ -224,8 +222,8 @@ impl Named for ShadeOn {
 
 /// The editor's state.
 pub struct Editor {
-    /// The scene being edited.
-    pub scene: Scene,
+    /// The scene being edited, its selection, history and saved baseline.
+    pub doc: Document,
     /// Its current snapshot.
     pub flat: FlatScene,
     /// How it was opened.
@@ -236,21 +234,10 @@ pub struct Editor {
     pub orbit: Orbit,
     /// The scene's own cameras.
     pub cameras: Vec<Camera>,
-    /// The outliner's selection (the viewport's too: a click picks).
-    pub selection: Selection,
     /// The gizmo's mode, axes and snapping.
     pub gizmo: super::gizmo::Settings,
     /// What the pointer hovers in the viewport.
     pub hover: Selection,
-    /// Undo and redo.
-    pub history: super::history::History,
-    /// The values the scene file holds (as opened or last saved): what a save writes against
-    /// (set with [`Editor::mark_saved`]).
-    pub(super) baseline: super::source::Baseline,
-    /// Bumped by every edit and save; [`Editor::unsaved`] compares only when it moved.
-    revision: u64,
-    /// [`Editor::unsaved`]'s last answer and the revision it was for.
-    unsaved_memo: std::cell::Cell<Option<(u64, bool)>>,
     /// The scene file changed on disk while edits were unsaved: the UI asks what to do.
     pub outside_change: bool,
     /// A drag is in progress (a pointer button is down): BSPVT re-bakes wait for its end
@@ -357,20 +344,14 @@ impl Editor {
         let cameras = cameras(&scene);
         let orbit = initial_orbit(&flat, cameras.first());
         let shaders = options.shader_dir.clone().map_or_else(Shaders::embedded, Shaders::from_dir);
-        let baseline = super::source::Baseline::of(&scene);
         let mut ed = Self {
-            scene,
+            doc: Document::new(scene),
             flat,
             method: Method::Baked,
             orbit,
             cameras,
-            selection: Selection::None,
             hover: Selection::None,
             gizmo: Default::default(),
-            history: Default::default(),
-            baseline,
-            revision: 0,
-            unsaved_memo: Default::default(),
             outside_change: false,
             dragging: false,
             values: Vec::new(),
@@ -409,9 +390,12 @@ impl Editor {
         };
         let where_ = if ed.polygonal_on_gpu() { "on the GPU" } else { "on the CPU" };
         let lights = if ed.lights_per_pixel() { "per pixel (their vertex lobes on the CPU)" } else { where_ };
-        ed.info(format!("{}: GPU {}; polygonal lights shade {lights}", ed.scene.source, ed.gpu.describe()));
+        ed.info(format!("{}: GPU {}; polygonal lights shade {lights}", ed.doc.scene.source, ed.gpu.describe()));
         if let Some(why) = ed.flat.unlit() {
-            ed.error(format!("{}: {why}; Add > Quad light adds one (or open it with --env MAP.hdr)", ed.scene.source));
+            ed.error(format!(
+                "{}: {why}; Add > Quad light adds one (or open it with --env MAP.hdr)",
+                ed.doc.scene.source
+            ));
         }
         ed.open_store();
         ed.choose_prt();
@@ -440,10 +424,14 @@ impl Editor {
             return;
         };
         let mut notes = Vec::new();
-        let chosen =
-            kage_bake_db::prt_budget::choose(&store, &self.scene, &self.flat, budget, &self.options.prt, &mut |n| {
-                notes.push(n)
-            });
+        let chosen = kage_bake_db::prt_budget::choose(
+            &store,
+            &self.doc.scene,
+            &self.flat,
+            budget,
+            &self.options.prt,
+            &mut |n| notes.push(n),
+        );
         notes.into_iter().for_each(|n| self.info(format!("PRT: {n}")));
         match chosen {
             Ok(s) => self.options.prt = s,
@@ -461,29 +449,6 @@ impl Editor {
             Ok(w) => self.watcher = Some(w),
             Err(e) => self.error(format!("{e:#}")),
         }
-    }
-
-    /// True when the scene differs from what its file holds (edits not saved).
-    pub fn unsaved(&self) -> bool {
-        if let Some((revision, unsaved)) = self.unsaved_memo.get()
-            && revision == self.revision
-        {
-            return unsaved;
-        }
-        let unsaved = super::source::Baseline::of(&self.scene) != self.baseline;
-        self.unsaved_memo.set(Some((self.revision, unsaved)));
-        unsaved
-    }
-
-    /// The scene as it is now is what its file holds (just opened again, or saved).
-    pub fn mark_saved(&mut self) {
-        self.baseline = super::source::Baseline::of(&self.scene);
-        self.revision += 1;
-    }
-
-    /// What a save of the scene writes against.
-    pub fn baseline(&self) -> &super::source::Baseline {
-        &self.baseline
     }
 
     /// Logs a message.
@@ -531,19 +496,89 @@ impl Editor {
         &self.shaders
     }
 
-    /// Marks a geometry edit: the snapshot, the viewport's meshes and the bakes follow.
-    pub(super) fn geometry_edited(&mut self) {
+    pub(super) fn edited(&mut self) {
+        self.edited_at = Some(Instant::now());
+        self.dirty.shade = true;
+    }
+
+    /// Follows up an edit of the document: the snapshot, the meshes and bakes for geometry,
+    /// PRT's lighting for the environment, the shading and the reference.
+    pub(super) fn apply(&mut self, change: Change) {
+        if change == Change::NONE {
+            return;
+        }
         self.dirty.pose = true;
-        self.dirty.geometry = true;
-        self.dirty.meshes = true;
+        if change.geometry {
+            self.dirty.geometry = true;
+            self.dirty.meshes = true;
+        }
+        self.dirty.environment |= change.environment;
         self.restart_reference();
         self.edited();
     }
 
-    pub(super) fn edited(&mut self) {
-        self.edited_at = Some(Instant::now());
-        self.revision += 1;
-        self.dirty.shade = true;
+    /// Undoes the newest step; false when there is none.
+    pub fn undo(&mut self) -> bool {
+        self.doc.undo().map(|c| self.apply(c)).is_some()
+    }
+
+    /// Redoes the newest undone step; false when there is none.
+    pub fn redo(&mut self) -> bool {
+        self.doc.redo().map(|c| self.apply(c)).is_some()
+    }
+
+    /// True when the scene differs from what its file holds (edits not saved).
+    pub fn unsaved(&self) -> bool {
+        self.doc.unsaved()
+    }
+
+    /// Moves a polygonal light by `offset` (world units) and turns it by `rotation` about its
+    /// centre ([`Document::move_light`]); a refusal is logged.
+    pub fn move_light(&mut self, light: hecs::Entity, offset: Vec3, rotation: Quat) {
+        match self.doc.move_light(light, offset, rotation) {
+            Ok(change) => self.apply(change),
+            Err(e) => self.error(e),
+        }
+    }
+
+    /// Scales a light's polygon and sets its radiance ([`Document::set_light`]); a refused
+    /// resize is logged.
+    pub fn set_light(&mut self, light: hecs::Entity, radiance: Vec3, factor: f32) {
+        let (change, refused) = self.doc.set_light(light, radiance, factor);
+        if let Some(e) = refused {
+            self.error(e);
+        }
+        self.apply(change);
+    }
+
+    /// Moves and turns a rigid group about its origin ([`Document::move_group`]).
+    pub fn move_group(&mut self, group: hecs::Entity, offset: Vec3, rotation: Quat) {
+        let change = self.doc.move_group(group, offset, rotation);
+        self.apply(change);
+    }
+
+    /// Scales a rigid group uniformly about its origin ([`Document::scale_group`]).
+    pub fn scale_group(&mut self, group: hecs::Entity, factor: f32) {
+        let change = self.doc.scale_group(group, factor);
+        self.apply(change);
+    }
+
+    /// Sets an instance's material ([`Document::set_material`]).
+    pub fn set_material(&mut self, instance: hecs::Entity, m: Material) {
+        let change = self.doc.set_material(instance, m);
+        self.apply(change);
+    }
+
+    /// Sets the environment's intensity and rotation ([`Document::set_environment`]).
+    pub fn set_environment(&mut self, intensity: f32, rotation: f32) {
+        let change = self.doc.set_environment(intensity, rotation);
+        self.apply(change);
+    }
+
+    /// Replaces an instance's mesh ([`Document::replace_mesh`]).
+    pub fn replace_mesh(&mut self, instance: hecs::Entity, mesh: kage_engine::scene::Mesh) {
+        let change = self.doc.replace_mesh(instance, mesh);
+        self.apply(change);
     }
 
     /// Switches the displayed method (the reference restarts: each method is compared with the
@@ -593,128 +628,6 @@ impl Editor {
         }
     }
 
-    /// Moves a polygonal light by `offset` (world units) and turns it by `rotation` about its
-    /// centre: re-shaded at once, nothing re-baked (lights do not occlude). Refused, with a
-    /// logged error, when it would leave its declared reach (the bake covers only that).
-    pub fn move_light(&mut self, light: hecs::Entity, offset: Vec3, rotation: Quat) {
-        let pose = self.group_pose_of(light);
-        let Ok(local) = self.scene.world.get::<&InGroup>(light).map(|m| m.local) else { return };
-        let Some(points) = self.scene.world.get::<&PolygonLight>(light).ok().map(|l| l.points.clone()) else { return };
-        let centre = local.transform_point3(points.iter().copied().sum::<Vec3>() / points.len().max(1) as f32);
-        // In the group's frame: about the light's centre, then along the world offset.
-        let turn =
-            Affine3A::from_translation(centre) * Affine3A::from_quat(rotation) * Affine3A::from_translation(-centre);
-        let shift = Affine3A::from_translation(pose.inverse().transform_vector3(offset));
-        let local = shift * turn * local;
-        if !self.stays_in_reach(light, pose * local, &points) {
-            return;
-        }
-        self.remember(Target::Light(light));
-        if let Ok(mut member) = self.scene.world.get::<&mut InGroup>(light) {
-            member.local = local;
-        }
-        self.dirty.pose = true;
-        self.restart_reference();
-        self.edited();
-    }
-
-    /// Scales a light's polygon about its centre by `factor` and sets its radiance (the size
-    /// change refused, as in [`Self::move_light`], when it would leave the light's reach).
-    pub fn set_light(&mut self, light: hecs::Entity, radiance: Vec3, factor: f32) {
-        let world =
-            self.group_pose_of(light) * self.scene.world.get::<&InGroup>(light).map_or(Affine3A::IDENTITY, |m| m.local);
-        let Some(mut points) = self.scene.world.get::<&PolygonLight>(light).ok().map(|l| l.points.clone()) else {
-            return;
-        };
-        let c = points.iter().copied().sum::<Vec3>() / points.len().max(1) as f32;
-        points.iter_mut().for_each(|p| *p = c + (*p - c) * factor);
-        let resize = factor == 1.0 || self.stays_in_reach(light, world, &points);
-        self.remember(Target::Light(light));
-        if let Ok(mut l) = self.scene.world.get::<&mut PolygonLight>(light) {
-            if resize {
-                l.points = points;
-            }
-            l.radiance = radiance;
-        }
-        self.dirty.pose = true;
-        self.restart_reference();
-        self.edited();
-    }
-
-    /// Whether light `light`'s polygon `points` placed by `world` lies inside its declared
-    /// reach (`extras.kage.light_reach`); logs why not.
-    fn stays_in_reach(&mut self, light: hecs::Entity, world: Affine3A, points: &[Vec3]) -> bool {
-        let Some(reach) = self.scene.world.get::<&PolygonLight>(light).ok().and_then(|l| l.reach) else { return true };
-        let at = points
-            .iter()
-            .map(|p| world.transform_point3(*p))
-            .fold([Vec3::MAX, Vec3::MIN], |[lo, hi], p| [lo.min(p), hi.max(p)]);
-        let inside = contains(reach, at);
-        if !inside {
-            self.error(format!(
-                "the light would leave its reach box {} … {} (extras.kage.light_reach), which its shadows were baked for: refused",
-                reach[0], reach[1]
-            ));
-        }
-        inside
-    }
-
-    /// Moves and turns a rigid group about its origin: PRT shading and the shadows between
-    /// groups update at once; BSPVT visibility is re-baked incrementally in the background.
-    pub fn move_group(&mut self, group: hecs::Entity, offset: Vec3, rotation: Quat) {
-        self.remember(Target::Group(group));
-        self.scene.pose_group(group, rotation, offset);
-        self.geometry_edited();
-    }
-
-    /// Scales a rigid group uniformly about its origin by `factor` (a geometry edit, like a
-    /// move: BSPVT and PRT re-bake what it changes in the background).
-    pub fn scale_group(&mut self, group: hecs::Entity, factor: f32) {
-        if !(factor.is_finite() && factor > 0.0) {
-            return;
-        }
-        self.remember(Target::Group(group));
-        if let Ok(mut t) = self.scene.world.get::<&mut Transform>(group) {
-            t.world.matrix3 *= factor;
-        }
-        self.scene.update_transforms();
-        self.geometry_edited();
-    }
-
-    /// Sets an instance's material (no re-bake: bakes exclude albedo).
-    pub fn set_material(&mut self, instance: hecs::Entity, m: Material) {
-        self.remember(Target::Material(instance));
-        if let Ok(mut mat) = self.scene.world.get::<&mut Material>(instance) {
-            *mat = m;
-        }
-        self.dirty.pose = true;
-        self.restart_reference();
-        self.edited();
-    }
-
-    /// Sets the environment's intensity and rotation (radians about +Y).
-    pub fn set_environment(&mut self, intensity: f32, rotation: f32) {
-        self.remember(Target::Environment);
-        for env in self.scene.world.query_mut::<&mut EnvironmentLight>() {
-            env.intensity = intensity;
-            env.rotation = rotation;
-        }
-        self.dirty.pose = true;
-        self.dirty.environment = true;
-        self.restart_reference();
-        self.edited();
-    }
-
-    /// Replaces an instance's mesh (a geometry edit: BSPVT and PRT re-bake what it affects).
-    pub fn replace_mesh(&mut self, instance: hecs::Entity, mesh: kage_engine::scene::Mesh) {
-        self.remember(Target::Mesh(instance));
-        let index = self.scene.meshes.len() as u32;
-        let hash = mesh.hash;
-        self.scene.meshes.push(Arc::new(mesh));
-        self.scene.set_source_mesh(instance, kage_engine::scene::MeshRef { index, hash });
-        self.geometry_edited();
-    }
-
     /// True when a light that refinement follows (no declared reach) moved since the receivers
     /// were refined: its shadows are as fine as the refinement where they now fall.
     pub fn refinement_stale(&self) -> bool {
@@ -746,27 +659,22 @@ impl Editor {
         self.reference = ReferenceSum::default();
     }
 
-    fn group_pose_of(&self, member: hecs::Entity) -> Affine3A {
-        let group = self.scene.world.get::<&InGroup>(member).map(|g| g.group).ok();
-        group.and_then(|g| self.scene.world.get::<&Transform>(g).ok().map(|t| t.world)).unwrap_or_default()
-    }
-
     /// The outliner's rows: (entity, label, kind) for groups, their instances and lights.
     pub fn outline(&self) -> Vec<(Selection, String, usize)> {
-        let name = |e: hecs::Entity| self.scene.world.get::<&Name>(e).map(|n| n.0.clone()).unwrap_or_default();
+        let name = |e: hecs::Entity| self.doc.scene.world.get::<&Name>(e).map(|n| n.0.clone()).unwrap_or_default();
         let mut groups: Vec<(u32, hecs::Entity)> =
-            self.scene.world.query::<(hecs::Entity, &RigidGroup)>().iter().map(|(e, g)| (g.index, e)).collect();
+            self.doc.scene.world.query::<(hecs::Entity, &RigidGroup)>().iter().map(|(e, g)| (g.index, e)).collect();
         groups.sort();
         let mut rows = Vec::new();
         for (index, g) in groups {
             rows.push((Selection::Group(g), format!("group {index}: {}", name(g)), 0));
             let mut members: Vec<(u32, Selection, String)> = Vec::new();
-            for (e, member, id) in self.scene.world.query::<(hecs::Entity, &InGroup, &PrimitiveId)>().iter() {
+            for (e, member, id) in self.doc.scene.world.query::<(hecs::Entity, &InGroup, &PrimitiveId)>().iter() {
                 if member.group == g {
                     members.push((id.node, Selection::Instance(e), format!("mesh {}: {}", id.mesh, name(e))));
                 }
             }
-            for (e, member, _) in self.scene.world.query::<(hecs::Entity, &InGroup, &PolygonLight)>().iter() {
+            for (e, member, _) in self.doc.scene.world.query::<(hecs::Entity, &InGroup, &PolygonLight)>().iter() {
                 if member.group == g {
                     members.push((u32::MAX, Selection::Light(e), format!("light {}", name(g))));
                 }

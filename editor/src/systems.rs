@@ -118,14 +118,14 @@ pub fn reimport_scene(ed: &mut Editor) {
     ed.outside_change = false;
     match import::import(&path, ed.options.import.clone()) {
         Ok(mut scene) => {
-            if let Some(env) = ed.scene.world.query::<&EnvironmentLight>().iter().next().cloned() {
+            if let Some(env) = ed.doc.scene.world.query::<&EnvironmentLight>().iter().next().cloned() {
                 scene.set_environment(env);
             }
-            ed.scene = scene;
-            ed.selection = super::state::Selection::None;
+            ed.doc.scene = scene;
+            ed.doc.selection = super::state::Selection::None;
             ed.hover = super::state::Selection::None;
-            ed.history.clear();
-            ed.mark_saved();
+            ed.doc.history.clear();
+            ed.doc.mark_saved();
             ed.dirty.pose = true;
             ed.dirty.geometry = true;
             ed.dirty.meshes = true;
@@ -141,7 +141,7 @@ fn reload_environment(ed: &mut Editor) {
     let Some(path) = ed.options.env_path.clone() else { return };
     match EnvMap::load(&path) {
         Ok(map) => {
-            ed.scene.set_environment(EnvironmentLight::new(map));
+            ed.doc.scene.set_environment(EnvironmentLight::new(map));
             ed.dirty.pose = true;
             ed.dirty.environment = true;
             ed.restart_reference();
@@ -154,8 +154,8 @@ fn reload_environment(ed: &mut Editor) {
 /// Propagates group poses to their members and rebuilds the snapshot.
 pub fn pose_system(ed: &mut Editor) {
     if ed.dirty.pose {
-        ed.scene.update_transforms();
-        ed.flat = flatten(&ed.scene);
+        ed.doc.scene.update_transforms();
+        ed.flat = flatten(&ed.doc.scene);
         ed.memo.picker = None;
         ed.dirty.pose = false;
         ed.dirty.shade = true;
@@ -165,7 +165,7 @@ pub fn pose_system(ed: &mut Editor) {
 /// Projects the environment for PRT again after it changed.
 pub fn environment_system(ed: &mut Editor) {
     if ed.dirty.environment {
-        ed.bakes.lighting = prt::Lighting::new(&ed.scene, &ed.options.prt);
+        ed.bakes.lighting = prt::Lighting::new(&ed.doc.scene, &ed.options.prt);
         ed.dirty.environment = false;
         ed.dirty.shade = true;
     }
@@ -306,9 +306,9 @@ fn refine_receivers(ed: &mut Editor) {
     let was = meshes(&ed.flat);
     let refined = match ed.store.clone() {
         Some(store) => {
-            kage_bake_db::refinement::refine(&store, &mut ed.scene, &settings, &|_| {}).map_err(|e| e.to_string())
+            kage_bake_db::refinement::refine(&store, &mut ed.doc.scene, &settings, &|_| {}).map_err(|e| e.to_string())
         }
-        None => kage_engine::receivers::refine(&mut ed.scene, &settings).map(|r| (r, 0)).map_err(|e| e.to_string()),
+        None => kage_engine::receivers::refine(&mut ed.doc.scene, &settings).map(|r| (r, 0)).map_err(|e| e.to_string()),
     };
     let (report, kept) = match refined {
         Ok(r) => r,
@@ -345,7 +345,7 @@ fn start_bake(ed: &mut Editor) {
         old.cancel();
     }
     let wake = ed.wake.clone();
-    match BakeJob::start(store, &ed.scene, Some(ed.options.bspvt), Some(ed.options.prt), move || wake()) {
+    match BakeJob::start(store, &ed.doc.scene, Some(ed.options.bspvt), Some(ed.options.prt), move || wake()) {
         Ok(job) => {
             let line = |name: &str, t: &Option<super::bake_job::Track>| {
                 t.as_ref().map(|t| format!("{name}: {} chunks cached, {} vertices to bake", t.cached, t.total))
@@ -371,7 +371,7 @@ fn take(ed: &mut Editor, landed: Landed, patched: &mut [bool; 2]) {
                 stats.cached, stats.cold, stats.warm, stats.vertices_baked, stats.seconds
             ));
             // A light the trees shut in shows only its bounce, metered up: say so.
-            if let Some(warning) = bspvt::unseen_warning(&ed.scene, &ed.flat, &bake) {
+            if let Some(warning) = bspvt::unseen_warning(&ed.doc.scene, &ed.flat, &bake) {
                 ed.error(format!("warning: {warning}"));
             }
             ed.bakes.bspvt = Some(bake.into());
@@ -410,7 +410,7 @@ pub fn reference_system(ed: &mut Editor) {
 
 /// The reference for the current method's lights, with one bounce when the indirect term is on.
 fn spawn_reference(ed: &Editor) -> Worker<VertexValues> {
-    let scene = ed.method.lit(&ed.scene);
+    let scene = ed.method.lit(&ed.doc.scene);
     let bounces = u32::from(ed.indirect && ed.method.direct());
     let (eye, first) = (ed.orbit.eye(), ed.reference.passes);
     let wake = ed.wake.clone();
@@ -667,7 +667,7 @@ fn baked_parts(ed: &Editor, trees: Option<Arc<bspvt::Bake>>) -> Option<BakedPart
 
 fn spawn_indirect(ed: &mut Editor) -> Worker<Indirect> {
     let job = Job {
-        scene: ed.method.lit(&ed.scene),
+        scene: ed.method.lit(&ed.doc.scene),
         glossy: hit_light(ed),
         direct: ed.direct.clone(),
         eye: ed.orbit.eye(),
@@ -766,8 +766,15 @@ fn baked(ed: &mut Editor, eye: Vec3) -> VertexValues {
     // A light moved and nothing else: the environment's part is reused.
     let parts = prt::Parts { bake, lighting: light, settings: &ed.options.prt };
     let (environment, silhouettes) = (&mut ed.memo.environment, &mut ed.memo.silhouettes);
-    let direct =
-        Look::direct_reusing(&ed.scene, &ed.flat, eye, polygonal, Some((parts, Some(pre))), environment, silhouettes);
+    let direct = Look::direct_reusing(
+        &ed.doc.scene,
+        &ed.flat,
+        eye,
+        polygonal,
+        Some((parts, Some(pre))),
+        environment,
+        silhouettes,
+    );
     specular_per_pixel(ed, eye);
     sun_per_pixel(ed, eye);
     direct
@@ -805,7 +812,7 @@ fn exact_vis(ed: &mut Editor, eye: Vec3) -> Option<VertexValues> {
         return Some(v);
     }
     if ed.workers.exact.is_none() {
-        let scene = ed.scene.duplicate();
+        let scene = ed.doc.scene.duplicate();
         let s = ed.options.bspvt;
         let wake = ed.wake.clone();
         ed.workers.exact = Some(Worker::spawn(
@@ -830,7 +837,7 @@ fn prt_gpu(ed: &mut Editor, eye: Vec3) -> VertexValues {
     }
     let shadows = ed.method.prt_shadows().unwrap_or(prt::Shadows::SelfOnly);
     let posed =
-        prt::Posed::new(&ed.scene, &ed.flat, bake.order, light, shadows, &ed.options.prt, &mut ed.memo.silhouettes);
+        prt::Posed::new(&ed.doc.scene, &ed.flat, bake.order, light, shadows, &ed.options.prt, &mut ed.memo.silhouettes);
     let gpu = ed.gpu.clone();
     let values = kage_gpu::prt::shade_vertices(&gpu, shader, &ed.flat, &posed, eye);
     // The viewport shades the shadows between groups per pixel from the frame's vertex terms.

@@ -113,7 +113,7 @@ impl eframe::App for App {
         // re-bake it asks for starts then.
         self.editor.dragging = ui.input(|i| i.pointer.any_down());
         if !self.editor.dragging {
-            self.editor.history.seal();
+            self.editor.doc.history.seal();
         }
         menu(ui, self);
         egui::Panel::left("outliner").resizable(true).default_size(220.0).show(ui, |ui| outliner(ui, &mut self.editor));
@@ -151,7 +151,7 @@ impl App {
     /// unsaved or the scene file changed under them, and the Save As dialog.
     fn window(&mut self, ctx: &egui::Context) {
         let unsaved = self.editor.unsaved();
-        let title = format!("kage — {}{}", self.editor.scene.source, if unsaved { " *" } else { "" });
+        let title = format!("kage — {}{}", self.editor.doc.scene.source, if unsaved { " *" } else { "" });
         if title != self.title {
             ctx.send_viewport_cmd(egui::ViewportCommand::Title(title.clone()));
             self.title = title;
@@ -266,22 +266,22 @@ fn menu(ui: &mut egui::Ui, app: &mut App) {
             ui.menu_button("Edit", |ui| {
                 let ed = &mut app.editor;
                 if ui
-                    .add_enabled(ed.history.undo_len() > 0, egui::Button::new("Undo").shortcut_text("Ctrl+Z"))
+                    .add_enabled(ed.doc.history.undo_len() > 0, egui::Button::new("Undo").shortcut_text("Ctrl+Z"))
                     .clicked()
                 {
                     ed.undo();
                 }
                 let redo = egui::Button::new("Redo").shortcut_text("Ctrl+Shift+Z");
-                if ui.add_enabled(ed.history.redo_len() > 0, redo).clicked() {
+                if ui.add_enabled(ed.doc.history.redo_len() > 0, redo).clicked() {
                     ed.redo();
                 }
                 ui.separator();
-                let editable = matches!(ed.selection, Selection::Group(_) | Selection::Light(_));
+                let editable = matches!(ed.doc.selection, Selection::Group(_) | Selection::Light(_));
                 if ui.add_enabled(editable, egui::Button::new("Duplicate").shortcut_text("Ctrl+D")).clicked() {
-                    ed.duplicate(ed.selection);
+                    ed.duplicate(ed.doc.selection);
                 }
                 if ui.add_enabled(editable, egui::Button::new("Delete").shortcut_text("Del")).clicked() {
-                    ed.delete(ed.selection);
+                    ed.delete(ed.doc.selection);
                 }
             });
             ui.menu_button("Add", |ui| {
@@ -319,11 +319,11 @@ fn shortcuts(ui: &egui::Ui, ed: &mut Editor) -> bool {
         ed.undo();
     }
     if ui.ctx().input_mut(|i| i.consume_shortcut(&KeyboardShortcut::new(Modifiers::COMMAND, Key::D))) {
-        ed.duplicate(ed.selection);
+        ed.duplicate(ed.doc.selection);
     }
     // Delete in a text field edits the text.
     if !ui.ctx().text_edit_focused() && ui.input(|i| i.key_pressed(Key::Delete)) {
-        ed.delete(ed.selection);
+        ed.delete(ed.doc.selection);
     }
     ui.ctx().input_mut(|i| i.consume_shortcut(&KeyboardShortcut::new(Modifiers::COMMAND, Key::S)))
 }
@@ -334,12 +334,12 @@ fn outliner(ui: &mut egui::Ui, ed: &mut Editor) {
         for (sel, label, depth) in ed.outline() {
             ui.horizontal(|ui| {
                 ui.add_space(16.0 * depth as f32);
-                let mut row = ui.selectable_label(ed.selection == sel, label);
+                let mut row = ui.selectable_label(ed.doc.selection == sel, label);
                 if ed.hover == sel {
                     row = row.highlight();
                 }
                 if row.clicked() {
-                    ed.selection = sel;
+                    ed.doc.selection = sel;
                 }
             });
         }
@@ -400,7 +400,7 @@ fn vec3_drag(ui: &mut egui::Ui, label: &str, v: &mut Vec3, speed: f32) -> bool {
 
 fn inspector(ui: &mut egui::Ui, ed: &mut Editor) {
     ui.heading("Inspector");
-    match ed.selection {
+    match ed.doc.selection {
         Selection::None => {
             ui.label("Click a group or light in the viewport, or select anything in the outliner.");
         }
@@ -415,7 +415,7 @@ fn inspector(ui: &mut egui::Ui, ed: &mut Editor) {
 }
 
 fn group_inspector(ui: &mut egui::Ui, ed: &mut Editor, g: hecs::Entity) {
-    let at = ed.scene.world.get::<&Transform>(g).map(|t| Vec3::from(t.world.translation)).unwrap_or_default();
+    let at = ed.doc.scene.world.get::<&Transform>(g).map(|t| Vec3::from(t.world.translation)).unwrap_or_default();
     let mut moved = at;
     let mut turn = 0.0f32;
     if vec3_drag(ui, "position", &mut moved, 0.02) {
@@ -431,7 +431,7 @@ fn group_inspector(ui: &mut egui::Ui, ed: &mut Editor, g: hecs::Entity) {
 }
 
 fn material_inspector(ui: &mut egui::Ui, ed: &mut Editor, e: hecs::Entity) {
-    let Some(mut m) = ed.scene.world.get::<&Material>(e).ok().map(|m| *m) else { return };
+    let Some(mut m) = ed.doc.scene.world.get::<&Material>(e).ok().map(|m| *m) else { return };
     let before = m;
     let mut rgb = m.base_color.to_array();
     ui.horizontal(|ui| {
@@ -462,7 +462,7 @@ fn mesh_inspector(ui: &mut egui::Ui, ed: &mut Editor, e: hecs::Entity) {
 }
 
 fn light_inspector(ui: &mut egui::Ui, ed: &mut Editor, e: hecs::Entity) {
-    let Some(light) = ed.scene.world.get::<&PolygonLight>(e).ok().map(|l| (*l).clone()) else { return };
+    let Some(light) = ed.doc.scene.world.get::<&PolygonLight>(e).ok().map(|l| (*l).clone()) else { return };
     let mut offset = Vec3::ZERO;
     if vec3_drag(ui, "move by", &mut offset, 0.02) && offset != Vec3::ZERO {
         ed.move_light(e, offset, Quat::IDENTITY);
@@ -491,7 +491,7 @@ fn light_inspector(ui: &mut egui::Ui, ed: &mut Editor, e: hecs::Entity) {
 }
 
 fn environment_inspector(ui: &mut egui::Ui, ed: &mut Editor) {
-    let Some(env) = ed.scene.world.query::<&EnvironmentLight>().iter().next().cloned() else { return };
+    let Some(env) = ed.doc.scene.world.query::<&EnvironmentLight>().iter().next().cloned() else { return };
     let (mut intensity, mut degrees) = (env.intensity, env.rotation.to_degrees());
     let a = ui.add(egui::Slider::new(&mut intensity, 0.0..=10.0).text("intensity")).changed();
     let b = ui.add(egui::Slider::new(&mut degrees, -180.0..=180.0).text("rotation (deg)")).changed();

@@ -122,7 +122,7 @@ fn view_exposure(ed: &Editor) -> f32 {
     use kage_engine::raster::{Primary, primary_grid};
     let (w, h) = (192, (192.0 / ed.aspect).round() as usize);
     let camera = kage_engine::scene::Camera::look_at(ed.orbit.eye(), ed.orbit.target, ed.orbit.yfov);
-    let renderer = kage_engine::reference::Renderer::new(&ed.scene);
+    let renderer = kage_engine::reference::Renderer::new(&ed.doc.scene);
     let (grid, _) = primary_grid(&renderer, &camera, w, h, 1);
     let (mut all, mut surfaces) = (Vec::new(), Vec::new());
     for p in &grid {
@@ -231,9 +231,9 @@ fn light_moves_reshade_at_once_and_group_moves_rebake_bspvt_incrementally() {
     // A light that declares a reach (extras.kage.light_reach) is kept inside it.
     let light = light.unwrap();
     let ed = &mut h.state_mut().editor;
-    let points = kage_engine::scene::flatten(&ed.scene).lights[0].points.clone();
+    let points = kage_engine::scene::flatten(&ed.doc.scene).lights[0].points.clone();
     let (lo, hi) = points.iter().fold((Vec3::MAX, Vec3::MIN), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
-    ed.scene.world.get::<&mut kage_engine::scene::PolygonLight>(light).unwrap().reach = Some([lo - 0.3, hi + 0.3]);
+    ed.doc.scene.world.get::<&mut kage_engine::scene::PolygonLight>(light).unwrap().reach = Some([lo - 0.3, hi + 0.3]);
     let at = values(&h);
     let ed = &mut h.state_mut().editor;
     ed.move_light(light, Vec3::new(0.5, 0.0, 0.0), Quat::IDENTITY);
@@ -248,13 +248,13 @@ fn light_moves_reshade_at_once_and_group_moves_rebake_bspvt_incrementally() {
     let ed = &mut h.state_mut().editor;
     ed.log.clear();
     // Back to roaming lights, so the group move below re-bakes against the same keys.
-    ed.scene.world.get::<&mut kage_engine::scene::PolygonLight>(light).unwrap().reach = None;
+    ed.doc.scene.world.get::<&mut kage_engine::scene::PolygonLight>(light).unwrap().reach = None;
 
     // A group move: PRT (with shadows between groups) follows in the same frame, BSPVT re-bakes.
     h.get_by_label("prt").click();
     step_until(&mut h, "prt", |ed| ed.method == Method::Prt && !ed.dirty.shade);
     let prt_before = values(&h);
-    let sphere = h.state().editor.scene.find_group("sphere").unwrap();
+    let sphere = h.state().editor.doc.scene.find_group("sphere").unwrap();
     h.state_mut().editor.move_group(sphere, Vec3::new(-0.8, 0.0, 0.3), Quat::IDENTITY);
     h.step();
     let ed = &h.state().editor;
@@ -392,7 +392,7 @@ fn the_baked_bounce_lights_glossy_hits_with_the_environment_too() {
     step_until(&mut h, "the bakes and the indirect term", landed);
     let ed = &h.state().editor;
     assert!(errors(ed).is_empty(), "{:?}", errors(ed));
-    let renderer = kage_engine::reference::Renderer::new(&ed.scene);
+    let renderer = kage_engine::reference::Renderer::new(&ed.doc.scene);
     let flat = &renderer.flat;
     let pre = kage_engine::prt::prefilter::Prefiltered::new(flat.environment.as_ref().unwrap());
     let (lighting, eye) = (ed.bakes.lighting.as_ref().unwrap(), ed.orbit.eye());
@@ -401,7 +401,7 @@ fn the_baked_bounce_lights_glossy_hits_with_the_environment_too() {
         prt: Some(prt::Parts { bake: ed.bakes.prt.as_ref().unwrap(), lighting, settings: &ed.options.prt }),
         prefiltered: Some(&pre),
     };
-    let look = Look::prepare(&ed.scene, flat, bakes, eye, &mut prt::SilhouetteMemo::default());
+    let look = Look::prepare(&ed.doc.scene, flat, bakes, eye, &mut prt::SilhouetteMemo::default());
     let bounce = |glossy: Glossy| {
         let src = Source { renderer: &renderer, direct: &ed.direct, glossy };
         let records = cache::place_at_vertices(&src, &ed.options.cache);
@@ -584,7 +584,7 @@ fn touching_the_scene_file_reimports_it_and_rebakes_only_what_changed() {
         Selection::Instance(e) if label.contains("cube") => Some(e),
         _ => None,
     });
-    h.state_mut().editor.selection = Selection::Instance(cube.expect("the cube is listed"));
+    h.state_mut().editor.doc.selection = Selection::Instance(cube.expect("the cube is listed"));
     h.step();
     let field = h.get_by_role_and_label(egui::accesskit::Role::TextInput, "glTF file");
     field.focus();
@@ -661,7 +661,7 @@ fn on_screen(h: &Harness<App>, p: Vec3) -> egui::Pos2 {
 }
 
 fn pose(h: &Harness<App>, group: hecs::Entity) -> glam::Affine3A {
-    h.state().editor.scene.world.get::<&kage_engine::scene::Transform>(group).unwrap().world
+    h.state().editor.doc.scene.world.get::<&kage_engine::scene::Transform>(group).unwrap().world
 }
 
 /// Presses at `a` and moves to `b` over several frames, as a hand would (the button stays down).
@@ -688,7 +688,7 @@ fn click_picks_the_gizmo_moves_and_undo_returns_to_the_cached_bakes_bit_for_bit(
     let dir = scratch("gizmo");
     let mut h = harness(default_scene(), options(&dir, None, None));
     step_until(&mut h, "the first bakes", settled);
-    let sphere = h.state().editor.scene.find_group("sphere").unwrap();
+    let sphere = h.state().editor.doc.scene.find_group("sphere").unwrap();
     let start = pose(&h, sphere);
     let centre = Vec3::from(start.translation);
 
@@ -701,10 +701,10 @@ fn click_picks_the_gizmo_moves_and_undo_returns_to_the_cached_bakes_bit_for_bit(
     h.step();
     h.drop_at(at);
     h.step();
-    assert_eq!(h.state().editor.selection, Selection::Group(sphere), "a click picks the sphere's group");
+    assert_eq!(h.state().editor.doc.selection, Selection::Group(sphere), "a click picks the sphere's group");
     h.key_press(egui::Key::Escape);
     h.step();
-    assert_eq!(h.state().editor.selection, Selection::None);
+    assert_eq!(h.state().editor.doc.selection, Selection::None);
     let light = h.state().editor.flat.lights[0].clone();
     let light_centre = light.points.iter().copied().sum::<Vec3>() / light.points.len() as f32;
     // The light hangs above the opening view: zoom out (as the wheel does) to see it.
@@ -718,10 +718,10 @@ fn click_picks_the_gizmo_moves_and_undo_returns_to_the_cached_bakes_bit_for_bit(
     h.step();
     h.drop_at(on_screen(&h, light_centre));
     h.step();
-    assert_eq!(h.state().editor.selection, Selection::Light(light.entity), "lights are picked too");
+    assert_eq!(h.state().editor.doc.selection, Selection::Light(light.entity), "lights are picked too");
 
     // Dragging the X arrow moves the group along X; the whole drag is one undo step.
-    h.state_mut().editor.selection = Selection::Group(sphere);
+    h.state_mut().editor.doc.selection = Selection::Group(sphere);
     h.step();
     let place = kage_editor::interaction::placement(&h.state().editor, Selection::Group(sphere)).unwrap();
     let probe = place.origin + place.axes[0] * 0.05;
@@ -737,7 +737,7 @@ fn click_picks_the_gizmo_moves_and_undo_returns_to_the_cached_bakes_bit_for_bit(
     let moved = pose(&h, sphere);
     let shift = Vec3::from(moved.translation) - centre;
     assert!(shift.x > 0.05 && shift.y.abs() < 1e-4 && shift.z.abs() < 1e-4, "moved along +X: {shift}");
-    assert_eq!(h.state().editor.history.undo_len(), 1, "one drag, one step");
+    assert_eq!(h.state().editor.doc.history.undo_len(), 1, "one drag, one step");
     snapshot(&mut h, "gizmo-moved");
     step_until(&mut h, "the re-bake after the drag", settled);
     assert_eq!(plans(&h), planned + 1, "one re-bake, after the drag");
@@ -755,7 +755,7 @@ fn click_picks_the_gizmo_moves_and_undo_returns_to_the_cached_bakes_bit_for_bit(
     h.key_press_modifiers(egui::Modifiers::COMMAND | egui::Modifiers::SHIFT, egui::Key::Z);
     h.step();
     assert_eq!(pose(&h, sphere), moved);
-    assert_eq!((h.state().editor.history.undo_len(), h.state().editor.history.redo_len()), (1, 0));
+    assert_eq!((h.state().editor.doc.history.undo_len(), h.state().editor.doc.history.redo_len()), (1, 0));
 
     // Turning: the E key switches the gizmo, dragging the Y ring turns the group about +Y.
     h.key_press(egui::Key::E);
@@ -806,7 +806,7 @@ fn ctrl_s_saves_the_opened_file_which_is_not_reimported_and_outside_changes_ask_
     let mut h = harness(scene, opts);
     step_until(&mut h, "the first bakes", settled);
     assert!(!h.state().editor.unsaved());
-    let cube = h.state().editor.scene.find_group("cube").unwrap();
+    let cube = h.state().editor.doc.scene.find_group("cube").unwrap();
     h.state_mut().editor.move_group(cube, Vec3::new(0.5, 0.0, 0.0), Quat::IDENTITY);
     h.step();
     assert!(h.state().editor.unsaved(), "a move is an unsaved edit");
@@ -820,7 +820,7 @@ fn ctrl_s_saves_the_opened_file_which_is_not_reimported_and_outside_changes_ask_
     let at = |s: &kage_engine::scene::Scene| {
         s.world.get::<&kage_engine::scene::Transform>(s.find_group("cube").unwrap()).unwrap().world.translation
     };
-    assert!((at(&saved) - at(&ed.scene)).length() < 1e-5);
+    assert!((at(&saved) - at(&ed.doc.scene)).length() < 1e-5);
     assert_eq!(std::fs::read(dir.join("cube_on_plane.gltf.bak")).unwrap(), original, "the old version is kept");
     // The editor's own save is not an outside change: no re-import.
     for _ in 0..40 {
@@ -889,18 +889,18 @@ fn lights_are_added_groups_duplicated_deleted_and_dropped_files_added_each_one_u
     h.step();
     h.step();
     assert_eq!(counts(&h), (start.0, start.1 + 1));
-    assert!(matches!(h.state().editor.selection, Selection::Light(_)));
+    assert!(matches!(h.state().editor.doc.selection, Selection::Light(_)));
     step_until(&mut h, "the bake with the new light", settled);
     assert!(changed(&before, &values(&h)) > 1000, "the new light lights the scene");
 
     // Ctrl+D copies the selected group; Delete removes the copy.
-    let sphere = h.state().editor.scene.find_group("sphere").unwrap();
-    h.state_mut().editor.selection = Selection::Group(sphere);
+    let sphere = h.state().editor.doc.scene.find_group("sphere").unwrap();
+    h.state_mut().editor.doc.selection = Selection::Group(sphere);
     h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::D);
     h.step();
     h.step();
     assert_eq!(counts(&h), (start.0 + 1, start.1 + 1), "the sphere's copy");
-    let copy = h.state().editor.selection;
+    let copy = h.state().editor.doc.selection;
     assert!(matches!(copy, Selection::Group(g) if g != sphere));
     h.key_press(egui::Key::Delete);
     h.step();
@@ -916,7 +916,7 @@ fn lights_are_added_groups_duplicated_deleted_and_dropped_files_added_each_one_u
     snapshot(&mut h, "added");
     let ed = &h.state().editor;
     assert!(errors(ed).is_empty(), "{:?}", errors(ed));
-    assert_eq!(ed.history.undo_len(), 4, "add, duplicate, delete, drop: four steps");
+    assert_eq!(ed.doc.history.undo_len(), 4, "add, duplicate, delete, drop: four steps");
 
     // Undoing everything leads back to the scene that was opened, and to its bakes.
     for _ in 0..4 {
@@ -987,7 +987,7 @@ fn receivers_are_refined_as_kage_bake_refines_them_and_again_after_edits() {
     let mut h = harness(import::import(&path, Default::default()).unwrap(), opts);
     step_until(&mut h, "the first bakes", settled);
     let ed = &h.state().editor;
-    let first = hashes(&ed.scene);
+    let first = hashes(&ed.doc.scene);
     assert_eq!(first, hashes(&cold(Vec3::ZERO)), "the editor refined differently from the engine");
     let (before, after) = ed.bakes.receivers.as_ref().expect("refined").vertices;
     // Measured: 1,111 (each instance refined until interpolation meets the tolerance).
@@ -1005,19 +1005,19 @@ fn receivers_are_refined_as_kage_bake_refines_them_and_again_after_edits() {
     step_until(&mut h, "the refinement for the moved light", |ed| settled(ed) && !ed.refinement_stale());
     let moved = cold(by);
     assert_eq!(kage_engine::scene::flatten(&moved).lights[0].points, h.state().editor.flat.lights[0].points);
-    assert_eq!(hashes(&h.state().editor.scene), hashes(&moved), "refined again unlike a cold refinement");
+    assert_eq!(hashes(&h.state().editor.doc.scene), hashes(&moved), "refined again unlike a cold refinement");
     h.state_mut().editor.undo();
     step_until(&mut h, "the light back", settled);
 
     // A group move refines again by itself; undo returns to the first refinement, all cached.
-    let ball = h.state().editor.scene.find_group("ball").unwrap();
+    let ball = h.state().editor.doc.scene.find_group("ball").unwrap();
     h.state_mut().editor.move_group(ball, Vec3::new(-1.5, 0.0, 0.0), Quat::IDENTITY);
     step_until(&mut h, "the re-bake after the move", settled);
-    assert_ne!(hashes(&h.state().editor.scene), first, "the move refined nothing again");
+    assert_ne!(hashes(&h.state().editor.doc.scene), first, "the move refined nothing again");
     h.state_mut().editor.undo();
     step_until(&mut h, "the re-bake after undo", settled);
     let ed = &h.state().editor;
-    assert_eq!(hashes(&ed.scene), first, "undo came back to another refinement");
+    assert_eq!(hashes(&ed.doc.scene), first, "undo came back to another refinement");
     let b = ed.stats.runs[0].unwrap();
     assert!(b.cold == 0 && b.warm == 0, "undo re-baked: {b:?}");
 

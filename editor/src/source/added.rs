@@ -5,7 +5,7 @@
 //! fans, meshes with their normals, texture coordinates and colours — with the file's material
 //! where the member has one, or a material made from its factors.
 
-use super::document::{Object, edit_object, set};
+use super::json::{Object, edit_object, set};
 use super::{Plan, set_transform};
 use glam::{Affine3A, Vec3};
 use kage_engine::scene::{

@@ -17,11 +17,11 @@
 //! material shared by things edited differently, a replaced mesh (buffers are never rewritten).
 
 mod added;
-mod document;
+mod json;
 
 use super::history::{Stored, Target};
-use document::{Document, Object, edit_object, set};
 use glam::{Affine3A, Mat4, Vec3};
+use json::{GltfJson, Object, edit_object, set};
 use kage_engine::scene::import::files::Root;
 use kage_engine::scene::{
     Emitter, InGroup, Material, MeshRef, NodeId, PolygonLight, PrimitiveId, RigidGroup, Scene, Transform,
@@ -106,7 +106,7 @@ pub fn save(scene: &Scene, baseline: &Baseline, from: &Path, to: &Path) -> Resul
     } else {
         (bytes, None)
     };
-    let mut file = Document::parse(&json).map_err(|e| format!("{name}: {e}"))?;
+    let mut file = GltfJson::parse(&json).map_err(|e| format!("{name}: {e}"))?;
     let mut plan = Plan { scene, baseline, doc: &doc, file: &mut file, problems: Vec::new(), nodes: 0, materials: 0 };
     let added = plan.added();
     plan.deleted();
@@ -155,7 +155,7 @@ struct Plan<'a> {
     scene: &'a Scene,
     baseline: &'a Baseline,
     doc: &'a gltf::Document,
-    file: &'a mut Document,
+    file: &'a mut GltfJson,
     problems: Vec<String>,
     nodes: usize,
     materials: usize,

@@ -21,7 +21,7 @@ const ARRAY_BUFFER: u32 = 34962;
 const ELEMENT_ARRAY_BUFFER: u32 = 34963;
 
 /// The document being edited.
-pub(super) struct Document {
+pub(super) struct GltfJson {
     top: Object,
     arrays: HashMap<&'static str, Vec<Object>>,
     touched: HashSet<&'static str>,
@@ -30,7 +30,7 @@ pub(super) struct Document {
     bin_index: Option<usize>,
 }
 
-impl Document {
+impl GltfJson {
     /// Parses the JSON chunk.
     pub(super) fn parse(json: &[u8]) -> serde_json::Result<Self> {
         let top: Object = serde_json::from_slice(json)?;
