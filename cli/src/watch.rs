@@ -1,10 +1,10 @@
 //! `--watch`: re-runs a command when the scene file changes on disk, through the editor's
-//! [`Watcher`](kage_editor::reload::Watcher) (folder watched, so rename-replace and
+//! [`Watcher`](kage_gpu::reload::Watcher) (folder watched, so rename-replace and
 //! delete-recreate saves are seen; only changed bytes count). A change that leaves the file
 //! half-written fails to import, is reported, and the next change is waited for.
 
 use anyhow::{Context, Result};
-use kage_editor::reload::Watcher;
+use kage_gpu::reload::Watcher;
 use std::path::Path;
 
 /// Calls `on_change` after every change to `scene` (or a file beside it with the same stem,

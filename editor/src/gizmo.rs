@@ -6,8 +6,8 @@
 //! applies what [`Drag::step`] returns through the editor's edits (so a drag is undoable, as one
 //! step, like any other edit).
 
-use super::camera::Orbit;
 use glam::{Quat, Vec2, Vec3};
+use kage_gpu::camera::Orbit;
 
 /// What dragging a handle does.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

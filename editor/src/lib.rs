@@ -4,16 +4,16 @@
 //! the same hecs world the CLI uses. Nothing here blocks the UI thread on long work: bakes,
 //! references and exact visibility run in the background and stream their results in.
 //!
-//! - [`state`]: the model (scene ECS world, view, bakes, results) and the edits;
+//! - [`document`]: the scene's ECS world, selection, history and saved baseline, and the edits
+//!   (no GPU); [`state`]: the editor around it (view, bakes, results, GPU, workers);
 //! - [`systems`]: the per-frame schedule — hot reload, poses, environment, bakes, reference,
 //!   shading — plain functions over the state, none of which blocks on long work;
 //! - [`bake_job`]: BSPVT and PRT bakes in parallel in the background, through the database;
-//! - [`viewport`]: the wgpu preview; [`ui`]: the egui panels; [`reload`]: file watching;
-//!   [`camera`]: the orbit camera; [`files`]: save and export; [`history`]: undo and redo.
+//! - [`ui`]: the egui panels, showing `kage_gpu::viewport`'s preview (which also draws
+//!   `kage render --gpu`, and watches files: `kage_gpu::reload`); [`files`]: save and export;
+//!   [`history`]: undo and redo records.
 
 pub mod bake_job;
-pub mod camera;
-pub mod detail;
 pub mod document;
 pub mod entities;
 pub mod files;
@@ -22,14 +22,10 @@ pub mod history;
 mod indirect;
 pub mod interaction;
 pub mod pick;
-pub mod reload;
-mod sky;
 pub mod source;
 pub mod state;
-mod sun_shadow;
 pub mod systems;
 pub mod ui;
-pub mod viewport;
 mod worker;
 
 use anyhow::{Context, Result};

@@ -3,9 +3,7 @@
 //! it once per frame.
 
 use super::bake_job::BakeJob;
-use super::camera::Orbit;
 use super::document::{Change, Document};
-use super::reload::Watcher;
 use super::worker::Worker;
 use glam::{Quat, Vec3};
 use kage_bake_db::Store;
@@ -17,7 +15,9 @@ use kage_engine::scene::{
 use kage_engine::shading::Method;
 use kage_engine::{bspvt, prt};
 use kage_gpu::bspvt::BspvtShader;
+use kage_gpu::camera::Orbit;
 use kage_gpu::prt::PrtShader;
+use kage_gpu::reload::Watcher;
 use kage_gpu::{Gpu, Shaders};
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -287,10 +287,10 @@ pub struct Editor {
     pub per_pixel: Option<prt::Frame>,
     /// The lobes the viewport draws the polygonal lights with per pixel
     /// ([`Editor::lights_per_pixel`]).
-    pub pixel_lights: Option<crate::viewport::PixelLights>,
+    pub pixel_lights: Option<kage_gpu::viewport::PixelLights>,
     /// The map's sun per vertex, which the per-vertex draw shades per pixel under its depth
     /// map (`baked`, when the lights are not drawn per pixel).
-    pub vertex_sun: Option<crate::viewport::VertexSun>,
+    pub vertex_sun: Option<kage_gpu::viewport::VertexSun>,
     pub(super) gpu: Gpu,
     pub(super) shaders: Shaders,
     pub(super) bspvt_gpu: Option<BspvtShader>,

@@ -5,9 +5,7 @@
 use super::bake_job::{BakeJob, ChunkData, Landed};
 use super::indirect::{BakedParts, HitLight, Indirect, Job};
 use super::pick::Seen;
-use super::reload::Change;
 use super::state::Editor;
-use super::viewport::{PixelEnvironment, PixelLights, VertexSun};
 use super::worker::Worker;
 use glam::Vec3;
 use kage_bake_db::DbError;
@@ -23,6 +21,8 @@ use kage_engine::shading::baked::{Look, Polygonal};
 use kage_engine::{bspvt, prt};
 use kage_gpu::bspvt::{BspvtShader, Mode};
 use kage_gpu::prt::PrtShader;
+use kage_gpu::reload::Change;
+use kage_gpu::viewport::{PixelEnvironment, PixelLights, VertexSun};
 use std::sync::Arc;
 use std::sync::atomic::Ordering;
 use std::time::Instant;
@@ -100,7 +100,7 @@ fn plain_frames(report: &str) -> String {
 }
 
 /// A change of the scene file on disk (the editor's own saves are not reported: see
-/// [`super::reload::Watcher::note_write`]): a question ([`Editor::outside_change`]) when edits
+/// [`kage_gpu::reload::Watcher::note_write`]): a question ([`Editor::outside_change`]) when edits
 /// are unsaved, a re-import otherwise.
 fn scene_changed(ed: &mut Editor) {
     let Some(path) = ed.options.scene_path.clone() else { return };

@@ -3,12 +3,12 @@
 
 use super::state::{Editor, Selection};
 use super::systems::run_frame;
-use super::viewport::Viewport;
 use eframe::egui;
 use glam::{Quat, Vec3};
 use kage_engine::named::Named;
 use kage_engine::scene::{EnvironmentLight, Material, PolygonLight, Transform};
 use kage_engine::shading::Method;
+use kage_gpu::viewport::Viewport;
 use std::sync::atomic::Ordering;
 use std::time::Instant;
 
@@ -17,6 +17,8 @@ pub struct App {
     /// The editor's state (public for tests).
     pub editor: Editor,
     viewport: Option<Viewport>,
+    /// The viewport's texture as egui knows it.
+    texture: Option<egui::TextureId>,
     /// The revision of the editor's values the viewport holds.
     values_revision: Option<u64>,
     last_frame: Option<Instant>,
@@ -55,6 +57,7 @@ impl App {
         Self {
             editor,
             viewport,
+            texture: None,
             values_revision: None,
             last_frame: None,
             status: String::new(),
@@ -240,11 +243,32 @@ impl App {
         let px = [(rect.width() * ppp) as u32, (rect.height() * ppp) as u32];
         self.editor.aspect = rect.width() / rect.height().max(1.0);
         let ed = &self.editor;
-        let id = vp.paint(ed.gpu(), &mut rs.renderer.write(), px, &ed.orbit, ed.exposure, ed.overlay);
+        let shown = vp.paint(ed.gpu(), px, &ed.orbit, ed.exposure, ed.overlay);
+        let id = match self.texture.filter(|_| !shown.new) {
+            Some(id) => id,
+            None => register(&mut rs.renderer.write(), ed.gpu(), shown.view, self.texture),
+        };
+        self.texture = Some(id);
         self.editor.stats.draw = vp.draw_seconds();
         let uv = egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0));
         ui.painter().image(id, rect, uv, egui::Color32::WHITE);
         super::interaction::paint(ui, &self.editor, rect, self.drag.as_ref());
+    }
+}
+
+/// Gives egui the viewport's texture `view`: under the id it had (`old`), or a new one.
+fn register(
+    renderer: &mut eframe::egui_wgpu::Renderer,
+    gpu: &kage_gpu::Gpu,
+    view: &wgpu::TextureView,
+    old: Option<egui::TextureId>,
+) -> egui::TextureId {
+    match old {
+        Some(id) => {
+            renderer.update_egui_texture_from_wgpu_texture(&gpu.device, view, wgpu::FilterMode::Linear, id);
+            id
+        }
+        None => renderer.register_native_texture(&gpu.device, view, wgpu::FilterMode::Linear),
     }
 }
 

@@ -6,7 +6,11 @@
 //!   and never reaches the device;
 //! - [`bspvt`]: per-vertex BSPVT shading — tree descent and LTC integration per light;
 //! - [`prt`]: per-vertex PRT shading — SH transfer against each group's posed lighting and the
-//!   other groups' box-filtered silhouettes.
+//!   other groups' box-filtered silhouettes;
+//! - [`viewport`]: the preview renderer the editor shows and `kage render --gpu` draws through
+//!   (per-pixel lights and PRT, the base-colour texture's detail, the sky, the sun's shadow
+//!   map), viewed through an [`camera::Orbit`]; it knows no GUI;
+//! - [`reload`]: hot reload of shaders and scene files (notify).
 //!
 //! Both match the CPU path (`kage_engine::bspvt::shade`, `kage_engine::prt::Frame`) within
 //! 1e-3 relative plus 1e-5 absolute (tests in `tests/tests/gpu.rs`): the GPU computes in f32
@@ -15,9 +19,12 @@
 
 pub mod bspvt;
 pub mod buffers;
+pub mod camera;
 pub mod context;
 pub mod prt;
+pub mod reload;
 pub mod shader;
+pub mod viewport;
 
 pub use context::Gpu;
 use kage_engine::scene::VertexValues;

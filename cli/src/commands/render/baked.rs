@@ -4,7 +4,6 @@
 use super::{Args, Job, Outputs, indirect, run_plan};
 use crate::commands::bake::print_plan;
 use anyhow::{Context, Result, bail};
-use kage_editor::camera::Orbit;
 use kage_engine::bspvt;
 use kage_engine::bspvt::pixel::Lobes;
 use kage_engine::cache;
@@ -14,6 +13,7 @@ use kage_engine::reference::Renderer;
 use kage_engine::scene::Scene;
 use kage_engine::scene::VertexValues;
 use kage_engine::shading::baked::{Bakes, EnvironmentMemo, Look};
+use kage_gpu::camera::Orbit;
 use std::time::Instant;
 
 /// The bakes the look shades from, read from a pack or the database.
@@ -70,7 +70,7 @@ pub(super) fn run(job: &Job) -> Result<Outputs> {
 /// the vertices), everything else (`values`: the look per vertex) interpolated, materials per
 /// pixel. Where the device or a light does not allow per-pixel lights, per vertex (said).
 fn gpu_image(job: &Job, bakes: Bakes, values: &VertexValues) -> Result<Vec<glam::Vec3>> {
-    use kage_editor::viewport::{PixelEnvironment, PixelLights, Viewport};
+    use kage_gpu::viewport::{PixelEnvironment, PixelLights, Viewport};
     let Job { args, scene, renderer, camera, .. } = *job;
     let (flat, eye) = (&renderer.flat, camera.eye());
     let kage_engine::scene::Projection::Perspective { .. } = camera.projection else {

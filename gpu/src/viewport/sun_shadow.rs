@@ -7,9 +7,9 @@
 //! shadows), as `kage render`'s CPU image spreads its shadow rays over the sun's disc. The
 //! map is part of the view's bind group (bindings 1 and 2).
 
+use crate::Gpu;
 use glam::{Mat4, Vec3};
 use kage_engine::prt::sun::Sun;
-use kage_gpu::Gpu;
 
 /// Texels per side.
 pub const SIZE: u32 = 2048;

@@ -3,12 +3,12 @@
 //! the base-colour texture's detail per pixel over per-vertex lighting.
 
 use glam::Vec3;
-use kage_editor::camera::Orbit;
-use kage_editor::viewport::Viewport;
 use kage_engine::output::display_srgb;
 use kage_engine::prt::{self, Shadows};
 use kage_engine::reference::Renderer;
 use kage_engine::scene::{Camera, EnvMap, EnvironmentLight, FlatScene, Scene, flatten, import};
+use kage_gpu::camera::Orbit;
+use kage_gpu::viewport::Viewport;
 use kage_gpu::{Gpu, Shaders};
 use std::path::PathBuf;
 
@@ -121,9 +121,9 @@ fn lights_drawn(
     flat: &kage_engine::scene::FlatScene,
     orbit: &Orbit,
 ) -> (Vec<[u8; 3]>, image::RgbaImage, image::RgbaImage) {
-    use kage_editor::viewport::PixelLights;
     use kage_engine::bspvt::{self, pixel::Inside, pixel::Lobes};
     use kage_engine::raster::shade_image;
+    use kage_gpu::viewport::PixelLights;
     let bake = bspvt::bake(flat, &bspvt::Settings { res: 16, epsilon: 2.0 }, &|_| {});
     let eye = orbit.eye();
     let (lobes, values) = Lobes::at_vertices(flat, Some(&bake), eye, Inside::default().flags(flat));
@@ -194,7 +194,6 @@ fn the_environments_reflection_is_drawn_per_pixel() {
 /// levels of its CPU statement, and of its per-pixel and per-vertex images within 6 levels of
 /// `kage render`'s.
 fn reflection_drawn(map: &str) -> (f64, f64, f64) {
-    use kage_editor::viewport::{PixelEnvironment, PixelLights, PixelSun};
     use kage_engine::accel::SceneBvh;
     use kage_engine::bspvt::{self, pixel::Inside, pixel::Lobes};
     use kage_engine::material::Bsdf;
@@ -203,6 +202,7 @@ fn reflection_drawn(map: &str) -> (f64, f64, f64) {
     use kage_engine::raster::shade_image;
     use kage_engine::scene::Material;
     use kage_engine::shading::baked::{Bakes, EnvironmentMemo, Look, Polygonal, sun_light, sun_vertices};
+    use kage_gpu::viewport::{PixelEnvironment, PixelLights, PixelSun};
     let gpu = Gpu::new().expect("a wgpu device (lavapipe without a GPU)");
     let mut scene = import::import(&asset("scenes/two_triangle_floor.gltf"), Default::default()).unwrap();
     scene.set_environment(EnvironmentLight::new(EnvMap::load(&asset(&format!("envmaps/{map}.hdr"))).unwrap()));
@@ -448,7 +448,7 @@ fn the_view_is_drawn_with_four_samples_per_pixel() {
         let image = vp.render_image(&gpu, [96, 96], &orbit, 0.0).unwrap();
         image.pixels().map(|p| p.0[0]).collect::<Vec<u8>>()
     };
-    let (one, four) = (drawn(1), drawn(kage_editor::viewport::SAMPLES));
+    let (one, four) = (drawn(1), drawn(kage_gpu::viewport::SAMPLES));
     let partial = |img: &[u8]| img.iter().filter(|&&v| v > 8 && v < 247).count();
     let coverage = |img: &[u8]| img.iter().map(|&v| v as f64 / 255.0).sum::<f64>();
     assert_eq!(partial(&one), 0, "one sample: every pixel all or nothing");
@@ -502,9 +502,9 @@ fn cut_outs_are_open_in_the_viewport() {
 /// the sun's shadowed light interpolated from the vertices, 93.8 %.
 #[test]
 fn the_per_vertex_draw_shades_the_sun_per_pixel() {
-    use kage_editor::viewport::VertexSun;
     use kage_engine::accel::{SceneBvh, offset_ray_origin};
     use kage_engine::shading::baked::sun_vertices;
+    use kage_gpu::viewport::VertexSun;
     let gpu = Gpu::new().expect("a wgpu device (lavapipe without a GPU)");
     let mut scene = import::import(&asset("scenes/cutout_lattice.gltf"), Default::default()).unwrap();
     scene.refine_instances("floor", 3000).unwrap();

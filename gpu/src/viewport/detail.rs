@@ -5,13 +5,13 @@
 //! is proportional to the base colour, and one where the material does not vary. The CPU
 //! image (`Look::render`) shades the material per pixel; this is the preview's cheaper form.
 
+use crate::Gpu;
+use crate::buffers::texture_2d;
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
 use kage_engine::math::color::linear_to_srgb;
 use kage_engine::scene::texture::{Texture, Wrap};
 use kage_engine::scene::{FlatScene, TextureSlot};
-use kage_gpu::Gpu;
-use kage_gpu::buffers::texture_2d;
 
 /// `detail` of preview.wgsl's vertex input: the base-colour UV, the texture's value there, and
 /// the cut-out's factor and cutoff.

@@ -3,11 +3,11 @@
 //! equirectangular map — filtered bilinearly (`EnvMap::bilinear`), the light's rotation and intensity applied, the
 //! mapping of `kage_engine::scene::environment::dir_to_uv`.
 
+use crate::Gpu;
+use crate::buffers::texture_2d;
 use bytemuck::{Pod, Zeroable};
 use glam::Vec4;
 use kage_engine::scene::{EnvMap, EnvironmentLight};
-use kage_gpu::Gpu;
-use kage_gpu::buffers::texture_2d;
 use std::sync::Arc;
 use wgpu::util::DeviceExt;
 
