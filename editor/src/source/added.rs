@@ -6,7 +6,7 @@
 //! where the member has one, or a material made from its factors.
 
 use super::json::{Object, edit_object, set};
-use super::{Plan, set_transform};
+use super::{SaveEdits, set_transform};
 use glam::{Affine3A, Vec3};
 use kage_engine::scene::{
     Emitter, InGroup, Material, MaterialMaps, Mesh, MeshRef, Name, PolygonLight, PrimitiveId, RigidGroup, Transform,
@@ -29,7 +29,7 @@ impl Member {
     }
 }
 
-impl Plan<'_> {
+impl SaveEdits<'_> {
     /// Writes every group the baseline does not hold; returns how many.
     pub(super) fn added(&mut self) -> usize {
         let w = &self.scene.world;

@@ -107,7 +107,8 @@ pub fn save(scene: &Scene, baseline: &Baseline, from: &Path, to: &Path) -> Resul
         (bytes, None)
     };
     let mut file = GltfJson::parse(&json).map_err(|e| format!("{name}: {e}"))?;
-    let mut plan = Plan { scene, baseline, doc: &doc, file: &mut file, problems: Vec::new(), nodes: 0, materials: 0 };
+    let mut plan =
+        SaveEdits { scene, baseline, doc: &doc, file: &mut file, problems: Vec::new(), nodes: 0, materials: 0 };
     let added = plan.added();
     plan.deleted();
     plan.groups_and_lights();
@@ -151,7 +152,7 @@ fn set_transform(node: &mut Object, m: Affine3A) {
 }
 
 /// The edits to write, and what stops them.
-struct Plan<'a> {
+struct SaveEdits<'a> {
     scene: &'a Scene,
     baseline: &'a Baseline,
     doc: &'a gltf::Document,
@@ -161,7 +162,7 @@ struct Plan<'a> {
     materials: usize,
 }
 
-impl Plan<'_> {
+impl SaveEdits<'_> {
     fn node_name(&self, n: usize) -> String {
         let name = self.doc.nodes().nth(n).and_then(|x| x.name().map(str::to_string)).unwrap_or_default();
         format!("nodes[{n}] ('{name}')")

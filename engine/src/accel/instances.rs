@@ -9,7 +9,7 @@
 //! An instance of many triangles (a terrain) is asked in pieces of nearby triangles, each a
 //! pure function of the instance's triangles ([`PIECE`]), so the same holds. Many rays from one
 //! point through one pyramid (a BSPVT tile's texels) first list the few pieces the pyramid can
-//! meet ([`Occluders::view`], [`View::narrow`]) and then ask only those, eight boxes at a time:
+//! meet ([`Occluders::view`], [`Frustum::narrow`]) and then ask only those, eight boxes at a time:
 //! on a large level a ray no longer descends the whole terrain's BVH, nor the top-level tree.
 
 use super::SceneBvh;
@@ -211,8 +211,8 @@ impl Occluders {
     /// pyramid `planes · d ≥ −slack` (`planes` unit inward normals of planes through `apex`),
     /// found by one walk of the top-level tree: those whose boxes are not wholly outside one of
     /// the planes ([`outside_none`]). Narrower pyramids inside it cut their own lists from it
-    /// ([`View::narrow`]).
-    pub fn view(&self, apex: Vec3, planes: &[Vec3], slack: f32) -> View {
+    /// ([`Frustum::narrow`]).
+    pub fn view(&self, apex: Vec3, planes: &[Vec3], slack: f32) -> Frustum {
         let keeps = |i: &&u32| {
             let p = &self.pieces[**i as usize];
             outside_none(apex, planes, slack, p.lo, p.hi)
@@ -225,13 +225,13 @@ impl Occluders {
                 false
             },
         );
-        View::new(apex, ids.iter().map(|&i| (i, &self.pieces[i as usize])))
+        Frustum::new(apex, ids.iter().map(|&i| (i, &self.pieces[i as usize])))
     }
 
     /// [`Self::occluded`] for a ray from `view`'s apex that only the pieces `view` lists may
     /// block: its direction inside the pyramid `view` was made for.
     #[inline(never)]
-    pub fn occluded_among(&self, view: &View, dir: Vec3, tmax: f32) -> bool {
+    pub fn occluded_among(&self, view: &Frustum, dir: Vec3, tmax: f32) -> bool {
         let ray = self.ray(view.apex, dir, tmax);
         view.boxes.iter().zip(view.ids.chunks(LANES)).any(|(boxes, ids)| {
             let mut met = boxes.met_by(ray.inv, tmax);
@@ -268,7 +268,7 @@ fn outside_none(apex: Vec3, planes: &[Vec3], slack: f32, lo: Vec3, hi: Vec3) -> 
 /// vertex's hemisphere, one cube face of it, one tile of a face), with their boxes relative to
 /// the apex [`LANES`] at a time: a narrower pyramid's list is cut from it eight boxes per test,
 /// and a ray tests eight boxes at once.
-pub struct View {
+pub struct Frustum {
     apex: Vec3,
     /// The pieces, in the order the tree found them.
     ids: Vec<u32>,
@@ -276,7 +276,7 @@ pub struct View {
     boxes: Vec<Boxes>,
 }
 
-impl View {
+impl Frustum {
     /// The view from `apex` of the `(index, piece)`s.
     fn new<'a>(apex: Vec3, pieces: impl Iterator<Item = (u32, &'a Piece)>) -> Self {
         let (ids, corners): (Vec<u32>, Vec<(Vec3, Vec3)>) =
@@ -287,7 +287,7 @@ impl View {
     /// The pieces listed that a ray from the apex may meet while its direction `d` stays
     /// inside the pyramid `planes · d ≥ −slack` too: every piece [`outside_none`] keeps, and
     /// perhaps a few more.
-    pub fn narrow(&self, planes: &[Vec3], slack: f32) -> View {
+    pub fn narrow(&self, planes: &[Vec3], slack: f32) -> Frustum {
         let mut kept = Vec::new();
         for (k, b) in self.boxes.iter().enumerate() {
             let mut lanes = b.inside(planes, slack);
@@ -534,7 +534,7 @@ mod tests {
 
     /// Rays from one point inside a pyramid (or within its slack) get the same answers from the
     /// pieces its view lists as from every instance, whether the view is made for the pyramid
-    /// ([`Occluders::view`]) or cut from a wider one ([`View::narrow`]); the lists hold every
+    /// ([`Occluders::view`]) or cut from a wider one ([`Frustum::narrow`]); the lists hold every
     /// piece the scalar test keeps and leave most pieces out.
     #[test]
     fn a_pyramid_of_rays_meets_only_what_it_sees() {

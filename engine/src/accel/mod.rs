@@ -10,7 +10,7 @@ mod stored;
 pub(crate) mod top_level;
 
 pub(crate) use instances::slab_hits;
-pub use instances::{Occluders, View};
+pub use instances::{Frustum, Occluders};
 
 use crate::math::sampling;
 use crate::scene::{FlatScene, Holes};

@@ -5,7 +5,7 @@ use super::depth;
 use super::grid;
 use super::node::TILE;
 use super::reach::Reach;
-use crate::accel::{Occluders, View, offset_ray_origin};
+use crate::accel::{Frustum, Occluders, offset_ray_origin};
 use crate::math::cubemap;
 use glam::{DVec3, Vec3};
 
@@ -76,7 +76,7 @@ pub fn cast_face(occluders: &Occluders, p: Vec3, n: Vec3, f: usize, res: usize) 
 
 /// The pieces of `occluders` that rays from a vertex at `p` (unit normal `n`) into the
 /// hemisphere above its horizon may meet, from [`horizon_origin`], for [`cast_face_tiles`].
-pub fn hemisphere(occluders: &Occluders, p: Vec3, n: Vec3, res: usize) -> View {
+pub fn hemisphere(occluders: &Occluders, p: Vec3, n: Vec3, res: usize) -> Frustum {
     occluders.view(horizon_origin(p, n), &[n], lifted(res))
 }
 
@@ -93,7 +93,7 @@ fn lifted(res: usize) -> f32 {
 /// vertex's [`hemisphere`].
 pub fn cast_face_tiles(
     occluders: &Occluders,
-    hemisphere: &View,
+    hemisphere: &Frustum,
     (p, n): (Vec3, Vec3),
     f: usize,
     res: usize,
@@ -116,7 +116,7 @@ pub fn cast_face_tiles(
     let block = |columns, rows| grid::with_grids(res, |g| g[f].block_sides(columns, rows, k)).map(|m| m.as_vec3());
     let face = block(0..k, 0..k);
     let view = hemisphere.narrow(&face, lifted);
-    let mut seen: Option<(usize, View, [Vec3; 4])> = None;
+    let mut seen: Option<(usize, Frustum, [Vec3; 4])> = None;
     cast_tiles(&horizon, &looks, every, |t, _, d, centred| {
         let o = ray_origin(above, p, n, d);
         let slack = if centred { 0.0 } else { lifted };
@@ -580,7 +580,7 @@ mod tests {
     }
 
     /// Asking each tile's rays only what its pyramid sees (the vertex's [`hemisphere`] cut to a
-    /// face, then to the tile: [`crate::accel::View::narrow`]) changes no texel: over a
+    /// face, then to the tile: [`crate::accel::Frustum::narrow`]) changes no texel: over a
     /// terrain of several pieces with stones on it, from vertices on the ground and on slopes
     /// (tiles the horizon crosses included), at a power-of-two resolution and one whose last
     /// tiles are narrower, every texel equals the ray cast against everything.

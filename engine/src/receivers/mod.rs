@@ -40,7 +40,7 @@ use crate::scene::refine::{Adaptive, Refined};
 use crate::scene::{FlatScene, PrimitiveId, Scene, flatten};
 use glam::Vec3;
 use marks::{Memo, Tier};
-use probe::{Near, Probe, Scope, View};
+use probe::{Near, Probe, Scope, Sources};
 use rayon::prelude::*;
 
 /// How far to refine.
@@ -141,15 +141,15 @@ pub fn keys(scene: &Scene, settings: &Settings) -> Vec<blake3::Hash> {
 }
 
 /// Hashes what the probe looks at.
-fn hash_views(h: &mut blake3::Hasher, views: &[View]) {
+fn hash_views(h: &mut blake3::Hasher, views: &[Sources]) {
     for view in views {
         match view {
-            View::Points { points, facing } => {
+            Sources::Points { points, facing } => {
                 h.update(&(points.len() as u64).to_le_bytes());
                 h.update(bytemuck::cast_slice(points));
                 h.update(bytemuck::bytes_of(&facing.unwrap_or(Vec3::ZERO)));
             }
-            View::Directions(d) => {
+            Sources::Directions(d) => {
                 h.update(&(d.len() as u64).to_le_bytes());
                 d.iter().for_each(|(dir, w)| {
                     h.update(bytemuck::bytes_of(dir));

@@ -19,7 +19,7 @@ const MAX_CELLS_PER_AXIS: f32 = 3.0;
 const ENVIRONMENT_DIRECTIONS: u32 = 64;
 
 /// What the probe measures the visibility of.
-pub(super) enum View {
+pub(super) enum Sources {
     /// Points on a light, or in one cell of a light's reach box. A point counts only from in
     /// front of `facing` (a light that may move and turn within its box has none).
     Points { points: Vec<Vec3>, facing: Option<Vec3> },
@@ -47,7 +47,7 @@ pub(super) struct Near {
 /// name each receiver's refinement ([`super::keys`]) without casting a ray.
 pub(super) struct Scope {
     /// The lights' views, then the environment's (if any).
-    pub views: Vec<View>,
+    pub views: Vec<Sources>,
     /// How many of `views` are the lights'.
     pub lights: usize,
     /// Per instance, the world bounds of its occluding triangles (`None`: it has none).
@@ -71,7 +71,7 @@ impl Scope {
         groups.sort();
         groups.dedup();
         let group_of = flat.instances.iter().map(|i| groups.binary_search(&i.group).expect("listed")).collect();
-        let mut views: Vec<View> = flat.lights.iter().flat_map(light_views).collect();
+        let mut views: Vec<Sources> = flat.lights.iter().flat_map(light_views).collect();
         let lights = views.len();
         views.extend(flat.environment.as_ref().map(environment_view));
         let triangles: Vec<Vec<[Vec3; 3]>> = (0..flat.instances.len()).map(|i| flat.occluder_triangles(i)).collect();
@@ -86,7 +86,7 @@ impl Scope {
         let Some(own) = self.bounds[i] else { return Near::default() };
         let mut boxes = vec![own];
         for view in &self.views[..self.lights] {
-            if let View::Points { points, .. } = view {
+            if let Sources::Points { points, .. } = view {
                 boxes.push(bounds(points.iter().chain([own.0, own.1].iter())).expect("points"));
             }
         }
@@ -181,7 +181,7 @@ impl<'a> Probe<'a> {
         let mut out = Vec::with_capacity(self.scope.views.len() + self.scope.lights);
         for view in &self.scope.views {
             match view {
-                View::Points { points, facing } => {
+                Sources::Points { points, facing } => {
                     let (mut seen, mut above) = (0, 0);
                     for &s in points {
                         let d = s - origin;
@@ -197,7 +197,7 @@ impl<'a> Probe<'a> {
                     }
                     out.extend([seen as f32 / points.len() as f32, above as f32 / points.len() as f32]);
                 }
-                View::Directions(dirs) => {
+                Sources::Directions(dirs) => {
                     let (mut lit, mut all) = (0.0, 0.0);
                     for &(dir, w) in dirs.iter().filter(|(d, _)| d.dot(n) > 0.0) {
                         let w = w * dir.dot(n);
@@ -255,9 +255,12 @@ fn overlap((a0, a1): (Vec3, Vec3), (b0, b1): (Vec3, Vec3)) -> bool {
 /// each cell of its box (the box split into cells about the light's size, at most 3 per axis;
 /// 9 points each, from any side). The cells depend on the box alone, so moving the light
 /// inside it changes no refined mesh and no bake key.
-fn light_views(light: &FlatLight) -> Vec<View> {
+fn light_views(light: &FlatLight) -> Vec<Sources> {
     let Some([lo, hi]) = light.reach else {
-        return vec![View::Points { points: spread_points(&light.points, LIGHT_POINTS), facing: Some(light.normal) }];
+        return vec![Sources::Points {
+            points: spread_points(&light.points, LIGHT_POINTS),
+            facing: Some(light.normal),
+        }];
     };
     // The box grown to hold the light where it is, as the bake's reach is (`bspvt::reach`).
     let (lo, hi) = light.points.iter().fold((lo, hi), |(a, b), p| (a.min(*p), b.max(*p)));
@@ -271,7 +274,7 @@ fn light_views(light: &FlatLight) -> Vec<View> {
             let sign = Vec3::new([-1.0, 1.0][c & 1], [-1.0, 1.0][(c >> 1) & 1], [-1.0, 1.0][c >> 2]);
             centre + 0.9 * half * sign
         });
-        views.push(View::Points { points: std::iter::once(centre).chain(corners).collect(), facing: None });
+        views.push(Sources::Points { points: std::iter::once(centre).chain(corners).collect(), facing: None });
     }
     views
 }
@@ -279,13 +282,13 @@ fn light_views(light: &FlatLight) -> Vec<View> {
 /// The environment's view: fixed directions spread evenly over the sphere, weighted by the
 /// radiance's luminance. A small bright source (a sun) is rarely among them: the look shades
 /// it per pixel, not per vertex.
-fn environment_view(env: &EnvironmentLight) -> View {
+fn environment_view(env: &EnvironmentLight) -> Sources {
     let dirs = (0..ENVIRONMENT_DIRECTIONS)
         .map(|i| uniform_sphere(hammersley(i, ENVIRONMENT_DIRECTIONS)))
         .map(|d| (d, luminance(env.radiance(d))))
         .filter(|(_, w)| w.is_finite() && *w > 0.0)
         .collect();
-    View::Directions(dirs)
+    Sources::Directions(dirs)
 }
 
 /// Points spread evenly over a light polygon (area-uniform over its fan of triangles, from a

@@ -3,7 +3,7 @@
 //! each pixel. A pixel's radiance is the interpolated vertex radiance times the texture there
 //! over the texture's value interpolated from the vertices — exact for the diffuse part, which
 //! is proportional to the base colour, and one where the material does not vary. The CPU
-//! image (`Look::render`) shades the material per pixel; this is the preview's cheaper form.
+//! image (`kage_engine::shading::baked::Look::render`) shades the material per pixel; this is the preview's cheaper form.
 
 use crate::Gpu;
 use crate::buffers::texture_2d;

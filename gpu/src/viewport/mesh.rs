@@ -31,13 +31,13 @@ impl Mesh {
 }
 
 /// What a drawable shows: radiance and texture detail per vertex, and the texture.
-pub(super) struct Look<'a> {
+pub(super) struct VertexData<'a> {
     pub(super) radiance: &'a [Vec3],
     pub(super) detail: &'a [Detail],
     pub(super) texture: wgpu::BindGroup,
 }
 
-pub(super) fn mesh_buffers(gpu: &Gpu, positions: &[Vec3], look: Look, indices: &[u32]) -> Mesh {
+pub(super) fn mesh_buffers(gpu: &Gpu, positions: &[Vec3], look: VertexData, indices: &[u32]) -> Mesh {
     let init = |label, contents: &[u8], usage| {
         gpu.device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents, usage })
     };

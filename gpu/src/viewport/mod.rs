@@ -60,7 +60,7 @@ pub const SAMPLES: u32 = 4;
 
 #[repr(C)]
 #[derive(Clone, Copy, Pod, Zeroable)]
-struct View {
+struct ViewUniform {
     view_proj: [[f32; 4]; 4],
     exposure: [f32; 4],
     inverse_view_proj: [[f32; 4]; 4],
@@ -156,7 +156,7 @@ impl Viewport {
         });
         let uniform = gpu.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("preview view"),
-            size: std::mem::size_of::<View>() as u64,
+            size: std::mem::size_of::<ViewUniform>() as u64,
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
@@ -340,7 +340,7 @@ impl Viewport {
             return;
         }
         let clip = self.sun.aim(sun, flat.bounding_sphere());
-        let view = View { sun_clip: clip.to_cols_array_2d(), ..Zeroable::zeroed() };
+        let view = ViewUniform { sun_clip: clip.to_cols_array_2d(), ..Zeroable::zeroed() };
         // The pass binds the view with a stand-in map: it draws into the real one.
         gpu.queue.write_buffer(&self.uniform, 0, bytemuck::bytes_of(&view));
         let mut encoder = gpu.device.create_command_encoder(&Default::default());
@@ -379,7 +379,8 @@ impl Viewport {
                     let layout = &self.detail_layout;
                     textures.entry(t).or_insert_with(|| detail::bind_group(gpu, layout, flat, t)).clone()
                 };
-                let look = Look { radiance: &vec![Vec3::ZERO; p.len()], detail: &detail::vertices(flat, i), texture };
+                let look =
+                    VertexData { radiance: &vec![Vec3::ZERO; p.len()], detail: &detail::vertices(flat, i), texture };
                 mesh_buffers(gpu, &p, look, &idx)
             })
             .collect();
@@ -389,8 +390,11 @@ impl Viewport {
             .map(|l| {
                 let idx: Vec<u32> = (1..l.points.len() as u32 - 1).flat_map(|k| [0, k, k + 1]).collect();
                 let n = l.points.len();
-                let look =
-                    Look { radiance: &vec![l.radiance; n], detail: &vec![detail::PLAIN; n], texture: plain.clone() };
+                let look = VertexData {
+                    radiance: &vec![l.radiance; n],
+                    detail: &vec![detail::PLAIN; n],
+                    texture: plain.clone(),
+                };
                 let centre = l.points.iter().sum::<Vec3>() / n as f32;
                 (mesh_buffers(gpu, &l.points, look, &idx), LightSide { centre, normal: l.normal, radiance: l.radiance })
             })
@@ -461,7 +465,7 @@ impl Viewport {
         let [w, h] = [size[0].clamp(1, 4096), size[1].clamp(1, 4096)];
         let usage = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC;
         let color = texture(gpu, [w, h], COLOR, usage, 1);
-        let frame = Frame::new(gpu, &color, self.samples);
+        let frame = Attachments::new(gpu, &color, self.samples);
         self.draw(gpu, &self.pipelines, &frame, [w, h], orbit, Output::Display(exposure), wgpu::Color::BLACK);
         let data = read_back(gpu, &color, [w, h], 4)?;
         Ok(image::RgbaImage::from_raw(w, h, data).expect("w × h × 4 bytes"))
@@ -481,7 +485,7 @@ impl Viewport {
         let pipelines = self.build(gpu, shaders, (RADIANCE, 1))?;
         let usage = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC;
         let color = texture(gpu, [w, h], RADIANCE, usage, 1);
-        let frame = Frame::new(gpu, &color, 1);
+        let frame = Attachments::new(gpu, &color, 1);
         self.draw(gpu, &pipelines, &frame, [w, h], orbit, Output::Radiance, wgpu::Color::BLACK);
         let data = read_back(gpu, &color, [w, h], 16)?;
         Ok(bytemuck::cast_slice::<u8, [f32; 4]>(&data).iter().map(|p| Vec3::new(p[0], p[1], p[2])).collect())
@@ -493,7 +497,7 @@ impl Viewport {
         &self,
         gpu: &Gpu,
         pipelines: &Pipelines,
-        frame: &Frame,
+        frame: &Attachments,
         size: [u32; 2],
         orbit: &Orbit,
         output: Output,
@@ -504,7 +508,7 @@ impl Viewport {
             Output::Overlay | Output::Radiance => (0.0, true),
         };
         let view_proj = orbit.view_proj(size[0] as f32 / size[1] as f32);
-        let view = View {
+        let view = ViewUniform {
             view_proj: view_proj.to_cols_array_2d(),
             exposure: [exposure.exp2(), if raw { 1.0 } else { 0.0 }, 0.0, 0.0],
             inverse_view_proj: view_proj.inverse().to_cols_array_2d(),

@@ -6,7 +6,7 @@ use super::*;
 /// The offscreen target: [`SAMPLES`] per pixel, resolved into the texture a GUI shows.
 pub(super) struct Target {
     pub(super) size: [u32; 2],
-    pub(super) frame: Frame,
+    pub(super) frame: Attachments,
 }
 
 /// The texture a [`Viewport::paint`] drew into.
@@ -20,13 +20,13 @@ pub struct Shown<'a> {
 
 /// What one frame draws into: colour and depth of some samples per pixel, and the one-sample
 /// colour they resolve into (the colour itself at one sample).
-pub(super) struct Frame {
+pub(super) struct Attachments {
     pub(super) color: wgpu::TextureView,
     pub(super) depth: wgpu::TextureView,
     pub(super) resolved: Option<wgpu::TextureView>,
 }
 
-impl Frame {
+impl Attachments {
     /// Views of `color` (a one-sample texture of `size`, read afterwards) with `samples`
     /// multisampled colour and depth textures in front of it when `samples` > 1.
     pub(super) fn new(gpu: &Gpu, color: &wgpu::Texture, samples: u32) -> Self {
@@ -97,5 +97,5 @@ pub(super) fn read_back(
 
 pub(super) fn make_target(gpu: &Gpu, (size, samples): ([u32; 2], u32)) -> Target {
     let usage = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING;
-    Target { size, frame: Frame::new(gpu, &texture(gpu, size, COLOR, usage, 1), samples) }
+    Target { size, frame: Attachments::new(gpu, &texture(gpu, size, COLOR, usage, 1), samples) }
 }
