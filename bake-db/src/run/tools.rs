@@ -1,0 +1,197 @@
+//! What baking a plan's jobs needs beyond the plan — the occluders' BVHs, the subtree memo,
+//! PRT's baker, re-refined occluders' regions — set up once per run for the kinds it bakes,
+//! and the per-job bake ([`Context`]) that uses them.
+
+use super::*;
+
+/// What baking jobs needs beyond the plan, set up only for the kinds a set of jobs has.
+pub(crate) struct Tools {
+    pub(super) occluders: Option<Occluders>,
+    /// Occluder BVHs built now, as memos to store.
+    pub(super) new_bvhs: Vec<(String, Vec<u8>)>,
+    pub(super) tiles: Option<bspvt::memo::SubtreeMemo>,
+    pub(super) transfer: Option<prt::Baker>,
+    /// Re-refined curved occluders' triangles, as memos to store ([`crate::regions`]).
+    pub(super) new_triangles: Vec<(String, Vec<u8>)>,
+    /// What changed in each re-refined occluder, by (old occluder hash, instance), worked out
+    /// once for every chunk that asks.
+    pub(super) regions: Regions,
+}
+
+/// See [`Tools::regions`].
+pub(super) type Regions = Mutex<HashMap<([u8; 32], usize), Option<Vec<(Vec3, Vec3)>>>>;
+
+impl Tools {
+    pub(crate) fn for_jobs(store: &Store, scene: &Scene, flat: &FlatScene, plan: &Plan, jobs: &[&Job]) -> Result<Self> {
+        let baking = |kind: Kind| jobs.iter().any(|j| j.kind == kind);
+        let bspvt = plan.bspvt.filter(|_| baking(Kind::Bspvt));
+        let (occluders, new_bvhs) = bspvt.map(|_| crate::bvhs::occluders(store, flat)).transpose()?.unzip();
+        let new_triangles = if bspvt.is_some() { crate::regions::memos(store, flat)? } else { Vec::new() };
+        Ok(Tools {
+            occluders,
+            new_bvhs: new_bvhs.unwrap_or_default(),
+            new_triangles,
+            regions: Mutex::default(),
+            tiles: bspvt.map(|s| load_tiles(store, &s)).transpose()?,
+            transfer: plan.prt.filter(|_| baking(Kind::Prt)).map(|s| prt::Baker::new(scene, flat, &s)),
+        })
+    }
+
+    pub(crate) fn context<'a>(&'a self, store: &'a Store, flat: &'a FlatScene, plan: &'a Plan) -> Context<'a> {
+        Context {
+            flat,
+            plan,
+            store,
+            occluders: self.occluders.as_ref(),
+            tiles: self.tiles.as_ref(),
+            transfer: self.transfer.as_ref(),
+            regions: &self.regions,
+        }
+    }
+
+    /// The memos worth storing: new occluder BVHs, re-refined occluders' triangles, and the
+    /// subtree memo when it grew.
+    pub(super) fn memos(&self) -> Vec<(String, Vec<u8>)> {
+        let tiles = self.tiles.as_ref().filter(|t| t.added() > 0).map(|t| (tiles_name(t.settings()), t.to_bytes()));
+        self.new_bvhs.iter().chain(&self.new_triangles).cloned().chain(tiles).collect()
+    }
+}
+
+pub(crate) struct Context<'a> {
+    pub(super) flat: &'a FlatScene,
+    pub(super) plan: &'a Plan,
+    pub(super) store: &'a Store,
+    pub(super) occluders: Option<&'a Occluders>,
+    pub(super) tiles: Option<&'a bspvt::memo::SubtreeMemo>,
+    pub(super) transfer: Option<&'a prt::Baker>,
+    pub(super) regions: &'a Regions,
+}
+
+impl Context<'_> {
+    pub(super) fn bake<'j>(&self, job: &'j Job) -> Result<Baked<'j>> {
+        let t = Instant::now();
+        let mut lineage = job.slot.map(|slot| {
+            let mut v = LINEAGE_MAGIC.to_vec();
+            v.extend_from_slice(job.key.as_bytes());
+            let occluders = encode_occluders(&self.plan.snapshot.occluders);
+            v.extend_from_slice(&(occluders.len() as u32).to_le_bytes());
+            v.extend(occluders);
+            (slot, v)
+        });
+        let (bytes, warm, vertices, rays, tiles) = match job.kind {
+            Kind::Prt => {
+                let s = self.plan.prt.expect("PRT job without PRT settings");
+                let n = s.order * s.order;
+                let mut out = vec![0.0f32; job.vertices.len() * n];
+                let baker = self.transfer.expect("built for PRT misses");
+                for (k, v) in job.vertices.clone().enumerate() {
+                    baker.vertex(self.flat, job.instance, v, &mut out[k * n..(k + 1) * n]);
+                }
+                (bytemuck::cast_slice(&out).to_vec(), false, job.vertices.len(), 0, 0)
+            }
+            Kind::Bspvt => {
+                let (baked, warm) = self.bake_bspvt(job)?;
+                if let Some((_, v)) = &mut lineage {
+                    v.extend_from_slice(&(job.vertices.len() as u32).to_le_bytes());
+                    let bits = job.vertices.clone().map(|k| crate::plan::vertex_bits(self.flat, job.instance, k));
+                    bits.for_each(|b| v.extend_from_slice(bytemuck::cast_slice(&b)));
+                    baked.iter().for_each(|b| encode_masks(&b.masks, v));
+                }
+                let touched = baked.iter().filter(|b| b.rays > 0).count();
+                let (rays, tiles) = baked.iter().fold((0, 0), |(r, t), b| (r + b.rays, t + b.built));
+                let records: Vec<Vec<u8>> = baked.into_iter().map(|b| b.record).collect();
+                (encode_records(&records), warm, touched, rays, tiles)
+            }
+        };
+        let info = Info {
+            kind: job.kind.name().into(),
+            params: self.plan.params(job.kind),
+            seconds: t.elapsed().as_secs_f64(),
+            // Warm chunks are not representative of a bake's cost per vertex.
+            vertices: if warm { 0 } else { job.vertices.len() },
+            checksum: *blake3::hash(&bytes).as_bytes(),
+        };
+        Ok(Baked { job, key: job.key, bytes, info, lineage, warm, vertices, rays, tiles })
+    }
+
+    /// The chunk's vertex bakes, and whether they were re-baked warm from the slot's lineage.
+    pub(super) fn bake_bspvt(&self, job: &Job) -> Result<(Vec<bspvt::VertexBake>, bool)> {
+        let (occ, tiles) =
+            (self.occluders.expect("built for BSPVT misses"), self.tiles.expect("loaded for BSPVT misses"));
+        let vertex = |v: usize| self.flat.vertex(job.instance, v);
+        let (old, changed) = self.lineage_of(job)?.unwrap_or_else(|| (vec![None; job.vertices.len()], Vec::new()));
+        let warm = old.iter().any(Option::is_some);
+        let cold = bspvt::VertexBake::default();
+        let baked = job
+            .vertices
+            .clone()
+            .zip(&old)
+            .map(|(v, old)| {
+                let (p, n) = vertex(v);
+                // A new vertex bakes cold: no change needs looking at.
+                let (old, changed) = old.as_ref().map_or((&cold, &[][..]), |old| (old, &changed[..]));
+                bspvt::rebake_vertex(occ, p, n, (tiles, &self.plan.reach), old, changed)
+            })
+            .collect();
+        Ok((baked, warm))
+    }
+
+    /// The slot's previous bake of each of the chunk's vertices that it holds (matched by
+    /// position and normal) and every occluder that changed since, when the lineage is usable.
+    pub(super) fn lineage_of(&self, job: &Job) -> Result<Option<Lineage>> {
+        let Some(slot) = job.slot else { return Ok(None) };
+        let Some(entry) = self.store.lineage(&slot)? else { return Ok(None) };
+        let Some(Then { key, occluders, vertices, masks }) = decode_lineage(&entry) else { return Ok(None) };
+        let Some(bytes) = self.store.get::<u8>(&key)? else { return Ok(None) };
+        // The warm re-bake descends the old trees: a damaged chunk bakes cold instead.
+        let usable = |r: &Vec<Vec<u8>>| {
+            let res = self.plan.bspvt.map_or(0, |s| s.res);
+            r.len() == vertices.len() && r.iter().all(|rec| bspvt::layout::check_record(rec, res).is_ok())
+        };
+        let Some(records) = decode_records(&bytes).filter(usable) else { return Ok(None) };
+        let mut old: HashMap<[u32; 6], bspvt::VertexBake> = vertices
+            .into_iter()
+            .zip(records.into_iter().zip(masks))
+            .map(|(bits, (record, masks))| (bits, bspvt::VertexBake { record, masks, ..Default::default() }))
+            .collect();
+        let now = job.vertices.clone().map(|v| old.remove(&crate::plan::vertex_bits(self.flat, job.instance, v)));
+        Ok(Some((now.collect(), self.changes(&occluders)?)))
+    }
+
+    /// Every occluder that changed since the snapshot `then`, a re-refined curved one by the
+    /// regions whose triangles changed where the store keeps its old triangles
+    /// ([`crate::regions`]).
+    pub(super) fn changes(&self, then: &[Occluder]) -> Result<Vec<bspvt::Change>> {
+        let now = &self.plan.snapshot.occluders;
+        let old: HashMap<[u32; 3], &Occluder> = then.iter().map(|o| (o.id, o)).collect();
+        let mut within: HashMap<[u32; 3], Vec<(Vec3, Vec3)>> = HashMap::new();
+        for (i, n) in now.iter().enumerate() {
+            let Some(o) = old.get(&n.id).filter(|o| o.world == n.world && o.mesh != n.mesh) else { continue };
+            let known = self.regions.lock().expect("no worker panics holding it").get(&(o.mesh, i)).cloned();
+            let boxes = match known {
+                Some(boxes) => boxes,
+                None => {
+                    let world = Affine3A::from_cols_array(&n.world);
+                    let boxes = crate::regions::changed(self.store, self.flat, (&o.mesh, i), &world, padding(n))?;
+                    self.regions.lock().expect("no worker panics holding it").insert((o.mesh, i), boxes.clone());
+                    boxes
+                }
+            };
+            within.extend(boxes.map(|b| (n.id, b)));
+        }
+        Ok(changes(then, now, &within))
+    }
+}
+
+/// The store's name for the subtree memo of `s`.
+pub fn tiles_name(s: &bspvt::Settings) -> String {
+    format!("bspvt tiles v{} res {} eps {}", bspvt::ALGORITHM_VERSION, s.res, s.epsilon)
+}
+
+/// The stored subtree memo for `s`, or an empty one (none stored, or damaged: it only costs time).
+pub(super) fn load_tiles(store: &Store, s: &bspvt::Settings) -> Result<bspvt::memo::SubtreeMemo> {
+    let stored = store.memo(&tiles_name(s))?;
+    Ok(stored
+        .and_then(|b| bspvt::memo::SubtreeMemo::from_bytes(s, &b))
+        .unwrap_or_else(|| bspvt::memo::SubtreeMemo::new(s)))
+}
