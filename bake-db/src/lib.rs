@@ -5,9 +5,9 @@
 //! - [`store`]: the file (schema version; tables for meshes, artefacts, metadata, scenes,
 //!   lineage and bakers' memos), batched writes, read-only opens, integrity check, garbage
 //!   collection and merging;
-//! - [`bvhs`]: the BSPVT occluders' BVHs, kept between runs so that an edit rebuilds only
-//!   the BVHs of the instances it touched; [`regions`]: a re-refined curved occluder's
-//!   triangles, kept so that the next edit re-bakes only what sees the ones that changed;
+//! - [`memo`]: what the store keeps to save time — occluder BVHs, re-refined occluders'
+//!   triangles, the PRT pilot, receiver refinements, radiance-cache records — each entry
+//!   checked when read, through one codec;
 //! - [`key`]: bake keys, blake3 of everything a result depends on;
 //! - [`plan`](mod@plan): which artefacts a scene needs (chunks of about [`plan::CHUNK`] vertices,
 //!   cut by content, per instance and technique), which are cached;
@@ -17,10 +17,6 @@
 //! - [`estimate`]: a plan's bake time, measured by baking a sample of its misses;
 //! - [`prt_budget`]: PRT's order, window and region count chosen from an error budget and kept
 //!   in `meta`, so that `kage bake`, `kage render` and the editor bake with the same parameters;
-//!   [`pilot`]: its pilot transfer, kept so that choosing again after a rotation reads it
-//!   instead of baking it;
-//! - [`records`]: radiance-cache records, keyed by geometry, materials, direct light and
-//!   settings;
 //! - [`pack`]: asset packs (glTF binary + the `KAGE_baked_shadows` extension) written and read;
 //! - [`shard`]: a plan's misses dealt to N shards for farms; [`Store::merge_from`] merges
 //!   their databases (`docs/sharded-bakes.md`).
@@ -35,16 +31,12 @@
 //!   exactly what a build would; a damaged one is ignored and rebuilt, `gc` drops them all.
 //! - **Clear errors**: a locked, corrupted or incompatible file is an error naming the file.
 
-pub mod bvhs;
 pub mod estimate;
 pub mod key;
+pub mod memo;
 pub mod pack;
-pub mod pilot;
 pub mod plan;
 pub mod prt_budget;
-pub mod records;
-pub mod refinement;
-pub mod regions;
 pub mod run;
 pub mod shard;
 pub mod store;

@@ -3,7 +3,7 @@
 //! `kage bake`, `kage render`, the editor — bakes with the same parameters.
 //!
 //! The order and window are keyed on what they read, which no move of a group changes (a
-//! rotation chooses them again, from the cached [`pilot`](crate::pilot)); the region count also
+//! rotation chooses them again, from the cached [`pilot`](crate::memo::pilot)); the region count also
 //! on where everything is, and after a move it is measured again with the transfer the
 //! database holds (a truncated bake at a lower order is that order's bake bit for bit), so a
 //! choice never depends on what was cached.
@@ -96,7 +96,7 @@ fn order(
         note(format!("SH order {order}, {window:?} window (cached plan)"));
         return Ok((prt::Settings { order: order as usize, window, ..*base }, None));
     }
-    let high = crate::pilot::pilot(store, scene, flat, base)?;
+    let high = crate::memo::pilot::pilot(store, scene, flat, base)?;
     let (s, why) = prt::budget::choose_order(scene, flat, env, budget, base, &high);
     note(why);
     store.put_meta(&name, &[s.order as u8, window_index(s.window)])?;

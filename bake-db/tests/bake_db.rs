@@ -242,7 +242,7 @@ fn bad_database_files_give_clear_errors() {
 fn the_pilot_is_cached_exactly_survives_moves_and_a_damaged_entry_is_baked_again() {
     let store = Store::open(&scratch("pilot")).unwrap();
     let base = prt_settings();
-    let pilot = |s: &Scene| kage_bake_db::pilot::pilot(&store, s, &flatten(s), &base).unwrap().instances;
+    let pilot = |s: &Scene| kage_bake_db::memo::pilot::pilot(&store, s, &flatten(s), &base).unwrap().instances;
     let entries = || store.memos().unwrap().into_iter().filter(|(n, _)| n.starts_with("prt pilot")).collect::<Vec<_>>();
     let s = scene("");
     let fresh = prt::budget::pilot(&s, &flatten(&s), &base).instances;
@@ -396,7 +396,7 @@ fn occluder_bvhs_outlive_runs_and_damage_costs_only_time() {
 fn a_merge_carries_occluder_triangles_and_no_other_memo() {
     let (shard, merged) =
         (Store::open(&scratch("memos-shard")).unwrap(), Store::open(&scratch("memos-merged")).unwrap());
-    let triangles = (kage_bake_db::regions::name(&[7; 32]), vec![1, 2, 3]);
+    let triangles = (kage_bake_db::memo::regions::name(&[7; 32]), vec![1, 2, 3]);
     let others = [("bvh of something", 4), ("tiles of some settings", 5)].map(|(n, b)| (n.to_string(), vec![b]));
     shard.put_memos(&[&others[..], std::slice::from_ref(&triangles)].concat()).unwrap();
     for _ in 0..2 {
@@ -560,7 +560,7 @@ fn lit(scene: &Scene) -> (kage_engine::reference::Renderer, Vec<Vec<Vec3>>) {
 /// them (for every lighting), a bake of edited geometry lets `gc` drop them.
 #[test]
 fn gc_keeps_cache_records_until_the_geometry_changes() {
-    use kage_bake_db::records::load_or_place;
+    use kage_bake_db::memo::records::load_or_place;
     use kage_engine::cache::record::{Glossy, Source};
     let store = Store::open(&scratch("gc-records")).unwrap();
     bake(&store, &scene(""));
@@ -570,7 +570,7 @@ fn gc_keeps_cache_records_until_the_geometry_changes() {
         let (r, d) = lit(&sc);
         let src = Source { renderer: &r, direct: &d, glossy: Glossy::PerVertex };
         load_or_place(&store, &sc, &src, &cache_settings()).unwrap();
-        keys.push(kage_bake_db::records::key(&src, &cache_settings()));
+        keys.push(kage_bake_db::memo::records::key(&src, &cache_settings()));
     }
     let stored = |store: &Store| keys.iter().filter(|k| store.get::<u8>(k).unwrap().is_some()).count();
     bake(&store, &scene("light"));
@@ -583,7 +583,7 @@ fn gc_keeps_cache_records_until_the_geometry_changes() {
 
 #[test]
 fn a_refreshed_cache_is_stored_under_the_new_lightings_key_with_a_cold_placements_bytes() {
-    use kage_bake_db::records::{load_or_place, store_refreshed};
+    use kage_bake_db::memo::records::{load_or_place, store_refreshed};
     use kage_engine::cache::{self, record::Change, record::Glossy, record::Source};
     let s = cache_settings();
     let (before, moved) = (scene(""), scene("light"));
@@ -595,7 +595,7 @@ fn a_refreshed_cache_is_stored_under_the_new_lightings_key_with_a_cold_placement
     assert!(!from_db);
     let lights = cache::moved_lights(&r0.flat.lights, &r1.flat.lights);
     c.refresh(&src1, &Change { old_direct: Some(&d0), moved: &lights });
-    let key = kage_bake_db::records::key(&src1, &s);
+    let key = kage_bake_db::memo::records::key(&src1, &s);
     store_refreshed(&store, &moved, &src1, &key, &c, 0.0).unwrap();
     let (loaded, from_db) = load_or_place(&store, &moved, &src1, &s).unwrap();
     assert!(from_db && loaded.records == c.records, "the next session loads the refreshed records");
@@ -829,7 +829,7 @@ fn merges_refuse_conflicting_foreign_and_damaged_artefacts() {
 /// store reads but keeps nothing.
 #[test]
 fn a_kept_refinement_equals_the_computed_one_and_a_damaged_entry_is_refined_again() {
-    use kage_bake_db::refinement::refine;
+    use kage_bake_db::memo::refinement::refine;
     use kage_engine::receivers::{self, Settings};
     let path = scratch("refinement");
     let store = Store::open(&path).unwrap();
@@ -883,7 +883,7 @@ fn a_kept_refinement_equals_the_computed_one_and_a_damaged_entry_is_refined_agai
 /// box moved 1 m.
 #[test]
 fn edits_with_refinement_on_give_a_cold_bakes_bytes() {
-    use kage_bake_db::refinement::refine;
+    use kage_bake_db::memo::refinement::refine;
     use kage_engine::receivers::Settings;
     let settings = Settings { budget: 1500, ..Settings::default() };
     let reach = |mut s: Scene, lo: Vec3| {
@@ -938,7 +938,7 @@ fn edits_with_refinement_on_give_a_cold_bakes_bytes() {
 /// BSPVT re-bakes warm the vertices they still hold — and the result is a cold bake's.
 #[test]
 fn a_refined_receiver_rebakes_only_near_a_moved_shadow() {
-    use kage_bake_db::refinement::refine;
+    use kage_bake_db::memo::refinement::refine;
     use kage_engine::receivers::Settings;
     use kage_engine::scene::SourceMesh;
     // Five rounds end refinement before the budget does (3.3K of 8.4K vertices): a binding
@@ -989,7 +989,7 @@ fn a_refined_receiver_rebakes_only_near_a_moved_shadow() {
 /// without it (damaged), the whole bounds. Both give a cold bake's bytes.
 #[test]
 fn a_re_refined_curved_occluder_rebakes_only_what_sees_its_changed_triangles() {
-    use kage_bake_db::refinement::refine;
+    use kage_bake_db::memo::refinement::refine;
     use kage_engine::receivers::Settings;
     use kage_engine::scene::PrimitiveId;
     let settings = Settings { budget: 2000, ..Settings::default() };

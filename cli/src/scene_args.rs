@@ -105,7 +105,7 @@ impl SceneArgs {
     }
 
     /// As [`Self::load`], the receivers' refinement read from `store`'s memos when it holds it
-    /// and kept there otherwise (`kage_bake_db::refinement`).
+    /// and kept there otherwise (`kage_bake_db::memo::refinement`).
     pub fn load_kept(&self, store: Option<&kage_bake_db::Store>) -> Result<Scene> {
         self.load_refined(true, store)
     }
@@ -192,11 +192,11 @@ fn refine_receivers(
     }
     let started = std::time::Instant::now();
     let (report, kept) = crate::progress::with_bar(instances, "refining", |progress| match store {
-        Some(store) => kage_bake_db::refinement::refine(store, scene, settings, progress),
+        Some(store) => kage_bake_db::memo::refinement::refine(store, scene, settings, progress),
         None => Ok((kage_engine::receivers::refine_reporting(scene, settings, progress)?, 0)),
     })?;
     let (before, after) = report.iter().fold((0, 0), |(b, a), (x, y)| (b + x, a + y));
-    let from = kage_bake_db::refinement::kept_note(kept, report.len());
+    let from = kage_bake_db::memo::refinement::kept_note(kept, report.len());
     eprintln!(
         "refined receivers: {before} → {after} vertices in {:.2} s (at most {} more each, tolerance {}{from})",
         started.elapsed().as_secs_f64(),

@@ -5,7 +5,7 @@
 
 use glam::Vec3;
 use kage_bake_db::Key;
-use kage_bake_db::records::{self, load_or_place, store_refreshed};
+use kage_bake_db::memo::records::{self, load_or_place, store_refreshed};
 use kage_engine::bspvt;
 use kage_engine::cache::{
     self,

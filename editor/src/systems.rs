@@ -305,9 +305,8 @@ fn refine_receivers(ed: &mut Editor) {
     };
     let was = meshes(&ed.flat);
     let refined = match ed.store.clone() {
-        Some(store) => {
-            kage_bake_db::refinement::refine(&store, &mut ed.doc.scene, &settings, &|_| {}).map_err(|e| e.to_string())
-        }
+        Some(store) => kage_bake_db::memo::refinement::refine(&store, &mut ed.doc.scene, &settings, &|_| {})
+            .map_err(|e| e.to_string()),
         None => kage_engine::receivers::refine(&mut ed.doc.scene, &settings).map(|r| (r, 0)).map_err(|e| e.to_string()),
     };
     let (report, kept) = match refined {
@@ -334,7 +333,7 @@ fn refine_receivers(ed: &mut Editor) {
         refined.seconds,
         settings.for_instances(report.len()).budget,
         settings.tolerance,
-        kage_bake_db::refinement::kept_note(kept, report.len())
+        kage_bake_db::memo::refinement::kept_note(kept, report.len())
     ));
     ed.bakes.receivers = Some(refined);
 }

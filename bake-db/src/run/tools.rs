@@ -11,7 +11,7 @@ pub(crate) struct Tools {
     pub(super) new_bvhs: Vec<(String, Vec<u8>)>,
     pub(super) tiles: Option<bspvt::memo::SubtreeMemo>,
     pub(super) transfer: Option<prt::Baker>,
-    /// Re-refined curved occluders' triangles, as memos to store ([`crate::regions`]).
+    /// Re-refined curved occluders' triangles, as memos to store ([`crate::memo::regions`]).
     pub(super) new_triangles: Vec<(String, Vec<u8>)>,
     /// What changed in each re-refined occluder, by (old occluder hash, instance), worked out
     /// once for every chunk that asks.
@@ -25,8 +25,8 @@ impl Tools {
     pub(crate) fn for_jobs(store: &Store, scene: &Scene, flat: &FlatScene, plan: &Plan, jobs: &[&Job]) -> Result<Self> {
         let baking = |kind: Kind| jobs.iter().any(|j| j.kind == kind);
         let bspvt = plan.bspvt.filter(|_| baking(Kind::Bspvt));
-        let (occluders, new_bvhs) = bspvt.map(|_| crate::bvhs::occluders(store, flat)).transpose()?.unzip();
-        let new_triangles = if bspvt.is_some() { crate::regions::memos(store, flat)? } else { Vec::new() };
+        let (occluders, new_bvhs) = bspvt.map(|_| crate::memo::bvhs::occluders(store, flat)).transpose()?.unzip();
+        let new_triangles = if bspvt.is_some() { crate::memo::regions::memos(store, flat)? } else { Vec::new() };
         Ok(Tools {
             occluders,
             new_bvhs: new_bvhs.unwrap_or_default(),
@@ -160,7 +160,7 @@ impl Context<'_> {
 
     /// Every occluder that changed since the snapshot `then`, a re-refined curved one by the
     /// regions whose triangles changed where the store keeps its old triangles
-    /// ([`crate::regions`]).
+    /// ([`crate::memo::regions`]).
     pub(super) fn changes(&self, then: &[Occluder]) -> Result<Vec<bspvt::Change>> {
         let now = &self.plan.snapshot.occluders;
         let old: HashMap<[u32; 3], &Occluder> = then.iter().map(|o| (o.id, o)).collect();
@@ -172,7 +172,7 @@ impl Context<'_> {
                 Some(boxes) => boxes,
                 None => {
                     let world = Affine3A::from_cols_array(&n.world);
-                    let boxes = crate::regions::changed(self.store, self.flat, (&o.mesh, i), &world, padding(n))?;
+                    let boxes = crate::memo::regions::changed(self.store, self.flat, (&o.mesh, i), &world, padding(n))?;
                     self.regions.lock().expect("no worker panics holding it").insert((o.mesh, i), boxes.clone());
                     boxes
                 }

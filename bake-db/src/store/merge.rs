@@ -8,7 +8,7 @@
 //! leaves the target as of its last commit, and merging again completes it: merging is
 //! idempotent. Of the memos, which only save time, only the curved occluders' triangles are
 //! merged (where the target lacks them): without them the first edit after a merge would count
-//! such an occluder's whole bounds as changed ([`crate::regions`]). The others (BVHs, the
+//! such an occluder's whole bounds as changed ([`crate::memo::regions`]). The others (BVHs, the
 //! subtree memo) each baker rebuilds as it goes.
 
 use super::{ARTEFACTS, DbError, EXTRAS, INFO, Info, LINEAGE, MEMOS, MESHES, META, Result, SCENES, Store, checksum_of};
@@ -121,7 +121,7 @@ impl Store {
         let (meshes, lineage) = (read_all(MESHES)?, read_all(LINEAGE)?);
         let (scenes, extras, meta) = (read_named(SCENES)?, read_named(EXTRAS)?, read_named(META)?);
         // By a range of names: the other memos (a large level's BVHs) are not even read.
-        let prefix = crate::regions::PREFIX;
+        let prefix = crate::memo::regions::PREFIX;
         let triangles: Vec<(String, Vec<u8>)> = input.read(|t| match t.open_table(MEMOS) {
             Ok(tab) => rows(
                 tab.range(prefix..)?
@@ -218,7 +218,7 @@ fn accept(key: &[u8], bytes: &[u8], json: &str) -> std::result::Result<(), Strin
     let (word, version) = match info.kind.as_str() {
         "bspvt" => ("algorithm", kage_engine::bspvt::ALGORITHM_VERSION),
         "prt" => ("algorithm", kage_engine::prt::ALGORITHM_VERSION),
-        "hsh-cache" => ("layout", crate::records::VERSION),
+        "hsh-cache" => ("layout", crate::memo::records::VERSION),
         other => return Err(format!("artefact {short} is of an unknown kind '{other}'")),
     };
     let found = info

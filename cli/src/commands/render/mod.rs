@@ -539,7 +539,7 @@ fn indirect(
         Indirect::Cache => {
             let store = if args.pack.is_none() { args.db.open_if_used(&args.scene)? } else { None };
             let (cache, stored) = match &store {
-                Some(store) => kage_bake_db::records::load_or_place(store, scene, &src, &s)?,
+                Some(store) => kage_bake_db::memo::records::load_or_place(store, scene, &src, &s)?,
                 None => (kage_engine::cache::place_at_vertices(&src, &s), false),
             };
             let (v, bounced) = kage_engine::cache::bounce(&src, &cache, eye, args.cache_bounces());

@@ -7,6 +7,7 @@
 //! Like every memo it costs only time: an entry checks its own checksum and shape when read
 //! (a damaged one is baked again), and `gc` drops it.
 
+use super::codec::{Reader, Writer};
 use crate::key::KeyHasher;
 use crate::store::Result;
 use crate::{Store, plan};
@@ -28,42 +29,30 @@ pub fn pilot(store: &Store, scene: &Scene, flat: &FlatScene, base: &prt::Setting
     Ok(bake)
 }
 
-/// Order, instance count, per-instance lengths, the coefficients (little-endian u32 and f32),
-/// then a blake3 hash of all that.
+/// Order, instance count, per-instance lengths, the coefficients, sealed ([`super::codec`]).
 fn to_bytes(b: &prt::Bake) -> Vec<u8> {
-    let mut out = Vec::new();
-    out.extend((b.order as u32).to_le_bytes());
-    out.extend((b.instances.len() as u32).to_le_bytes());
-    out.extend(b.instances.iter().flat_map(|t| (t.len() as u32).to_le_bytes()));
-    out.extend(b.instances.iter().flatten().flat_map(|v| v.to_le_bytes()));
-    let hash = *blake3::hash(&out).as_bytes();
-    out.extend(hash);
-    out
+    let mut w = Writer::default();
+    w.count(b.order).count(b.instances.len());
+    b.instances.iter().for_each(|t| _ = w.count(t.len()));
+    b.instances.iter().for_each(|t| _ = w.pod(t));
+    w.seal()
 }
 
 /// The pilot in `bytes` when its hash holds and its shape fits the scene; `None` otherwise.
 fn from_bytes(bytes: &[u8], flat: &FlatScene) -> Option<prt::Bake> {
-    let (body, hash) = bytes.split_at_checked(bytes.len().checked_sub(32)?)?;
-    if blake3::hash(body).as_bytes() != hash {
-        return None;
-    }
-    let mut words = body.chunks_exact(4).map(|w| [w[0], w[1], w[2], w[3]]);
-    let mut word = || words.next().map(u32::from_le_bytes).map(|w| w as usize);
-    let (order, count) = (word()?, word()?);
+    let mut r = Reader::open(bytes)?;
+    let (order, count) = (r.count()?, r.count()?);
     let coeffs = kage_engine::math::sh::num_coeffs(order);
     if order != prt::budget::REFERENCE_ORDER || count != flat.instances.len() {
         return None;
     }
-    let lengths = (0..count).map(|_| word()).collect::<Option<Vec<usize>>>()?;
+    let lengths = (0..count).map(|_| r.count()).collect::<Option<Vec<usize>>>()?;
     let expected = flat.instances.iter().map(|i| coeffs * flat.meshes[i.mesh as usize].positions.len());
     if !lengths.iter().copied().eq(expected) {
         return None;
     }
-    let mut values = words.map(f32::from_le_bytes);
-    let instances: Vec<Vec<f32>> = lengths.iter().map(|&n| values.by_ref().take(n).collect()).collect();
-    if values.next().is_some() || instances.iter().zip(&lengths).any(|(t, &n)| t.len() != n) {
-        return None;
-    }
+    let instances = lengths.iter().map(|&n| r.pod::<f32>(n)).collect::<Option<Vec<_>>>()?;
+    let instances = r.end(instances)?;
     let stats = prt::Stats {
         vertices: lengths.iter().sum::<usize>() / coeffs,
         bytes: 4 * lengths.iter().sum::<usize>(),

@@ -9,6 +9,7 @@
 //! Like every memo they cost only time: an entry checks its own hash, and without one (never
 //! stored, damaged, or dropped by `gc`) the occluder's whole bounds count as changed.
 
+use super::codec::{Reader, Writer};
 use crate::store::{Memo, Result, Store};
 use glam::{Affine3A, Vec3};
 use kage_engine::scene::FlatScene;
@@ -147,18 +148,16 @@ fn canonical(t: &[Vec3; 3]) -> [[u32; 3]; 3] {
     std::array::from_fn(|k| c[(first + k) % 3])
 }
 
-/// Triangles as bytes (f32 corners, little-endian), ending in a blake3 hash of the rest.
+/// Triangles as their f32 corners, sealed ([`super::codec`]).
 fn to_bytes(triangles: &[[Vec3; 3]]) -> Vec<u8> {
-    let mut out: Vec<u8> = bytemuck::cast_slice(triangles).to_vec();
-    out.extend(blake3::hash(&out).as_bytes());
-    out
+    Writer::default().pod(triangles).seal()
 }
 
 /// The inverse of [`to_bytes`]; `None` when the hash does not hold.
 fn from_bytes(bytes: &[u8]) -> Option<Vec<[Vec3; 3]>> {
-    let (body, hash) = bytes.split_at_checked(bytes.len().checked_sub(32)?)?;
-    let whole = body.len().is_multiple_of(std::mem::size_of::<[Vec3; 3]>());
-    (whole && blake3::hash(body).as_bytes() == hash).then(|| bytemuck::pod_collect_to_vec(body))
+    let mut r = Reader::open(bytes)?;
+    let triangles = r.rest()?;
+    r.end(triangles)
 }
 
 #[cfg(test)]
