@@ -281,7 +281,7 @@ fn bake_misses(
     let saved = store.put_memos(&tools.memos());
     written?;
     saved?;
-    stats.tiles_from_memo = tools.tiles.as_ref().map_or(0, |t| t.hits());
+    stats.tiles_from_memo = tools.bspvt.as_ref().map_or(0, |b| b.tiles.hits());
     store.put_scene(&scene.source, &plan.keys(), &plan.snapshot.hash)?;
     let meshes: Vec<([u8; 32], u32, u32)> =
         scene.meshes.iter().map(|m| (m.hash.0, m.positions.len() as u32, m.triangles.len() as u32)).collect();

@@ -6,16 +6,29 @@ use super::*;
 
 /// What baking jobs needs beyond the plan, set up only for the kinds a set of jobs has.
 pub(crate) struct Tools {
-    pub(super) occluders: Option<Occluders>,
+    /// BSPVT's prepared baker, when the jobs hold BSPVT chunks.
+    pub(super) bspvt: Option<BspvtBaker>,
+    /// PRT's prepared baker, when the jobs hold PRT chunks.
+    pub(super) prt: Option<PrtBaker>,
     /// Occluder BVHs built now, as memos to store.
     pub(super) new_bvhs: Vec<(String, Vec<u8>)>,
-    pub(super) tiles: Option<bspvt::memo::SubtreeMemo>,
-    pub(super) transfer: Option<prt::Baker>,
     /// Re-refined curved occluders' triangles, as memos to store ([`crate::memo::regions`]).
     pub(super) new_triangles: Vec<(String, Vec<u8>)>,
     /// What changed in each re-refined occluder, by (old occluder hash, instance), worked out
     /// once for every chunk that asks.
     pub(super) regions: Regions,
+}
+
+/// What a BSPVT chunk bakes with: the occluders' BVHs and the tile subtree memo.
+pub(crate) struct BspvtBaker {
+    pub(super) occluders: Occluders,
+    pub(super) tiles: bspvt::memo::SubtreeMemo,
+}
+
+/// What a PRT chunk bakes with: the transfer baker and its settings.
+pub(crate) struct PrtBaker {
+    pub(super) baker: prt::Baker,
+    pub(super) settings: prt::Settings,
 }
 
 /// See [`Tools::regions`].
@@ -24,35 +37,27 @@ pub(super) type Regions = Mutex<HashMap<([u8; 32], usize), Option<Vec<(Vec3, Vec
 impl Tools {
     pub(crate) fn for_jobs(store: &Store, scene: &Scene, flat: &FlatScene, plan: &Plan, jobs: &[&Job]) -> Result<Self> {
         let baking = |kind: Kind| jobs.iter().any(|j| j.kind == kind);
-        let bspvt = plan.bspvt.filter(|_| baking(Kind::Bspvt));
-        let (occluders, new_bvhs) = bspvt.map(|_| crate::memo::bvhs::occluders(store, flat)).transpose()?.unzip();
-        let new_triangles = if bspvt.is_some() { crate::memo::regions::memos(store, flat)? } else { Vec::new() };
-        Ok(Tools {
-            occluders,
-            new_bvhs: new_bvhs.unwrap_or_default(),
-            new_triangles,
-            regions: Mutex::default(),
-            tiles: bspvt.map(|s| load_tiles(store, &s)).transpose()?,
-            transfer: plan.prt.filter(|_| baking(Kind::Prt)).map(|s| prt::Baker::new(scene, flat, &s)),
-        })
+        let (mut new_bvhs, mut new_triangles, mut bspvt) = (Vec::new(), Vec::new(), None);
+        if let Some(s) = plan.bspvt.filter(|_| baking(Kind::Bspvt)) {
+            let occluders;
+            (occluders, new_bvhs) = crate::memo::bvhs::occluders(store, flat)?;
+            new_triangles = crate::memo::regions::memos(store, flat)?;
+            bspvt = Some(BspvtBaker { occluders, tiles: load_tiles(store, &s)? });
+        }
+        let prt = plan.prt.filter(|_| baking(Kind::Prt));
+        let prt = prt.map(|settings| PrtBaker { baker: prt::Baker::new(scene, flat, &settings), settings });
+        Ok(Tools { bspvt, prt, new_bvhs, new_triangles, regions: Mutex::default() })
     }
 
     pub(crate) fn context<'a>(&'a self, store: &'a Store, flat: &'a FlatScene, plan: &'a Plan) -> Context<'a> {
-        Context {
-            flat,
-            plan,
-            store,
-            occluders: self.occluders.as_ref(),
-            tiles: self.tiles.as_ref(),
-            transfer: self.transfer.as_ref(),
-            regions: &self.regions,
-        }
+        Context { flat, plan, store, bspvt: self.bspvt.as_ref(), prt: self.prt.as_ref(), regions: &self.regions }
     }
 
     /// The memos worth storing: new occluder BVHs, re-refined occluders' triangles, and the
     /// subtree memo when it grew.
     pub(super) fn memos(&self) -> Vec<(String, Vec<u8>)> {
-        let tiles = self.tiles.as_ref().filter(|t| t.added() > 0).map(|t| (tiles_name(t.settings()), t.to_bytes()));
+        let grown = self.bspvt.as_ref().map(|b| &b.tiles).filter(|t| t.added() > 0);
+        let tiles = grown.map(|t| (tiles_name(t.settings()), t.to_bytes()));
         self.new_bvhs.iter().chain(&self.new_triangles).cloned().chain(tiles).collect()
     }
 }
@@ -61,9 +66,8 @@ pub(crate) struct Context<'a> {
     pub(super) flat: &'a FlatScene,
     pub(super) plan: &'a Plan,
     pub(super) store: &'a Store,
-    pub(super) occluders: Option<&'a Occluders>,
-    pub(super) tiles: Option<&'a bspvt::memo::SubtreeMemo>,
-    pub(super) transfer: Option<&'a prt::Baker>,
+    pub(super) bspvt: Option<&'a BspvtBaker>,
+    pub(super) prt: Option<&'a PrtBaker>,
     pub(super) regions: &'a Regions,
 }
 
@@ -78,19 +82,17 @@ impl Context<'_> {
             v.extend(occluders);
             (slot, v)
         });
-        let (bytes, warm, vertices, rays, tiles) = match job.kind {
-            Kind::Prt => {
-                let s = self.plan.prt.expect("PRT job without PRT settings");
-                let n = s.order * s.order;
+        let (bytes, warm, vertices, rays, tiles) = match (job.kind, self.bspvt, self.prt) {
+            (Kind::Prt, _, Some(PrtBaker { baker, settings })) => {
+                let n = settings.order * settings.order;
                 let mut out = vec![0.0f32; job.vertices.len() * n];
-                let baker = self.transfer.expect("built for PRT misses");
                 for (k, v) in job.vertices.clone().enumerate() {
                     baker.vertex(self.flat, job.instance, v, &mut out[k * n..(k + 1) * n]);
                 }
                 (bytemuck::cast_slice(&out).to_vec(), false, job.vertices.len(), 0, 0)
             }
-            Kind::Bspvt => {
-                let (baked, warm) = self.bake_bspvt(job)?;
+            (Kind::Bspvt, Some(prepared), _) => {
+                let (baked, warm) = self.bake_bspvt(prepared, job)?;
                 if let Some((_, v)) = &mut lineage {
                     v.extend_from_slice(&(job.vertices.len() as u32).to_le_bytes());
                     let bits = job.vertices.clone().map(|k| crate::plan::vertex_bits(self.flat, job.instance, k));
@@ -101,6 +103,12 @@ impl Context<'_> {
                 let (rays, tiles) = baked.iter().fold((0, 0), |(r, t), b| (r + b.rays, t + b.built));
                 let records: Vec<Vec<u8>> = baked.into_iter().map(|b| b.record).collect();
                 (encode_records(&records), warm, touched, rays, tiles)
+            }
+            // Tools are prepared from the very jobs they bake: a kind without its baker is a
+            // caller's mistake, reported rather than baked wrong.
+            (kind, ..) => {
+                let detail = format!("no {} baker was prepared for its chunk", kind.name());
+                return Err(DbError::Storage { path: self.store.path().to_path_buf(), detail });
             }
         };
         let info = Info {
@@ -115,9 +123,8 @@ impl Context<'_> {
     }
 
     /// The chunk's vertex bakes, and whether they were re-baked warm from the slot's lineage.
-    pub(super) fn bake_bspvt(&self, job: &Job) -> Result<(Vec<bspvt::VertexBake>, bool)> {
-        let (occ, tiles) =
-            (self.occluders.expect("built for BSPVT misses"), self.tiles.expect("loaded for BSPVT misses"));
+    pub(super) fn bake_bspvt(&self, prepared: &BspvtBaker, job: &Job) -> Result<(Vec<bspvt::VertexBake>, bool)> {
+        let (occ, tiles) = (&prepared.occluders, &prepared.tiles);
         let vertex = |v: usize| self.flat.vertex(job.instance, v);
         let (old, changed) = self.lineage_of(job)?.unwrap_or_else(|| (vec![None; job.vertices.len()], Vec::new()));
         let warm = old.iter().any(Option::is_some);
