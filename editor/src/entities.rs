@@ -50,7 +50,7 @@ impl Editor {
     /// new light, selected.
     pub fn add_light(&mut self, shape: Shape) -> hecs::Entity {
         let name = format!("{} light", if shape == Shape::Quad { "quad" } else { "disc" });
-        let pose = Affine3A::from_translation(self.orbit.target + Vec3::Y * 2.0);
+        let pose = Affine3A::from_translation(self.view.orbit.target + Vec3::Y * 2.0);
         let group = self.doc.scene.add_light(&name, shape.points(), NEW_RADIANCE, pose);
         let light = self.doc.scene.members(group)[0];
         self.added(vec![group, light]);
@@ -151,7 +151,7 @@ impl Editor {
             .flatten()
             .fold([Vec3::MAX, Vec3::MIN], |[lo, hi], p| [lo.min(*p), hi.max(*p)]);
         let foot = if lo.x <= hi.x { Vec3::new(0.5 * (lo.x + hi.x), lo.y, 0.5 * (lo.z + hi.z)) } else { Vec3::ZERO };
-        let pose = Affine3A::from_translation(self.orbit.target - foot);
+        let pose = Affine3A::from_translation(self.view.orbit.target - foot);
         let (meshes, textures) = (self.doc.scene.meshes.len() as u32, self.doc.scene.textures.len() as u32);
         self.doc.scene.meshes.extend(dropped.meshes.iter().cloned());
         self.doc.scene.textures.extend(dropped.textures.iter().cloned());

@@ -43,7 +43,7 @@ fn write(ed: &mut Editor, path: PathBuf, with_bakes: bool) -> String {
         bspvt: ed.bakes.bspvt.as_deref().filter(|_| with_bakes && !ed.bakes.bspvt_stale),
         prt,
         radiance: &radiance,
-        exposure: ed.exposure,
+        exposure: ed.view.exposure,
     };
     let message = match pack::write(&path, &export) {
         Ok(()) => format!("wrote {}", path.display()),

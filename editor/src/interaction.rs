@@ -21,7 +21,7 @@ const ACTIVE: egui::Color32 = egui::Color32::from_rgb(255, 230, 0);
 pub fn handle(ui: &egui::Ui, ed: &mut Editor, rect: egui::Rect, response: &egui::Response, drag: &mut Option<Drag>) {
     let to_view = |p: egui::Pos2| Vec2::new(p.x - rect.min.x, p.y - rect.min.y);
     let size = Vec2::new(rect.width(), rect.height());
-    let orbit = ed.orbit;
+    let orbit = ed.view.orbit;
     let view = View { orbit: &orbit, size };
     keys(ui, ed);
     for path in ui.input(|i| i.raw.dropped_files.iter().map(|f| f.path().to_path_buf()).collect::<Vec<_>>()) {
@@ -31,14 +31,14 @@ pub fn handle(ui: &egui::Ui, ed: &mut Editor, rect: egui::Rect, response: &egui:
     }
     if response.drag_started_by(egui::PointerButton::Primary) {
         let from = ui.input(|i| i.pointer.press_origin()).map(to_view);
-        let mode = ed.gizmo.mode;
+        let mode = ed.view.gizmo.mode;
         *drag = placement(ed, ed.doc.selection)
             .zip(from)
             .and_then(|(at, from)| at.grab(mode, &view, from).map(|axis| Drag::new(at, mode, axis, from)));
     }
     match drag {
         Some(d) if response.dragged_by(egui::PointerButton::Primary) => {
-            let settings = ed.gizmo;
+            let settings = ed.view.gizmo;
             let edit = response.interact_pointer_pos().and_then(|p| d.step(&view, to_view(p), &settings));
             if let Some(edit) = edit {
                 apply(ed, ed.doc.selection, edit);
@@ -57,9 +57,9 @@ pub fn handle(ui: &egui::Ui, ed: &mut Editor, rect: egui::Rect, response: &egui:
         ed.doc.selection = ed.pick(uv(p), aspect);
     }
     let idle = !ui.input(|i| i.pointer.any_down());
-    ed.hover = match response.hover_pos() {
+    ed.view.hover = match response.hover_pos() {
         Some(p) if idle => ed.pick(uv(p), aspect),
-        Some(_) => ed.hover,
+        Some(_) => ed.view.hover,
         None => Selection::None,
     };
 }
@@ -75,13 +75,13 @@ fn keys(ui: &egui::Ui, ed: &mut Editor) {
     }
     for (key, mode) in [(egui::Key::W, Mode::Translate), (egui::Key::E, Mode::Rotate), (egui::Key::R, Mode::Scale)] {
         if pressed(key) {
-            ed.gizmo.mode = mode;
+            ed.view.gizmo.mode = mode;
         }
     }
 }
 
 fn orbit_drag(ui: &egui::Ui, ed: &mut Editor, rect: egui::Rect, response: &egui::Response) {
-    let mut orbit = ed.orbit;
+    let mut orbit = ed.view.orbit;
     if response.dragged_by(egui::PointerButton::Primary) {
         let d = response.drag_delta();
         orbit.rotate(d.x * 0.01, d.y * 0.01);
@@ -115,7 +115,7 @@ pub fn placement(ed: &Editor, sel: Selection) -> Option<Placement> {
         }
         _ => return None,
     };
-    let axes = match ed.gizmo.space {
+    let axes = match ed.view.gizmo.space {
         Space::World => [Vec3::X, Vec3::Y, Vec3::Z],
         Space::Local => [frame.x_axis, frame.y_axis, frame.z_axis].map(|a| Vec3::from(a).normalize_or(Vec3::X)),
     };
@@ -150,10 +150,10 @@ pub fn apply(ed: &mut Editor, sel: Selection, edit: Edit) {
 /// Paints the hovered and selected outlines and the gizmo over the viewport.
 pub fn paint(ui: &egui::Ui, ed: &Editor, rect: egui::Rect, drag: Option<&Drag>) {
     let painter = ui.painter_at(rect);
-    let orbit = ed.orbit;
+    let orbit = ed.view.orbit;
     let view = View { orbit: &orbit, size: Vec2::new(rect.width(), rect.height()) };
     let at = |p: Vec2| rect.min + egui::vec2(p.x, p.y);
-    for (sel, colour, width) in [(ed.hover, HOVER, 1.0), (ed.doc.selection, SELECTED, 2.0)] {
+    for (sel, colour, width) in [(ed.view.hover, HOVER, 1.0), (ed.doc.selection, SELECTED, 2.0)] {
         if sel == Selection::None || (sel == ed.doc.selection && colour == HOVER) {
             continue;
         }
@@ -166,12 +166,12 @@ pub fn paint(ui: &egui::Ui, ed: &Editor, rect: egui::Rect, drag: Option<&Drag>) 
         }
     }
     let Some(place) = placement(ed, ed.doc.selection) else { return };
-    let handles = place.handles(ed.gizmo.mode, &view);
+    let handles = place.handles(ed.view.gizmo.mode, &view);
     for (k, line) in handles.iter().enumerate() {
         let colour = if drag.is_some_and(|d| d.axis == k) { ACTIVE } else { AXES[k] };
         let points: Vec<egui::Pos2> = line.iter().map(|p| at(*p)).collect();
         painter.add(egui::Shape::line(points.clone(), egui::Stroke::new(3.0, colour)));
-        match (ed.gizmo.mode, points.last()) {
+        match (ed.view.gizmo.mode, points.last()) {
             (Mode::Translate, Some(tip)) => {
                 painter.circle_filled(*tip, 5.0, colour);
             }
@@ -200,7 +200,7 @@ fn box_edges(lo: Vec3, hi: Vec3) -> impl Iterator<Item = (Vec3, Vec3)> {
 /// The gizmo's options above the viewport: mode, axes, snapping.
 pub fn toolbar(ui: &mut egui::Ui, ed: &mut Editor) {
     ui.horizontal(|ui| {
-        let g = &mut ed.gizmo;
+        let g = &mut ed.view.gizmo;
         ui.selectable_value(&mut g.mode, Mode::Translate, "Move (W)");
         ui.selectable_value(&mut g.mode, Mode::Rotate, "Turn (E)");
         ui.selectable_value(&mut g.mode, Mode::Scale, "Scale (R)");

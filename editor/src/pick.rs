@@ -58,7 +58,7 @@ impl Editor {
     /// What lies under viewport point `uv` (0 to 1 across and down) of a viewport of `aspect`:
     /// a group (for its meshes), a light, or nothing.
     pub fn pick(&mut self, uv: Vec2, aspect: f32) -> Selection {
-        let (eye, dir) = self.orbit.ray(uv, aspect);
+        let (eye, dir) = self.view.orbit.ray(uv, aspect);
         let picker = self.memo.picker.get_or_insert_with(|| Picker::new(&self.flat));
         picker.pick(&self.flat, eye, dir)
     }

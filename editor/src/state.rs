@@ -220,24 +220,38 @@ impl Named for ShadeOn {
     }
 }
 
-/// The editor's state.
-pub struct Editor {
-    /// The scene being edited, its selection, history and saved baseline.
-    pub doc: Document,
-    /// Its current snapshot.
-    pub flat: FlatScene,
-    /// How it was opened.
-    pub options: Options,
-    /// The displayed method.
-    pub method: Method,
+/// How the editor shows its scene: none of it is the scene's, none of it is saved.
+pub struct ViewState {
     /// The viewport camera.
     pub orbit: Orbit,
-    /// The scene's own cameras.
-    pub cameras: Vec<Camera>,
+    /// The displayed method.
+    pub method: Method,
     /// The gizmo's mode, axes and snapping.
     pub gizmo: super::gizmo::Settings,
     /// What the pointer hovers in the viewport.
     pub hover: Selection,
+    /// Show the error against the progressive reference as a heat map.
+    pub overlay: bool,
+    /// Display exposure in stops.
+    pub exposure: f32,
+    /// Meter the exposure from the next lit result (set when a scene opens).
+    pub metering: bool,
+    /// The viewport's width over its height (the view exposure is metered through).
+    pub aspect: f32,
+}
+
+/// The editor's state.
+pub struct Editor {
+    /// The scene being edited, its selection, history and saved baseline.
+    pub doc: Document,
+    /// How the scene is shown: the orbit, the method, the exposure, the overlay, the gizmo.
+    pub view: ViewState,
+    /// Its current snapshot.
+    pub flat: FlatScene,
+    /// How it was opened.
+    pub options: Options,
+    /// The scene's own cameras.
+    pub cameras: Vec<Camera>,
     /// The scene file changed on disk while edits were unsaved: the UI asks what to do.
     pub outside_change: bool,
     /// A drag is in progress (a pointer button is down): BSPVT re-bakes wait for its end
@@ -257,14 +271,6 @@ pub struct Editor {
     /// Per instance and vertex: the last indirect term (lit by an earlier direct result while a
     /// new one is gathered).
     pub indirect_values: VertexValues,
-    /// Show the error against the progressive reference as a heat map.
-    pub overlay: bool,
-    /// Display exposure in stops.
-    pub exposure: f32,
-    /// Meter the exposure from the next lit result (set when a scene opens).
-    pub metering: bool,
-    /// The viewport's width over its height (the view exposure is metered through).
-    pub aspect: f32,
     /// Everything that happened, errors included.
     pub log: Vec<LogLine>,
     /// Timings.
@@ -347,11 +353,17 @@ impl Editor {
         let mut ed = Self {
             doc: Document::new(scene),
             flat,
-            method: Method::Baked,
-            orbit,
+            view: ViewState {
+                orbit,
+                method: Method::Baked,
+                gizmo: Default::default(),
+                hover: Selection::None,
+                overlay: false,
+                exposure: 0.0,
+                metering: true,
+                aspect: 16.0 / 9.0,
+            },
             cameras,
-            hover: Selection::None,
-            gizmo: Default::default(),
             outside_change: false,
             dragging: false,
             values: Vec::new(),
@@ -360,9 +372,6 @@ impl Editor {
             direct: Vec::new(),
             indirect: options.indirect,
             indirect_values: Vec::new(),
-            overlay: false,
-            exposure: 0.0,
-            metering: true,
             log: Vec::new(),
             stats: Stats::default(),
             store: None,
@@ -375,7 +384,6 @@ impl Editor {
             per_pixel: None,
             pixel_lights: None,
             vertex_sun: None,
-            aspect: 16.0 / 9.0,
             gpu,
             shaders,
             bspvt_gpu: None,
@@ -485,8 +493,8 @@ impl Editor {
     pub fn lights_per_pixel(&self) -> bool {
         let vertices: usize = (0..self.flat.instances.len()).map(|k| self.flat.vertex_count(k)).sum();
         self.polygonal_on_gpu()
-            && matches!(self.method, Method::Baked | Method::Bspvt | Method::LtcUnshadowed)
-            && !self.overlay
+            && matches!(self.view.method, Method::Baked | Method::Bspvt | Method::LtcUnshadowed)
+            && !self.view.overlay
             && self.flat.lights.iter().all(|l| kage_gpu::bspvt::gpu_light(l).is_ok())
             && vertices <= self.options.background_shading
     }
@@ -584,8 +592,8 @@ impl Editor {
     /// Switches the displayed method (the reference restarts: each method is compared with the
     /// reference of its own lights).
     pub fn set_method(&mut self, m: Method) {
-        if m != self.method {
-            self.method = m;
+        if m != self.view.method {
+            self.view.method = m;
             if let Some(why) = self.flat.black_under_prt().filter(|_| matches!(m, Method::Prt | Method::PrtSelf)) {
                 self.info(format!("{}: {why}; `baked` shows their reflections", m.name()));
             }
@@ -605,16 +613,16 @@ impl Editor {
 
     /// Turns the error overlay on or off.
     pub fn set_overlay(&mut self, on: bool) {
-        if on != self.overlay {
-            self.overlay = on;
+        if on != self.view.overlay {
+            self.view.overlay = on;
             self.edited();
         }
     }
 
     /// Moves the viewport camera (the view-dependent shading follows).
     pub fn set_orbit(&mut self, orbit: Orbit) {
-        if orbit != self.orbit {
-            self.orbit = orbit;
+        if orbit != self.view.orbit {
+            self.view.orbit = orbit;
             self.restart_reference();
             self.edited();
         }
@@ -623,7 +631,7 @@ impl Editor {
     /// Looks through scene camera `k`.
     pub fn use_camera(&mut self, k: usize) {
         if let Some(c) = self.cameras.get(k) {
-            let distance = self.orbit.target.distance(self.orbit.eye()).max(1.0);
+            let distance = self.view.orbit.target.distance(self.view.orbit.eye()).max(1.0);
             self.set_orbit(Orbit::from_camera(c, distance));
         }
     }

@@ -123,7 +123,7 @@ pub fn reimport_scene(ed: &mut Editor) {
             }
             ed.doc.scene = scene;
             ed.doc.selection = super::state::Selection::None;
-            ed.hover = super::state::Selection::None;
+            ed.view.hover = super::state::Selection::None;
             ed.doc.history.clear();
             ed.doc.mark_saved();
             ed.dirty.pose = true;
@@ -393,7 +393,7 @@ fn take(ed: &mut Editor, landed: Landed, patched: &mut [bool; 2]) {
 
 /// Refines the reference progressively while it is shown or compared against.
 pub fn reference_system(ed: &mut Editor) {
-    if ed.method != Method::Reference && !ed.overlay {
+    if ed.view.method != Method::Reference && !ed.view.overlay {
         ed.workers.reference = None;
         return;
     }
@@ -409,9 +409,9 @@ pub fn reference_system(ed: &mut Editor) {
 
 /// The reference for the current method's lights, with one bounce when the indirect term is on.
 fn spawn_reference(ed: &Editor) -> Worker<VertexValues> {
-    let scene = ed.method.lit(&ed.doc.scene);
-    let bounces = u32::from(ed.indirect && ed.method.direct());
-    let (eye, first) = (ed.orbit.eye(), ed.reference.passes);
+    let scene = ed.view.method.lit(&ed.doc.scene);
+    let bounces = u32::from(ed.indirect && ed.view.method.direct());
+    let (eye, first) = (ed.view.orbit.eye(), ed.reference.passes);
     let wake = ed.wake.clone();
     Worker::spawn(
         move |stop, send| {
@@ -443,7 +443,7 @@ pub fn shade_system(ed: &mut Editor) {
     }
     ed.dirty.shade = false;
     let start = Instant::now();
-    if ed.method != Method::Prt || ed.overlay {
+    if ed.view.method != Method::Prt || ed.view.overlay {
         ed.per_pixel = None;
     }
     ed.pixel_lights = None;
@@ -486,7 +486,7 @@ impl Background {
     /// shades on the CPU with no environment term (those keep shading within the frame).
     fn of(ed: &Editor) -> Option<Self> {
         let vertices: usize = (0..ed.flat.instances.len()).map(|k| ed.flat.vertex_count(k)).sum();
-        let cpu = match ed.method {
+        let cpu = match ed.view.method {
             Method::Bspvt | Method::LtcUnshadowed => true,
             Method::Baked => ed.flat.environment.is_none(),
             _ => false,
@@ -495,8 +495,8 @@ impl Background {
             return None;
         }
         let trees = ed.bakes.bspvt.clone().filter(|b| trees_fit(ed, b));
-        let trees = trees.filter(|_| ed.method != Method::LtcUnshadowed);
-        Some(Self { flat: ed.flat.clone(), trees, method: ed.method, eye: ed.orbit.eye() })
+        let trees = trees.filter(|_| ed.view.method != Method::LtcUnshadowed);
+        Some(Self { flat: ed.flat.clone(), trees, method: ed.view.method, eye: ed.view.orbit.eye() })
     }
 
     fn shade(&self) -> VertexValues {
@@ -516,7 +516,7 @@ impl Background {
 /// or the error overlay of that.
 fn compose(ed: &mut Editor) {
     let shapes = |v: &[Vec<Vec3>]| v.iter().map(Vec::len).collect::<Vec<_>>();
-    let add = ed.indirect && ed.method.direct() && shapes(&ed.indirect_values) == shapes(&ed.direct);
+    let add = ed.indirect && ed.view.method.direct() && shapes(&ed.indirect_values) == shapes(&ed.direct);
     ed.radiance = if add {
         ed.direct
             .iter()
@@ -526,13 +526,13 @@ fn compose(ed: &mut Editor) {
     } else {
         ed.direct.clone()
     };
-    let values = if ed.overlay { overlay(ed) } else { ed.radiance.clone() };
+    let values = if ed.view.overlay { overlay(ed) } else { ed.radiance.clone() };
     // A landing that changes nothing on screen (a bounce re-lit by the same light) draws nothing.
     if values != ed.values {
         ed.values = values;
         ed.values_revision += 1;
     }
-    if ed.metering {
+    if ed.view.metering {
         meter_exposure(ed);
     }
 }
@@ -547,8 +547,8 @@ pub fn meter_exposure(ed: &mut Editor) {
     if lit {
         let (all, surfaces) = view_samples(ed);
         let kept = if surfaces.is_empty() { &all } else { &surfaces };
-        ed.exposure = metered_exposure_keeping(&all, kept).clamp(-6.0, 6.0);
-        ed.metering = ed.job.is_some();
+        ed.view.exposure = metered_exposure_keeping(&all, kept).clamp(-6.0, 6.0);
+        ed.view.metering = ed.job.is_some();
     }
 }
 
@@ -557,14 +557,14 @@ pub fn meter_exposure(ed: &mut Editor) {
 /// is hit — for all of them and for those on a surface.
 pub fn view_samples(ed: &mut Editor) -> (Vec<Vec3>, Vec<Vec3>) {
     const ACROSS: usize = 96;
-    let down = ((ACROSS as f32 / ed.aspect.max(0.1)).round() as usize).clamp(1, 4 * ACROSS);
+    let down = ((ACROSS as f32 / ed.view.aspect.max(0.1)).round() as usize).clamp(1, 4 * ACROSS);
     let picker = ed.memo.picker.get_or_insert_with(|| super::pick::Picker::new(&ed.flat));
     let fits = ed.radiance.len() == ed.flat.instances.len();
     let (mut all, mut surfaces) = (Vec::new(), Vec::new());
     for k in 0..ACROSS * down {
         let uv =
             glam::Vec2::new(((k % ACROSS) as f32 + 0.5) / ACROSS as f32, ((k / ACROSS) as f32 + 0.5) / down as f32);
-        let (eye, dir) = ed.orbit.ray(uv, ed.aspect);
+        let (eye, dir) = ed.view.orbit.ray(uv, ed.view.aspect);
         match picker.seen(&ed.flat, eye, dir) {
             Seen::Surface(hit) if fits && ed.radiance[hit.instance].len() == ed.flat.vertex_count(hit.instance) => {
                 let l = hit.interpolate(&ed.radiance[hit.instance]);
@@ -589,7 +589,7 @@ pub fn view_samples(ed: &mut Editor) -> (Vec<Vec3>, Vec<Vec3>) {
 /// the term would be replaced, its records stored for lighting no finished bake has, and its
 /// rays would take cores from the bake.
 pub fn indirect_system(ed: &mut Editor) {
-    if !ed.indirect || !ed.method.direct() {
+    if !ed.indirect || !ed.view.method.direct() {
         ed.workers.indirect = None;
         return;
     }
@@ -633,7 +633,7 @@ pub fn shading(ed: &Editor) -> bool {
 /// How the current method lights glossy hits toward the cache's records.
 fn hit_light(ed: &Editor) -> HitLight {
     let trees = || ed.bakes.bspvt.clone().filter(|b| trees_fit(ed, b));
-    HitLight::Method(match ed.method {
+    HitLight::Method(match ed.view.method {
         Method::Baked => match baked_parts(ed, trees()) {
             Some(parts) => return HitLight::Baked(Box::new(parts)),
             // No environment shaded yet: the baked look is the polygonal lights alone.
@@ -666,10 +666,10 @@ fn baked_parts(ed: &Editor, trees: Option<Arc<bspvt::Bake>>) -> Option<BakedPart
 
 fn spawn_indirect(ed: &mut Editor) -> Worker<Indirect> {
     let job = Job {
-        scene: ed.method.lit(&ed.doc.scene),
+        scene: ed.view.method.lit(&ed.doc.scene),
         glossy: hit_light(ed),
         direct: ed.direct.clone(),
-        eye: ed.orbit.eye(),
+        eye: ed.view.orbit.eye(),
         settings: ed.options.cache,
         store: ed.store.clone(),
         base: ed.workers.indirect_base.take(),
@@ -680,10 +680,10 @@ fn spawn_indirect(ed: &mut Editor) -> Worker<Indirect> {
 
 /// The method's per-vertex radiance, or `None` while a background result is pending.
 fn shade(ed: &mut Editor) -> Option<VertexValues> {
-    let eye = ed.orbit.eye();
-    match ed.method {
+    let eye = ed.view.orbit.eye();
+    match ed.view.method {
         Method::Bspvt | Method::LtcUnshadowed => {
-            let trees = ed.method == Method::Bspvt && ed.bakes.bspvt.as_deref().is_some_and(|b| trees_fit(ed, b));
+            let trees = ed.view.method == Method::Bspvt && ed.bakes.bspvt.as_deref().is_some_and(|b| trees_fit(ed, b));
             Some(polygonal(ed, if trees { Mode::Trees } else { Mode::Unshadowed }, eye))
         }
         Method::LtcExactVis => exact_vis(ed, eye),
@@ -834,7 +834,7 @@ fn prt_gpu(ed: &mut Editor, eye: Vec3) -> VertexValues {
     if !transfer_fits(ed, bake) {
         return ed.flat.zeros();
     }
-    let shadows = ed.method.prt_shadows().unwrap_or(prt::Shadows::SelfOnly);
+    let shadows = ed.view.method.prt_shadows().unwrap_or(prt::Shadows::SelfOnly);
     let posed =
         prt::Posed::new(&ed.doc.scene, &ed.flat, bake.order, light, shadows, &ed.options.prt, &mut ed.memo.silhouettes);
     let gpu = ed.gpu.clone();
@@ -842,7 +842,7 @@ fn prt_gpu(ed: &mut Editor, eye: Vec3) -> VertexValues {
     // The viewport shades the shadows between groups per pixel from the frame's vertex terms.
     let frame = prt::Frame::from_posed(&ed.flat, bake, posed, eye);
     let values = values.map_err(|e| (e, frame.vertex_values(&ed.flat)));
-    if shadows == prt::Shadows::WithOthers && !ed.overlay {
+    if shadows == prt::Shadows::WithOthers && !ed.view.overlay {
         ed.per_pixel = Some(frame);
     }
     values.unwrap_or_else(|(e, cpu)| {

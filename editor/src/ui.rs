@@ -241,9 +241,9 @@ impl App {
         };
         let ppp = ui.ctx().pixels_per_point();
         let px = [(rect.width() * ppp) as u32, (rect.height() * ppp) as u32];
-        self.editor.aspect = rect.width() / rect.height().max(1.0);
+        self.editor.view.aspect = rect.width() / rect.height().max(1.0);
         let ed = &self.editor;
-        let shown = vp.paint(ed.gpu(), px, &ed.orbit, ed.exposure, ed.overlay);
+        let shown = vp.paint(ed.gpu(), px, &ed.view.orbit, ed.view.exposure, ed.view.overlay);
         let id = match self.texture.filter(|_| !shown.new) {
             Some(id) => id,
             None => register(&mut rs.renderer.write(), ed.gpu(), shown.view, self.texture),
@@ -359,7 +359,7 @@ fn outliner(ui: &mut egui::Ui, ed: &mut Editor) {
             ui.horizontal(|ui| {
                 ui.add_space(16.0 * depth as f32);
                 let mut row = ui.selectable_label(ed.doc.selection == sel, label);
-                if ed.hover == sel {
+                if ed.view.hover == sel {
                     row = row.highlight();
                 }
                 if row.clicked() {
@@ -372,14 +372,14 @@ fn outliner(ui: &mut egui::Ui, ed: &mut Editor) {
 
 fn methods(ui: &mut egui::Ui, ed: &mut Editor) {
     ui.heading("Method");
-    let mut method = ed.method;
+    let mut method = ed.view.method;
     ui.horizontal_wrapped(|ui| {
         for &m in Method::ALL {
             ui.selectable_value(&mut method, m, m.name());
         }
     });
     ed.set_method(method);
-    let mut overlay = ed.overlay;
+    let mut overlay = ed.view.overlay;
     ui.checkbox(&mut overlay, "Error overlay (vs progressive reference)");
     ed.set_overlay(overlay);
     let mut indirect = ed.indirect;
@@ -397,12 +397,12 @@ fn methods(ui: &mut egui::Ui, ed: &mut Editor) {
             ui.label("gathering indirect light");
         });
     }
-    if ed.overlay || ed.method == Method::Reference {
+    if ed.view.overlay || ed.view.method == Method::Reference {
         ui.label(format!("reference: {} samples per vertex", ed.reference.passes * 4));
     }
     ui.horizontal(|ui| {
-        if ui.add(egui::Slider::new(&mut ed.exposure, -6.0..=6.0).text("exposure (stops)")).changed() {
-            ed.metering = false; // the user's choice stands
+        if ui.add(egui::Slider::new(&mut ed.view.exposure, -6.0..=6.0).text("exposure (stops)")).changed() {
+            ed.view.metering = false; // the user's choice stands
         }
         if ui.button("meter").on_hover_text("meter the exposure from the current result").clicked() {
             super::systems::meter_exposure(ed);

@@ -120,8 +120,8 @@ fn changed(a: &[Vec3], b: &[Vec3]) -> usize {
 /// the surface pixels clipping).
 fn view_exposure(ed: &Editor) -> f32 {
     use kage_engine::raster::{Primary, primary_grid};
-    let (w, h) = (192, (192.0 / ed.aspect).round() as usize);
-    let camera = kage_engine::scene::Camera::look_at(ed.orbit.eye(), ed.orbit.target, ed.orbit.yfov);
+    let (w, h) = (192, (192.0 / ed.view.aspect).round() as usize);
+    let camera = kage_engine::scene::Camera::look_at(ed.view.orbit.eye(), ed.view.orbit.target, ed.view.orbit.yfov);
     let renderer = kage_engine::reference::Renderer::new(&ed.doc.scene);
     let (grid, _) = primary_grid(&renderer, &camera, w, h, 1);
     let (mut all, mut surfaces) = (Vec::new(), Vec::new());
@@ -151,14 +151,18 @@ fn the_default_scene_bakes_in_the_background_and_every_method_shades() {
     assert!(ed.bakes.prt.is_some() && ed.bakes.lighting.is_some(), "{:?}", ed.log);
     assert!(errors(ed).is_empty(), "{:?}", errors(ed));
     // The editor opens on the complete baked look.
-    assert_eq!(ed.method, Method::Baked);
+    assert_eq!(ed.view.method, Method::Baked);
     let lit = ed.pixel_lights.as_ref().expect("the baked view draws the polygonal lights per pixel");
     assert_eq!(lit.values.len(), ed.flat.instances.len());
     assert!(lit.environment.is_some(), "and the environment's reflection");
     let baked = values(&h);
     assert!(baked.iter().any(|v| v.max_element() > 0.01) && baked.iter().all(|v| v.is_finite()));
     // The exposure was metered from the first lit result, as `kage render` meters its PNGs.
-    assert!(!ed.metering && ed.exposure != 0.0 && ed.exposure.abs() < 6.0, "exposure {}", ed.exposure);
+    assert!(
+        !ed.view.metering && ed.view.exposure != 0.0 && ed.view.exposure.abs() < 6.0,
+        "exposure {}",
+        ed.view.exposure
+    );
     let img = snapshot(&mut h, "default-baked");
     assert!(viewport_colours(&img) > 200, "the viewport shows the scene ({} colours)", viewport_colours(&img));
     let mut seen = vec![baked];
@@ -169,7 +173,7 @@ fn the_default_scene_bakes_in_the_background_and_every_method_shades() {
         ("ltc-unshadowed", Method::LtcUnshadowed),
     ] {
         h.get_by_label(label).click();
-        step_until(&mut h, label, |ed| ed.method == method && !ed.dirty.shade);
+        step_until(&mut h, label, |ed| ed.view.method == method && !ed.dirty.shade);
         let v = values(&h);
         assert!(v.iter().all(|x| x.is_finite() && x.min_element() >= 0.0), "{label}");
         // The methods that shade the polygonal lights with LTC draw them per pixel.
@@ -186,18 +190,18 @@ fn the_default_scene_bakes_in_the_background_and_every_method_shades() {
     // "meter" meters the current method's result as `kage render` meters its image: the
     // view's pixels (here a CPU image of the vertex radiance through the same camera), not the
     // vertices.
-    h.state_mut().editor.exposure = 5.0;
+    h.state_mut().editor.view.exposure = 5.0;
     h.get_by_label("meter").click();
     h.step();
     let ed = &h.state().editor;
     let expected = view_exposure(ed);
-    assert!((ed.exposure - expected).abs() < 0.1, "metered {}, the view's image {expected}", ed.exposure);
+    assert!((ed.view.exposure - expected).abs() < 0.1, "metered {}, the view's image {expected}", ed.view.exposure);
     let by_vertex = kage_engine::math::color::metered_exposure(ed.radiance.iter().flatten().copied());
-    eprintln!("metered {:.2} stops; the view's image {expected:.2}; the vertices {by_vertex:.2}", ed.exposure);
+    eprintln!("metered {:.2} stops; the view's image {expected:.2}; the vertices {by_vertex:.2}", ed.view.exposure);
     // The error overlay refines against the progressive reference.
     h.get_by_label("bspvt").click();
     h.get_by_label("Error overlay (vs progressive reference)").click();
-    step_until(&mut h, "reference passes", |ed| ed.overlay && ed.reference.passes >= 2 && !ed.dirty.shade);
+    step_until(&mut h, "reference passes", |ed| ed.view.overlay && ed.reference.passes >= 2 && !ed.dirty.shade);
     let img = snapshot(&mut h, "default-overlay");
     assert!(viewport_colours(&img) > 20);
     let ed = &h.state().editor;
@@ -252,7 +256,7 @@ fn light_moves_reshade_at_once_and_group_moves_rebake_bspvt_incrementally() {
 
     // A group move: PRT (with shadows between groups) follows in the same frame, BSPVT re-bakes.
     h.get_by_label("prt").click();
-    step_until(&mut h, "prt", |ed| ed.method == Method::Prt && !ed.dirty.shade);
+    step_until(&mut h, "prt", |ed| ed.view.method == Method::Prt && !ed.dirty.shade);
     let prt_before = values(&h);
     let sphere = h.state().editor.doc.scene.find_group("sphere").unwrap();
     h.state_mut().editor.move_group(sphere, Vec3::new(-0.8, 0.0, 0.3), Quat::IDENTITY);
@@ -337,10 +341,10 @@ fn the_viewport_draws_a_frame_only_when_what_it_shows_changed() {
     frames(&mut h, 3);
     assert_eq!(frames(&mut h, 4), 0, "an idle editor draws nothing");
     let ed = &mut h.state_mut().editor;
-    ed.metering = false;
-    ed.exposure += 1.0;
+    ed.view.metering = false;
+    ed.view.exposure += 1.0;
     assert_eq!(frames(&mut h, 3), 1, "a new exposure is one frame");
-    h.state_mut().editor.orbit.yaw += 0.2;
+    h.state_mut().editor.view.orbit.yaw += 0.2;
     // The view moves (a frame), its re-shade lands (another); then nothing.
     let moved = frames(&mut h, 6);
     assert!((1..=3).contains(&moved), "{moved} frames for one view change");
@@ -395,7 +399,7 @@ fn the_baked_bounce_lights_glossy_hits_with_the_environment_too() {
     let renderer = kage_engine::reference::Renderer::new(&ed.doc.scene);
     let flat = &renderer.flat;
     let pre = kage_engine::prt::prefilter::Prefiltered::new(flat.environment.as_ref().unwrap());
-    let (lighting, eye) = (ed.bakes.lighting.as_ref().unwrap(), ed.orbit.eye());
+    let (lighting, eye) = (ed.bakes.lighting.as_ref().unwrap(), ed.view.orbit.eye());
     let bakes = Bakes {
         bspvt: ed.bakes.bspvt.as_deref(),
         prt: Some(prt::Parts { bake: ed.bakes.prt.as_ref().unwrap(), lighting, settings: &ed.options.prt }),
@@ -615,7 +619,7 @@ fn large_scenes_shade_in_the_background_to_the_same_values() {
             [("bspvt", Method::Bspvt), ("ltc-unshadowed", Method::LtcUnshadowed), ("baked", Method::Baked)]
         {
             h.get_by_label(label).click();
-            step_until(&mut h, label, |ed| ed.method == method && shaded(ed));
+            step_until(&mut h, label, |ed| ed.view.method == method && shaded(ed));
             out.push(values(&h));
         }
         out
@@ -656,7 +660,7 @@ fn the_editor_takes_prt_parameters_from_the_budget_kage_bake_chose() {
 fn on_screen(h: &Harness<App>, p: Vec3) -> egui::Pos2 {
     let app = h.state();
     let rect = app.viewport_rect.expect("the viewport was drawn");
-    let uv = app.editor.orbit.project(p, rect.width() / rect.height()).expect("in front of the camera");
+    let uv = app.editor.view.orbit.project(p, rect.width() / rect.height()).expect("in front of the camera");
     rect.min + egui::vec2(uv.x * rect.width(), uv.y * rect.height())
 }
 
@@ -696,7 +700,7 @@ fn click_picks_the_gizmo_moves_and_undo_returns_to_the_cached_bakes_bit_for_bit(
     let at = on_screen(&h, centre);
     h.hover_at(at);
     h.step();
-    assert_eq!(h.state().editor.hover, Selection::Group(sphere), "hovering the sphere highlights it");
+    assert_eq!(h.state().editor.view.hover, Selection::Group(sphere), "hovering the sphere highlights it");
     h.drag_at(at);
     h.step();
     h.drop_at(at);
@@ -708,7 +712,7 @@ fn click_picks_the_gizmo_moves_and_undo_returns_to_the_cached_bakes_bit_for_bit(
     let light = h.state().editor.flat.lights[0].clone();
     let light_centre = light.points.iter().copied().sum::<Vec3>() / light.points.len() as f32;
     // The light hangs above the opening view: zoom out (as the wheel does) to see it.
-    let mut wide = h.state().editor.orbit;
+    let mut wide = h.state().editor.view.orbit;
     wide.zoom(2.5);
     h.state_mut().editor.set_orbit(wide);
     h.step();
@@ -760,9 +764,9 @@ fn click_picks_the_gizmo_moves_and_undo_returns_to_the_cached_bakes_bit_for_bit(
     // Turning: the E key switches the gizmo, dragging the Y ring turns the group about +Y.
     h.key_press(egui::Key::E);
     h.step();
-    assert_eq!(h.state().editor.gizmo.mode, kage_editor::gizmo::Mode::Rotate);
+    assert_eq!(h.state().editor.view.gizmo.mode, kage_editor::gizmo::Mode::Rotate);
     let before = pose(&h, sphere);
-    let orbit = h.state().editor.orbit;
+    let orbit = h.state().editor.view.orbit;
     let rect = h.state().viewport_rect.unwrap();
     let view = kage_editor::gizmo::View { orbit: &orbit, size: glam::Vec2::new(rect.width(), rect.height()) };
     let place = kage_editor::interaction::placement(&h.state().editor, Selection::Group(sphere)).unwrap();
