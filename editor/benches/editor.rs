@@ -74,7 +74,7 @@ fn teapot_editor() -> Harness<'static, App> {
         background_shading: usize::MAX,
     };
     let mut h = harness(scene, options);
-    while h.state().editor.job.is_some() || h.state().editor.bakes.bspvt.is_none() {
+    while h.state().editor.backend.job.is_some() || h.state().editor.bakes.bspvt.is_none() {
         h.step();
         std::thread::sleep(Duration::from_millis(50));
     }
@@ -113,7 +113,7 @@ fn builtin_editor() -> Harness<'static, App> {
 /// Steps the editor until its bake job has landed and been taken in, then renders a frame.
 fn settle(h: &mut Harness<App>) {
     h.step();
-    while h.state().editor.job.is_some() {
+    while h.state().editor.backend.job.is_some() {
         h.step();
         std::thread::sleep(Duration::from_millis(10));
     }

@@ -96,7 +96,7 @@ pub fn save_as(ed: &mut Editor, to: &Path) -> String {
             if to != from {
                 ed.options.scene_path = Some(to.to_path_buf());
                 ed.start_watching();
-            } else if let Some(w) = &mut ed.watcher {
+            } else if let Some(w) = &mut ed.backend.watcher {
                 w.note_write(to);
             }
             // Added things now have nodes in the file, which their entities do not know.

@@ -59,7 +59,7 @@ impl Editor {
     /// a group (for its meshes), a light, or nothing.
     pub fn pick(&mut self, uv: Vec2, aspect: f32) -> Selection {
         let (eye, dir) = self.view.orbit.ray(uv, aspect);
-        let picker = self.memo.picker.get_or_insert_with(|| Picker::new(&self.flat));
+        let picker = self.backend.memo.picker.get_or_insert_with(|| Picker::new(&self.flat));
         picker.pick(&self.flat, eye, dir)
     }
 }

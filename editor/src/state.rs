@@ -240,6 +240,24 @@ pub struct ViewState {
     pub aspect: f32,
 }
 
+/// What the editor computes with; none of it is shown or saved.
+pub struct Backend {
+    /// The bake database.
+    pub store: Option<Arc<Store>>,
+    /// The running bake, if any.
+    pub job: Option<BakeJob>,
+    pub(super) gpu: Gpu,
+    pub(super) shaders: Shaders,
+    pub(super) bspvt_gpu: Option<BspvtShader>,
+    pub(super) prt_gpu: Option<PrtShader>,
+    /// What shading keeps between frames.
+    pub(super) memo: Memo,
+    pub(super) watcher: Option<Watcher>,
+    /// Computations running off the UI thread.
+    pub(super) workers: Workers,
+    pub(super) wake: Arc<dyn Fn() + Send + Sync>,
+}
+
 /// The editor's state.
 pub struct Editor {
     /// The scene being edited, its selection, history and saved baseline.
@@ -275,12 +293,8 @@ pub struct Editor {
     pub log: Vec<LogLine>,
     /// Timings.
     pub stats: Stats,
-    /// The bake database.
-    pub store: Option<Arc<Store>>,
     /// The bakes in use.
     pub bakes: Bakes,
-    /// The running bake, if any.
-    pub job: Option<BakeJob>,
     /// The last shader error (cleared by a good reload).
     pub shader_error: Option<kage_gpu::ShaderError>,
     /// Bumped whenever the viewport must rebuild its pipeline.
@@ -297,16 +311,8 @@ pub struct Editor {
     /// The map's sun per vertex, which the per-vertex draw shades per pixel under its depth
     /// map (`baked`, when the lights are not drawn per pixel).
     pub vertex_sun: Option<kage_gpu::viewport::VertexSun>,
-    pub(super) gpu: Gpu,
-    pub(super) shaders: Shaders,
-    pub(super) bspvt_gpu: Option<BspvtShader>,
-    pub(super) prt_gpu: Option<PrtShader>,
-    /// What shading keeps between frames.
-    pub(super) memo: Memo,
-    pub(super) watcher: Option<Watcher>,
-    /// Computations running off the UI thread.
-    pub(super) workers: Workers,
-    pub(super) wake: Arc<dyn Fn() + Send + Sync>,
+    /// What the editor computes with: the GPU, the store, the running bake, the workers.
+    pub backend: Backend,
     pub(super) started: Instant,
     pub(super) edited_at: Option<Instant>,
 }
@@ -374,9 +380,7 @@ impl Editor {
             indirect_values: Vec::new(),
             log: Vec::new(),
             stats: Stats::default(),
-            store: None,
             bakes: Bakes::default(),
-            job: None,
             shader_error: None,
             shader_generation: 0,
             dirty: Dirty { shade: true, environment: true, meshes: true, ..Dirty::default() },
@@ -384,21 +388,25 @@ impl Editor {
             per_pixel: None,
             pixel_lights: None,
             vertex_sun: None,
-            gpu,
-            shaders,
-            bspvt_gpu: None,
-            prt_gpu: None,
-            memo: Memo::default(),
-            watcher: None,
-            workers: Workers::default(),
-            wake,
+            backend: Backend {
+                gpu,
+                shaders,
+                store: None,
+                job: None,
+                bspvt_gpu: None,
+                prt_gpu: None,
+                memo: Memo::default(),
+                watcher: None,
+                workers: Workers::default(),
+                wake,
+            },
             started: Instant::now(),
             edited_at: None,
             options,
         };
         let where_ = if ed.polygonal_on_gpu() { "on the GPU" } else { "on the CPU" };
         let lights = if ed.lights_per_pixel() { "per pixel (their vertex lobes on the CPU)" } else { where_ };
-        ed.info(format!("{}: GPU {}; polygonal lights shade {lights}", ed.doc.scene.source, ed.gpu.describe()));
+        ed.info(format!("{}: GPU {}; polygonal lights shade {lights}", ed.doc.scene.source, ed.backend.gpu.describe()));
         if let Some(why) = ed.flat.unlit() {
             ed.error(format!(
                 "{}: {why}; Add > Quad light adds one (or open it with --env MAP.hdr)",
@@ -420,7 +428,7 @@ impl Editor {
             let _ = std::fs::create_dir_all(dir);
         }
         match Store::open(&path) {
-            Ok(s) => self.store = Some(Arc::new(s)),
+            Ok(s) => self.backend.store = Some(Arc::new(s)),
             Err(e) => self.error(format!("bake database: {e}")),
         }
     }
@@ -428,7 +436,7 @@ impl Editor {
     /// PRT's parameters from the error budget, as `kage bake` chooses them (from the database
     /// when it holds the choice; measured and stored otherwise).
     fn choose_prt(&mut self) {
-        let (Some(budget), Some(store)) = (self.options.prt_budget, self.store.clone()) else {
+        let (Some(budget), Some(store)) = (self.options.prt_budget, self.backend.store.clone()) else {
             return;
         };
         let mut notes = Vec::new();
@@ -448,13 +456,13 @@ impl Editor {
     }
 
     pub(super) fn start_watching(&mut self) {
-        let wake = self.wake.clone();
+        let wake = self.backend.wake.clone();
         let o = &self.options;
         if o.shader_dir.is_none() && o.scene_path.is_none() && o.env_path.is_none() {
             return;
         }
         match Watcher::new(o.shader_dir.as_deref(), o.scene_path.as_deref(), o.env_path.as_deref(), move || wake()) {
-            Ok(w) => self.watcher = Some(w),
+            Ok(w) => self.backend.watcher = Some(w),
             Err(e) => self.error(format!("{e:#}")),
         }
     }
@@ -471,7 +479,7 @@ impl Editor {
 
     /// The GPU the editor shades on.
     pub fn gpu(&self) -> &Gpu {
-        &self.gpu
+        &self.backend.gpu
     }
 
     /// True when polygonal lights shade on the GPU.
@@ -479,7 +487,7 @@ impl Editor {
         match self.options.shade_on {
             ShadeOn::Gpu => true,
             ShadeOn::Cpu => false,
-            ShadeOn::Auto => self.gpu.info.device_type != wgpu::DeviceType::Cpu,
+            ShadeOn::Auto => self.backend.gpu.info.device_type != wgpu::DeviceType::Cpu,
         }
     }
 
@@ -501,7 +509,7 @@ impl Editor {
 
     /// Where shaders come from.
     pub fn shaders(&self) -> &Shaders {
-        &self.shaders
+        &self.backend.shaders
     }
 
     pub(super) fn edited(&mut self) {
@@ -649,7 +657,7 @@ impl Editor {
 
     /// Stops a running bake after its chunks in flight (finished batches stay in the database).
     pub fn cancel_bake(&mut self) {
-        if let Some(job) = &self.job {
+        if let Some(job) = &self.backend.job {
             job.cancel();
             self.info("bake: cancelling after the chunks in flight".into());
         }
@@ -662,8 +670,8 @@ impl Editor {
 
     /// The progressive reference restarts from zero (its scene or view changed).
     pub(super) fn restart_reference(&mut self) {
-        self.workers.reference = None;
-        self.workers.exact = None;
+        self.backend.workers.reference = None;
+        self.backend.workers.exact = None;
         self.reference = ReferenceSum::default();
     }
 

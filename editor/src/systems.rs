@@ -46,7 +46,7 @@ pub fn run_frame(ed: &mut Editor) {
 /// Hot reload: rebuilds pipelines after a shader save (keeping the last good ones when the new
 /// source does not compile) and re-imports the scene or environment after theirs.
 pub fn reload_system(ed: &mut Editor) {
-    let Some(watcher) = &mut ed.watcher else { return };
+    let Some(watcher) = &mut ed.backend.watcher else { return };
     let (changes, errors) = watcher.changes();
     errors.into_iter().for_each(|e| ed.error(e));
     for change in changes {
@@ -61,17 +61,17 @@ pub fn reload_system(ed: &mut Editor) {
 fn reload_shader(ed: &mut Editor, changed: &str) {
     let start = Instant::now();
     // A file other shaders include rebuilds every one of them.
-    let names = ed.shaders.dependents(changed);
-    if let Some(e) = names.iter().find_map(|n| ed.shaders.checked(n).err()) {
+    let names = ed.backend.shaders.dependents(changed);
+    if let Some(e) = names.iter().find_map(|n| ed.backend.shaders.checked(n).err()) {
         ed.error(format!("shader {}: keeping the last good pipeline\n{}", e.file, plain_frames(&e.report)));
         ed.shader_error = Some(e);
         return;
     }
-    let gpu = ed.gpu.clone();
+    let gpu = ed.backend.gpu.clone();
     for name in &names {
         let result = match name.as_str() {
-            "bspvt.wgsl" => ed.bspvt_gpu.as_mut().map(|s| s.reload(&gpu, &ed.shaders)),
-            "prt.wgsl" => ed.prt_gpu.as_mut().map(|s| s.reload(&gpu, &ed.shaders)),
+            "bspvt.wgsl" => ed.backend.bspvt_gpu.as_mut().map(|s| s.reload(&gpu, &ed.backend.shaders)),
+            "prt.wgsl" => ed.backend.prt_gpu.as_mut().map(|s| s.reload(&gpu, &ed.backend.shaders)),
             _ => None,
         };
         if let Some(Err(e)) = result {
@@ -156,7 +156,7 @@ pub fn pose_system(ed: &mut Editor) {
     if ed.dirty.pose {
         ed.doc.scene.update_transforms();
         ed.flat = flatten(&ed.doc.scene);
-        ed.memo.picker = None;
+        ed.backend.memo.picker = None;
         ed.dirty.pose = false;
         ed.dirty.shade = true;
     }
@@ -178,7 +178,7 @@ pub fn bake_system(ed: &mut Editor) {
         refine_receivers(ed);
         start_bake(ed);
     }
-    let Some(job) = &mut ed.job else { return };
+    let Some(job) = &mut ed.backend.job else { return };
     let landed = job.landed();
     let running = job.running();
     let mut patched = ed.bakes.unshown;
@@ -190,7 +190,7 @@ pub fn bake_system(ed: &mut Editor) {
         show_patches(ed);
     }
     if !running {
-        ed.job = None;
+        ed.backend.job = None;
     }
 }
 
@@ -268,9 +268,9 @@ fn placeholder_trees(counts: &[usize], settings: bspvt::Settings) -> bspvt::Bake
 /// Puts the current BSPVT trees on the device when a GPU shader holds them (the CPU path reads
 /// them in place; a shader made later takes the trees of its time).
 fn upload_bspvt(ed: &mut Editor) {
-    let (Some(shader), Some(bake)) = (&mut ed.bspvt_gpu, &ed.bakes.bspvt) else { return };
-    if let Err(e) = shader.set_bake(&ed.gpu, Some(bake)) {
-        ed.bspvt_gpu = None;
+    let (Some(shader), Some(bake)) = (&mut ed.backend.bspvt_gpu, &ed.bakes.bspvt) else { return };
+    if let Err(e) = shader.set_bake(&ed.backend.gpu, Some(bake)) {
+        ed.backend.bspvt_gpu = None;
         ed.error(format!("BSPVT on the GPU: {e} (shading on the CPU)"));
     }
 }
@@ -278,8 +278,8 @@ fn upload_bspvt(ed: &mut Editor) {
 /// Puts the current PRT transfer on the device.
 fn upload_prt(ed: &mut Editor) {
     let Some(bake) = &ed.bakes.prt else { return };
-    match PrtShader::new(&ed.gpu, &ed.shaders, bake, bake.order) {
-        Ok(s) => ed.prt_gpu = Some(s),
+    match PrtShader::new(&ed.backend.gpu, &ed.backend.shaders, bake, bake.order) {
+        Ok(s) => ed.backend.prt_gpu = Some(s),
         Err(e) => ed.error(format!("PRT on the GPU: {e}")),
     }
 }
@@ -304,7 +304,7 @@ fn refine_receivers(ed: &mut Editor) {
         flat.instances.iter().map(|i| flat.meshes[i.mesh as usize].hash).collect::<Vec<_>>()
     };
     let was = meshes(&ed.flat);
-    let refined = match ed.store.clone() {
+    let refined = match ed.backend.store.clone() {
         Some(store) => kage_bake_db::memo::refinement::refine(&store, &mut ed.doc.scene, &settings, &|_| {})
             .map_err(|e| e.to_string()),
         None => kage_engine::receivers::refine(&mut ed.doc.scene, &settings).map(|r| (r, 0)).map_err(|e| e.to_string()),
@@ -339,11 +339,11 @@ fn refine_receivers(ed: &mut Editor) {
 }
 
 fn start_bake(ed: &mut Editor) {
-    let Some(store) = ed.store.clone() else { return };
-    if let Some(old) = ed.job.take() {
+    let Some(store) = ed.backend.store.clone() else { return };
+    if let Some(old) = ed.backend.job.take() {
         old.cancel();
     }
-    let wake = ed.wake.clone();
+    let wake = ed.backend.wake.clone();
     match BakeJob::start(store, &ed.doc.scene, Some(ed.options.bspvt), Some(ed.options.prt), move || wake()) {
         Ok(job) => {
             let line = |name: &str, t: &Option<super::bake_job::Track>| {
@@ -352,7 +352,7 @@ fn start_bake(ed: &mut Editor) {
             let text = [line("BSPVT", &job.bspvt), line("PRT", &job.prt)].into_iter().flatten().collect::<Vec<_>>();
             ed.bakes.bspvt_stale = ed.bakes.bspvt.is_some() && job.bspvt.as_ref().is_some_and(|t| t.total > 0);
             ed.info(format!("bake plan: {}", text.join("; ")));
-            ed.job = Some(job);
+            ed.backend.job = Some(job);
         }
         Err(e) => ed.error(format!("bake: {e}")),
     }
@@ -394,13 +394,13 @@ fn take(ed: &mut Editor, landed: Landed, patched: &mut [bool; 2]) {
 /// Refines the reference progressively while it is shown or compared against.
 pub fn reference_system(ed: &mut Editor) {
     if ed.view.method != Method::Reference && !ed.view.overlay {
-        ed.workers.reference = None;
+        ed.backend.workers.reference = None;
         return;
     }
-    if ed.workers.reference.is_none() && ed.reference.passes < REFERENCE_PASSES {
-        ed.workers.reference = Some(spawn_reference(ed));
+    if ed.backend.workers.reference.is_none() && ed.reference.passes < REFERENCE_PASSES {
+        ed.backend.workers.reference = Some(spawn_reference(ed));
     }
-    let passes = ed.workers.reference.as_ref().map(|w| w.results()).unwrap_or_default();
+    let passes = ed.backend.workers.reference.as_ref().map(|w| w.results()).unwrap_or_default();
     for pass in passes {
         ed.reference.add(pass);
         ed.dirty.shade = true;
@@ -412,7 +412,7 @@ fn spawn_reference(ed: &Editor) -> Worker<VertexValues> {
     let scene = ed.view.method.lit(&ed.doc.scene);
     let bounces = u32::from(ed.indirect && ed.view.method.direct());
     let (eye, first) = (ed.view.orbit.eye(), ed.reference.passes);
-    let wake = ed.wake.clone();
+    let wake = ed.backend.wake.clone();
     Worker::spawn(
         move |stop, send| {
             let renderer = Renderer::new(&scene);
@@ -431,14 +431,15 @@ fn spawn_reference(ed: &Editor) -> Worker<VertexValues> {
 
 /// Shades the current method when anything it depends on changed, then the overlay.
 pub fn shade_system(ed: &mut Editor) {
-    if let Some((values, start)) = ed.workers.shading.as_ref().and_then(|(w, start)| Some((w.results().pop()?, *start)))
+    if let Some((values, start)) =
+        ed.backend.workers.shading.as_ref().and_then(|(w, start)| Some((w.results().pop()?, *start)))
     {
-        ed.workers.shading = None;
+        ed.backend.workers.shading = None;
         land(ed, values, start);
         compose(ed);
     }
     // One background shading at a time: a change while it runs is shaded when it lands.
-    if !ed.dirty.shade || ed.workers.shading.is_some() {
+    if !ed.dirty.shade || ed.backend.workers.shading.is_some() {
         return;
     }
     ed.dirty.shade = false;
@@ -450,8 +451,8 @@ pub fn shade_system(ed: &mut Editor) {
     ed.vertex_sun = None;
     ed.dirty.per_pixel = true;
     if let Some(job) = Background::of(ed) {
-        let wake = ed.wake.clone();
-        ed.workers.shading = Some((Worker::spawn(move |_, send| send(job.shade()), move || wake()), start));
+        let wake = ed.backend.wake.clone();
+        ed.backend.workers.shading = Some((Worker::spawn(move |_, send| send(job.shade()), move || wake()), start));
         return;
     }
     if let Some(values) = shade(ed) {
@@ -463,7 +464,7 @@ pub fn shade_system(ed: &mut Editor) {
 /// Takes newly shaded direct light, started at `start`.
 fn land(ed: &mut Editor, values: VertexValues, start: Instant) {
     ed.direct = values;
-    ed.workers.generations.0 += 1;
+    ed.backend.workers.generations.0 += 1;
     ed.stats.shading = start.elapsed().as_secs_f64();
     if let Some(t) = ed.edited_at.take() {
         ed.stats.edit_to_shade = t.elapsed().as_secs_f64();
@@ -548,7 +549,7 @@ pub fn meter_exposure(ed: &mut Editor) {
         let (all, surfaces) = view_samples(ed);
         let kept = if surfaces.is_empty() { &all } else { &surfaces };
         ed.view.exposure = metered_exposure_keeping(&all, kept).clamp(-6.0, 6.0);
-        ed.view.metering = ed.job.is_some();
+        ed.view.metering = ed.backend.job.is_some();
     }
 }
 
@@ -558,7 +559,7 @@ pub fn meter_exposure(ed: &mut Editor) {
 pub fn view_samples(ed: &mut Editor) -> (Vec<Vec3>, Vec<Vec3>) {
     const ACROSS: usize = 96;
     let down = ((ACROSS as f32 / ed.view.aspect.max(0.1)).round() as usize).clamp(1, 4 * ACROSS);
-    let picker = ed.memo.picker.get_or_insert_with(|| super::pick::Picker::new(&ed.flat));
+    let picker = ed.backend.memo.picker.get_or_insert_with(|| super::pick::Picker::new(&ed.flat));
     let fits = ed.radiance.len() == ed.flat.instances.len();
     let (mut all, mut surfaces) = (Vec::new(), Vec::new());
     for k in 0..ACROSS * down {
@@ -590,44 +591,44 @@ pub fn view_samples(ed: &mut Editor) -> (Vec<Vec3>, Vec<Vec3>) {
 /// rays would take cores from the bake.
 pub fn indirect_system(ed: &mut Editor) {
     if !ed.indirect || !ed.view.method.direct() {
-        ed.workers.indirect = None;
+        ed.backend.workers.indirect = None;
         return;
     }
     if ed.flat.unlit().is_some() {
         // Nothing lights the scene, so nothing bounces: no gather, and no bounce of a light
         // since deleted.
-        ed.workers.indirect = None;
+        ed.backend.workers.indirect = None;
         if !ed.indirect_values.is_empty() {
             ed.indirect_values.clear();
             compose(ed);
         }
         return;
     }
-    let landed = ed.workers.indirect.as_ref().map(|w| w.results()).unwrap_or_default();
+    let landed = ed.backend.workers.indirect.as_ref().map(|w| w.results()).unwrap_or_default();
     if let Some(last) = landed.into_iter().last() {
         ed.indirect_values = last.values;
         if let Some(base) = last.base {
-            ed.workers.indirect = None;
-            ed.workers.indirect_base = Some(base);
+            ed.backend.workers.indirect = None;
+            ed.backend.workers.indirect_base = Some(base);
             ed.info(format!("indirect: {}", last.what));
         }
         compose(ed);
     }
-    let (direct, started) = ed.workers.generations;
-    if ed.workers.indirect.is_none() && started != direct && !ed.direct.is_empty() && ed.job.is_none() {
-        ed.workers.generations.1 = direct;
-        ed.workers.indirect = Some(spawn_indirect(ed));
+    let (direct, started) = ed.backend.workers.generations;
+    if ed.backend.workers.indirect.is_none() && started != direct && !ed.direct.is_empty() && ed.backend.job.is_none() {
+        ed.backend.workers.generations.1 = direct;
+        ed.backend.workers.indirect = Some(spawn_indirect(ed));
     }
 }
 
 /// True while an indirect gather runs.
 pub fn gathering(ed: &Editor) -> bool {
-    ed.workers.indirect.is_some()
+    ed.backend.workers.indirect.is_some()
 }
 
 /// True while a large scene's direct light is shaded in the background.
 pub fn shading(ed: &Editor) -> bool {
-    ed.workers.shading.is_some()
+    ed.backend.workers.shading.is_some()
 }
 
 /// How the current method lights glossy hits toward the cache's records.
@@ -651,7 +652,7 @@ fn hit_light(ed: &Editor) -> HitLight {
 /// trees are lit unshadowed, as the view shows them.
 fn baked_parts(ed: &Editor, trees: Option<Arc<bspvt::Bake>>) -> Option<BakedParts> {
     let (bake, lighting, prefiltered) =
-        (ed.bakes.prt.as_ref()?, ed.bakes.lighting.as_ref()?, ed.memo.prefiltered.as_ref()?);
+        (ed.bakes.prt.as_ref()?, ed.bakes.lighting.as_ref()?, ed.backend.memo.prefiltered.as_ref()?);
     if !transfer_fits(ed, bake) {
         return None;
     }
@@ -671,10 +672,10 @@ fn spawn_indirect(ed: &mut Editor) -> Worker<Indirect> {
         direct: ed.direct.clone(),
         eye: ed.view.orbit.eye(),
         settings: ed.options.cache,
-        store: ed.store.clone(),
-        base: ed.workers.indirect_base.take(),
+        store: ed.backend.store.clone(),
+        base: ed.backend.workers.indirect_base.take(),
     };
-    let wake = ed.wake.clone();
+    let wake = ed.backend.wake.clone();
     Worker::spawn(move |stop, send| job.run(stop, send), move || wake())
 }
 
@@ -717,18 +718,18 @@ fn fits<T>(ed: &Editor, instances: &[T], vertices: impl Fn(&T) -> usize) -> bool
 fn polygonal(ed: &mut Editor, mode: Mode, eye: Vec3) -> VertexValues {
     if ed.lights_per_pixel() {
         let bake = ed.bakes.bspvt.as_deref().filter(|_| mode == Mode::Trees);
-        let (lobes, values) = Lobes::at_vertices(&ed.flat, bake, eye, ed.memo.inside.flags(&ed.flat));
+        let (lobes, values) = Lobes::at_vertices(&ed.flat, bake, eye, ed.backend.memo.inside.flags(&ed.flat));
         ed.pixel_lights = Some(PixelLights { lobes, values: values.clone(), environment: None });
         return values;
     }
-    let gpu = ed.gpu.clone();
-    if ed.bspvt_gpu.is_none() && ed.polygonal_on_gpu() {
-        match BspvtShader::new(&gpu, &ed.shaders, ed.bakes.bspvt.as_deref()) {
-            Ok(s) => ed.bspvt_gpu = Some(s),
+    let gpu = ed.backend.gpu.clone();
+    if ed.backend.bspvt_gpu.is_none() && ed.polygonal_on_gpu() {
+        match BspvtShader::new(&gpu, &ed.backend.shaders, ed.bakes.bspvt.as_deref()) {
+            Ok(s) => ed.backend.bspvt_gpu = Some(s),
             Err(e) => ed.error(format!("BSPVT on the GPU: {e}")),
         }
     }
-    let on_gpu = ed.bspvt_gpu.as_ref().filter(|_| ed.polygonal_on_gpu());
+    let on_gpu = ed.backend.bspvt_gpu.as_ref().filter(|_| ed.polygonal_on_gpu());
     let result = on_gpu.map(|s| kage_gpu::bspvt::shade_vertices(&gpu, s, &ed.flat, mode, eye));
     match result {
         Some(Ok(v)) => v,
@@ -754,9 +755,10 @@ fn baked(ed: &mut Editor, eye: Vec3) -> VertexValues {
     let bake = ed.bakes.bspvt.as_deref().filter(|_| trees);
     let polygonal = values.map(|values| Polygonal { bake, values, lobes: None });
     let env = ed.flat.environment.clone();
-    ed.memo.prefiltered =
-        env.as_ref().map(|e| ed.memo.prefiltered.as_ref().map_or_else(|| Prefiltered::new(e), |p| p.for_light(e)));
-    let (Some(bake), Some(light), Some(pre)) = (&ed.bakes.prt, &ed.bakes.lighting, &ed.memo.prefiltered) else {
+    ed.backend.memo.prefiltered = env
+        .as_ref()
+        .map(|e| ed.backend.memo.prefiltered.as_ref().map_or_else(|| Prefiltered::new(e), |p| p.for_light(e)));
+    let (Some(bake), Some(light), Some(pre)) = (&ed.bakes.prt, &ed.bakes.lighting, &ed.backend.memo.prefiltered) else {
         return Look::new(&ed.flat, eye, polygonal, None).into_direct();
     };
     if !transfer_fits(ed, bake) {
@@ -764,7 +766,7 @@ fn baked(ed: &mut Editor, eye: Vec3) -> VertexValues {
     }
     // A light moved and nothing else: the environment's part is reused.
     let parts = prt::Parts { bake, lighting: light, settings: &ed.options.prt };
-    let (environment, silhouettes) = (&mut ed.memo.environment, &mut ed.memo.silhouettes);
+    let (environment, silhouettes) = (&mut ed.backend.memo.environment, &mut ed.backend.memo.silhouettes);
     let direct = Look::direct_reusing(
         &ed.doc.scene,
         &ed.flat,
@@ -792,14 +794,16 @@ fn sun_per_pixel(ed: &mut Editor, eye: Vec3) {
 /// Adds the environment's specular term of the frame just shaded to what the viewport draws
 /// per pixel (with no polygonal light, the lights' part is empty).
 fn specular_per_pixel(ed: &mut Editor, eye: Vec3) {
-    let (Some(specular), Some(pre)) = (ed.memo.environment.specular(), &ed.memo.prefiltered) else { return };
+    let (Some(specular), Some(pre)) = (ed.backend.memo.environment.specular(), &ed.backend.memo.prefiltered) else {
+        return;
+    };
     if !ed.lights_per_pixel() {
         return;
     }
     let Some(lighting) = &ed.bakes.lighting else { return };
     let environment = Some(PixelEnvironment::new(&ed.flat, specular, pre, lighting, eye));
     let lights = ed.pixel_lights.get_or_insert_with(|| {
-        let (lobes, values) = Lobes::at_vertices(&ed.flat, None, eye, ed.memo.inside.flags(&ed.flat));
+        let (lobes, values) = Lobes::at_vertices(&ed.flat, None, eye, ed.backend.memo.inside.flags(&ed.flat));
         PixelLights { lobes, values, environment: None }
     });
     lights.environment = environment;
@@ -807,14 +811,14 @@ fn specular_per_pixel(ed: &mut Editor, eye: Vec3) {
 
 /// The exact-visibility comparison casts cube maps per vertex: in the background.
 fn exact_vis(ed: &mut Editor, eye: Vec3) -> Option<VertexValues> {
-    if let Some(v) = ed.workers.exact.as_ref().and_then(|w| w.results().pop()) {
+    if let Some(v) = ed.backend.workers.exact.as_ref().and_then(|w| w.results().pop()) {
         return Some(v);
     }
-    if ed.workers.exact.is_none() {
+    if ed.backend.workers.exact.is_none() {
         let scene = ed.doc.scene.duplicate();
         let s = ed.options.bspvt;
-        let wake = ed.wake.clone();
-        ed.workers.exact = Some(Worker::spawn(
+        let wake = ed.backend.wake.clone();
+        ed.backend.workers.exact = Some(Worker::spawn(
             move |_, send| {
                 let flat = flatten(&scene);
                 send(bspvt::shade_vertices(&flat, bspvt::Shadows::Exact { res: s.res }, eye));
@@ -823,21 +827,28 @@ fn exact_vis(ed: &mut Editor, eye: Vec3) -> Option<VertexValues> {
         ));
         ed.info("ltc-exact-vis: casting visibility per vertex in the background".into());
     }
-    ed.dirty.shade = ed.workers.exact.is_some();
+    ed.dirty.shade = ed.backend.workers.exact.is_some();
     None
 }
 
 fn prt_gpu(ed: &mut Editor, eye: Vec3) -> VertexValues {
-    let (Some(bake), Some(light), Some(shader)) = (&ed.bakes.prt, &ed.bakes.lighting, &ed.prt_gpu) else {
+    let (Some(bake), Some(light), Some(shader)) = (&ed.bakes.prt, &ed.bakes.lighting, &ed.backend.prt_gpu) else {
         return ed.flat.zeros();
     };
     if !transfer_fits(ed, bake) {
         return ed.flat.zeros();
     }
     let shadows = ed.view.method.prt_shadows().unwrap_or(prt::Shadows::SelfOnly);
-    let posed =
-        prt::Posed::new(&ed.doc.scene, &ed.flat, bake.order, light, shadows, &ed.options.prt, &mut ed.memo.silhouettes);
-    let gpu = ed.gpu.clone();
+    let posed = prt::Posed::new(
+        &ed.doc.scene,
+        &ed.flat,
+        bake.order,
+        light,
+        shadows,
+        &ed.options.prt,
+        &mut ed.backend.memo.silhouettes,
+    );
+    let gpu = ed.backend.gpu.clone();
     let values = kage_gpu::prt::shade_vertices(&gpu, shader, &ed.flat, &posed, eye);
     // The viewport shades the shadows between groups per pixel from the frame's vertex terms.
     let frame = prt::Frame::from_posed(&ed.flat, bake, posed, eye);

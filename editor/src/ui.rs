@@ -138,7 +138,7 @@ impl eframe::App for App {
         if shortcuts(ui, &mut self.editor) {
             self.status = super::files::save(&mut self.editor);
         }
-        if self.editor.job.is_some() || self.editor.dirty.shade || super::systems::gathering(&self.editor) {
+        if self.editor.backend.job.is_some() || self.editor.dirty.shade || super::systems::gathering(&self.editor) {
             ui.ctx().request_repaint_after(std::time::Duration::from_millis(100));
         }
     }
@@ -527,7 +527,7 @@ fn environment_inspector(ui: &mut egui::Ui, ed: &mut Editor) {
 fn bake_panel(ui: &mut egui::Ui, ed: &mut Editor) {
     ui.heading("Bake");
     receivers(ui, ed);
-    if let Some(job) = &ed.job {
+    if let Some(job) = &ed.backend.job {
         for (name, t) in [("BSPVT", &job.bspvt), ("PRT", &job.prt)] {
             let Some(t) = t else { continue };
             let done = t.done.load(Ordering::Relaxed);

@@ -78,7 +78,7 @@ fn step_until(h: &mut Harness<App>, what: &str, done: impl Fn(&Editor) -> bool) 
 }
 
 fn settled(ed: &Editor) -> bool {
-    ed.job.is_none() && shaded(ed) && !ed.dirty.geometry && ed.bakes.bspvt.is_some()
+    ed.backend.job.is_none() && shaded(ed) && !ed.dirty.geometry && ed.bakes.bspvt.is_some()
 }
 
 /// Nothing left to shade, within the frame or in the background.
@@ -227,7 +227,7 @@ fn light_moves_reshade_at_once_and_group_moves_rebake_bspvt_incrementally() {
     );
     h.step();
     let ed = &h.state().editor;
-    assert!(ed.job.is_none(), "a light move re-bakes nothing");
+    assert!(ed.backend.job.is_none(), "a light move re-bakes nothing");
     assert!(changed(&before, &values(&h)) > 1000, "the light move re-shaded in the same frame");
     assert!(ed.stats.edit_to_shade > 0.0);
     snapshot(&mut h, "moves-light");
@@ -248,7 +248,7 @@ fn light_moves_reshade_at_once_and_group_moves_rebake_bspvt_incrementally() {
     h.step();
     let ed = &h.state().editor;
     assert_eq!(errors(ed).len(), 2, "a move inside the reach is taken");
-    assert!(ed.job.is_none() && changed(&at, &values(&h)) > 1000);
+    assert!(ed.backend.job.is_none() && changed(&at, &values(&h)) > 1000);
     let ed = &mut h.state_mut().editor;
     ed.log.clear();
     // Back to roaming lights, so the group move below re-bakes against the same keys.
@@ -263,7 +263,7 @@ fn light_moves_reshade_at_once_and_group_moves_rebake_bspvt_incrementally() {
     h.step();
     let ed = &h.state().editor;
     assert!(changed(&prt_before, &values(&h)) > 50, "PRT shading follows the move at once");
-    assert!(ed.job.is_some() && ed.bakes.bspvt_stale, "an incremental BSPVT re-bake started");
+    assert!(ed.backend.job.is_some() && ed.bakes.bspvt_stale, "an incremental BSPVT re-bake started");
     step_until(&mut h, "the re-bake", settled);
     let ed = &h.state().editor;
     let (b, p) = (ed.stats.runs[0].unwrap(), ed.stats.runs[1].unwrap());
@@ -300,7 +300,7 @@ fn the_preview_refines_batch_by_batch_while_the_bakes_stream_in() {
         assert!(start.elapsed() < Duration::from_secs(300), "{:#?}", h.state().editor.log);
         h.step();
         let ed = &h.state().editor;
-        let baking = ed.job.as_ref().is_some_and(|j| j.bspvt.as_ref().is_some_and(|t| t.running));
+        let baking = ed.backend.job.as_ref().is_some_and(|j| j.bspvt.as_ref().is_some_and(|t| t.running));
         let v = values(&h);
         if baking && ed.bakes.bspvt.is_some() && previews.last().is_none_or(|p| changed(p, &v) > 0) {
             previews.push(v);
@@ -598,7 +598,7 @@ fn touching_the_scene_file_reimports_it_and_rebakes_only_what_changed() {
     h.step();
     let ed = &h.state().editor;
     assert!(ed.log.iter().any(|l| l.text.contains("replaced the mesh by")), "{:#?}", ed.log);
-    step_until(&mut h, "a mesh replacement re-bakes", |ed| ed.job.is_some());
+    step_until(&mut h, "a mesh replacement re-bakes", |ed| ed.backend.job.is_some());
     step_until(&mut h, "the re-bake after the mesh edit", |ed| settled(ed) && !ed.bakes.bspvt_stale);
     let edit = h.state().editor.stats.runs[0].unwrap();
     assert!(edit.cold > 0 && edit.warm > 0, "the new mesh bakes cold, the ground warm: {edit:?}");
@@ -1004,7 +1004,7 @@ fn receivers_are_refined_as_kage_bake_refines_them_and_again_after_edits() {
     let light = ed.flat.lights[0].entity;
     h.state_mut().editor.move_light(light, by, Quat::IDENTITY);
     h.step();
-    assert!(h.state().editor.refinement_stale() && h.state().editor.job.is_none());
+    assert!(h.state().editor.refinement_stale() && h.state().editor.backend.job.is_none());
     h.get_by_label("Refine again").click();
     step_until(&mut h, "the refinement for the moved light", |ed| settled(ed) && !ed.refinement_stale());
     let moved = cold(by);
