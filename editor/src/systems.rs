@@ -195,7 +195,7 @@ pub fn bake_system(ed: &mut Editor) {
 }
 
 /// While a bake runs, a preview of what landed is due once the last one is this many times its
-/// own cost (shading and drawing) ago: previews take at most a fifth of the machine from the
+/// own cost (shading and drawing) ago: previews take at most a ninth of the machine from the
 /// bake. On a GPU that is tens of previews a second; on a CPU device, whose frame of per-pixel
 /// lights takes a second of both cores, one every few seconds.
 const PREVIEW_SPACING: f64 = 8.0;
