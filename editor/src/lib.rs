@@ -12,6 +12,10 @@
 //! - [`ui`]: the egui panels, showing `kage_gpu::viewport`'s preview (which also draws
 //!   `kage render --gpu`, and watches files: `kage_gpu::reload`); [`files`]: save and export;
 //!   [`history`]: undo and redo records.
+//!
+//! One style for operations: what a user does to the scene or its files (edits, undo, save,
+//! export, add, delete) is a method of [`state::Editor`]; the per-frame schedule is free
+//! functions over it in [`systems`]; panels are free functions taking the `egui::Ui`.
 
 pub mod bake_job;
 pub mod document;

@@ -10,7 +10,6 @@ use super::worker::Worker;
 use glam::Vec3;
 use kage_bake_db::DbError;
 use kage_engine::bspvt::pixel::Lobes;
-use kage_engine::cache::record::GlossyDirect;
 use kage_engine::math::color::metered_exposure_keeping;
 use kage_engine::prt::prefilter::Prefiltered;
 use kage_engine::reference::{Renderer, Settings};
@@ -19,7 +18,7 @@ use kage_engine::scene::{EnvMap, EnvironmentLight, flatten, import};
 use kage_engine::shading::Method;
 use kage_engine::shading::baked::{Look, Polygonal};
 use kage_engine::{bspvt, prt};
-use kage_gpu::bspvt::{BspvtShader, Mode};
+use kage_gpu::bspvt::BspvtShader;
 use kage_gpu::prt::PrtShader;
 use kage_gpu::reload::Change;
 use kage_gpu::viewport::{PixelEnvironment, PixelLights, VertexSun};
@@ -635,15 +634,9 @@ pub fn shading(ed: &Editor) -> bool {
 fn hit_light(ed: &Editor) -> HitLight {
     let trees = || ed.bakes.bspvt.clone().filter(|b| trees_fit(ed, b));
     HitLight::Method(match ed.view.method {
-        Method::Baked => match baked_parts(ed, trees()) {
-            Some(parts) => return HitLight::Baked(Box::new(parts)),
-            // No environment shaded yet: the baked look is the polygonal lights alone.
-            None => GlossyDirect::Ltc(trees()),
-        },
-        Method::Bspvt => GlossyDirect::Ltc(trees()),
-        Method::LtcUnshadowed => GlossyDirect::Ltc(None),
-        Method::Prt | Method::PrtSelf => GlossyDirect::PerVertex,
-        Method::LtcExactVis | Method::Reference => GlossyDirect::Reference,
+        Method::Baked if let Some(parts) = baked_parts(ed, trees()) => return HitLight::Baked(Box::new(parts)),
+        // No environment shaded yet: the baked look is the polygonal lights alone.
+        method => method.glossy_direct(trees()),
     })
 }
 
@@ -683,10 +676,7 @@ fn spawn_indirect(ed: &mut Editor) -> Worker<Indirect> {
 fn shade(ed: &mut Editor) -> Option<VertexValues> {
     let eye = ed.view.orbit.eye();
     match ed.view.method {
-        Method::Bspvt | Method::LtcUnshadowed => {
-            let trees = ed.view.method == Method::Bspvt && ed.bakes.bspvt.as_deref().is_some_and(|b| trees_fit(ed, b));
-            Some(polygonal(ed, if trees { Mode::Trees } else { Mode::Unshadowed }, eye))
-        }
+        Method::Bspvt | Method::LtcUnshadowed => Some(polygonal(ed, eye)),
         Method::LtcExactVis => exact_vis(ed, eye),
         Method::Prt | Method::PrtSelf => Some(prt_gpu(ed, eye)),
         Method::Baked => Some(baked(ed, eye)),
@@ -712,12 +702,19 @@ fn fits<T>(ed: &Editor, instances: &[T], vertices: impl Fn(&T) -> usize) -> bool
         && instances.iter().enumerate().all(|(k, b)| vertices(b) == ed.flat.vertex_count(k))
 }
 
-/// BSPVT or unshadowed LTC: with the lobes the viewport draws per pixel when it does (on the
-/// CPU), else on the GPU, or on the CPU when chosen (see [`super::state::ShadeOn`]) or when the
-/// GPU path refuses the scene.
-fn polygonal(ed: &mut Editor, mode: Mode, eye: Vec3) -> VertexValues {
+/// The current method's polygonal lights (BSPVT with the trees that fit the snapshot, else
+/// unshadowed LTC): with the lobes the viewport draws per pixel when it does (on the CPU), else
+/// on the GPU, or on the CPU when chosen (see [`super::state::ShadeOn`]) or when the GPU path
+/// refuses the scene.
+fn polygonal(ed: &mut Editor, eye: Vec3) -> VertexValues {
+    let trees = ed.bakes.bspvt.clone().filter(|b| trees_fit(ed, b));
+    let res = ed.options.bspvt.res;
+    let shadows = ed.view.method.polygonal_shadows(trees.as_deref(), res).unwrap_or(bspvt::Shadows::Unshadowed);
+    let bake = match shadows {
+        bspvt::Shadows::Trees(b) => Some(b),
+        _ => None,
+    };
     if ed.lights_per_pixel() {
-        let bake = ed.bakes.bspvt.as_deref().filter(|_| mode == Mode::Trees);
         let (lobes, values) = Lobes::at_vertices(&ed.flat, bake, eye, ed.backend.memo.inside.flags(&ed.flat));
         ed.pixel_lights = Some(PixelLights { lobes, values: values.clone(), environment: None });
         return values;
@@ -730,18 +727,14 @@ fn polygonal(ed: &mut Editor, mode: Mode, eye: Vec3) -> VertexValues {
         }
     }
     let on_gpu = ed.backend.bspvt_gpu.as_ref().filter(|_| ed.polygonal_on_gpu());
-    let result = on_gpu.map(|s| kage_gpu::bspvt::shade_vertices(&gpu, s, &ed.flat, mode, eye));
+    let result = on_gpu.map(|s| kage_gpu::bspvt::shade_vertices(&gpu, s, &ed.flat, shadows, eye));
     match result {
         Some(Ok(v)) => v,
         other => {
             if let Some(Err(e)) = other {
                 ed.error(format!("GPU shading: {e}; shading on the CPU"));
             }
-            let m = match ed.bakes.bspvt.as_deref().filter(|_| mode == Mode::Trees) {
-                Some(bake) => bspvt::Shadows::Trees(bake),
-                None => bspvt::Shadows::Unshadowed,
-            };
-            bspvt::shade_vertices(&ed.flat, m, eye)
+            bspvt::shade_vertices(&ed.flat, shadows, eye)
         }
     }
 }
@@ -750,8 +743,7 @@ fn polygonal(ed: &mut Editor, mode: Mode, eye: Vec3) -> VertexValues {
 /// environment's diffuse (PRT, with other groups' shadows) and specular terms on the CPU.
 fn baked(ed: &mut Editor, eye: Vec3) -> VertexValues {
     let trees = ed.bakes.bspvt.as_deref().is_some_and(|b| trees_fit(ed, b));
-    let values =
-        (!ed.flat.lights.is_empty()).then(|| polygonal(ed, if trees { Mode::Trees } else { Mode::Unshadowed }, eye));
+    let values = (!ed.flat.lights.is_empty()).then(|| polygonal(ed, eye));
     let bake = ed.bakes.bspvt.as_deref().filter(|_| trees);
     let polygonal = values.map(|values| Polygonal { bake, values, lobes: None });
     let env = ed.flat.environment.clone();

@@ -136,7 +136,7 @@ impl eframe::App for App {
         // After the viewport: a click and a key that arrive in one (slow) frame act in the order
         // the user gave them — the click selects, then Delete deletes.
         if shortcuts(ui, &mut self.editor) {
-            self.status = super::files::save(&mut self.editor);
+            self.status = self.editor.save();
         }
         if self.editor.backend.job.is_some() || self.editor.dirty.shade || super::systems::gathering(&self.editor) {
             ui.ctx().request_repaint_after(std::time::Duration::from_millis(100));
@@ -186,7 +186,7 @@ impl App {
                 ui.text_edit_singleline(&mut path);
                 ui.horizontal(|ui| {
                     if ui.button("Save").clicked() {
-                        self.status = super::files::save_as(&mut self.editor, std::path::Path::new(path.trim()));
+                        self.status = self.editor.save_as(std::path::Path::new(path.trim()));
                         open = false;
                     }
                     open &= !ui.button("Cancel").clicked();
@@ -203,7 +203,7 @@ impl App {
             ui.label("Save your edits before closing?");
             ui.horizontal(|ui| {
                 if ui.button("Save").clicked() {
-                    self.status = super::files::save(&mut self.editor);
+                    self.status = self.editor.save();
                     self.closing = false;
                     if !self.editor.unsaved() {
                         ctx.send_viewport_cmd(egui::ViewportCommand::Close);
@@ -277,14 +277,14 @@ fn menu(ui: &mut egui::Ui, app: &mut App) {
         egui::MenuBar::new().ui(ui, |ui| {
             ui.menu_button("File", |ui| {
                 if ui.add(egui::Button::new("Save").shortcut_text("Ctrl+S")).clicked() {
-                    app.status = super::files::save(&mut app.editor);
+                    app.status = app.editor.save();
                 }
                 if ui.button("Save As…").clicked() {
                     let current = app.editor.options.scene_path.as_ref().map(|p| p.display().to_string());
                     app.save_as = Some(current.unwrap_or_else(|| "scene.glb".into()));
                 }
                 if ui.button("Export pack").clicked() {
-                    app.status = super::files::export_pack(&mut app.editor);
+                    app.status = app.editor.export_pack();
                 }
             });
             ui.menu_button("Edit", |ui| {
@@ -480,7 +480,7 @@ fn mesh_inspector(ui: &mut egui::Ui, ed: &mut Editor, e: hecs::Entity) {
         ui.add(egui::TextEdit::singleline(&mut path).hint_text("path/to/mesh.glb")).labelled_by(label.id);
     });
     if ui.add_enabled(!path.trim().is_empty(), egui::Button::new("Replace mesh")).clicked() {
-        super::files::replace_mesh_from(ed, e, std::path::Path::new(path.trim()));
+        ed.replace_mesh_from(e, std::path::Path::new(path.trim()));
     }
     ui.data_mut(|d| d.insert_temp(id, path));
 }

@@ -1028,7 +1028,7 @@ fn receivers_are_refined_as_kage_bake_refines_them_and_again_after_edits() {
     // Save writes the file's own meshes (a moved ball, the floor still two triangles).
     h.state_mut().editor.move_group(ball, Vec3::new(0.0, 0.0, 0.4), Quat::IDENTITY);
     h.step();
-    kage_editor::files::save(&mut h.state_mut().editor);
+    h.state_mut().editor.save();
     let ed = &h.state().editor;
     assert!(!ed.unsaved() && errors(ed).is_empty(), "{:?}", errors(ed));
     let saved = import::import(&path, Default::default()).unwrap();
@@ -1038,7 +1038,7 @@ fn receivers_are_refined_as_kage_bake_refines_them_and_again_after_edits() {
     let ed = &mut h.state_mut().editor;
     ed.options.scene_path = None;
     let glb = dir.join("no-file.glb");
-    let message = kage_editor::files::save_as(ed, &glb);
+    let message = ed.save_as(&glb);
     assert!(message.starts_with("wrote"), "{message}");
     let saved = kage_engine::scene::flatten(&import::import(&glb, Default::default()).unwrap());
     assert_eq!(saved.vertex_count(0), 4, "a save without a file writes the floor's two triangles too");

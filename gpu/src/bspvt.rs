@@ -4,7 +4,7 @@ use crate::buffers::{dispatch, pipeline, storage, uniform};
 use crate::{Gpu, GpuError, Shaders};
 use glam::{DMat3, Vec3};
 use kage_engine::bspvt::shade::PointShader;
-use kage_engine::bspvt::{Bake, layout};
+use kage_engine::bspvt::{Bake, Shadows, layout};
 use kage_engine::math::ltc;
 use kage_engine::scene::VertexValues;
 use kage_engine::scene::{FlatLight, FlatScene};
@@ -43,15 +43,6 @@ pub struct GpuLight {
     count: u32,
     radiance: [f32; 3],
     pad: u32,
-}
-
-/// Which visibility the shader applies.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Mode {
-    /// No shadows (`ltc-unshadowed`).
-    Unshadowed,
-    /// Baked visibility trees (`bspvt`).
-    Trees,
 }
 
 /// The BSPVT shading pipeline with a bake's trees resident on the device.
@@ -120,23 +111,35 @@ impl BspvtShader {
     }
 
     /// Outgoing radiance at every vertex (`shaders`: the CPU's per-vertex LTC setup, in the
-    /// bake's vertex order for [`Mode::Trees`]) from `lights`.
+    /// bake's vertex order for trees) from `lights`, unshadowed or with the trees resident on
+    /// the device, which must be `shadows`' (uploaded by [`Self::new`] or [`Self::set_bake`]).
+    /// Exact visibility casts rays: the CPU's alone.
     pub fn shade(
         &self,
         gpu: &Gpu,
         shaders: &[PointShader],
         lights: &[FlatLight],
-        mode: Mode,
+        shadows: Shadows,
     ) -> Result<Vec<Vec3>, GpuError> {
-        if mode == Mode::Trees && self.trees.baked != shaders.len() {
-            return Err(GpuError::Unsupported("BSPVT shading needs a bake of every vertex".into()));
-        }
+        let mode = match shadows {
+            Shadows::Unshadowed => 0,
+            Shadows::Trees(bake)
+                if self.trees.baked == shaders.len()
+                    && bake.instances.iter().map(|i| i.vertices()).sum::<usize>() == shaders.len() =>
+            {
+                1
+            }
+            Shadows::Trees(_) => {
+                return Err(GpuError::Unsupported("BSPVT shading needs the resident bake of every vertex".into()));
+            }
+            Shadows::Exact { .. } => {
+                return Err(GpuError::Unsupported(
+                    "exact visibility casts rays on the CPU; the GPU shades trees".into(),
+                ));
+            }
+        };
         let vertices: Vec<GpuVertex> = shaders.iter().map(gpu_vertex).collect();
         let lights = lights.iter().map(gpu_light).collect::<Result<Vec<_>, _>>()?;
-        let mode = match mode {
-            Mode::Unshadowed => 0,
-            Mode::Trees => 1,
-        };
         let params =
             Params { vertex_count: vertices.len() as u32, light_count: lights.len() as u32, mode, res: self.trees.res };
         let out = storage(gpu, "bspvt radiance", &vec![[0.0f32; 4]; vertices.len().max(1)]);
@@ -250,9 +253,9 @@ pub fn shade_vertices(
     gpu: &Gpu,
     shader: &BspvtShader,
     flat: &FlatScene,
-    mode: Mode,
+    shadows: Shadows,
     eye: Vec3,
 ) -> Result<VertexValues, GpuError> {
-    let values = shader.shade(gpu, &point_shaders(flat, eye), &flat.lights, mode)?;
+    let values = shader.shade(gpu, &point_shaders(flat, eye), &flat.lights, shadows)?;
     Ok(crate::per_instance(flat, values))
 }

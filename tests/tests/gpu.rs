@@ -29,16 +29,14 @@ fn bspvt_agrees(scene: &Scene, eye: Vec3) {
     let s = bspvt::Settings { res: 32, epsilon: 2.0 };
     let bake = bspvt::bake(&flat, &s, &|_| {});
     let shader = gpu_bspvt::BspvtShader::new(&gpu, &Shaders::embedded(), Some(&bake)).unwrap();
-    for (mode, method) in [
-        (gpu_bspvt::Mode::Trees, bspvt::Shadows::Trees(&bake)),
-        (gpu_bspvt::Mode::Unshadowed, bspvt::Shadows::Unshadowed),
-    ] {
-        let cpu = bspvt::shade_vertices(&flat, method, eye);
-        let on_gpu = gpu_bspvt::shade_vertices(&gpu, &shader, &flat, mode, eye).unwrap();
+    for shadows in [bspvt::Shadows::Trees(&bake), bspvt::Shadows::Unshadowed] {
+        let cpu = bspvt::shade_vertices(&flat, shadows, eye);
+        let on_gpu = gpu_bspvt::shade_vertices(&gpu, &shader, &flat, shadows, eye).unwrap();
         let w = worst(&on_gpu, &cpu);
+        let trees = matches!(shadows, bspvt::Shadows::Trees(_));
         let lit = cpu.iter().flatten().filter(|c| c.max_element() > 0.0).count();
         assert!(lit > 100, "{}: the test must shade lit vertices ({lit})", scene.source);
-        assert!(w <= 1.0, "{} {mode:?}: worst error {w} × tolerance on {}", scene.source, gpu.describe());
+        assert!(w <= 1.0, "{} (trees: {trees}): worst error {w} × tolerance on {}", scene.source, gpu.describe());
     }
 }
 
@@ -57,7 +55,8 @@ fn trees_given_to_a_built_shader_shade_as_a_shader_built_with_them() {
     let eye = Vec3::new(0.0, 3.0, 6.0);
     let built = gpu_bspvt::BspvtShader::new(&gpu, &Shaders::embedded(), Some(&bake)).unwrap();
     let mut given = gpu_bspvt::BspvtShader::new(&gpu, &Shaders::embedded(), None).unwrap();
-    let trees = |s: &gpu_bspvt::BspvtShader| gpu_bspvt::shade_vertices(&gpu, s, &flat, gpu_bspvt::Mode::Trees, eye);
+    let trees =
+        |s: &gpu_bspvt::BspvtShader| gpu_bspvt::shade_vertices(&gpu, s, &flat, bspvt::Shadows::Trees(&bake), eye);
     assert!(trees(&given).is_err(), "no trees yet: shading with them is refused");
     given.set_bake(&gpu, Some(&bake)).unwrap();
     let (a, b) = (trees(&built).unwrap(), trees(&given).unwrap());
@@ -131,6 +130,6 @@ fn a_light_with_too_many_corners_is_refused_not_truncated() {
         .map(|k| c + Quat::from_axis_angle(l.normal, k as f32 * std::f32::consts::FRAC_PI_6) * (l.points[0] - c))
         .collect();
     let shaders = gpu_bspvt::point_shaders(&flat, Vec3::new(0.0, 3.0, 6.0));
-    let e = shader.shade(&gpu, &shaders, &lights, gpu_bspvt::Mode::Unshadowed).unwrap_err();
+    let e = shader.shade(&gpu, &shaders, &lights, bspvt::Shadows::Unshadowed).unwrap_err();
     assert!(e.to_string().contains("12 corners"), "{e}");
 }

@@ -3,10 +3,13 @@
 //! [`crate::prt::Shadows`]) say which shadows a technique computes; this says what a user
 //! chose.
 
+use crate::bspvt;
+use crate::cache::record::GlossyDirect;
 use crate::named::Named;
 use crate::scene::Scene;
 use std::fmt;
 use std::str::FromStr;
+use std::sync::Arc;
 
 /// How radiance is computed.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -105,6 +108,29 @@ impl Method {
             Method::Prt | Method::Baked => Some(crate::prt::Shadows::WithOthers),
             Method::PrtSelf => Some(crate::prt::Shadows::SelfOnly),
             _ => None,
+        }
+    }
+
+    /// The visibility it shades polygonal lights with, given the trees that fit the snapshot (if
+    /// any) and the cube-map resolution of exact visibility; `None` for the methods that shade
+    /// no polygonal light per vertex (PRT, the reference). Without trees, BSPVT is unshadowed.
+    pub fn polygonal_shadows(self, trees: Option<&bspvt::Bake>, res: usize) -> Option<bspvt::Shadows<'_>> {
+        match self {
+            Method::Bspvt | Method::Baked => Some(trees.map_or(bspvt::Shadows::Unshadowed, bspvt::Shadows::Trees)),
+            Method::LtcUnshadowed => Some(bspvt::Shadows::Unshadowed),
+            Method::LtcExactVis => Some(bspvt::Shadows::Exact { res }),
+            Method::Prt | Method::PrtSelf | Method::Reference => None,
+        }
+    }
+
+    /// How the radiance cache lights glossy hits toward its records for this method's direct
+    /// light (the baked look lights them with its own parts where it has them).
+    pub fn glossy_direct(self, trees: Option<Arc<bspvt::Bake>>) -> GlossyDirect {
+        match self {
+            Method::Bspvt | Method::Baked => GlossyDirect::Ltc(trees),
+            Method::LtcUnshadowed => GlossyDirect::Ltc(None),
+            Method::Prt | Method::PrtSelf => GlossyDirect::PerVertex,
+            Method::LtcExactVis | Method::Reference => GlossyDirect::Reference,
         }
     }
 

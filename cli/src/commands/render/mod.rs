@@ -330,23 +330,14 @@ fn per_vertex(job: &Job, method: Method) -> Result<Outputs> {
         (method == Method::Bspvt).then(|| in_memory_bspvt(renderer, &settings))
     };
     // No bake means no polygonal light (a database plans no BSPVT then): nothing to shadow.
-    let kind = match (method, &bake) {
-        (Method::Bspvt, Some(b)) => bspvt::Shadows::Trees(b),
-        (Method::LtcExactVis, _) => bspvt::Shadows::Exact { res: settings.res },
-        _ => bspvt::Shadows::Unshadowed,
-    };
+    let kind = method.polygonal_shadows(bake.as_ref(), settings.res).context("not a polygonal-light method")?;
     // The GGX albedo table is built on first use: not part of shading a frame.
     let _ = kage_engine::math::ggx::directional_albedo(1.0, 0.5, Vec3::ONE, Vec3::ONE);
     let start = Instant::now();
     let values = if args.gpu {
         let gpu = gpu_device()?;
         let shader = kage_gpu::bspvt::BspvtShader::new(&gpu, &kage_gpu::Shaders::embedded(), bake.as_ref())?;
-        let mode = if matches!(kind, bspvt::Shadows::Trees(_)) {
-            kage_gpu::bspvt::Mode::Trees
-        } else {
-            kage_gpu::bspvt::Mode::Unshadowed
-        };
-        kage_gpu::bspvt::shade_vertices(&gpu, &shader, &renderer.flat, mode, camera.eye())?
+        kage_gpu::bspvt::shade_vertices(&gpu, &shader, &renderer.flat, kind, camera.eye())?
     } else {
         bspvt::shade_vertices(&renderer.flat, kind, camera.eye())
     };
@@ -360,8 +351,7 @@ fn per_vertex(job: &Job, method: Method) -> Result<Outputs> {
         evals as f64 / secs / 1e6
     ));
     let image = job.vertex_image(&values);
-    let glossy =
-        if method == Method::LtcExactVis { GlossyDirect::Reference } else { GlossyDirect::Ltc(bake.map(Into::into)) };
+    let glossy = method.glossy_direct(bake.map(Into::into));
     Ok(Outputs { image, vertices: Some(values), glossy })
 }
 
