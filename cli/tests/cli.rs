@@ -714,8 +714,14 @@ fn export_writes_valid_packs_that_render_like_the_database() {
         let o = kage(&["info", pack.to_str().unwrap()]);
         assert!(o.status.success(), "{}", stderr(&o));
         if method == "bspvt" {
-            // A damaged tree record (offsets intact) is an error naming the pack, not a panic.
+            // A damaged tree record (offsets intact) fails its checksum; written so by a writer
+            // that sealed it anyway, it is a malformed record: errors naming the pack, not panics.
             damage_first_tree_record(&pack);
+            let o = kage(&["render", "--pack", pack.to_str().unwrap(), "--method", method]);
+            let e = stderr(&o);
+            assert!(!o.status.success() && e.contains("bspvt.records (buffer view") && e.contains("bspvt.glb"), "{e}");
+            let (doc, bin) = glb_parts(&std::fs::read(&pack).unwrap());
+            std::fs::write(&pack, sealed_glb(doc, &bin)).unwrap();
             let o = kage(&["render", "--pack", pack.to_str().unwrap(), "--method", method]);
             let e = stderr(&o);
             assert!(!o.status.success() && e.contains("malformed BSPVT record") && e.contains("bspvt.glb"), "{e}");
@@ -794,6 +800,110 @@ fn the_plan_estimate_shrinks_with_a_declared_light_reach() {
     let (fixed, out) = estimate();
     assert!(out.contains("lights within 1 reach box"), "{out}");
     assert!(fixed > 0.0 && fixed * 5.0 < roaming, "fixed {fixed} s, roaming {roaming} s");
+}
+
+/// A pack's glTF JSON and binary chunk.
+fn glb_parts(bytes: &[u8]) -> (serde_json::Value, Vec<u8>) {
+    let json_len = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+    let doc = serde_json::from_slice(&bytes[20..20 + json_len]).unwrap();
+    (doc, bytes[20 + json_len + 8..].to_vec())
+}
+
+/// A pack of `doc` and `bin` with its integrity record computed afresh, as a writer that got
+/// the data wrong would seal it.
+fn sealed_glb(doc: serde_json::Value, bin: &[u8]) -> Vec<u8> {
+    let mut json = serde_json::to_vec(&doc).unwrap();
+    json.resize(json.len().next_multiple_of(4), b' ');
+    let chunk = |kind: &[u8; 4], data: &[u8]| [&(data.len() as u32).to_le_bytes()[..], kind, data].concat();
+    let body = [chunk(b"JSON", &json), chunk(b"BIN\0", bin)].concat();
+    let glb = [&b"glTF"[..], &2u32.to_le_bytes(), &(12 + body.len() as u32).to_le_bytes(), &body].concat();
+    kage_bake_db::pack::reseal(&glb).unwrap()
+}
+
+/// A pack whose data was damaged after kage wrote it, or that was written wrong, is refused
+/// with the field named: a flipped bit in a PRT transfer (checksum; sealed anyway: the
+/// transfer's bound), a light radiance beyond f32, a JSON edit, an unknown version.
+#[test]
+fn damaged_or_out_of_range_packs_are_refused_naming_the_field() {
+    let d = scratch("pack-integrity");
+    for ext in ["gltf", "bin"] {
+        std::fs::copy(asset(&format!("scenes/textured_light.{ext}")), d.join(format!("textured_light.{ext}"))).unwrap();
+    }
+    std::fs::copy(asset("scenes/stained_glass.png"), d.join("stained_glass.png")).unwrap();
+    let (scene, pack) = (d.join("textured_light.gltf"), d.join("scene.glb"));
+    let o = kage(&[
+        "export",
+        scene.to_str().unwrap(),
+        "--db",
+        d.join("db.redb").to_str().unwrap(),
+        "-o",
+        pack.to_str().unwrap(),
+        "--env",
+        &asset("envmaps/sky.hdr"),
+        "--face-res",
+        "8",
+        "--sh-order",
+        "3",
+        "--regions",
+        "4",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let (doc, bin) = glb_parts(&std::fs::read(&pack).unwrap());
+    let image = d.join("image.png");
+    let render = |bytes: Vec<u8>| {
+        let damaged = d.join("damaged.glb");
+        std::fs::write(&damaged, bytes).unwrap();
+        let o =
+            kage(&["render", "--pack", damaged.to_str().unwrap(), "--size", "32x18", "-o", image.to_str().unwrap()]);
+        assert!(!o.status.success(), "a damaged pack rendered");
+        let e = stderr(&o);
+        assert!(e.contains("damaged.glb: not a kage pack"), "{e}");
+        e
+    };
+    // The pack as written renders.
+    let o = kage(&["render", "--pack", pack.to_str().unwrap(), "--size", "32x18", "-o", image.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    // A flipped exponent bit in the first transfer coefficient.
+    let transfer = doc["meshes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find_map(|m| m["primitives"][0]["extensions"]["KAGE_baked_shadows"]["prt"]["transfer"].as_u64())
+        .unwrap();
+    let at = doc["bufferViews"][transfer as usize]["byteOffset"].as_u64().unwrap_or(0) as usize;
+    let mut flipped = bin.clone();
+    flipped[at + 3] ^= 0x40;
+    let mut bytes = std::fs::read(&pack).unwrap();
+    let bin_start = bytes.len() - bin.len();
+    bytes[bin_start..].copy_from_slice(&flipped);
+    let e = render(bytes);
+    assert!(e.contains("prt.transfer (buffer view") && e.contains("fails its checksum"), "{e}");
+    let e = render(sealed_glb(doc.clone(), &flipped));
+    assert!(e.contains("prt.transfer: vertex 0, coefficient 0"), "{e}");
+    // A light radiance beyond f32.
+    let mut hot = doc.clone();
+    let light = hot["meshes"]
+        .as_array_mut()
+        .unwrap()
+        .iter_mut()
+        .find_map(|m| m["primitives"][0]["extensions"]["KAGE_baked_shadows"].get_mut("lightRadiance"))
+        .unwrap();
+    *light = serde_json::json!([1e39, 1.0, 1.0]);
+    let e = render(sealed_glb(hot.clone(), &bin));
+    assert!(e.contains("light 0's lightRadiance") && e.contains("not a finite number"), "{e}");
+    // The same edit without sealing: the JSON's checksum.
+    let mut bytes = sealed_glb(doc.clone(), &bin);
+    let key = b"\"previewExposure\":";
+    let exposure = bytes.windows(key.len()).position(|w| w == key).unwrap() + key.len();
+    bytes[exposure] = if bytes[exposure] == b'1' { b'2' } else { b'1' };
+    let e = render(bytes);
+    assert!(e.contains("the glTF JSON fails its checksum"), "{e}");
+    // A newer kage's pack.
+    let mut newer = doc.clone();
+    newer["extensions"]["KAGE_baked_shadows"]["version"] = serde_json::json!(99);
+    let e = render(sealed_glb(newer, &bin));
+    assert!(e.contains("version 99 (this kage reads"), "{e}");
+    std::fs::remove_dir_all(d).unwrap();
 }
 
 /// Overwrites the face lengths of the first BSPVT record in `pack` (a GLB), keeping its offsets.

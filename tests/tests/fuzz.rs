@@ -302,7 +302,13 @@ fn mutate_glb(seed: &[u8], rng: &mut Pcg64) -> Vec<u8> {
     if rng.random_bool(0.6) {
         let (mut doc, bin) = chunks(seed);
         mutate_json(&mut doc, rng);
-        glb(&serde_json::to_vec(&doc).unwrap(), &bin)
+        let bytes = glb(&serde_json::to_vec(&doc).unwrap(), &bin);
+        // Sealed again half of the time, as a writer that got the data wrong would: past the
+        // checksums, into the parser and the range checks.
+        match rng.random_bool(0.5) {
+            true => pack::reseal(&bytes).unwrap_or(bytes),
+            false => bytes,
+        }
     } else {
         let mut bytes = seed.to_vec();
         // Headers and chunk headers half of the time.

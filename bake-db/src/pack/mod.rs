@@ -13,21 +13,26 @@ use kage_engine::bspvt;
 use kage_engine::prt::{self, Lighting};
 use kage_engine::scene::{FlatScene, Scene};
 
+mod integrity;
+mod ranges;
 mod read;
 mod schema;
 mod write;
 
+pub use integrity::reseal;
 pub use read::read;
 pub use write::write;
 
 /// The extension's name.
 pub const EXTENSION: &str = "KAGE_baked_shadows";
-/// The extension's version this kage writes (3: BSPVT records carry depth after their trees).
-pub const VERSION: u64 = 3;
+/// The extension's version this kage writes (4: with the integrity record).
+pub const VERSION: u64 = 4;
 /// The extension's versions this kage reads (2 differs from 1 in number formatting only; 1 and
 /// 2 hold BSPVT record format 1, without depth: shaded as they were, lights in closed rooms
-/// dark).
-pub const VERSIONS: std::ops::RangeInclusive<u64> = 1..=3;
+/// dark; 1 to 3 carry no checksums: read with their numbers range-checked only).
+pub const VERSIONS: std::ops::RangeInclusive<u64> = 1..=4;
+/// The first version that carries the integrity record.
+pub const SEALED: u64 = 4;
 
 /// What a pack holds besides its glTF scene.
 pub struct Contents {
@@ -107,7 +112,8 @@ mod tests {
         path
     }
 
-    /// Rewrites the JSON chunk of the GLB at `path` with `edit`.
+    /// Rewrites the JSON chunk of the GLB at `path` with `edit`, sealed again: a pack written
+    /// wrong, not one damaged after writing.
     fn edit_json(path: &Path, edit: impl FnOnce(&mut serde_json::Value)) {
         let bytes = std::fs::read(path).unwrap();
         let glb = gltf::binary::Glb::from_slice(&bytes).unwrap();
@@ -115,7 +121,7 @@ mod tests {
         edit(&mut doc);
         let json = serde_json::to_vec(&doc).unwrap();
         let out = gltf::binary::Glb { header: glb.header, json: json.into(), bin: glb.bin };
-        std::fs::write(path, out.to_vec().unwrap()).unwrap();
+        std::fs::write(path, reseal(&out.to_vec().unwrap()).unwrap()).unwrap();
     }
 
     /// The reading error for the pack at `path` after `edit`.
@@ -146,8 +152,8 @@ mod tests {
                 "format": bspvt::layout::FORMAT_VERSION})
         });
         assert!(e.contains("face resolution 1099511627776 is outside"), "{e}");
-        let e = error_after("version", |d| d["extensions"][EXTENSION]["version"] = 4.into());
-        assert!(e.contains("version 4 (this kage reads 1..=3)"), "{e}");
+        let e = error_after("version", |d| d["extensions"][EXTENSION]["version"] = 5.into());
+        assert!(e.contains("version 5 (this kage reads 1..=4)"), "{e}");
         let e = error_after("field", |d| {
             let record = &mut d["meshes"][0]["primitives"][0]["extensions"][EXTENSION]["material"];
             record.as_object_mut().unwrap().remove("roughness");

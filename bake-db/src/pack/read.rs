@@ -2,7 +2,7 @@
 //! ([`schema`]), each checked against the data present and against the documented limits
 //! before anything is sized by it.
 
-use super::{Contents, EXTENSION, VERSIONS, schema};
+use super::{Contents, EXTENSION, SEALED, VERSIONS, integrity, ranges, schema};
 use glam::{DVec3, Vec2, Vec3};
 use gltf::json as gj;
 use kage_engine::bspvt;
@@ -23,18 +23,37 @@ fn bad(path: &Path, what: impl std::fmt::Display) -> Error {
     Error::Invalid(format!("{}: not a kage pack: {what}", path.display()))
 }
 
-/// Reads a pack: the scene (materials restored from the extension) and its bakes.
+/// Reads a pack: the scene (materials restored from the extension) and its bakes. Its
+/// integrity (version 4 on) is verified before anything is read from it, and every number it
+/// holds is checked finite and in range.
 pub fn read(path: &Path) -> Result<(Scene, Contents)> {
-    let mut scene = import::import(path, ImportOptions { color_set: 1, ..Default::default() })?;
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-    let glb = gltf::binary::Glb::from_slice(&bytes).map_err(|e| bad(path, e))?;
+    let glb = import::glb_chunks(&bytes).map_err(|e| bad(path, e))?;
     let doc = gj::Root::from_slice(&glb.json).map_err(|e| bad(path, e))?;
     let pack = Pack { doc: &doc, bin: glb.bin.as_deref().unwrap_or_default() };
     let root: schema::Root = extension(doc.extensions.as_ref().map(|e| &e.others)).map_err(|e| bad(path, e))?;
     if !VERSIONS.contains(&root.version) {
         return Err(bad(path, format!("{EXTENSION} version {} (this kage reads {VERSIONS:?})", root.version)));
     }
+    let mut warnings = Vec::new();
+    match &root.integrity {
+        Some(record) => integrity::check_json(&glb.json, record).map_err(|e| bad(path, e))?,
+        None if root.version >= SEALED => {
+            return Err(bad(path, format!("version {} without its integrity record", root.version)));
+        }
+        None => warnings.push(format!(
+            "{}: a version {} pack carries no checksums: its numbers are range-checked only",
+            path.display(),
+            root.version
+        )),
+    }
     let (instances, lights) = pack.records().map_err(|e| bad(path, e))?;
+    if let Some(record) = &root.integrity {
+        integrity::check_views(&doc, pack.bin, record, |v| pack.view_name(v, &root, &instances))
+            .map_err(|e| bad(path, e))?;
+    }
+    ranges::root(&root).and_then(|()| ranges::records(&instances, &lights)).map_err(|e| bad(path, e))?;
+    let mut scene = import::import(path, ImportOptions { color_set: 1, ..Default::default() })?;
     restore_lights(&mut scene, &lights).map_err(|e| bad(path, e))?;
     let flat = kage_engine::scene::flatten(&scene);
     if instances.len() != flat.instances.len() {
@@ -48,7 +67,6 @@ pub fn read(path: &Path) -> Result<(Scene, Contents)> {
     let flat = kage_engine::scene::flatten(&scene);
     let bspvt = root.bspvt.as_ref().map(|h| pack.bspvt(h, &instances, &flat)).transpose().map_err(|e| bad(path, e))?;
     let prt = root.prt.as_ref().map(|h| pack.prt(h, &instances, &flat)).transpose().map_err(|e| bad(path, e))?;
-    let mut warnings = Vec::new();
     if root.bspvt.as_ref().is_some_and(|h| h.format < bspvt::layout::FORMAT_VERSION) {
         warnings.push(format!(
             "{}: its BSPVT records are format 1, without the occluders' depth: a light inside a \
@@ -78,12 +96,55 @@ type Checked<T> = std::result::Result<T, String>;
 impl Pack<'_> {
     /// The bytes of buffer view `index`, if it lies inside the binary chunk.
     fn view(&self, index: u32) -> Checked<&[u8]> {
-        let view = self.doc.buffer_views.get(index as usize).ok_or_else(|| format!("no buffer view {index}"))?;
-        let start = view.byte_offset.map_or(0, |o| o.0);
-        start
-            .checked_add(view.byte_length.0)
-            .and_then(|end| self.bin.get(usize::try_from(start).ok()?..usize::try_from(end).ok()?))
+        if index as usize >= self.doc.buffer_views.len() {
+            return Err(format!("no buffer view {index}"));
+        }
+        integrity::view(self.doc, self.bin, index as usize)
             .ok_or_else(|| format!("buffer view {index} lies outside the binary chunk"))
+    }
+
+    /// What buffer view `v` holds, for messages: the extension's field or the core glTF's
+    /// attribute, indices or image that reads it.
+    fn view_name(&self, v: usize, root: &schema::Root, instances: &[schema::Instance]) -> String {
+        let is = |x: u32| x as usize == v;
+        for (k, r) in instances.iter().enumerate() {
+            let field = if is(r.radiance) {
+                "radiance"
+            } else if r.bspvt.as_ref().is_some_and(|b| is(b.offsets)) {
+                "bspvt.offsets"
+            } else if r.bspvt.as_ref().is_some_and(|b| is(b.records)) {
+                "bspvt.records"
+            } else if r.prt.as_ref().is_some_and(|p| is(p.transfer)) {
+                "prt.transfer"
+            } else {
+                continue;
+            };
+            return format!("instance {k}'s {EXTENSION} {field}");
+        }
+        if root.environment.as_ref().is_some_and(|e| is(e.texels)) {
+            return format!("the {EXTENSION} environment.texels");
+        }
+        let accessor = |a: &gj::Index<gj::Accessor>| {
+            self.doc.accessors.get(a.value()).and_then(|a| a.buffer_view).is_some_and(|b| b.value() == v)
+        };
+        for (m, mesh) in self.doc.meshes.iter().enumerate() {
+            for p in &mesh.primitives {
+                if let Some((name, _)) = p.attributes.iter().find(|(_, a)| accessor(a)) {
+                    let name = match name {
+                        gj::validation::Checked::Valid(s) => s.to_string(),
+                        gj::validation::Checked::Invalid => "an attribute".into(),
+                    };
+                    return format!("mesh {m}'s {name}");
+                }
+                if p.indices.as_ref().is_some_and(accessor) {
+                    return format!("mesh {m}'s indices");
+                }
+            }
+        }
+        match self.doc.images.iter().position(|i| i.buffer_view.is_some_and(|b| b.value() == v)) {
+            Some(i) => format!("image {i}"),
+            None => "data".into(),
+        }
     }
 
     /// The extension records of every mesh: instances (in mesh order) and lights.
@@ -270,7 +331,9 @@ impl Pack<'_> {
                 if bytes.len() != flat.vertex_count(k) * order * order * 4 {
                     return Err(format!("mesh {k}: PRT transfer does not match the mesh"));
                 }
-                Ok(bytemuck::pod_collect_to_vec(bytes))
+                let transfer: Vec<f32> = bytemuck::pod_collect_to_vec(bytes);
+                ranges::transfer(k, order, &transfer)?;
+                Ok(transfer)
             })
             .collect::<Checked<Vec<Vec<f32>>>>()?;
         let lobes = prt::lighting::negative_lobes(&coeffs, settings.window);

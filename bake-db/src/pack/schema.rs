@@ -21,6 +21,9 @@ pub struct Root {
     /// The scene's environment light, if it has one.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub environment: Option<Environment>,
+    /// Digests of the buffer views and the JSON (version 4 on).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub integrity: Option<super::integrity::Integrity>,
 }
 
 /// The BSPVT bake's settings.

@@ -1,7 +1,7 @@
 //! Writing a pack: the glTF document as `gltf::json` structures, the extension as
 //! [`schema`] records, and the GLB container through `gltf::binary::Glb`.
 
-use super::{EXTENSION, Export, VERSION, schema};
+use super::{EXTENSION, Export, VERSION, integrity, schema};
 use glam::Vec3;
 use gltf::json::{self as gj, Index, validation::Checked::Valid, validation::USize64};
 use kage_engine::bspvt;
@@ -51,7 +51,7 @@ fn encode(e: &Export) -> std::io::Result<Vec<u8>> {
         roots.push(Index::new(nodes.len() as u32));
         nodes.push(node(Some("camera".into()), &cam.world, gj::Node { camera: Some(camera), ..Default::default() }));
     }
-    let root = root_extension(e, &mut b);
+    let mut root = root_extension(e, &mut b);
     let mut doc = b.root;
     doc.nodes = nodes;
     doc.scenes = vec![gj::Scene { nodes: roots, name: None, extensions: None, extras: Default::default() }];
@@ -66,7 +66,6 @@ fn encode(e: &Export) -> std::io::Result<Vec<u8>> {
     if b.transforms {
         doc.extensions_used.push("KHR_texture_transform".into());
     }
-    doc.extensions = Some(gj::extensions::root::Root { others: others(&root) });
     doc.buffers = vec![gj::Buffer {
         byte_length: USize64(b.bin.len() as u64),
         name: None,
@@ -74,7 +73,10 @@ fn encode(e: &Export) -> std::io::Result<Vec<u8>> {
         extensions: None,
         extras: Default::default(),
     }];
-    let json = doc.to_vec().map_err(std::io::Error::other)?;
+    root.integrity = Some(integrity::unsealed(&doc, &b.bin));
+    doc.extensions = Some(gj::extensions::root::Root { others: others(&root) });
+    let mut json = doc.to_vec().map_err(std::io::Error::other)?;
+    integrity::seal(&mut json);
     let glb = gltf::binary::Glb {
         header: gltf::binary::Header { magic: *b"glTF", version: 2, length: 0 },
         json: json.into(),
@@ -560,5 +562,5 @@ fn root_extension(e: &Export, b: &mut Builder) -> schema::Root {
         intensity: env.intensity,
         rotation: env.rotation,
     });
-    schema::Root { version: VERSION, preview_exposure: e.exposure, bspvt, prt, environment }
+    schema::Root { version: VERSION, preview_exposure: e.exposure, bspvt, prt, environment, integrity: None }
 }

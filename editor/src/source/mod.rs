@@ -99,13 +99,13 @@ pub fn save(scene: &Scene, baseline: &Baseline, from: &Path, to: &Path) -> Resul
         return Err(format!("{}: Save As keeps the format of {name} (.gltf or .glb)", to.display()));
     }
     let bytes = std::fs::read(from).map_err(|e| format!("{name}: {e}"))?;
-    let doc = gltf::Gltf::from_slice(&bytes).map_err(|e| format!("{name}: {e}"))?.document;
     let (json, bin) = if glb {
-        let g = gltf::binary::Glb::from_slice(&bytes).map_err(|e| format!("{name}: {e}"))?;
+        let g = kage_engine::scene::import::glb_chunks(&bytes).map_err(|e| format!("{name}: {e}"))?;
         (g.json.into_owned(), g.bin.map(|b| b.into_owned()))
     } else {
-        (bytes, None)
+        (bytes.clone(), None)
     };
+    let doc = gltf::Gltf::from_slice(&bytes).map_err(|e| format!("{name}: {e}"))?.document;
     let mut file = GltfJson::parse(&json).map_err(|e| format!("{name}: {e}"))?;
     let mut plan =
         SaveEdits { scene, baseline, doc: &doc, file: &mut file, problems: Vec::new(), nodes: 0, materials: 0 };

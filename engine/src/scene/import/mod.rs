@@ -521,6 +521,16 @@ fn texture_from_image(image: &image::RgbaImage, channels: Channels, wrap: [Wrap;
     Texture::new(image.width() as usize, image.height() as usize, texels, wrap)
 }
 
+/// A GLB file's chunks, its header checked first (the `gltf` crate panics on some damaged
+/// headers).
+pub fn glb_chunks(bytes: &[u8]) -> std::result::Result<gltf::binary::Glb<'_>, String> {
+    if !bytes.starts_with(b"glTF") {
+        return Err("not a binary glTF (GLB) file".into());
+    }
+    checks::glb_header(bytes)?;
+    gltf::binary::Glb::from_slice(bytes).map_err(|e| e.to_string())
+}
+
 /// A PNG or JPEG file's bytes as a linear texture (see [`texture_from_image`]), with the
 /// importer's size limits.
 pub fn decode_texture(bytes: &[u8], channels: Channels, wrap: [Wrap; 2]) -> std::result::Result<Texture, String> {
