@@ -109,7 +109,7 @@ pub fn placement(ed: &Editor, sel: Selection) -> Option<Placement> {
             (Vec3::from(pose.translation), pose)
         }
         Selection::Light(e) => {
-            let light = ed.flat.lights.iter().find(|l| l.entity == e)?;
+            let light = ed.flat.lights_of(e).next()?;
             let centre = light.points.iter().copied().sum::<Vec3>() / light.points.len() as f32;
             (centre, w.get::<&Transform>(e).ok()?.world)
         }

@@ -24,7 +24,7 @@ impl Picker {
     pub fn pick(&self, flat: &FlatScene, origin: Vec3, dir: Vec3) -> Selection {
         match self.seen(flat, origin, dir) {
             Seen::Nothing => Selection::None,
-            Seen::Light(l) => Selection::Light(flat.lights[l].entity),
+            Seen::Light(l) => Selection::Light(flat.light_entities[l]),
             Seen::Surface(hit) => Selection::Group(flat.instances[hit.instance].group),
         }
     }
@@ -78,7 +78,7 @@ pub fn bounds(scene: &Scene, flat: &FlatScene, sel: Selection) -> Option<[Vec3; 
         points.extend(flat.triangles[first..first + flat.mesh(k).triangles.len()].iter().flatten());
     }
     if let Selection::Light(e) = sel {
-        points.extend(flat.lights.iter().filter(|l| l.entity == e).flat_map(|l| l.points.iter().copied()));
+        points.extend(flat.lights_of(e).flat_map(|l| l.points.iter().copied()));
     }
     (!points.is_empty()).then(|| points.iter().fold([Vec3::MAX, Vec3::MIN], |[lo, hi], p| [lo.min(*p), hi.max(*p)]))
 }
@@ -99,7 +99,7 @@ mod tests {
         let owner = |t: usize| {
             let r = flat.refs[t];
             if r.light != NO_LIGHT {
-                Selection::Light(flat.lights[r.light as usize].entity)
+                Selection::Light(flat.light_entities[r.light as usize])
             } else {
                 Selection::Group(flat.instances[r.owner as usize].group)
             }
@@ -129,7 +129,7 @@ mod tests {
         let scene = default_scene();
         let flat = flatten(&scene);
         let light = &flat.lights[0];
-        let [lo, hi] = bounds(&scene, &flat, Selection::Light(light.entity)).unwrap();
+        let [lo, hi] = bounds(&scene, &flat, Selection::Light(flat.light_entities[0])).unwrap();
         assert!(light.points.iter().all(|p| p.cmple(hi).all() && p.cmpge(lo).all()));
         let group = flat.instances[0].group;
         let [lo, hi] = bounds(&scene, &flat, Selection::Group(group)).unwrap();

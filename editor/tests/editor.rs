@@ -709,7 +709,7 @@ fn click_picks_the_gizmo_moves_and_undo_returns_to_the_cached_bakes_bit_for_bit(
     h.key_press(egui::Key::Escape);
     h.step();
     assert_eq!(h.state().editor.doc.selection, Selection::None);
-    let light = h.state().editor.flat.lights[0].clone();
+    let (light, light_entity) = (h.state().editor.flat.lights[0].clone(), h.state().editor.flat.light_entities[0]);
     let light_centre = light.points.iter().copied().sum::<Vec3>() / light.points.len() as f32;
     // The light hangs above the opening view: zoom out (as the wheel does) to see it.
     let mut wide = h.state().editor.view.orbit;
@@ -722,7 +722,7 @@ fn click_picks_the_gizmo_moves_and_undo_returns_to_the_cached_bakes_bit_for_bit(
     h.step();
     h.drop_at(on_screen(&h, light_centre));
     h.step();
-    assert_eq!(h.state().editor.doc.selection, Selection::Light(light.entity), "lights are picked too");
+    assert_eq!(h.state().editor.doc.selection, Selection::Light(light_entity), "lights are picked too");
 
     // Dragging the X arrow moves the group along X; the whole drag is one undo step.
     h.state_mut().editor.doc.selection = Selection::Group(sphere);
@@ -1001,7 +1001,7 @@ fn receivers_are_refined_as_kage_bake_refines_them_and_again_after_edits() {
 
     // A light move re-shades at once and leaves the refinement stale; Refine again follows it.
     let by = Vec3::new(1.0, 0.0, -0.5);
-    let light = ed.flat.lights[0].entity;
+    let light = ed.flat.light_entities[0];
     h.state_mut().editor.move_light(light, by, Quat::IDENTITY);
     h.step();
     assert!(h.state().editor.refinement_stale() && h.state().editor.backend.job.is_none());

@@ -28,7 +28,6 @@ pub mod bspvt;
 pub mod cache;
 pub mod error;
 pub mod material;
-pub mod math;
 pub mod named;
 pub mod output;
 pub mod prt;
@@ -39,3 +38,4 @@ pub mod scene;
 pub mod shading;
 
 pub use error::{Error, Result};
+pub use kage_runtime::math;

@@ -23,20 +23,18 @@
 //! parallel over vertices and deterministic.
 
 pub mod budget;
-pub mod depth;
 pub mod dirty;
 pub mod grid;
-pub mod layout;
 pub mod memo;
-pub mod node;
 pub mod pixel;
 pub mod reach;
 pub mod rebake;
-pub mod shade;
 pub mod split;
 pub mod symmetry;
 pub mod tree;
 pub mod visibility;
+
+pub use kage_runtime::bspvt::{depth, layout, node, shade};
 
 use crate::accel::Occluders;
 use crate::scene::FlatScene;
@@ -384,7 +382,7 @@ pub fn unseen_warning(scene: &crate::scene::Scene, flat: &FlatScene, bake: &Bake
     if unseen.is_empty() {
         return None;
     }
-    let name = |l: usize| scene.name_of(flat.lights[l].entity).unwrap_or_else(|| format!("#{l}"));
+    let name = |l: usize| scene.name_of(flat.light_entities[l]).unwrap_or_else(|| format!("#{l}"));
     let names: Vec<String> = unseen.iter().map(|&l| format!("'{}'", name(l))).collect();
     Some(format!(
         "{}: the baked visibility lets almost no receiver see {} of {} light(s) ({}): less than {UNSEEN_SHARE} of \

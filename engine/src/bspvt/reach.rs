@@ -168,16 +168,7 @@ mod tests {
 
     fn light(reach: Option<[Vec3; 2]>) -> FlatLight {
         let points = vec![Vec3::new(0.0, 2.0, 0.0), Vec3::new(1.0, 2.0, 0.0), Vec3::new(1.0, 2.0, 1.0)];
-        FlatLight {
-            points,
-            uvs: vec![],
-            normal: Vec3::NEG_Y,
-            area: 0.5,
-            radiance: Vec3::ONE,
-            texture: None,
-            reach,
-            entity: hecs::Entity::DANGLING,
-        }
+        FlatLight { points, uvs: vec![], normal: Vec3::NEG_Y, area: 0.5, radiance: Vec3::ONE, texture: None, reach }
     }
 
     #[test]

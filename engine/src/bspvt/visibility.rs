@@ -9,33 +9,7 @@ use crate::accel::{Frustum, Occluders, offset_ray_origin};
 use crate::math::cubemap;
 use glam::{DVec3, Vec3};
 
-/// Texel state: blocked.
-pub const OCCLUDED: u8 = 0;
-/// Texel state: the light would be seen.
-pub const VISIBLE: u8 = 1;
-/// Texel state: below the horizon, not cast ("don't care").
-pub const BELOW: u8 = 2;
-/// Texel state: above the horizon but not cast (an incremental re-bake keeps its old result).
-pub const SKIPPED: u8 = 3;
-
-/// A visibility cube map: 6 faces of `res × res` texels, row-major per face.
-#[derive(Clone, Debug, PartialEq)]
-pub struct CubeVisibility {
-    /// Face resolution.
-    pub res: usize,
-    /// `6·res²` texel states.
-    pub texels: Vec<u8>,
-    /// Per texel, an occluded one's first hit (`None` for the others, or when not cast for).
-    pub hits: Vec<Option<depth::Hit>>,
-}
-
-impl CubeVisibility {
-    /// The texels of face `f`.
-    pub fn face(&self, f: usize) -> &[u8] {
-        let n = self.res * self.res;
-        &self.texels[f * n..(f + 1) * n]
-    }
-}
+pub use kage_runtime::bspvt::cube::{BELOW, CubeVisibility, OCCLUDED, SKIPPED, VISIBLE};
 
 /// Casts the visibility cube map of a vertex at `p` with unit normal `n` against `occluders`.
 /// A texel is below the horizon only when all four of its corners are; a texel the horizon

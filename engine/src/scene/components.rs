@@ -172,37 +172,7 @@ impl SourceMesh {
     }
 }
 
-/// glTF metallic-roughness material (factors only; see `docs/conventions.md` for the BRDF).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Material {
-    /// Linear base colour.
-    pub base_color: Vec3,
-    /// Metalness in [0, 1].
-    pub metallic: f32,
-    /// Perceptual roughness in [0, 1] (α = roughness²).
-    pub roughness: f32,
-    /// `KHR_materials_specular` specularFactor (1 when absent).
-    pub specular: f32,
-}
-
-impl Default for Material {
-    /// glTF's default material: white, metallic 1, roughness 1.
-    fn default() -> Self {
-        Self { base_color: Vec3::ONE, metallic: 1.0, roughness: 1.0, specular: 1.0 }
-    }
-}
-
-impl Material {
-    /// A Lambertian material (dielectric with specularFactor 0).
-    pub fn lambertian(albedo: Vec3) -> Self {
-        Self { base_color: albedo, metallic: 0.0, roughness: 1.0, specular: 0.0 }
-    }
-
-    /// True when the material has a specular lobe (metallic, or a dielectric with specularFactor > 0).
-    pub fn has_specular(&self) -> bool {
-        self.metallic > 0.0 || self.specular > 0.0
-    }
-}
+pub use kage_runtime::material::Material;
 
 /// A material texture as a glTF `textureInfo` names it: the texture, the UV set it reads and
 /// its `KHR_texture_transform`.

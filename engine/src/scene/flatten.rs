@@ -3,8 +3,8 @@
 
 use super::import::polygon_normal_area;
 use crate::scene::{
-    Camera, Cutout, EnvironmentLight, Holes, InGroup, Material, MaterialMaps, Mesh, MeshRef, PolygonLight, PrimitiveId,
-    Scene, SourceMesh, Texture, Transform,
+    Camera, Cutout, EnvironmentLight, FlatLight, Holes, InGroup, Material, MaterialMaps, Mesh, MeshRef, PolygonLight,
+    PrimitiveId, Scene, SourceMesh, Texture, Transform,
 };
 use glam::{Affine3A, Mat3A, Vec2, Vec3};
 use std::sync::Arc;
@@ -40,40 +40,6 @@ pub struct Instance {
     pub first_triangle: u32,
 }
 
-/// A light polygon in world space.
-#[derive(Clone, Debug)]
-pub struct FlatLight {
-    /// Convex polygon, CCW about `normal`.
-    pub points: Vec<Vec3>,
-    /// Texture coordinates per point (empty when untextured).
-    pub uvs: Vec<Vec2>,
-    /// Unit emitting-side normal.
-    pub normal: Vec3,
-    /// Area.
-    pub area: f32,
-    /// Radiance (times the texture when present).
-    pub radiance: Vec3,
-    /// Emissive texture.
-    pub texture: Option<Arc<Texture>>,
-    /// See [`PolygonLight::reach`].
-    pub reach: Option<[Vec3; 2]>,
-    /// The light's entity (what the editor selects and edits).
-    pub entity: hecs::Entity,
-}
-
-impl FlatLight {
-    /// Emitted radiance at barycentric position `b` (b1, b2) of fan triangle `tri`.
-    pub fn radiance_at(&self, tri: usize, b: Vec2) -> Vec3 {
-        match &self.texture {
-            Some(t) if !self.uvs.is_empty() => {
-                let uv = self.uvs[0] * (1.0 - b.x - b.y) + self.uvs[tri + 1] * b.x + self.uvs[tri + 2] * b.y;
-                self.radiance * t.sample(uv)
-            }
-            _ => self.radiance,
-        }
-    }
-}
-
 /// Which instance or light a world triangle belongs to.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct TriangleRef {
@@ -96,6 +62,8 @@ pub struct FlatScene {
     pub instances: Vec<Instance>,
     /// Light polygons.
     pub lights: Vec<FlatLight>,
+    /// Each light's entity, by light index (what the editor selects and edits).
+    pub light_entities: Vec<hecs::Entity>,
     /// The environment light, if any.
     pub environment: Option<EnvironmentLight>,
     /// The scene's first camera, if any.
@@ -116,6 +84,7 @@ pub fn flatten(scene: &Scene) -> FlatScene {
         refs: Vec::new(),
         instances: Vec::new(),
         lights: Vec::new(),
+        light_entities: Vec::new(),
         environment: scene.world.query::<&EnvironmentLight>().iter().next().cloned(),
         camera: scene.first_camera(),
         meshes: scene.meshes.clone(),
@@ -186,16 +155,8 @@ fn add_light(flat: &mut FlatScene, scene: &Scene, light: &PolygonLight, t: &Tran
         flat.refs.push(TriangleRef { owner: index, local: k as u32, light: index });
     }
     let texture = light.texture.map(|i| scene.textures[i as usize].clone());
-    flat.lights.push(FlatLight {
-        points,
-        uvs,
-        normal,
-        area,
-        radiance: light.radiance,
-        texture,
-        reach: light.reach,
-        entity,
-    });
+    flat.lights.push(FlatLight { points, uvs, normal, area, radiance: light.radiance, texture, reach: light.reach });
+    flat.light_entities.push(entity);
 }
 
 /// `mesh`'s triangles placed by `to` (winding un-mirrored).
@@ -239,6 +200,11 @@ pub fn group_triangles(scene: &Scene, group: hecs::Entity) -> (Vec<[Vec3; 3]>, H
 }
 
 impl FlatScene {
+    /// The light polygons of light entity `e` (a light mesh may make several).
+    pub fn lights_of(&self, e: hecs::Entity) -> impl Iterator<Item = &FlatLight> {
+        self.lights.iter().zip(&self.light_entities).filter(move |(_, le)| **le == e).map(|(l, _)| l)
+    }
+
     /// The mesh of instance `inst`.
     pub fn mesh(&self, inst: usize) -> &Mesh {
         &self.meshes[self.instances[inst].mesh as usize]

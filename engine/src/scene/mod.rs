@@ -21,13 +21,14 @@ pub mod import;
 pub mod mesh;
 pub mod refine;
 pub mod shapes;
-pub mod texture;
+pub use kage_runtime::texture;
 
 pub use builtin::default_scene;
 pub use components::*;
 pub use cutout::{Cutout, Holes};
 pub use environment::{EnvMap, EnvironmentLight};
-pub use flatten::{FlatLight, FlatScene, Instance, NO_LIGHT, TriangleRef, VertexValues, flatten, group_triangles};
+pub use flatten::{FlatScene, Instance, NO_LIGHT, TriangleRef, VertexValues, flatten, group_triangles};
+pub use kage_runtime::light::FlatLight;
 pub use mesh::{Mesh, MeshHash};
 pub use texture::Texture;
 

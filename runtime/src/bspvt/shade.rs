@@ -3,13 +3,14 @@
 //! vertex, so every split is exact 3D polygon clipping — weighted by visibility. The light is
 //! first clipped at the receiver's horizon: below it the trees hold guesses, not visibility.
 
+use super::cube::{CubeVisibility, VISIBLE};
 use super::depth;
 use super::layout::{skip_encoded, split_codes, vertex_depths, vertex_faces};
 use super::node::dequantise_line;
-use super::visibility::{CubeVisibility, VISIBLE};
+use crate::light::FlatLight;
 use crate::material::Bsdf;
+use crate::material::Material;
 use crate::math::{cubemap, ltc, polygon};
-use crate::scene::{FlatLight, Material};
 use glam::{DMat3, DVec3, Vec3};
 
 /// How visibility enters.
@@ -284,7 +285,7 @@ struct Sum {
 /// lobe, not of the piece). Pieces (texels of exact visibility, tree leaves) so see the part of
 /// the texture they expose, instead of one colour for the whole light.
 pub struct TexturedLight {
-    texture: std::sync::Arc<crate::scene::Texture>,
+    texture: std::sync::Arc<crate::texture::Texture>,
     /// Per lobe (diffuse, specular): the light's first corner, two edges and normal in the
     /// lobe's space.
     basis: [(DVec3, DVec3, DVec3, DVec3); 2],

@@ -152,7 +152,7 @@ impl Plane {
 }
 
 /// A tile's subtree from its occluded texels' first hits (`hits[bit]`, bits as in
-/// [`super::visibility::TileBits`]; `None`: not occluded) over its `w × h` texels ([`cell`]);
+/// `kage_engine::bspvt::visibility::TileBits`; `None`: not occluded) over its `w × h` texels ([`cell`]);
 /// `None` when no texel is occluded.
 pub fn encode_tile(hits: &[Option<Hit>; TILE * TILE], (w, h): (usize, usize)) -> Option<Vec<u8>> {
     let mut out = Vec::new();

@@ -42,7 +42,7 @@ pub fn quantise_line(theta: f64, c: f64) -> (u16, u16) {
 
 /// The line a code pair stands for: its unit normal (cos θ, sin θ) and offset c. The normal
 /// comes from the code's first-octant image by exact sign changes and swaps, so mirror-image
-/// codes give mirror-image normals to the bit (see [`super::symmetry`]).
+/// codes give mirror-image normals to the bit (see `kage_engine::bspvt::symmetry`).
 pub fn dequantise_line(a: u16, o: u16) -> ((f64, f64), f64) {
     const QUARTER: u16 = ANGLE_STEPS as u16 / 4;
     let octant = |r: u16| {

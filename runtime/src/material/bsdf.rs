@@ -5,8 +5,8 @@
 //! (a vertex seen from behind still reports its Lambertian radiance); the specular lobe needs
 //! both above.
 
+use super::Material;
 use crate::math::{ggx, luminance, sampling};
-use crate::scene::Material;
 use glam::{Vec2, Vec3};
 use std::f32::consts::PI;
 
