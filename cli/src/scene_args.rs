@@ -39,6 +39,14 @@ pub struct SceneArgs {
     /// `--rotate group_box_sphere=0,1,0,90`; applied before --move; repeatable.
     #[arg(long = "rotate", value_name = "NODE=ax,ay,az,degrees", value_parser = parse_rotate)]
     pub rotations: Vec<(String, Quat)>,
+    /// Move a light (its node's name, or its index among the lights) by x,y,z, e.g.
+    /// `--move-light light=0,0,-0.5`; repeatable. A light with a declared reach stays in it.
+    #[arg(long = "move-light", value_name = "NODE=x,y,z", value_parser = parse_move)]
+    pub light_moves: Vec<(String, Vec3)>,
+    /// Turn a light about its centre by an axis and an angle in degrees, e.g.
+    /// `--rotate-light light=1,0,0,20`; applied before --move-light; repeatable.
+    #[arg(long = "rotate-light", value_name = "NODE=ax,ay,az,degrees", value_parser = parse_rotate)]
+    pub light_rotations: Vec<(String, Quat)>,
     /// Refine the mesh of the instances (or group) named NODE to VERTICES vertices by
     /// longest-edge bisection on its Phong surface, e.g. `--refine teapot=17000`; repeatable.
     #[arg(long = "refine", value_name = "NODE=VERTICES", value_parser = parse_refine)]
@@ -116,6 +124,60 @@ impl SceneArgs {
         self.load_refined(false, None)
     }
 
+    /// Applies the run-time changes asked for — the environment's intensity and rotation,
+    /// groups turned and moved, lights turned and moved — to a loaded scene or a pack's.
+    pub fn pose(&self, scene: &mut Scene) -> Result<()> {
+        for env in scene.world.query_mut::<&mut EnvironmentLight>() {
+            if let Some(i) = self.env_intensity {
+                anyhow::ensure!(
+                    i.is_finite() && i >= 0.0,
+                    "--env-intensity must be a finite non-negative number, got {i}"
+                );
+                env.intensity = i;
+            }
+            if let Some(deg) = self.env_rotation {
+                anyhow::ensure!(deg.is_finite(), "--env-rotation must be finite, got {deg}");
+                env.rotation = deg.to_radians();
+            }
+        }
+        for (node, q) in &self.rotations {
+            let g = scene.find_group(node)?;
+            scene.pose_group(g, *q, Vec3::ZERO);
+        }
+        for (node, offset) in &self.moves {
+            let g = scene.find_group(node)?;
+            scene.pose_group(g, Quat::IDENTITY, *offset);
+        }
+        let turns = self.light_rotations.iter().map(|(n, q)| (n, Vec3::ZERO, *q));
+        for (node, offset, turn) in turns.chain(self.light_moves.iter().map(|(n, o)| (n, *o, Quat::IDENTITY))) {
+            for light in scene.find_lights(node)? {
+                let local =
+                    scene.light_moved(light, offset, turn).map_err(|e| anyhow::anyhow!("light '{node}': {e}"))?;
+                scene.place_light(light, local);
+            }
+        }
+        Ok(())
+    }
+
+    /// The options a pack cannot take (it carries its scene, environment and refinement),
+    /// named in an error when given (`--refine-receivers`, which `KAGE_REFINE_RECEIVERS` may
+    /// set for every command, is left unused).
+    pub fn check_for_pack(&self) -> Result<()> {
+        let given = [
+            ("SCENE", self.scene.is_some()),
+            ("--env", self.env.is_some()),
+            ("--refine", !self.refinements.is_empty()),
+            ("--drop-degenerate", self.drop_degenerate),
+            ("--allow-root", self.allow_root.is_some()),
+        ];
+        match given.iter().find(|(_, on)| *on) {
+            Some((name, _)) => {
+                anyhow::bail!("{name} does not apply to a pack (it carries its scene, environment and refined meshes)")
+            }
+            None => Ok(()),
+        }
+    }
+
     /// Receiver refinement as asked for (`None`: off).
     pub fn receiver_settings(&self) -> Result<Option<kage_engine::receivers::Settings>> {
         let budget = self.refine_receivers.unwrap_or(DEFAULT_RECEIVER_BUDGET);
@@ -140,31 +202,11 @@ impl SceneArgs {
         if let Some(path) = &self.env {
             scene.set_environment(EnvironmentLight::new(EnvMap::load(path)?));
         }
-        for env in scene.world.query_mut::<&mut EnvironmentLight>() {
-            if let Some(i) = self.env_intensity {
-                anyhow::ensure!(
-                    i.is_finite() && i >= 0.0,
-                    "--env-intensity must be a finite non-negative number, got {i}"
-                );
-                env.intensity = i;
-            }
-            if let Some(deg) = self.env_rotation {
-                anyhow::ensure!(deg.is_finite(), "--env-rotation must be finite, got {deg}");
-                env.rotation = deg.to_radians();
-            }
-        }
         for (node, target) in &self.refinements {
             let n = scene.refine_instances(node, *target)?;
             eprintln!("refined {n} instance(s) of '{node}' to {target} vertices");
         }
-        for (node, q) in &self.rotations {
-            let g = scene.find_group(node)?;
-            scene.pose_group(g, *q, Vec3::ZERO);
-        }
-        for (node, offset) in &self.moves {
-            let g = scene.find_group(node)?;
-            scene.pose_group(g, Quat::IDENTITY, *offset);
-        }
+        self.pose(&mut scene)?;
         if let Some(settings) = self.receiver_settings()?.filter(|_| refine) {
             refine_receivers(&mut scene, &settings, store)?;
         }

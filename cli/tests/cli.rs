@@ -732,6 +732,38 @@ fn export_writes_valid_packs_that_render_like_the_database() {
     std::fs::remove_dir_all(d).unwrap();
 }
 
+/// A pack shades with its lights and groups moved, with no bake: a light moved 0.5 m shades
+/// the pack as the database shades the scene after the same move; a light the pack does not
+/// have, and options a pack cannot take, are errors naming them.
+#[test]
+fn a_pack_shades_with_its_lights_and_groups_moved() {
+    let (d, scene, db) = teapot_copy("pack-moves");
+    let pack = d.join("moves.glb");
+    let (pack, csv) = (pack.to_str().unwrap(), d.join("v.csv"));
+    let o = kage(&["export", &scene, "--db", &db, "-o", pack, "--face-res", "8", "--refine-receivers", "0"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let shade = |args: &[&str]| {
+        let mut all = vec!["render", "--method", "bspvt", "--vertices-out", csv.to_str().unwrap()];
+        all.extend(args);
+        let o = kage(&all);
+        assert!(o.status.success(), "{}", stderr(&o));
+        values(&csv)
+    };
+    let still = shade(&["--pack", pack]);
+    let moved = shade(&["--pack", pack, "--move-light", "light=0,0,-0.5"]);
+    let scene_moved =
+        shade(&[&scene, "--db", &db, "--face-res", "8", "--refine-receivers", "0", "--move-light", "0=0,0,-0.5"]);
+    assert_ne!(still, moved, "the moved light shades differently");
+    assert_eq!(moved, scene_moved, "the pack shades the moved light as the database does");
+    let turned = shade(&["--pack", pack, "--move", "teapot=0.3,0,0", "--rotate-light", "light=1,0,0,20"]);
+    assert_ne!(turned, still);
+    let o = kage(&["render", "--pack", pack, "--move-light", "lamp=0,0,1"]);
+    assert!(!o.status.success() && stderr(&o).contains("no light 'lamp' (lights: 0 'light')"), "{}", stderr(&o));
+    let o = kage(&["render", "--pack", pack, "--env", &asset("envmaps/sky.hdr")]);
+    assert!(!o.status.success() && stderr(&o).contains("--env does not apply to a pack"), "{}", stderr(&o));
+    std::fs::remove_dir_all(d).unwrap();
+}
+
 /// A scratch folder for test `name` holding a copy of the teapot scene: (folder, scene, database).
 fn teapot_copy(name: &str) -> (PathBuf, String, String) {
     let d = scratch(name);

@@ -7,7 +7,6 @@ use crate::history::{History, Snapshot, Stored, Target};
 use crate::source::Baseline;
 use crate::state::Selection;
 use glam::{Affine3A, Quat, Vec3};
-use kage_engine::scene::import::reach::contains;
 use kage_engine::scene::{EnvironmentLight, InGroup, Material, PolygonLight, Scene, Transform};
 use std::sync::Arc;
 
@@ -218,22 +217,12 @@ impl Document {
     /// centre: re-shaded at once, nothing re-baked (lights do not occlude). Refused, with the
     /// error to log, when it would leave its declared reach (the bake covers only that).
     pub fn move_light(&mut self, light: hecs::Entity, offset: Vec3, rotation: Quat) -> Result<Change, String> {
-        let pose = self.group_pose_of(light);
-        let Ok(local) = self.scene.world.get::<&InGroup>(light).map(|m| m.local) else { return Ok(Change::NONE) };
-        let Some(points) = self.scene.world.get::<&PolygonLight>(light).ok().map(|l| l.points.clone()) else {
+        if self.scene.world.get::<&PolygonLight>(light).is_err() {
             return Ok(Change::NONE);
-        };
-        let centre = local.transform_point3(points.iter().copied().sum::<Vec3>() / points.len().max(1) as f32);
-        // In the group's frame: about the light's centre, then along the world offset.
-        let turn =
-            Affine3A::from_translation(centre) * Affine3A::from_quat(rotation) * Affine3A::from_translation(-centre);
-        let shift = Affine3A::from_translation(pose.inverse().transform_vector3(offset));
-        let local = shift * turn * local;
-        self.stays_in_reach(light, pose * local, &points)?;
-        self.remember(Target::Light(light));
-        if let Ok(mut member) = self.scene.world.get::<&mut InGroup>(light) {
-            member.local = local;
         }
+        let local = self.scene.light_moved(light, offset, rotation).map_err(|e| format!("{e}: refused"))?;
+        self.remember(Target::Light(light));
+        self.scene.place_light(light, local);
         Ok(self.edited(Change::POSE))
     }
 
@@ -249,7 +238,10 @@ impl Document {
         let c = points.iter().copied().sum::<Vec3>() / points.len().max(1) as f32;
         points.iter_mut().for_each(|p| *p = c + (*p - c) * factor);
         // A resize out of reach is refused; the radiance still changes (the error is logged).
-        let refused = if factor == 1.0 { Ok(()) } else { self.stays_in_reach(light, world, &points) };
+        let refused = match self.scene.world.get::<&PolygonLight>(light) {
+            Ok(l) if factor != 1.0 => l.within_reach(world, &points).map_err(|e| format!("{e}: refused")),
+            _ => Ok(()),
+        };
         let resize = refused.is_ok();
         self.remember(Target::Light(light));
         if let Ok(mut l) = self.scene.world.get::<&mut PolygonLight>(light) {
@@ -259,25 +251,6 @@ impl Document {
             l.radiance = radiance;
         }
         (self.edited(Change::POSE), refused.err())
-    }
-
-    /// Whether light `light`'s polygon `points` placed by `world` lies inside its declared
-    /// reach (`extras.kage.light_reach`); the error says why not.
-    fn stays_in_reach(&self, light: hecs::Entity, world: Affine3A, points: &[Vec3]) -> Result<(), String> {
-        let Some(reach) = self.scene.world.get::<&PolygonLight>(light).ok().and_then(|l| l.reach) else {
-            return Ok(());
-        };
-        let at = points
-            .iter()
-            .map(|p| world.transform_point3(*p))
-            .fold([Vec3::MAX, Vec3::MIN], |[lo, hi], p| [lo.min(p), hi.max(p)]);
-        if contains(reach, at) {
-            return Ok(());
-        }
-        Err(format!(
-            "the light would leave its reach box {} … {} (extras.kage.light_reach), which its shadows were baked for: refused",
-            reach[0], reach[1]
-        ))
     }
 
     /// Moves and turns a rigid group about its origin: PRT shading and the shadows between

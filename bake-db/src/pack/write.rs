@@ -35,9 +35,9 @@ fn encode(e: &Export) -> std::io::Result<Vec<u8>> {
         children[group_of(inst.group)].push(member(&b));
         b.instance(e, k, inst, &locals[k]);
     }
-    for (light, m) in lights(e.scene) {
+    for (light, m, name) in lights(e.scene) {
         children[group_of(m.group)].push(member(&b));
-        b.light(e.scene, &light, &m.local);
+        b.light(e.scene, &light, &m.local, name);
     }
     let mut nodes: Vec<gj::Node> = groups
         .iter()
@@ -104,16 +104,16 @@ fn groups(scene: &Scene) -> Vec<Group> {
     groups.into_iter().map(|g| g.1).collect()
 }
 
-/// The scene's polygonal lights in source-node order.
-fn lights(scene: &Scene) -> Vec<(PolygonLight, InGroup)> {
-    let mut lights: Vec<(u32, PolygonLight, InGroup)> = scene
+/// The scene's polygonal lights in source-node order, with their nodes' names.
+fn lights(scene: &Scene) -> Vec<(PolygonLight, InGroup, String)> {
+    let mut lights: Vec<(u32, PolygonLight, InGroup, String)> = scene
         .world
-        .query::<(&PolygonLight, &InGroup, &NodeId)>()
+        .query::<(&PolygonLight, &InGroup, &NodeId, Option<&Name>)>()
         .iter()
-        .map(|(l, g, n)| (n.0, l.clone(), *g))
+        .map(|(l, g, n, name)| (n.0, l.clone(), *g, name.map_or_else(|| "light".into(), |n| n.0.clone())))
         .collect();
     lights.sort_by(|a, b| a.0.cmp(&b.0).then_with(|| a.1.points.len().cmp(&b.1.points.len())));
-    lights.into_iter().map(|(_, l, g)| (l, g)).collect()
+    lights.into_iter().map(|(_, l, g, name)| (l, g, name)).collect()
 }
 
 /// An extension record as the `others` map glTF's extension slots hold.
@@ -319,7 +319,7 @@ impl Builder {
     }
 
     /// A polygonal light: an emissive triangle fan, its exact values in the extension.
-    fn light(&mut self, scene: &Scene, light: &PolygonLight, local: &glam::Affine3A) {
+    fn light(&mut self, scene: &Scene, light: &PolygonLight, local: &glam::Affine3A, name: String) {
         let mut attributes = BTreeMap::from([(Valid(gj::mesh::Semantic::Positions), self.vec3(&light.points))]);
         let fan: Vec<u32> = (1..light.points.len() as u32 - 1).flat_map(|i| [0, i, i + 1]).collect();
         let indices = self.indices(&fan);
@@ -356,7 +356,7 @@ impl Builder {
             }),
             ..Default::default()
         });
-        self.member(primitive(attributes, indices, material, &record), "light".into(), local);
+        self.member(primitive(attributes, indices, material, &record), name, local);
     }
 
     /// The extension's record of an instance's material: its factors and texture slots.

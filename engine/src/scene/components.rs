@@ -229,6 +229,23 @@ pub struct PolygonLight {
     pub reach: Option<[Vec3; 2]>,
 }
 
+impl PolygonLight {
+    /// Whether `points` (this light's polygon, or a resized one) placed by `world` stay inside
+    /// the reach box it declared (none declared: anywhere); the error says why not.
+    pub fn within_reach(&self, world: Affine3A, points: &[Vec3]) -> Result<(), String> {
+        let Some(reach) = self.reach else { return Ok(()) };
+        let at = points.iter().map(|p| world.transform_point3(*p));
+        if super::import::reach::contains(reach, at.fold([Vec3::MAX, Vec3::MIN], |[lo, hi], p| [lo.min(p), hi.max(p)]))
+        {
+            return Ok(());
+        }
+        Err(format!(
+            "the light would leave its reach box {} … {} (extras.kage.light_reach), which its shadows were baked for",
+            reach[0], reach[1]
+        ))
+    }
+}
+
 /// A camera; in its local frame it looks down −Z with +Y up (glTF).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Camera {

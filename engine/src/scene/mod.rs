@@ -5,7 +5,8 @@
 //! - one **rigid group** per top-level glTF node ([`RigidGroup`], [`Transform`], [`Name`]);
 //! - one **mesh instance** per (node, primitive) that is not emissive ([`MeshRef`],
 //!   [`Material`], [`InGroup`], [`Transform`], [`PrimitiveId`]);
-//! - one **polygonal light** per emissive polygon ([`PolygonLight`], [`InGroup`], [`Transform`]);
+//! - one **polygonal light** per emissive polygon ([`PolygonLight`], [`InGroup`], [`Transform`],
+//!   [`Name`]: its node's);
 //! - **cameras** ([`Camera`]) and at most one **environment** ([`EnvironmentLight`]).
 //!
 //! [`Transform::world`] of instances and lights is derived from the group's pose by
@@ -32,6 +33,7 @@ pub use kage_runtime::light::FlatLight;
 pub use mesh::{Mesh, MeshHash};
 pub use texture::Texture;
 
+use glam::{Affine3A, Quat, Vec3};
 use std::sync::Arc;
 
 /// An imported scene: the ECS world plus the assets its components refer to.
@@ -96,6 +98,57 @@ impl Scene {
             let names: Vec<String> = groups.iter().map(|(_, i, n)| format!("{i} '{n}'")).collect();
             crate::Error::Invalid(format!("{}: no rigid group '{name}' (groups: {})", self.source, names.join(", ")))
         })
+    }
+
+    /// The light entities (one per polygon) of the light node named `name`, or of the light
+    /// whose index in node order is `name` as a number.
+    pub fn find_lights(&self, name: &str) -> crate::Result<Vec<hecs::Entity>> {
+        let mut lights: Vec<(NodeId, Emitter, String, hecs::Entity)> = self
+            .world
+            .query::<(hecs::Entity, &PolygonLight, &NodeId, &Emitter, Option<&Name>)>()
+            .iter()
+            .map(|(e, _, id, emitter, n)| (*id, *emitter, n.map(|n| n.0.clone()).unwrap_or_default(), e))
+            .collect();
+        lights.sort_by_key(|(id, emitter, ..)| (id.0, emitter.polygon));
+        let mut nodes: Vec<(NodeId, String)> = lights.iter().map(|(id, _, n, _)| (*id, n.clone())).collect();
+        nodes.dedup();
+        // By name every node so named (a pack writes one node per polygon), else by index.
+        let chosen: Vec<NodeId> = match nodes.iter().any(|(_, n)| n == name) {
+            true => nodes.iter().filter(|(_, n)| n == name).map(|(id, _)| *id).collect(),
+            false => name.parse::<usize>().ok().and_then(|i| nodes.get(i)).map(|(id, _)| *id).into_iter().collect(),
+        };
+        if chosen.is_empty() {
+            let names: Vec<String> = nodes.iter().enumerate().map(|(i, (_, n))| format!("{i} '{n}'")).collect();
+            return Err(crate::Error::Invalid(format!(
+                "{}: no light '{name}' (lights: {})",
+                self.source,
+                names.join(", ")
+            )));
+        }
+        Ok(lights.iter().filter(|(id, ..)| chosen.contains(id)).map(|(.., e)| *e).collect())
+    }
+
+    /// Where `light` goes, in its group's frame, when it turns by `rotation` about its centre and
+    /// then moves by the world-space `offset`; refused when that leaves the reach box it
+    /// declared (its shadows were baked for that box only).
+    pub fn light_moved(&self, light: hecs::Entity, offset: Vec3, rotation: Quat) -> Result<Affine3A, String> {
+        let member = self.world.get::<&InGroup>(light).map_err(|_| "not a light".to_string())?;
+        let l = self.world.get::<&PolygonLight>(light).map_err(|_| "not a light".to_string())?;
+        let pose = self.world.get::<&Transform>(member.group).map(|t| t.world).unwrap_or_default();
+        let centre =
+            member.local.transform_point3(l.points.iter().copied().sum::<Vec3>() / l.points.len().max(1) as f32);
+        let turn =
+            Affine3A::from_translation(centre) * Affine3A::from_quat(rotation) * Affine3A::from_translation(-centre);
+        let local = Affine3A::from_translation(pose.inverse().transform_vector3(offset)) * turn * member.local;
+        l.within_reach(pose * local, &l.points).map(|()| local)
+    }
+
+    /// Places `light` at `local` in its group's frame (see [`Self::light_moved`]).
+    pub fn place_light(&mut self, light: hecs::Entity, local: Affine3A) {
+        if let Ok(mut member) = self.world.get::<&mut InGroup>(light) {
+            member.local = local;
+        }
+        propagate_transforms(&mut self.world);
     }
 
     /// The instances and lights of rigid group `group`, in entity order.

@@ -180,8 +180,10 @@ pub fn run(args: &Args) -> Result<()> {
     }
     let (mut scene, pack) = match &args.pack {
         Some(path) => {
-            let (scene, contents) = kage_bake_db::pack::read(path)?;
+            args.scene.check_for_pack()?;
+            let (mut scene, contents) = kage_bake_db::pack::read(path)?;
             contents.warnings.iter().for_each(|w| eprintln!("warning: {w}"));
+            args.scene.pose(&mut scene)?;
             (scene, Some(contents))
         }
         None => {

@@ -295,7 +295,8 @@ impl<'a> Importer<'a> {
                         .transpose()
                         .map_err(|m| self.error(format!("{node_name}: {m}")))?;
                     let light = PolygonLight { points, uvs, radiance: emissive, texture, reach };
-                    spawned.push((light, member, transform, NodeId(node_id), Emitter { id, polygon: polygon as u32 }));
+                    let emitter = Emitter { id, polygon: polygon as u32 };
+                    spawned.push((light, member, transform, NodeId(node_id), emitter, node_label(node, node_id)));
                 }
                 lights += spawned.len();
                 self.members += spawned.len();
@@ -316,7 +317,7 @@ impl<'a> Importer<'a> {
                 };
                 let hash = self.scene.meshes[mesh_index as usize].hash;
                 let id = PrimitiveId { node: node_id, mesh: mesh.index() as u32, primitive: prim.index() as u32 };
-                let name = Name(node.name().map(str::to_string).unwrap_or_else(|| format!("node{node_id}")));
+                let name = node_label(node, node_id);
                 let entity = (MeshRef { index: mesh_index, hash }, material, member, transform, id, name);
                 let e = self.scene.world.spawn(entity);
                 if !maps.is_empty() {
@@ -519,6 +520,11 @@ fn texture_from_image(image: &image::RgbaImage, channels: Channels, wrap: [Wrap;
     };
     let texels: Vec<Vec3> = image.pixels().map(texel).collect();
     Texture::new(image.width() as usize, image.height() as usize, texels, wrap)
+}
+
+/// A node's name as kage shows it: its glTF name, or `node<index>`.
+fn node_label(node: &gltf::Node, node_id: u32) -> Name {
+    Name(node.name().map(str::to_string).unwrap_or_else(|| format!("node{node_id}")))
 }
 
 /// A GLB file's chunks, its header checked first (the `gltf` crate panics on some damaged
