@@ -2,13 +2,14 @@
 //!
 //! kage at run time: what shading baked data needs, and nothing a bake needs. The math the
 //! techniques share ([`math`]: SH, HSH, LTC, GGX, cube maps, polygons, sampling), materials
-//! ([`material`]), lights ([`light`]) and textures ([`texture`]) as the shading reads them, and
-//! BSPVT's vertex records with their LTC shading ([`bspvt`]).
+//! ([`material`]), lights ([`light`]) and textures ([`texture`]) as the shading reads them,
+//! BSPVT's vertex records with their LTC shading ([`bspvt`]), and asset packs' container,
+//! records, integrity and ranges ([`pack`]).
 //!
 //! ## Design and guarantees
 //! - **No bake-time dependencies**: no database, no BVH builder, no ECS, no GPU API — a game
-//!   or an engine plugin links this crate alone (`cargo tree -p kage-runtime` holds glam,
-//!   rayon, rand and wide). `kage-engine` bakes and re-exports these modules, so the engine,
+//!   or an engine plugin links this crate alone (its dependencies: glam, rayon, rand, wide,
+//!   serde, serde_json and blake3). `kage-engine` bakes and re-exports these modules, so the engine,
 //!   the CLI and the editor shade through the same code.
 //! - **Pure**: no I/O and no global state; results are bit-identical on any thread count.
 //! - **Conventions** as `docs/conventions.md` states them: glTF frame (+Y up, right-handed),
@@ -18,6 +19,7 @@ pub mod bspvt;
 pub mod light;
 pub mod material;
 pub mod math;
+pub mod pack;
 pub mod texture;
 
 #[cfg(test)]
@@ -31,7 +33,7 @@ mod tests {
         let section = section.split("\n[").next().unwrap_or_default();
         let names: Vec<&str> =
             section.lines().filter_map(|l| l.split(['.', '=', ' ']).next()).filter(|n| !n.is_empty()).collect();
-        let allowed = ["glam", "rayon", "rand", "rand_pcg", "wide"];
+        let allowed = ["glam", "rayon", "rand", "rand_pcg", "wide", "serde", "serde_json", "blake3"];
         assert!(!names.is_empty());
         assert!(names.iter().all(|n| allowed.contains(n)), "runtime dependencies {names:?}, allowed {allowed:?}");
     }

@@ -13,26 +13,14 @@ use kage_engine::bspvt;
 use kage_engine::prt::{self, Lighting};
 use kage_engine::scene::{FlatScene, Scene};
 
-mod integrity;
-mod ranges;
 mod read;
-mod schema;
 mod write;
 
-pub use integrity::reseal;
+pub use kage_runtime::pack::{EXTENSION, SEALED, VERSION, VERSIONS, integrity, ranges, schema};
+
+pub use kage_runtime::pack::integrity::reseal;
 pub use read::read;
 pub use write::write;
-
-/// The extension's name.
-pub const EXTENSION: &str = "KAGE_baked_shadows";
-/// The extension's version this kage writes (4: with the integrity record).
-pub const VERSION: u64 = 4;
-/// The extension's versions this kage reads (2 differs from 1 in number formatting only; 1 and
-/// 2 hold BSPVT record format 1, without depth: shaded as they were, lights in closed rooms
-/// dark; 1 to 3 carry no checksums: read with their numbers range-checked only).
-pub const VERSIONS: std::ops::RangeInclusive<u64> = 1..=4;
-/// The first version that carries the integrity record.
-pub const SEALED: u64 = 4;
 
 /// What a pack holds besides its glTF scene.
 pub struct Contents {
@@ -116,12 +104,11 @@ mod tests {
     /// wrong, not one damaged after writing.
     fn edit_json(path: &Path, edit: impl FnOnce(&mut serde_json::Value)) {
         let bytes = std::fs::read(path).unwrap();
-        let glb = gltf::binary::Glb::from_slice(&bytes).unwrap();
-        let mut doc: serde_json::Value = serde_json::from_slice(&glb.json).unwrap();
+        let glb = kage_runtime::pack::glb::split(&bytes).unwrap();
+        let mut doc: serde_json::Value = serde_json::from_slice(glb.json).unwrap();
         edit(&mut doc);
         let json = serde_json::to_vec(&doc).unwrap();
-        let out = gltf::binary::Glb { header: glb.header, json: json.into(), bin: glb.bin };
-        std::fs::write(path, reseal(&out.to_vec().unwrap()).unwrap()).unwrap();
+        std::fs::write(path, reseal(&kage_runtime::pack::glb::join(&json, glb.bin)).unwrap()).unwrap();
     }
 
     /// The reading error for the pack at `path` after `edit`.

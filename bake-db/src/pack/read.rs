@@ -28,16 +28,17 @@ fn bad(path: &Path, what: impl std::fmt::Display) -> Error {
 /// holds is checked finite and in range.
 pub fn read(path: &Path) -> Result<(Scene, Contents)> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-    let glb = import::glb_chunks(&bytes).map_err(|e| bad(path, e))?;
-    let doc = gj::Root::from_slice(&glb.json).map_err(|e| bad(path, e))?;
-    let pack = Pack { doc: &doc, bin: glb.bin.as_deref().unwrap_or_default() };
+    let glb = kage_runtime::pack::glb::split(&bytes).map_err(|e| bad(path, e))?;
+    let doc = gj::Root::from_slice(glb.json).map_err(|e| bad(path, e))?;
+    let views = integrity::buffer_views(glb.json).map_err(|e| bad(path, e))?;
+    let pack = Pack { doc: &doc, views: &views, bin: glb.bin };
     let root: schema::Root = extension(doc.extensions.as_ref().map(|e| &e.others)).map_err(|e| bad(path, e))?;
     if !VERSIONS.contains(&root.version) {
         return Err(bad(path, format!("{EXTENSION} version {} (this kage reads {VERSIONS:?})", root.version)));
     }
     let mut warnings = Vec::new();
     match &root.integrity {
-        Some(record) => integrity::check_json(&glb.json, record).map_err(|e| bad(path, e))?,
+        Some(record) => integrity::check_json(glb.json, record).map_err(|e| bad(path, e))?,
         None if root.version >= SEALED => {
             return Err(bad(path, format!("version {} without its integrity record", root.version)));
         }
@@ -49,7 +50,7 @@ pub fn read(path: &Path) -> Result<(Scene, Contents)> {
     }
     let (instances, lights) = pack.records().map_err(|e| bad(path, e))?;
     if let Some(record) = &root.integrity {
-        integrity::check_views(&doc, pack.bin, record, |v| pack.view_name(v, &root, &instances))
+        integrity::check_views(&views, pack.bin, record, |v| pack.view_name(v, &root, &instances))
             .map_err(|e| bad(path, e))?;
     }
     ranges::root(&root).and_then(|()| ranges::records(&instances, &lights)).map_err(|e| bad(path, e))?;
@@ -85,9 +86,10 @@ fn extension<T: serde::de::DeserializeOwned>(
     T::deserialize(value).map_err(|e| format!("{EXTENSION}: {e}"))
 }
 
-/// A pack's document and binary chunk.
+/// A pack's document, its buffer views and its binary chunk.
 struct Pack<'a> {
     doc: &'a gj::Root,
+    views: &'a [integrity::View],
     bin: &'a [u8],
 }
 
@@ -96,10 +98,10 @@ type Checked<T> = std::result::Result<T, String>;
 impl Pack<'_> {
     /// The bytes of buffer view `index`, if it lies inside the binary chunk.
     fn view(&self, index: u32) -> Checked<&[u8]> {
-        if index as usize >= self.doc.buffer_views.len() {
+        if index as usize >= self.views.len() {
             return Err(format!("no buffer view {index}"));
         }
-        integrity::view(self.doc, self.bin, index as usize)
+        integrity::view(self.views, self.bin, index as usize)
             .ok_or_else(|| format!("buffer view {index} lies outside the binary chunk"))
     }
 

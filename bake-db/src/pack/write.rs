@@ -1,5 +1,5 @@
 //! Writing a pack: the glTF document as `gltf::json` structures, the extension as
-//! [`schema`] records, and the GLB container through `gltf::binary::Glb`.
+//! [`schema`] records, and the GLB container through `kage_runtime::pack::glb`.
 
 use super::{EXTENSION, Export, VERSION, integrity, schema};
 use glam::Vec3;
@@ -73,16 +73,16 @@ fn encode(e: &Export) -> std::io::Result<Vec<u8>> {
         extensions: None,
         extras: Default::default(),
     }];
-    root.integrity = Some(integrity::unsealed(&doc, &b.bin));
+    let views: Vec<integrity::View> = doc
+        .buffer_views
+        .iter()
+        .map(|v| integrity::View { byte_offset: v.byte_offset.map_or(0, |o| o.0), byte_length: v.byte_length.0 })
+        .collect();
+    root.integrity = Some(integrity::unsealed(&views, &b.bin));
     doc.extensions = Some(gj::extensions::root::Root { others: others(&root) });
     let mut json = doc.to_vec().map_err(std::io::Error::other)?;
     integrity::seal(&mut json);
-    let glb = gltf::binary::Glb {
-        header: gltf::binary::Header { magic: *b"glTF", version: 2, length: 0 },
-        json: json.into(),
-        bin: Some(b.bin.into()),
-    };
-    glb.to_vec().map_err(std::io::Error::other)
+    Ok(kage_runtime::pack::glb::join(&json, &b.bin))
 }
 
 /// A rigid group as the pack writes it.

@@ -100,8 +100,8 @@ pub fn save(scene: &Scene, baseline: &Baseline, from: &Path, to: &Path) -> Resul
     }
     let bytes = std::fs::read(from).map_err(|e| format!("{name}: {e}"))?;
     let (json, bin) = if glb {
-        let g = kage_engine::scene::import::glb_chunks(&bytes).map_err(|e| format!("{name}: {e}"))?;
-        (g.json.into_owned(), g.bin.map(|b| b.into_owned()))
+        let g = kage_runtime::pack::glb::split(&bytes).map_err(|e| format!("{name}: {e}"))?;
+        (g.json.to_vec(), (!g.bin.is_empty()).then(|| g.bin.to_vec()))
     } else {
         (bytes.clone(), None)
     };

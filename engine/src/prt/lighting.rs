@@ -6,6 +6,7 @@ use crate::math::sh;
 use crate::scene::EnvironmentLight;
 use crate::scene::environment::uv_to_dir;
 use glam::{DMat3, DVec3, Quat, Vec2};
+use kage_runtime::pack::schema;
 use rayon::prelude::*;
 use std::f64::consts::PI;
 
@@ -157,6 +158,28 @@ pub fn to_group_frame(coeffs: &[DVec3], rotation: DMat3, mirrored: bool) -> RgbC
         }
     }
     out
+}
+
+/// The window as a pack records it.
+impl From<Window> for schema::Window {
+    fn from(w: Window) -> Self {
+        match w {
+            Window::None => Self::None,
+            Window::Hanning => Self::Hanning,
+            Window::Lanczos => Self::Lanczos,
+        }
+    }
+}
+
+/// The window a pack records.
+impl From<schema::Window> for Window {
+    fn from(w: schema::Window) -> Self {
+        match w {
+            schema::Window::None => Self::None,
+            schema::Window::Hanning => Self::Hanning,
+            schema::Window::Lanczos => Self::Lanczos,
+        }
+    }
 }
 
 #[cfg(test)]

@@ -527,16 +527,6 @@ fn node_label(node: &gltf::Node, node_id: u32) -> Name {
     Name(node.name().map(str::to_string).unwrap_or_else(|| format!("node{node_id}")))
 }
 
-/// A GLB file's chunks, its header checked first (the `gltf` crate panics on some damaged
-/// headers).
-pub fn glb_chunks(bytes: &[u8]) -> std::result::Result<gltf::binary::Glb<'_>, String> {
-    if !bytes.starts_with(b"glTF") {
-        return Err("not a binary glTF (GLB) file".into());
-    }
-    checks::glb_header(bytes)?;
-    gltf::binary::Glb::from_slice(bytes).map_err(|e| e.to_string())
-}
-
 /// A PNG or JPEG file's bytes as a linear texture (see [`texture_from_image`]), with the
 /// importer's size limits.
 pub fn decode_texture(bytes: &[u8], channels: Channels, wrap: [Wrap; 2]) -> std::result::Result<Texture, String> {

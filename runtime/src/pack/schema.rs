@@ -196,24 +196,3 @@ pub struct Light {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub light_uvs: Option<Vec<f32>>,
 }
-
-impl From<kage_engine::prt::lighting::Window> for Window {
-    fn from(w: kage_engine::prt::lighting::Window) -> Self {
-        use kage_engine::prt::lighting::Window as W;
-        match w {
-            W::None => Self::None,
-            W::Hanning => Self::Hanning,
-            W::Lanczos => Self::Lanczos,
-        }
-    }
-}
-
-impl From<Window> for kage_engine::prt::lighting::Window {
-    fn from(w: Window) -> Self {
-        match w {
-            Window::None => Self::None,
-            Window::Hanning => Self::Hanning,
-            Window::Lanczos => Self::Lanczos,
-        }
-    }
-}

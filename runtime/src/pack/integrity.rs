@@ -6,7 +6,7 @@
 //! own 64 hex digits written as `0`s: the writer seals with a placeholder, hashes, and writes
 //! the digest in its place; the reader undoes exactly that.
 
-use gltf::json as gj;
+use super::glb;
 use serde::{Deserialize, Serialize};
 
 /// `extensions.KAGE_baked_shadows.integrity` on the glTF root.
@@ -21,12 +21,32 @@ pub struct Integrity {
 /// The placeholder the JSON digest is computed over.
 const UNSEALED: &str = "0000000000000000000000000000000000000000000000000000000000000000";
 
+/// A buffer view's place in the binary chunk, as the glTF JSON gives it.
+#[derive(Clone, Copy, Debug, Deserialize)]
+#[serde(rename_all = "camelCase")]
+pub struct View {
+    /// Offset into the binary chunk.
+    #[serde(default)]
+    pub byte_offset: u64,
+    /// Length in bytes.
+    pub byte_length: u64,
+}
+
+/// The `bufferViews` of a glTF JSON document (the rest is not read).
+pub fn buffer_views(json: &[u8]) -> Result<Vec<View>, String> {
+    #[derive(Deserialize)]
+    #[serde(rename_all = "camelCase")]
+    struct Doc {
+        #[serde(default)]
+        buffer_views: Vec<View>,
+    }
+    serde_json::from_slice::<Doc>(json).map(|d| d.buffer_views).map_err(|e| format!("bufferViews: {e}"))
+}
+
 /// An [`Integrity`] record with the buffer views' digests and the JSON's placeholder.
-pub fn unsealed(doc: &gj::Root, bin: &[u8]) -> Integrity {
-    let views = (0..doc.buffer_views.len())
-        .map(|i| blake3::hash(view(doc, bin, i).unwrap_or_default()).to_hex().to_string())
-        .collect();
-    Integrity { views, json: UNSEALED.into() }
+pub fn unsealed(views: &[View], bin: &[u8]) -> Integrity {
+    let views = (0..views.len()).map(|i| blake3::hash(view(views, bin, i).unwrap_or_default()).to_hex().to_string());
+    Integrity { views: views.collect(), json: UNSEALED.into() }
 }
 
 /// Writes the JSON's digest over its placeholder (`json` holds exactly one).
@@ -52,16 +72,16 @@ pub fn check_json(json: &[u8], record: &Integrity) -> Result<(), String> {
 
 /// Checks every buffer view against its digest; `name` says what a view holds, for the error.
 pub fn check_views(
-    doc: &gj::Root,
+    views: &[View],
     bin: &[u8],
     record: &Integrity,
     name: impl Fn(usize) -> String,
 ) -> Result<(), String> {
-    if record.views.len() != doc.buffer_views.len() {
-        return Err(format!("{} view checksums for {} buffer views", record.views.len(), doc.buffer_views.len()));
+    if record.views.len() != views.len() {
+        return Err(format!("{} view checksums for {} buffer views", record.views.len(), views.len()));
     }
     for (i, expected) in record.views.iter().enumerate() {
-        let bytes = view(doc, bin, i).ok_or_else(|| format!("buffer view {i} lies outside the binary chunk"))?;
+        let bytes = view(views, bin, i).ok_or_else(|| format!("buffer view {i} lies outside the binary chunk"))?;
         if blake3::hash(bytes).to_hex().as_str() != expected {
             return Err(format!("{} (buffer view {i}) fails its checksum: the data is damaged", name(i)));
         }
@@ -71,25 +91,22 @@ pub fn check_views(
 
 /// A pack (GLB bytes) with its integrity record computed afresh: for tools that change a pack
 /// on purpose (and tests that write one wrong); the data is not checked.
-pub fn reseal(glb: &[u8]) -> Result<Vec<u8>, String> {
-    let glb = kage_engine::scene::import::glb_chunks(glb)?;
-    let root = gj::Root::from_slice(&glb.json).map_err(|e| e.to_string())?;
-    let mut doc: serde_json::Value = serde_json::from_slice(&glb.json).map_err(|e| e.to_string())?;
-    let record = unsealed(&root, glb.bin.as_deref().unwrap_or_default());
+pub fn reseal(bytes: &[u8]) -> Result<Vec<u8>, String> {
+    let g = glb::split(bytes)?;
+    let record = unsealed(&buffer_views(g.json)?, g.bin);
+    let mut doc: serde_json::Value = serde_json::from_slice(g.json).map_err(|e| e.to_string())?;
     let extension = doc.pointer_mut(&format!("/extensions/{}", super::EXTENSION)).ok_or("not a kage pack")?;
     extension["integrity"] = serde_json::to_value(record).map_err(|e| e.to_string())?;
     let mut json = serde_json::to_vec(&doc).map_err(|e| e.to_string())?;
     seal(&mut json);
-    let out = gltf::binary::Glb { header: glb.header, json: json.into(), bin: glb.bin };
-    out.to_vec().map_err(|e| e.to_string())
+    Ok(glb::join(&json, g.bin))
 }
 
 /// The bytes of buffer view `index`, if it lies inside `bin`.
-pub fn view<'a>(doc: &gj::Root, bin: &'a [u8], index: usize) -> Option<&'a [u8]> {
-    let view = doc.buffer_views.get(index)?;
-    let start = view.byte_offset.map_or(0, |o| o.0);
-    let end = start.checked_add(view.byte_length.0)?;
-    bin.get(usize::try_from(start).ok()?..usize::try_from(end).ok()?)
+pub fn view<'a>(views: &[View], bin: &'a [u8], index: usize) -> Option<&'a [u8]> {
+    let v = views.get(index)?;
+    let end = v.byte_offset.checked_add(v.byte_length)?;
+    bin.get(usize::try_from(v.byte_offset).ok()?..usize::try_from(end).ok()?)
 }
 
 /// The first position of `needle` in `hay`, when it occurs exactly once.
