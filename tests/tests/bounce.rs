@@ -108,8 +108,8 @@ fn the_cornell_box_gets_the_bounces_it_needs() {
         "Cornell box per pixel: {count} bounces {same:.4} from the reference's {count}, {deep:.4} from 8; one bounce {single:.4} from 8"
     );
     assert!((3..=12).contains(&count), "{count} bounces");
-    // Measured: 6 bounces, 4.67 % (the reference's own noise 3.0 %), 4.73 % from 8 bounces;
-    // one bounce 23.6 % from 8.
+    // Measured: 6 bounces, 4.57 % (the reference's own noise 3.0 %), 4.68 % from 8 bounces;
+    // one bounce 23.8 % from 8.
     assert!(same < 0.05, "{same}");
     assert!(deep < 0.08, "{deep}");
     assert!(single > 3.0 * deep, "one bounce {single}, {count} bounces {deep}");
@@ -128,7 +128,7 @@ fn the_cornell_box_light_moves_with_no_re_bake() {
         let (truth, surface) = reference(&moved, count, 512);
         let error = over(&surface, &image, &truth);
         eprintln!("Cornell box, light pose {}: {count} bounces, {error:.4} per pixel", k + 1);
-        // Measured: turned 4.97 % (the reference's own noise 3.3 %); tilted 12.9 % (the
+        // Measured: turned 5.21 % (the reference's own noise 3.3 %); tilted 11.5 % (the
         // reference's noise 7.6 %). Per vertex their direct light is within 2 % (`bspvt.rs`).
         assert!(error < [0.06, 0.14][k], "pose {}: {error}", k + 1);
     }
@@ -147,12 +147,11 @@ fn a_face_turned_away_gets_only_its_own_bounce() {
     let error = over(&face, &image, &truth);
     eprintln!("low-poly box, the face turned away ({pixels} pixels): {count} bounces, {error:.4} from the reference");
     assert!(pixels > 500, "{pixels}");
-    // Measured: 11.3 % (the reference's own noise there 5.3 %). The face has no direct light,
-    // so receiver refinement gives it only its seed, and the bounce interpolated between those
-    // vertices misses some of the dip where the box's shadow on the floor faces it; at the
-    // face's vertices the cache is within 4 % of the reference. A record used across the 90°
-    // edge would put it at 2.8×.
-    assert!(error < 0.12, "{error}");
+    // Measured: 7.05 % (the reference's own noise there 5.3 %); 11.3 % without neighbour
+    // clamping at contacts, when records from higher up reached the face's foot past the dark
+    // records gathered there (blotches along the edge). A record used across the 90° edge would put it
+    // at 2.8×.
+    assert!(error < 0.10, "{error}");
 }
 
 /// A closed room of half-extents `h` seen from inside: a cuboid with its faces turned in,

@@ -180,12 +180,32 @@ fn the_cache_matches_the_one_bounce_reference_with_far_fewer_rays_than_gathering
     let (flat, _) = indirect_vertices(&src, &Settings { gradients: false, ..s }, EYE);
     let (e_gather, e_cache, e_flat) = (rel(&gathered, &truth), rel(&cached, &truth), rel(&flat, &truth));
     let gather_rays = renderer.vertex_count() * 256;
+    eprintln!(
+        "gathering {e_gather:.4} ({gather_rays} rays), cache {e_cache:.4} ({} rays), without gradients {e_flat:.4}",
+        cache.rays()
+    );
     // Measured against this 1024-spp reference (its own noise ≈ 3 %): gathering 256 rays per
     // vertex 0.047 (560K rays); the cache 0.047 with 414 records (106K rays), 0.055 without
     // gradients. Against 4096 spp: 0.034, 0.031 and 0.044 (docs/radiance-cache.md).
     assert!(e_gather < 0.06, "brute-force gathering vs the reference: {e_gather}");
     assert!(e_cache < 1.1 * e_gather && cache.rays() * 5 <= gather_rays, "cache {e_cache} with {} rays", cache.rays());
     assert!(e_cache < e_flat, "gradients help at equal record count: {e_cache} vs {e_flat}");
+}
+
+/// Neighbour clamping shrinks the records placed before a smaller one near them; placement
+/// then passes again, so every vertex still finds a usable record (none is left unlit).
+#[test]
+fn after_placement_every_vertex_finds_a_record() {
+    let (renderer, direct) = lit_room(lambert(0.7));
+    let src = Source { renderer: &renderer, direct: &direct, glossy: Glossy::Reference(GLOSSY_SPP) };
+    let cache = kage_engine::cache::place_at_vertices(&src, &Settings::default());
+    let flat = &renderer.flat;
+    for i in 0..flat.instances.len() {
+        for v in 0..flat.vertex_count(i) {
+            let (p, n) = flat.vertex(i, v);
+            assert!(cache.incoming(p, n).is_some(), "instance {i}, vertex {v} at {p} finds no record");
+        }
+    }
 }
 
 /// Dense records of few rays: Ward's blend hands each record's noise to the vertex it sits on,
@@ -202,6 +222,7 @@ fn the_wide_blend_averages_the_noise_of_few_ray_records() {
     let (wide, cache) = indirect_vertices(&src, &Settings { blend: Blend::Wide, ..dense }, EYE);
     let (e_ward, e_wide) = (rel(&ward, &truth), rel(&wide, &truth));
     let ratio = (renderer.vertex_count() * 256) as f64 / cache.rays() as f64;
+    eprintln!("gathering {e_gather:.4}; a 0.2, 64 rays: Ward {e_ward:.4}, wide {e_wide:.4}, {ratio:.1}× fewer rays");
     // Measured: gathering 0.047 (560K rays); a 0.2 with 64 rays per record (47K rays, 11.9×
     // fewer): Ward's blend 0.069, the wide blend 0.053. (On the bunny the wide blend reaches
     // gathering's error with 15× fewer rays: docs/radiance-cache.md.)
@@ -310,6 +331,9 @@ fn a_refresh_relights_only_what_changed_and_equals_fresh_gathers() {
     let check = |cache: &Cache, src: &Source| {
         for (i, r) in cache.records.iter().enumerate() {
             let fresh = gather(src, r.p, r.frame.n, &cache.params(), i as u64);
+            // The radius as placed (neighbour-clamped: at most the gather's own).
+            assert!(r.radius <= fresh.radius, "record {i}: radius {} over the gather's {}", r.radius, fresh.radius);
+            let fresh = kage_engine::cache::record::Record { radius: r.radius, ..fresh };
             assert_eq!(*r, fresh, "record {i} equals a fresh gather under the new lighting");
         }
     };

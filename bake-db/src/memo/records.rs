@@ -17,8 +17,8 @@ use kage_engine::scene::Scene;
 /// receivers' meshes join the key, since the occluder snapshot names a flat refinement's
 /// source; 5: a gather ray that enters a surface touching its start, such as a box's foot
 /// into the floor it rests on, meets it there; 6: such a hit reads the floor's corners outside
-/// the object, as pixels do.)
-pub const VERSION: u32 = 6;
+/// the object, as pixels do; 7: neighbour clamping of the records' radii at contacts.)
+pub const VERSION: u32 = 7;
 
 /// The key of the records a cache built from `src` with `s` would hold.
 pub fn key(src: &Source, s: &Settings) -> Key {

@@ -233,18 +233,49 @@ impl Cache {
             .collect()
     }
 
-    /// Places records at `points` (in order): a new record wherever no usable one exists.
-    /// Returns the number of records made.
+    /// Places records at `points` (in order): a new record wherever no usable one exists, its
+    /// radius and its neighbours' clamped at contacts ([`Self::clamp_neighbours`]); passes repeat until
+    /// every point has a usable record (a clamp can uncover a point placed before it). Returns
+    /// the number of records made.
     pub fn place(&mut self, src: &Source, points: &[(Vec3, Vec3)]) -> usize {
         let before = self.records.len();
-        for &(p, n) in points {
-            if self.usable(p, n).is_empty() {
-                let index = self.records.len() as u64;
-                let (r, hits) = record::gather_with_hits(src, p, n, &self.params(), index);
-                self.insert(r, hits);
+        loop {
+            let made = self.records.len();
+            for &(p, n) in points {
+                if self.usable(p, n).is_empty() {
+                    let index = self.records.len() as u64;
+                    let (r, hits) = record::gather_with_hits(src, p, n, &self.params(), index);
+                    self.insert(r, hits);
+                    self.clamp_neighbours(self.records.len() - 1);
+                }
+            }
+            if self.records.len() == made {
+                return self.records.len() - before;
             }
         }
-        self.records.len() - before
+    }
+
+    /// Neighbour clamping at contacts (after Křivánek et al. 2006): a record whose radius is at
+    /// its lower bound (gathered at a contact or in a corner, whose rays meet geometry at once)
+    /// bounds its neighbours' radii by its own plus their distance, so records from farther
+    /// away do not serve across it with light they did not see. Between record `id` and the
+    /// records indexed where it lies (those whose reach it is in), in both directions; radii
+    /// stay within the bounds. Open surfaces, where no record is at the bound, are left as
+    /// Ward placed them (docs/radiance-cache.md).
+    fn clamp_neighbours(&mut self, id: usize) {
+        let Some(ids) = self.grid.get(&self.cell_of(self.records[id].p)).cloned() else { return };
+        let (p, mut radius, least) = (self.records[id].p, self.records[id].radius, self.bounds.0);
+        for j in ids.into_iter().map(|j| j as usize).filter(|&j| j != id) {
+            let d = self.records[j].p.distance(p);
+            if self.records[j].radius <= least {
+                radius = radius.min(self.records[j].radius + d).max(least);
+            }
+            if radius <= least {
+                let r = &mut self.records[j];
+                r.radius = r.radius.min(radius + d).max(least);
+            }
+        }
+        self.records[id].radius = radius;
     }
 
     /// Re-lights the records after `change` (in parallel; each as [`record::relight`]): only
@@ -307,7 +338,10 @@ impl Cache {
             out.recast += recast;
             out.gathered += usize::from(gathered);
             out.relit += usize::from(fresh.is_some() && !gathered);
-            if let Some(fresh) = fresh {
+            // A record keeps its place and its radius as placed (neighbour-clamped): a
+            // refreshed cache is the cold placement under the new lighting.
+            if let Some(mut fresh) = fresh {
+                fresh.radius = fresh.radius.min(r.radius);
                 *r = fresh;
             }
         }
