@@ -160,7 +160,7 @@ fn group_drag(c: &mut Criterion) {
 }
 
 fn vertices(h: &Harness<App>) -> usize {
-    h.state().editor.values.iter().map(Vec::len).sum()
+    h.state().editor.results.values.iter().map(Vec::len).sum()
 }
 
 fn bench(c: &mut Criterion) {

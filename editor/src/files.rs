@@ -62,11 +62,12 @@ impl Editor {
     /// mesh starts with its source's vertices (refinement appends), so a source vertex keeps its
     /// refined twin's value; zeros where the shapes do not fit (a result still on its way).
     fn preview(&self, flat: &FlatScene) -> VertexValues {
-        let fits = self.radiance.len() == flat.instances.len();
+        let fits = self.results.radiance.len() == flat.instances.len();
         (0..flat.instances.len())
             .map(|i| {
                 let n = flat.vertex_count(i);
-                let shown = self.radiance.get(i).filter(|r| fits && r.len() >= n && self.flat.vertex_count(i) >= n);
+                let shown =
+                    self.results.radiance.get(i).filter(|r| fits && r.len() >= n && self.flat.vertex_count(i) >= n);
                 let same = |k: usize| flat.vertex(i, k).0 == self.flat.vertex(i, k).0;
                 match shown {
                     Some(r) if (0..n).all(same) => r[..n].to_vec(),

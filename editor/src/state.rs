@@ -50,6 +50,35 @@ impl ReferenceSum {
     }
 }
 
+/// What the editor computed for the current snapshot and view: the values it shows, the
+/// method's radiance and its parts, the reference's passes, and the terms the viewport draws
+/// per pixel.
+#[derive(Default)]
+pub struct Results {
+    /// Per instance and vertex: the displayed radiance (or the error overlay's colours).
+    pub values: VertexValues,
+    /// Bumped whenever `values` is set: the viewport uploads them once per change.
+    pub values_revision: u64,
+    /// Per instance and vertex: the method's radiance, plus the cached indirect term when on
+    /// (what the overlay compares).
+    pub radiance: VertexValues,
+    /// Per instance and vertex: the method's direct radiance alone.
+    pub direct: VertexValues,
+    /// Per instance and vertex: the last indirect term (lit by an earlier direct result while a
+    /// new one is gathered).
+    pub indirect: VertexValues,
+    /// The progressive reference: running sums and passes.
+    pub reference: ReferenceSum,
+    /// PRT's per-vertex terms when the viewport shades PRT per pixel (method `prt`, no overlay).
+    pub per_pixel: Option<prt::Frame>,
+    /// The lobes the viewport draws the polygonal lights with per pixel
+    /// ([`Editor::lights_per_pixel`]).
+    pub pixel_lights: Option<kage_gpu::viewport::PixelLights>,
+    /// The map's sun per vertex, which the per-vertex draw shades per pixel under its depth
+    /// map (`baked`, when the lights are not drawn per pixel).
+    pub vertex_sun: Option<kage_gpu::viewport::VertexSun>,
+}
+
 /// What is selected in the outliner.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Selection {
@@ -275,20 +304,10 @@ pub struct Editor {
     /// A drag is in progress (a pointer button is down): BSPVT re-bakes wait for its end
     /// rather than restarting at every frame of it.
     pub dragging: bool,
-    /// Per instance and vertex: the displayed radiance (or the error overlay's colours).
-    pub values: VertexValues,
-    /// Bumped whenever `values` is set: the viewport uploads them once per change.
-    pub values_revision: u64,
-    /// Per instance and vertex: the method's radiance, plus the cached indirect term when on
-    /// (what the overlay compares).
-    pub radiance: VertexValues,
-    /// Per instance and vertex: the method's direct radiance alone.
-    pub direct: VertexValues,
+    /// What it computed: the values shown, the method's radiance and its parts.
+    pub results: Results,
     /// Add one bounce of indirect light from the HSH radiance cache.
     pub indirect: bool,
-    /// Per instance and vertex: the last indirect term (lit by an earlier direct result while a
-    /// new one is gathered).
-    pub indirect_values: VertexValues,
     /// Everything that happened, errors included.
     pub log: Vec<LogLine>,
     /// Timings.
@@ -301,16 +320,6 @@ pub struct Editor {
     pub shader_generation: u64,
     /// What changed since the last frame.
     pub dirty: Dirty,
-    /// The progressive reference: running sums and passes.
-    pub reference: ReferenceSum,
-    /// PRT's per-vertex terms when the viewport shades PRT per pixel (method `prt`, no overlay).
-    pub per_pixel: Option<prt::Frame>,
-    /// The lobes the viewport draws the polygonal lights with per pixel
-    /// ([`Editor::lights_per_pixel`]).
-    pub pixel_lights: Option<kage_gpu::viewport::PixelLights>,
-    /// The map's sun per vertex, which the per-vertex draw shades per pixel under its depth
-    /// map (`baked`, when the lights are not drawn per pixel).
-    pub vertex_sun: Option<kage_gpu::viewport::VertexSun>,
     /// What the editor computes with: the GPU, the store, the running bake, the workers.
     pub backend: Backend,
     pub(super) started: Instant,
@@ -372,22 +381,14 @@ impl Editor {
             cameras,
             outside_change: false,
             dragging: false,
-            values: Vec::new(),
-            values_revision: 0,
-            radiance: Vec::new(),
-            direct: Vec::new(),
+            results: Results::default(),
             indirect: options.indirect,
-            indirect_values: Vec::new(),
             log: Vec::new(),
             stats: Stats::default(),
             bakes: Bakes::default(),
             shader_error: None,
             shader_generation: 0,
             dirty: Dirty { shade: true, environment: true, meshes: true, ..Dirty::default() },
-            reference: ReferenceSum::default(),
-            per_pixel: None,
-            pixel_lights: None,
-            vertex_sun: None,
             backend: Backend {
                 gpu,
                 shaders,
@@ -672,7 +673,7 @@ impl Editor {
     pub(super) fn restart_reference(&mut self) {
         self.backend.workers.reference = None;
         self.backend.workers.exact = None;
-        self.reference = ReferenceSum::default();
+        self.results.reference = ReferenceSum::default();
     }
 
     /// The outliner's rows: (entity, label, kind) for groups, their instances and lights.

@@ -396,12 +396,12 @@ pub fn reference_system(ed: &mut Editor) {
         ed.backend.workers.reference = None;
         return;
     }
-    if ed.backend.workers.reference.is_none() && ed.reference.passes < REFERENCE_PASSES {
+    if ed.backend.workers.reference.is_none() && ed.results.reference.passes < REFERENCE_PASSES {
         ed.backend.workers.reference = Some(spawn_reference(ed));
     }
     let passes = ed.backend.workers.reference.as_ref().map(|w| w.results()).unwrap_or_default();
     for pass in passes {
-        ed.reference.add(pass);
+        ed.results.reference.add(pass);
         ed.dirty.shade = true;
     }
 }
@@ -410,7 +410,7 @@ pub fn reference_system(ed: &mut Editor) {
 fn spawn_reference(ed: &Editor) -> Worker<VertexValues> {
     let scene = ed.view.method.lit(&ed.doc.scene);
     let bounces = u32::from(ed.indirect && ed.view.method.direct());
-    let (eye, first) = (ed.view.orbit.eye(), ed.reference.passes);
+    let (eye, first) = (ed.view.orbit.eye(), ed.results.reference.passes);
     let wake = ed.backend.wake.clone();
     Worker::spawn(
         move |stop, send| {
@@ -444,10 +444,10 @@ pub fn shade_system(ed: &mut Editor) {
     ed.dirty.shade = false;
     let start = Instant::now();
     if ed.view.method != Method::Prt || ed.view.overlay {
-        ed.per_pixel = None;
+        ed.results.per_pixel = None;
     }
-    ed.pixel_lights = None;
-    ed.vertex_sun = None;
+    ed.results.pixel_lights = None;
+    ed.results.vertex_sun = None;
     ed.dirty.per_pixel = true;
     if let Some(job) = Background::of(ed) {
         let wake = ed.backend.wake.clone();
@@ -462,7 +462,7 @@ pub fn shade_system(ed: &mut Editor) {
 
 /// Takes newly shaded direct light, started at `start`.
 fn land(ed: &mut Editor, values: VertexValues, start: Instant) {
-    ed.direct = values;
+    ed.results.direct = values;
     ed.backend.workers.generations.0 += 1;
     ed.stats.shading = start.elapsed().as_secs_f64();
     if let Some(t) = ed.edited_at.take() {
@@ -516,21 +516,22 @@ impl Background {
 /// or the error overlay of that.
 fn compose(ed: &mut Editor) {
     let shapes = |v: &[Vec<Vec3>]| v.iter().map(Vec::len).collect::<Vec<_>>();
-    let add = ed.indirect && ed.view.method.direct() && shapes(&ed.indirect_values) == shapes(&ed.direct);
-    ed.radiance = if add {
-        ed.direct
+    let add = ed.indirect && ed.view.method.direct() && shapes(&ed.results.indirect) == shapes(&ed.results.direct);
+    ed.results.radiance = if add {
+        ed.results
+            .direct
             .iter()
-            .zip(&ed.indirect_values)
+            .zip(&ed.results.indirect)
             .map(|(d, i)| d.iter().zip(i).map(|(d, i)| *d + *i).collect())
             .collect()
     } else {
-        ed.direct.clone()
+        ed.results.direct.clone()
     };
-    let values = if ed.view.overlay { overlay(ed) } else { ed.radiance.clone() };
+    let values = if ed.view.overlay { overlay(ed) } else { ed.results.radiance.clone() };
     // A landing that changes nothing on screen (a bounce re-lit by the same light) draws nothing.
-    if values != ed.values {
-        ed.values = values;
-        ed.values_revision += 1;
+    if values != ed.results.values {
+        ed.results.values = values;
+        ed.results.values_revision += 1;
     }
     if ed.view.metering {
         meter_exposure(ed);
@@ -543,7 +544,7 @@ fn compose(ed: &mut Editor) {
 /// much as a whole wall. Waits, metering on, while nothing is lit yet, and meters every result
 /// again while a bake runs: the first results (unshadowed, or one light's part) are not the look.
 pub fn meter_exposure(ed: &mut Editor) {
-    let lit = ed.radiance.iter().flatten().any(|c| c.max_element() > 0.0);
+    let lit = ed.results.radiance.iter().flatten().any(|c| c.max_element() > 0.0);
     if lit {
         let (all, surfaces) = view_samples(ed);
         let kept = if surfaces.is_empty() { &all } else { &surfaces };
@@ -559,15 +560,17 @@ pub fn view_samples(ed: &mut Editor) -> (Vec<Vec3>, Vec<Vec3>) {
     const ACROSS: usize = 96;
     let down = ((ACROSS as f32 / ed.view.aspect.max(0.1)).round() as usize).clamp(1, 4 * ACROSS);
     let picker = ed.backend.memo.picker.get_or_insert_with(|| super::pick::Picker::new(&ed.flat));
-    let fits = ed.radiance.len() == ed.flat.instances.len();
+    let fits = ed.results.radiance.len() == ed.flat.instances.len();
     let (mut all, mut surfaces) = (Vec::new(), Vec::new());
     for k in 0..ACROSS * down {
         let uv =
             glam::Vec2::new(((k % ACROSS) as f32 + 0.5) / ACROSS as f32, ((k / ACROSS) as f32 + 0.5) / down as f32);
         let (eye, dir) = ed.view.orbit.ray(uv, ed.view.aspect);
         match picker.seen(&ed.flat, eye, dir) {
-            Seen::Surface(hit) if fits && ed.radiance[hit.instance].len() == ed.flat.vertex_count(hit.instance) => {
-                let l = hit.interpolate(&ed.radiance[hit.instance]);
+            Seen::Surface(hit)
+                if fits && ed.results.radiance[hit.instance].len() == ed.flat.vertex_count(hit.instance) =>
+            {
+                let l = hit.interpolate(&ed.results.radiance[hit.instance]);
                 surfaces.push(l);
                 all.push(l);
             }
@@ -597,15 +600,15 @@ pub fn indirect_system(ed: &mut Editor) {
         // Nothing lights the scene, so nothing bounces: no gather, and no bounce of a light
         // since deleted.
         ed.backend.workers.indirect = None;
-        if !ed.indirect_values.is_empty() {
-            ed.indirect_values.clear();
+        if !ed.results.indirect.is_empty() {
+            ed.results.indirect.clear();
             compose(ed);
         }
         return;
     }
     let landed = ed.backend.workers.indirect.as_ref().map(|w| w.results()).unwrap_or_default();
     if let Some(last) = landed.into_iter().last() {
-        ed.indirect_values = last.values;
+        ed.results.indirect = last.values;
         if let Some(base) = last.base {
             ed.backend.workers.indirect = None;
             ed.backend.workers.indirect_base = Some(base);
@@ -614,7 +617,11 @@ pub fn indirect_system(ed: &mut Editor) {
         compose(ed);
     }
     let (direct, started) = ed.backend.workers.generations;
-    if ed.backend.workers.indirect.is_none() && started != direct && !ed.direct.is_empty() && ed.backend.job.is_none() {
+    if ed.backend.workers.indirect.is_none()
+        && started != direct
+        && !ed.results.direct.is_empty()
+        && ed.backend.job.is_none()
+    {
         ed.backend.workers.generations.1 = direct;
         ed.backend.workers.indirect = Some(spawn_indirect(ed));
     }
@@ -662,7 +669,7 @@ fn spawn_indirect(ed: &mut Editor) -> Worker<Indirect> {
     let job = Job {
         scene: ed.view.method.lit(&ed.doc.scene),
         glossy: hit_light(ed),
-        direct: ed.direct.clone(),
+        direct: ed.results.direct.clone(),
         eye: ed.view.orbit.eye(),
         settings: ed.options.cache,
         store: ed.backend.store.clone(),
@@ -680,7 +687,7 @@ fn shade(ed: &mut Editor) -> Option<VertexValues> {
         Method::LtcExactVis => exact_vis(ed, eye),
         Method::Prt | Method::PrtSelf => Some(prt_gpu(ed, eye)),
         Method::Baked => Some(baked(ed, eye)),
-        Method::Reference => Some(ed.reference.mean().unwrap_or_else(|| ed.flat.zeros())),
+        Method::Reference => Some(ed.results.reference.mean().unwrap_or_else(|| ed.flat.zeros())),
     }
 }
 
@@ -716,7 +723,7 @@ fn polygonal(ed: &mut Editor, eye: Vec3) -> VertexValues {
     };
     if ed.lights_per_pixel() {
         let (lobes, values) = Lobes::at_vertices(&ed.flat, bake, eye, ed.backend.memo.inside.flags(&ed.flat));
-        ed.pixel_lights = Some(PixelLights { lobes, values: values.clone(), environment: None });
+        ed.results.pixel_lights = Some(PixelLights { lobes, values: values.clone(), environment: None });
         return values;
     }
     let gpu = ed.backend.gpu.clone();
@@ -777,7 +784,7 @@ fn baked(ed: &mut Editor, eye: Vec3) -> VertexValues {
 /// its own: [`specular_per_pixel`]).
 fn sun_per_pixel(ed: &mut Editor, eye: Vec3) {
     let sun = ed.bakes.lighting.as_ref().and_then(|l| l.split_sun().0).filter(|_| !ed.lights_per_pixel());
-    ed.vertex_sun = sun.map(|sun| {
+    ed.results.vertex_sun = sun.map(|sun| {
         let (values, open) = kage_engine::shading::baked::sun_vertices(&ed.flat, &sun, eye);
         VertexSun { sun, values, open }
     });
@@ -794,7 +801,7 @@ fn specular_per_pixel(ed: &mut Editor, eye: Vec3) {
     }
     let Some(lighting) = &ed.bakes.lighting else { return };
     let environment = Some(PixelEnvironment::new(&ed.flat, specular, pre, lighting, eye));
-    let lights = ed.pixel_lights.get_or_insert_with(|| {
+    let lights = ed.results.pixel_lights.get_or_insert_with(|| {
         let (lobes, values) = Lobes::at_vertices(&ed.flat, None, eye, ed.backend.memo.inside.flags(&ed.flat));
         PixelLights { lobes, values, environment: None }
     });
@@ -846,7 +853,7 @@ fn prt_gpu(ed: &mut Editor, eye: Vec3) -> VertexValues {
     let frame = prt::Frame::from_posed(&ed.flat, bake, posed, eye);
     let values = values.map_err(|e| (e, frame.vertex_values(&ed.flat)));
     if shadows == prt::Shadows::WithOthers && !ed.view.overlay {
-        ed.per_pixel = Some(frame);
+        ed.results.per_pixel = Some(frame);
     }
     values.unwrap_or_else(|(e, cpu)| {
         ed.error(format!("PRT on the GPU: {e}; shading on the CPU"));
@@ -858,12 +865,13 @@ fn prt_gpu(ed: &mut Editor, eye: Vec3) -> VertexValues {
 /// relative to the reference, floored at a tenth of its mean so that shadows (where a small
 /// absolute error is a large relative one) do not drown the map.
 fn overlay(ed: &Editor) -> VertexValues {
-    let Some(reference) = ed.reference.mean().filter(|r| r.len() == ed.radiance.len()) else {
-        return ed.radiance.iter().map(|v| vec![Vec3::splat(0.05); v.len()]).collect();
+    let Some(reference) = ed.results.reference.mean().filter(|r| r.len() == ed.results.radiance.len()) else {
+        return ed.results.radiance.iter().map(|v| vec![Vec3::splat(0.05); v.len()]).collect();
     };
     let count = reference.iter().map(Vec::len).sum::<usize>().max(1) as f32;
     let floor = 0.1 * reference.iter().flatten().map(|r| r.length()).sum::<f32>() / count;
-    ed.radiance
+    ed.results
+        .radiance
         .iter()
         .zip(&reference)
         .map(|(m, r)| {

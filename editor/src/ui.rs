@@ -93,16 +93,16 @@ impl App {
             uploaded = true;
         }
         if ed.dirty.per_pixel {
-            vp.upload_prt(ed.gpu(), &ed.flat, ed.per_pixel.as_ref());
-            vp.upload_lights(ed.gpu(), &ed.flat, ed.pixel_lights.as_ref());
-            vp.upload_sun(ed.gpu(), &ed.flat, ed.vertex_sun.as_ref());
+            vp.upload_prt(ed.gpu(), &ed.flat, ed.results.per_pixel.as_ref());
+            vp.upload_lights(ed.gpu(), &ed.flat, ed.results.pixel_lights.as_ref());
+            vp.upload_sun(ed.gpu(), &ed.flat, ed.results.vertex_sun.as_ref());
             ed.dirty.per_pixel = false;
             uploaded = true;
         }
         // The radiance buffers hold values less the per-pixel terms: new terms re-upload them.
-        if uploaded || self.values_revision != Some(ed.values_revision) {
-            vp.upload_radiance(ed.gpu(), &ed.values);
-            self.values_revision = Some(ed.values_revision);
+        if uploaded || self.values_revision != Some(ed.results.values_revision) {
+            vp.upload_radiance(ed.gpu(), &ed.results.values);
+            self.values_revision = Some(ed.results.values_revision);
         }
         vp.set_environment(ed.gpu(), ed.flat.environment.as_ref());
     }
@@ -398,7 +398,7 @@ fn methods(ui: &mut egui::Ui, ed: &mut Editor) {
         });
     }
     if ed.view.overlay || ed.view.method == Method::Reference {
-        ui.label(format!("reference: {} samples per vertex", ed.reference.passes * 4));
+        ui.label(format!("reference: {} samples per vertex", ed.results.reference.passes * 4));
     }
     ui.horizontal(|ui| {
         if ui.add(egui::Slider::new(&mut ed.view.exposure, -6.0..=6.0).text("exposure (stops)")).changed() {
@@ -584,7 +584,7 @@ fn statistics(ui: &mut egui::Ui, ed: &Editor) {
     ui.label(format!("edit to shaded frame {:.1} ms", 1e3 * s.edit_to_shade));
     ui.label(format!("bake: BSPVT {}, PRT {}", bake_rate(s.runs[0].as_ref()), bake_rate(s.runs[1].as_ref())));
     ui.label(format!("shader reload {:.1} ms", 1e3 * s.shader_reload));
-    let verts: usize = ed.values.iter().map(Vec::len).sum();
+    let verts: usize = ed.results.values.iter().map(Vec::len).sum();
     ui.label(format!("{verts} vertices, {} lights", ed.flat.lights.len()));
     if let Some(e) = &ed.shader_error {
         ui.colored_label(egui::Color32::LIGHT_RED, format!("shader error: {e}"));

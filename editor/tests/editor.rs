@@ -108,7 +108,7 @@ fn viewport_colours(img: &image::RgbaImage) -> usize {
 }
 
 fn values(h: &Harness<App>) -> Vec<Vec3> {
-    h.state().editor.values.iter().flatten().copied().collect()
+    h.state().editor.results.values.iter().flatten().copied().collect()
 }
 
 fn changed(a: &[Vec3], b: &[Vec3]) -> usize {
@@ -129,7 +129,7 @@ fn view_exposure(ed: &Editor) -> f32 {
         match p {
             Primary::Miss(l) | Primary::Emitter(l) => all.push(*l),
             Primary::Surface(hit) => {
-                let l = hit.interpolate(&ed.radiance[hit.instance]);
+                let l = hit.interpolate(&ed.results.radiance[hit.instance]);
                 all.push(l);
                 surfaces.push(l);
             }
@@ -152,7 +152,7 @@ fn the_default_scene_bakes_in_the_background_and_every_method_shades() {
     assert!(errors(ed).is_empty(), "{:?}", errors(ed));
     // The editor opens on the complete baked look.
     assert_eq!(ed.view.method, Method::Baked);
-    let lit = ed.pixel_lights.as_ref().expect("the baked view draws the polygonal lights per pixel");
+    let lit = ed.results.pixel_lights.as_ref().expect("the baked view draws the polygonal lights per pixel");
     assert_eq!(lit.values.len(), ed.flat.instances.len());
     assert!(lit.environment.is_some(), "and the environment's reflection");
     let baked = values(&h);
@@ -178,7 +178,7 @@ fn the_default_scene_bakes_in_the_background_and_every_method_shades() {
         assert!(v.iter().all(|x| x.is_finite() && x.min_element() >= 0.0), "{label}");
         // The methods that shade the polygonal lights with LTC draw them per pixel.
         let per_pixel = matches!(method, Method::Bspvt | Method::LtcUnshadowed);
-        assert_eq!(h.state().editor.pixel_lights.is_some(), per_pixel, "{label}");
+        assert_eq!(h.state().editor.results.pixel_lights.is_some(), per_pixel, "{label}");
         // The gold torus is a metal: diffuse transfer shows it black, and the log says why.
         let noted =
             |ed: &Editor| ed.log.iter().any(|l| l.text.starts_with(&format!("{label}: 1 of 4 instances are metals")));
@@ -196,16 +196,16 @@ fn the_default_scene_bakes_in_the_background_and_every_method_shades() {
     let ed = &h.state().editor;
     let expected = view_exposure(ed);
     assert!((ed.view.exposure - expected).abs() < 0.1, "metered {}, the view's image {expected}", ed.view.exposure);
-    let by_vertex = kage_engine::math::color::metered_exposure(ed.radiance.iter().flatten().copied());
+    let by_vertex = kage_engine::math::color::metered_exposure(ed.results.radiance.iter().flatten().copied());
     eprintln!("metered {:.2} stops; the view's image {expected:.2}; the vertices {by_vertex:.2}", ed.view.exposure);
     // The error overlay refines against the progressive reference.
     h.get_by_label("bspvt").click();
     h.get_by_label("Error overlay (vs progressive reference)").click();
-    step_until(&mut h, "reference passes", |ed| ed.view.overlay && ed.reference.passes >= 2 && !ed.dirty.shade);
+    step_until(&mut h, "reference passes", |ed| ed.view.overlay && ed.results.reference.passes >= 2 && !ed.dirty.shade);
     let img = snapshot(&mut h, "default-overlay");
     assert!(viewport_colours(&img) > 20);
     let ed = &h.state().editor;
-    assert!(ed.pixel_lights.is_none(), "the overlay's colours are per vertex");
+    assert!(ed.results.pixel_lights.is_none(), "the overlay's colours are per vertex");
     assert!(errors(ed).is_empty(), "{:?}", errors(ed));
 }
 
@@ -361,7 +361,7 @@ fn the_indirect_term_waits_for_the_bakes() {
     o.cache.rays = 64;
     o.indirect = true;
     let mut h = harness(default_scene(), o);
-    let landed = |ed: &Editor| settled(ed) && !ed.indirect_values.is_empty() && !gathering(ed);
+    let landed = |ed: &Editor| settled(ed) && !ed.results.indirect.is_empty() && !gathering(ed);
     step_until(&mut h, "the bakes and the indirect term", landed);
     let ed = &h.state().editor;
     assert!(errors(ed).is_empty(), "{:?}", errors(ed));
@@ -392,7 +392,7 @@ fn the_baked_bounce_lights_glossy_hits_with_the_environment_too() {
     o.cache.rays = 64;
     o.indirect = true;
     let mut h = harness(scene, o);
-    let landed = |ed: &Editor| settled(ed) && !ed.indirect_values.is_empty() && !gathering(ed);
+    let landed = |ed: &Editor| settled(ed) && !ed.results.indirect.is_empty() && !gathering(ed);
     step_until(&mut h, "the bakes and the indirect term", landed);
     let ed = &h.state().editor;
     assert!(errors(ed).is_empty(), "{:?}", errors(ed));
@@ -407,7 +407,7 @@ fn the_baked_bounce_lights_glossy_hits_with_the_environment_too() {
     };
     let look = Look::prepare(&ed.doc.scene, flat, bakes, eye, &mut prt::SilhouetteMemo::default());
     let bounce = |glossy: Glossy| {
-        let src = Source { renderer: &renderer, direct: &ed.direct, glossy };
+        let src = Source { renderer: &renderer, direct: &ed.results.direct, glossy };
         let records = cache::place_at_vertices(&src, &ed.options.cache);
         cache::bounce(&src, &records, eye, cache::Bounces::default()).0
     };
@@ -416,7 +416,7 @@ fn the_baked_bounce_lights_glossy_hits_with_the_environment_too() {
     let lights_alone = GlossyDirect::Ltc(ed.bakes.bspvt.clone()).with(flat, bounce);
     let total = |v: &[Vec<Vec3>]| v.iter().flatten().map(|x| x.element_sum() as f64).sum::<f64>();
     let off =
-        ed.indirect_values.iter().flatten().zip(expected.iter().flatten()).map(|(a, b)| (*a - *b).abs().max_element());
+        ed.results.indirect.iter().flatten().zip(expected.iter().flatten()).map(|(a, b)| (*a - *b).abs().max_element());
     let (worst, n) = (off.fold(0.0f32, f32::max) as f64, expected.iter().map(Vec::len).sum::<usize>());
     assert!(worst <= 1e-4 * total(&expected) / n as f64, "off by up to {worst}");
     assert!(total(&lights_alone) < 0.8 * total(&expected), "{} vs {}", total(&lights_alone), total(&expected));
@@ -432,7 +432,7 @@ fn the_cached_indirect_term_lands_in_the_background_follows_edits_and_persists()
     step_until(&mut h, "the first bakes", settled);
     let direct = values(&h);
     h.get_by_label("Indirect light (HSH radiance cache)").click();
-    let landed = |ed: &Editor| !ed.indirect_values.is_empty() && !gathering(ed) && !ed.dirty.shade;
+    let landed = |ed: &Editor| !ed.results.indirect.is_empty() && !gathering(ed) && !ed.dirty.shade;
     step_until(&mut h, "the indirect term", landed);
     let ed = &h.state().editor;
     assert!(errors(ed).is_empty(), "{:?}", errors(ed));
@@ -445,7 +445,7 @@ fn the_cached_indirect_term_lands_in_the_background_follows_edits_and_persists()
     snapshot(&mut h, "indirect");
 
     // A light move re-shades the direct term at once; the indirect term follows when gathered.
-    let first = h.state().editor.indirect_values.clone();
+    let first = h.state().editor.results.indirect.clone();
     let light = h.state().editor.outline().into_iter().find_map(|(s, ..)| match s {
         Selection::Light(e) => Some(e),
         _ => None,
@@ -457,7 +457,7 @@ fn the_cached_indirect_term_lands_in_the_background_follows_edits_and_persists()
     let last = |ed: &Editor| ed.log.iter().rev().find(|l| l.text.starts_with("indirect: ")).unwrap().text.clone();
     let ed = &h.state().editor;
     assert!(last(ed).contains("refreshed") && last(ed).contains("re-cast, stored"), "{}", last(ed));
-    let second: Vec<Vec3> = ed.indirect_values.iter().flatten().copied().collect();
+    let second: Vec<Vec3> = ed.results.indirect.iter().flatten().copied().collect();
     assert!(changed(&first.concat(), &second) > 100, "the indirect term follows the light");
 
     // Off and on again with the same lighting: the records are kept as they are.
@@ -467,7 +467,7 @@ fn the_cached_indirect_term_lands_in_the_background_follows_edits_and_persists()
     step_until(&mut h, "the same indirect term", |ed| landed(ed) && gathered(ed) == 3);
     let ed = &h.state().editor;
     assert!(last(ed).contains("records unchanged"), "{}", last(ed));
-    assert_eq!(ed.indirect_values.concat(), second, "the same records give the same term");
+    assert_eq!(ed.results.indirect.concat(), second, "the same records give the same term");
 
     // Another session on the same database and lighting: the records come from the database.
     drop(h);
@@ -479,7 +479,7 @@ fn the_cached_indirect_term_lands_in_the_background_follows_edits_and_persists()
     step_until(&mut h, "the stored indirect term", landed);
     let ed = &h.state().editor;
     assert!(last(ed).contains("from the bake database"), "{}", last(ed));
-    assert_eq!(ed.indirect_values, first, "the stored records give the same term");
+    assert_eq!(ed.results.indirect, first, "the stored records give the same term");
 
     // The refresh after the light move was stored too: a session that moves the light the same
     // way before turning the term on loads it.
@@ -494,7 +494,7 @@ fn the_cached_indirect_term_lands_in_the_background_follows_edits_and_persists()
     step_until(&mut h, "the stored refreshed term", landed);
     let ed = &h.state().editor;
     assert!(last(ed).contains("from the bake database"), "{}", last(ed));
-    assert_eq!(ed.indirect_values.concat(), second, "the refreshed records, stored");
+    assert_eq!(ed.results.indirect.concat(), second, "the refreshed records, stored");
 
     // Moved back, to lighting whose records are stored: loaded, not refreshed from the ones
     // loaded without their hits (which would gather every record anew).
@@ -503,7 +503,7 @@ fn the_cached_indirect_term_lands_in_the_background_follows_edits_and_persists()
     step_until(&mut h, "the first lighting's term", |ed| landed(ed) && gathered(ed) > before);
     let ed = &h.state().editor;
     assert!(last(ed).contains("from the bake database"), "{}", last(ed));
-    assert_eq!(ed.indirect_values, first, "the first lighting's records");
+    assert_eq!(ed.results.indirect, first, "the first lighting's records");
 }
 
 #[test]
@@ -962,7 +962,7 @@ fn an_unlit_scene_says_why_it_is_black() {
         h.step();
     }
     let ed = &h.state().editor;
-    assert!(ed.indirect && !gathering(ed) && ed.indirect_values.is_empty(), "nothing lit bounces: no gather");
+    assert!(ed.indirect && !gathering(ed) && ed.results.indirect.is_empty(), "nothing lit bounces: no gather");
     h.get_by_label("BSPVT no polygonal light; PRT no environment");
 }
 
