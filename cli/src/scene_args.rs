@@ -164,7 +164,6 @@ impl SceneArgs {
     /// set for every command, is left unused).
     pub fn check_for_pack(&self) -> Result<()> {
         let given = [
-            ("SCENE", self.scene.is_some()),
             ("--env", self.env.is_some()),
             ("--refine", !self.refinements.is_empty()),
             ("--drop-degenerate", self.drop_degenerate),

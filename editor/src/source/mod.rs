@@ -99,13 +99,13 @@ pub fn save(scene: &Scene, baseline: &Baseline, from: &Path, to: &Path) -> Resul
         return Err(format!("{}: Save As keeps the format of {name} (.gltf or .glb)", to.display()));
     }
     let bytes = std::fs::read(from).map_err(|e| format!("{name}: {e}"))?;
-    let (json, bin) = if glb {
-        let g = kage_runtime::pack::glb::split(&bytes).map_err(|e| format!("{name}: {e}"))?;
-        (g.json.to_vec(), (!g.bin.is_empty()).then(|| g.bin.to_vec()))
-    } else {
-        (bytes.clone(), None)
-    };
+    // A GLB's chunks are checked before the gltf crate reads it (it panics on some damaged headers).
+    let chunks = glb.then(|| kage_runtime::pack::glb::split(&bytes)).transpose().map_err(|e| format!("{name}: {e}"))?;
     let doc = gltf::Gltf::from_slice(&bytes).map_err(|e| format!("{name}: {e}"))?.document;
+    let (json, bin) = match chunks {
+        Some(g) => (g.json.to_vec(), (!g.bin.is_empty()).then(|| g.bin.to_vec())),
+        None => (bytes, None),
+    };
     let mut file = GltfJson::parse(&json).map_err(|e| format!("{name}: {e}"))?;
     let mut plan =
         SaveEdits { scene, baseline, doc: &doc, file: &mut file, problems: Vec::new(), nodes: 0, materials: 0 };
