@@ -131,3 +131,37 @@ fn relative(light: Light, p: vec3<f32>, n: vec3<f32>) -> Poly {
     }
     return clip(&rel, n);
 }
+
+// cosine_integral of the polygon mapped by rows (r0, r1, r2), clipped at z = 0 edge by edge as
+// it goes — no mapped or clipped copy of the polygon is built (private arrays are what a CPU
+// device pays for most, per pixel). A convex polygon leaves the upper half-space at most once
+// and comes back once: the clipped polygon closes with the edge from the exit to the entry.
+fn lobe_integral(p: ptr<function, Poly>, r0: vec3<f32>, r1: vec3<f32>, r2: vec3<f32>) -> f32 {
+    let n = (*p).n;
+    var z = 0.0;
+    var exit = vec3<f32>(0.0);
+    var entry = vec3<f32>(0.0);
+    var crossings = 0u;
+    var q = (*p).v[0];
+    var a = vec3<f32>(dot(r0, q), dot(r1, q), dot(r2, q));
+    for (var i = 0u; i < n; i = i + 1u) {
+        q = (*p).v[(i + 1u) % n];
+        let b = vec3<f32>(dot(r0, q), dot(r1, q), dot(r2, q));
+        if (a.z >= 0.0 && b.z >= 0.0) {
+            z = z + edge_z(a, b);
+        } else if (a.z >= 0.0) {
+            exit = a + (b - a) * (a.z / (a.z - b.z));
+            z = z + edge_z(a, exit);
+            crossings = crossings + 1u;
+        } else if (b.z >= 0.0) {
+            entry = a + (b - a) * (a.z / (a.z - b.z));
+            z = z + edge_z(entry, b);
+            crossings = crossings + 1u;
+        }
+        a = b;
+    }
+    if (crossings == 2u) {
+        z = z + edge_z(exit, entry);
+    }
+    return max(-z / (2.0 * PI), 0.0);
+}

@@ -305,6 +305,7 @@ fn fs_prt(v: CornerOut) -> @location(0) vec4<f32> {
 
 // #include "silhouette.wgsl"
 // #include "ltc.wgsl"
+// #include "pixel_lights.wgsl"
 
 // The polygonal lights per pixel (engine/src/bspvt/pixel.rs, Lobes::shade): at each pixel the
 // LTC setup (shading frame, M⁻¹ and albedos from the tables) and every light's diffuse and
@@ -367,11 +368,6 @@ struct LitVertex {
 @group(2) @binding(2) var mr_texture: texture_2d<f32>;
 @group(2) @binding(3) var mr_sampler: sampler;
 
-const LTC_N: u32 = 64u;
-const ALBEDO_N: u32 = 32u;
-// Integrals below this count as "the lobe misses the light" (pixel.rs's MISSES).
-const MISSES: f32 = 1e-9;
-
 fn overflowed() {}
 
 @vertex
@@ -380,117 +376,20 @@ fn vs_lit(@builtin(vertex_index) vi: u32) -> CornerOut {
     return corner_out(t, lit_vertices[t[t.w]].p.xyz);
 }
 
-// The LTC table's bilinear lookup (ltc::Table::lookup): (a, b, c, d) of M⁻¹, magnitude, fresnel.
-fn ltc_lookup(roughness: f32, cos_theta: f32) -> array<f32, 6> {
-    let n = f32(LTC_N - 1u);
-    let x = clamp(roughness, 0.0, 1.0) * n;
-    let y = sqrt(1.0 - clamp(cos_theta, 0.0, 1.0)) * n;
-    let a0 = min(u32(x), LTC_N - 2u);
-    let t0 = min(u32(y), LTC_N - 2u);
-    let fa = x - f32(a0);
-    let ft = y - f32(t0);
-    var e: array<f32, 6>;
-    for (var k = 0u; k < 6u; k = k + 1u) {
-        let at = (a0 + t0 * LTC_N) * 6u + k;
-        let top = lit_tables[at] * (1.0 - fa) + lit_tables[at + 6u] * fa;
-        let bottom = lit_tables[at + LTC_N * 6u] * (1.0 - fa) + lit_tables[at + LTC_N * 6u + 6u] * fa;
-        e[k] = top * (1.0 - ft) + bottom * ft;
-    }
-    return e;
-}
-
-// The GGX directional albedo F0 A(μ, r) + F90 B(μ, r) (ggx::directional_albedo).
-fn directional_albedo(mu: f32, roughness: f32, f0: vec3<f32>, f90: vec3<f32>) -> vec3<f32> {
-    let n = f32(ALBEDO_N - 1u);
-    let x = clamp(mu, 0.0, 1.0) * n;
-    let y = clamp(roughness, 0.0, 1.0) * n;
-    let x0 = min(u32(x), ALBEDO_N - 2u);
-    let y0 = min(u32(y), ALBEDO_N - 2u);
-    let f = vec2<f32>(x - f32(x0), y - f32(y0));
-    var ab: array<f32, 2>;
-    for (var t = 0u; t < 2u; t = t + 1u) {
-        let at = LTC_N * LTC_N * 6u + t * ALBEDO_N * ALBEDO_N + y0 * ALBEDO_N + x0;
-        let top = lit_tables[at] * (1.0 - f.x) + lit_tables[at + 1u] * f.x;
-        let bottom = lit_tables[at + ALBEDO_N] * (1.0 - f.x) + lit_tables[at + ALBEDO_N + 1u] * f.x;
-        ab[t] = top * (1.0 - f.y) + bottom * f.y;
-    }
-    return f0 * ab[0] + f90 * ab[1];
-}
-
-// A lobe's visible fraction at the pixel from the corners' (shadowed, unshadowed) integrals;
-// -1 where the corners' lobes all miss the light.
-fn fraction(shut: vec3<f32>, open: vec3<f32>, w: vec3<f32>) -> f32 {
-    let o = dot(open, w);
-    if (o <= MISSES) {
-        return -1.0;
-    }
-    return clamp(dot(shut, w) / o, 0.0, 1.0);
-}
-
-// A pixel's shading point: the LTC frame (ltc::view_frame: x toward the view in the tangent
-// plane), its view, and the BSDF's terms (Bsdf::new, PointShader::new).
-struct Surface {
-    p: vec3<f32>,
-    n: vec3<f32>,
-    v: vec3<f32>,
-    t1: vec3<f32>,
-    t2: vec3<f32>,
-    mu: f32,
-    roughness: f32,
-    diffuse: vec3<f32>,
-    f0: vec3<f32>,
-    f90: vec3<f32>,
-    has_spec: bool,
-}
-
-fn surface_at(p: vec3<f32>, n: vec3<f32>, base: vec3<f32>, metallic_in: f32, roughness: f32, specular: f32)
-    -> Surface {
-    let to_eye = view.eye.xyz - p;
-    let v = select(n, normalize(to_eye), length(to_eye) > 0.0);
-    var t1 = v - n * dot(v, n);
-    if (length(t1) <= 1e-7) {
-        t1 = select(vec3<f32>(1.0, 0.0, 0.0), vec3<f32>(0.0, 1.0, 0.0), abs(n.x) > 0.9);
-        t1 = t1 - n * dot(t1, n);
-    }
-    t1 = normalize(t1);
-    let metallic = clamp(metallic_in, 0.0, 1.0);
-    let s = max(specular, 0.0);
-    let f0 = mix(vec3<f32>(0.04 * s), base, metallic);
-    let f90 = mix(vec3<f32>(s), vec3<f32>(1.0), metallic);
-    let mu = dot(v, n);
-    let e_dielectric = directional_albedo(abs(mu), roughness, vec3<f32>(0.04 * s), vec3<f32>(s));
-    let diffuse = base * (1.0 - metallic) * max(vec3<f32>(1.0) - e_dielectric, vec3<f32>(0.0));
-    let has_spec = mu > 0.0 && max(max(f0.x, f0.y), max(max(f0.z, f90.x), max(f90.y, f90.z))) > 0.0;
-    return Surface(p, n, v, t1, cross(n, t1), mu, roughness, diffuse, f0, f90, has_spec);
+// The LTC and GGX albedo tables for pixel_lights.wgsl.
+fn table(i: u32) -> f32 {
+    return lit_tables[i];
 }
 
 // The radiance from every polygonal light at a surface point, toward the eye.
 fn lights_at(s: Surface, corners: vec3<u32>, w: vec3<f32>) -> vec3<f32> {
-    let e = ltc_lookup(s.roughness, s.mu);
-    let spec = select(vec3<f32>(0.0), s.f0 * (e[4] - e[5]) + s.f90 * e[5], s.has_spec);
-    // Rows of world → the specular LTC's space: M⁻¹ (columns (a, 0, b), (0, 1, 0), (c, 0, d))
-    // times the frame.
-    let s0 = e[0] * s.t1 + e[2] * s.n;
-    let s2 = e[1] * s.t1 + e[3] * s.n;
+    let lobe = specular_lobe(s);
     var total = vec3<f32>(0.0);
     for (var l = 0u; l < lit.lights; l = l + 1u) {
-        let light = lights[l];
-        var rel = relative(light, s.p, s.n);
-        if (rel.n == 0u || edge_on(&rel)) {
-            continue;
-        }
         let a = lobes[corners.x * lit.lights + l];
         let b = lobes[corners.y * lit.lights + l];
         let c = lobes[corners.z * lit.lights + l];
-        var d = fraction(vec3<f32>(a.x, b.x, c.x), vec3<f32>(a.y, b.y, c.y), w);
-        d = select(d, 1.0, d < 0.0);
-        var sf = fraction(vec3<f32>(a.z, b.z, c.z), vec3<f32>(a.w, b.w, c.w), w);
-        sf = select(sf, d, sf < 0.0);
-        var out = d * s.diffuse * lobe_integral(&rel, s.t1, s.t2, s.n);
-        if (s.has_spec) {
-            out = out + sf * spec * lobe_integral(&rel, s0, s.t2, s2);
-        }
-        total = total + light.radiance * out;
+        total = total + light_at(s, lobe, lights[l], a * w.x + b * w.y + c * w.z);
     }
     return total;
 }
@@ -698,41 +597,6 @@ fn mip_level(k: u32, uv: vec2<f32>) -> vec3<f32> {
     return mix(top, bottom, t.f.y);
 }
 
-// cosine_integral of the polygon mapped by rows (r0, r1, r2), clipped at z = 0 edge by edge as
-// it goes — no mapped or clipped copy of the polygon is built (private arrays are what a CPU
-// device pays for most, per pixel). A convex polygon leaves the upper half-space at most once
-// and comes back once: the clipped polygon closes with the edge from the exit to the entry.
-fn lobe_integral(p: ptr<function, Poly>, r0: vec3<f32>, r1: vec3<f32>, r2: vec3<f32>) -> f32 {
-    let n = (*p).n;
-    var z = 0.0;
-    var exit = vec3<f32>(0.0);
-    var entry = vec3<f32>(0.0);
-    var crossings = 0u;
-    var q = (*p).v[0];
-    var a = vec3<f32>(dot(r0, q), dot(r1, q), dot(r2, q));
-    for (var i = 0u; i < n; i = i + 1u) {
-        q = (*p).v[(i + 1u) % n];
-        let b = vec3<f32>(dot(r0, q), dot(r1, q), dot(r2, q));
-        if (a.z >= 0.0 && b.z >= 0.0) {
-            z = z + edge_z(a, b);
-        } else if (a.z >= 0.0) {
-            exit = a + (b - a) * (a.z / (a.z - b.z));
-            z = z + edge_z(a, exit);
-            crossings = crossings + 1u;
-        } else if (b.z >= 0.0) {
-            entry = a + (b - a) * (a.z / (a.z - b.z));
-            z = z + edge_z(entry, b);
-            crossings = crossings + 1u;
-        }
-        a = b;
-    }
-    if (crossings == 2u) {
-        z = z + edge_z(exit, entry);
-    }
-    return max(-z / (2.0 * PI), 0.0);
-}
-
-
 @fragment
 fn fs_lit(v: CornerOut) -> @location(0) vec4<f32> {
     let a = lit_vertices[v.corners.x];
@@ -753,12 +617,12 @@ fn fs_lit(v: CornerOut) -> @location(0) vec4<f32> {
     let metallic = (a.base.w * w.x + b.base.w * w.y + c.base.w * w.z) * mr.b;
     let roughness = (a.surface.x * w.x + b.surface.x * w.y + c.surface.x * w.z) * mr.g;
     let specular = a.surface.y * w.x + b.surface.y * w.y + c.surface.y * w.z;
-    let s = surface_at(v.position, n, base, metallic, roughness, specular);
+    let s = surface_at(v.position, n, view.eye.xyz, base, metallic, roughness, specular);
     let weight = a.p.w * w.x + b.p.w * w.y + c.p.w * w.z;
     var sun = vec3<f32>(0.0);
     let seen = select(0.0, sun_seen(v.position, n), lit.sun_direction.w > 0.0 && view.sun_direction.w > 0.0);
     if (seen > 0.0) {
-        let rough = surface_at(v.position, n, base, metallic, max(roughness, lit.sun_direction.w), specular);
+        let rough = surface_at(v.position, n, view.eye.xyz, base, metallic, max(roughness, lit.sun_direction.w), specular);
         sun = sun_at(rough, seen);
     }
     return display(others + lights_at(s, v.corners, w) + environment_at(s, weight) + sun);

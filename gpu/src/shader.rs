@@ -13,12 +13,13 @@
 use std::path::{Path, PathBuf};
 
 /// The shaders kage ships, with their embedded sources.
-const EMBEDDED: [(&str, &str); 5] = [
+const EMBEDDED: [(&str, &str); 6] = [
     ("bspvt.wgsl", include_str!("../../shaders/bspvt.wgsl")),
     ("prt.wgsl", include_str!("../../shaders/prt.wgsl")),
     ("preview.wgsl", include_str!("../../shaders/preview.wgsl")),
     ("silhouette.wgsl", include_str!("../../shaders/silhouette.wgsl")),
     ("ltc.wgsl", include_str!("../../shaders/ltc.wgsl")),
+    ("pixel_lights.wgsl", include_str!("../../shaders/pixel_lights.wgsl")),
 ];
 
 /// The include directive, up to the quoted file name.

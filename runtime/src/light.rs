@@ -1,7 +1,7 @@
 //! Polygonal lights as the shading reads them: world-space polygons with their radiance.
 
 use crate::texture::Texture;
-use glam::{Vec2, Vec3};
+use glam::{Affine3A, DVec3, Vec2, Vec3};
 use std::sync::Arc;
 
 /// A light polygon in world space.
@@ -25,6 +25,20 @@ pub struct FlatLight {
 }
 
 impl FlatLight {
+    /// The light polygon `points` (in its node's frame) placed in the world by `to`, or `None`
+    /// when it has no area. A mirroring `to` reverses the loop (and its UVs), so the light
+    /// keeps emitting on its CCW side.
+    pub fn placed(points: &[Vec3], uvs: &[Vec2], to: &Affine3A, radiance: Vec3) -> Option<Self> {
+        let mut points: Vec<Vec3> = points.iter().map(|p| to.transform_point3(*p)).collect();
+        let mut uvs = uvs.to_vec();
+        if to.matrix3.determinant() < 0.0 {
+            points.reverse();
+            uvs.reverse();
+        }
+        let (normal, area) = normal_area(&points);
+        (area > 0.0).then_some(Self { points, uvs, normal, area, radiance, texture: None, reach: None })
+    }
+
     /// Emitted radiance at barycentric position `b` (b1, b2) of fan triangle `tri`.
     pub fn radiance_at(&self, tri: usize, b: Vec2) -> Vec3 {
         match &self.texture {
@@ -35,4 +49,15 @@ impl FlatLight {
             _ => self.radiance,
         }
     }
+}
+
+/// Unit normal (Newell's method) and area of a planar polygon.
+pub fn normal_area(points: &[Vec3]) -> (Vec3, f32) {
+    let mut n = DVec3::ZERO;
+    for i in 0..points.len() {
+        let (a, b) = (points[i].as_dvec3(), points[(i + 1) % points.len()].as_dvec3());
+        n += a.cross(b);
+    }
+    let area = 0.5 * n.length();
+    (n.normalize_or_zero().as_vec3(), area as f32)
 }

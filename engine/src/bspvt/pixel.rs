@@ -44,17 +44,12 @@ impl Lobes {
                         let vis = bake.map_or(Visibility::Unshadowed, |b| {
                             Visibility::Tree(b.instances[i].record(v), b.settings.res)
                         });
-                        let (radiance, shut) = shader.shade_with_lobes(&flat.lights, vis);
-                        let open = match bake {
-                            Some(_) => shader.lobe_integrals(&flat.lights, Visibility::Unshadowed),
-                            None => shut.clone(),
-                        };
+                        let (radiance, mut pairs) = shader.lobe_pairs(&flat.lights, vis);
                         // A vertex inside geometry (under a box resting on the floor) takes no
                         // part in its pixels' fractions: its zeros would darken what is seen.
-                        let keep = if inside[i][v] { 0.0 } else { 1.0 };
-                        let pair = |s: f64, o: f64| [s as f32 * keep, o as f32 * keep];
-                        let pairs =
-                            shut.into_iter().zip(open).map(|(s, o)| [pair(s[0], o[0]), pair(s[1], o[1])]).collect();
+                        if inside[i][v] {
+                            pairs.iter_mut().flatten().flatten().for_each(|x| *x = 0.0);
+                        }
                         (radiance, pairs)
                     })
                     .collect();

@@ -68,29 +68,13 @@ impl Default for Settings {
     }
 }
 
-/// The SH orders kage bakes and reads.
-pub const ORDERS: std::ops::RangeInclusive<usize> = 1..=16;
-/// The environment region counts kage bakes and reads.
-pub const REGION_COUNTS: std::ops::RangeInclusive<usize> = 1..=256;
-/// The transfer direction counts kage bakes and reads.
-pub const DIRECTION_COUNTS: std::ops::RangeInclusive<usize> = 4..=65536;
-/// The silhouette resolutions kage reads (it bakes at 128).
-pub const SILHOUETTE_RESOLUTIONS: std::ops::RangeInclusive<usize> = 8..=512;
+pub use kage_runtime::pack::ranges::{DIRECTION_COUNTS, ORDERS, REGION_COUNTS, SILHOUETTE_RESOLUTIONS};
 
 impl Settings {
     /// Checks every parameter against its documented range (a pack may declare any numbers;
     /// work and memory are sized by them).
     pub fn check(&self) -> Result<(), String> {
-        let ranges = [
-            ("SH order", self.order, &ORDERS),
-            ("region count", self.regions, &REGION_COUNTS),
-            ("direction count", self.directions, &DIRECTION_COUNTS),
-            ("silhouette resolution", self.silhouette_res, &SILHOUETTE_RESOLUTIONS),
-        ];
-        match ranges.into_iter().find(|(_, v, r)| !r.contains(v)) {
-            Some((what, v, r)) => Err(format!("{what} {v} is outside {r:?}")),
-            None => Ok(()),
-        }
+        kage_runtime::pack::ranges::prt_settings(self.order, self.regions, self.directions, self.silhouette_res)
     }
 
     /// Side of the stratified direction grid.

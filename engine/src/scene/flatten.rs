@@ -1,7 +1,6 @@
 //! System: the world-space snapshot of a scene for one frame — triangles of every instance and
 //! light (light triangles are occluders too), per-instance transforms, and the light polygons.
 
-use super::import::polygon_normal_area;
 use crate::scene::{
     Camera, Cutout, EnvironmentLight, FlatLight, Holes, InGroup, Material, MaterialMaps, Mesh, MeshRef, PolygonLight,
     PrimitiveId, Scene, SourceMesh, Texture, Transform,
@@ -139,23 +138,16 @@ pub fn flatten(scene: &Scene) -> FlatScene {
 }
 
 fn add_light(flat: &mut FlatScene, scene: &Scene, light: &PolygonLight, t: &Transform, entity: hecs::Entity) {
-    let mut points: Vec<Vec3> = light.points.iter().map(|p| t.world.transform_point3(*p)).collect();
-    let mut uvs = light.uvs.clone();
-    if t.is_mirrored() {
-        points.reverse();
-        uvs.reverse();
-    }
-    let (normal, area) = polygon_normal_area(&points);
-    if area <= 0.0 {
-        return;
-    }
+    let Some(mut placed) = FlatLight::placed(&light.points, &light.uvs, &t.world, light.radiance) else { return };
     let index = flat.lights.len() as u32;
+    let points = &placed.points;
     for k in 0..points.len() - 2 {
         flat.triangles.push([points[0], points[k + 1], points[k + 2]]);
         flat.refs.push(TriangleRef { owner: index, local: k as u32, light: index });
     }
-    let texture = light.texture.map(|i| scene.textures[i as usize].clone());
-    flat.lights.push(FlatLight { points, uvs, normal, area, radiance: light.radiance, texture, reach: light.reach });
+    placed.texture = light.texture.map(|i| scene.textures[i as usize].clone());
+    placed.reach = light.reach;
+    flat.lights.push(placed);
     flat.light_entities.push(entity);
 }
 

@@ -20,6 +20,9 @@ use super::node::Node;
 /// the trees).
 pub const FORMAT_VERSION: u32 = 2;
 
+/// The cube-face resolutions kage bakes and reads.
+pub const FACE_RESOLUTIONS: std::ops::RangeInclusive<usize> = 4..=1024;
+
 /// Index just past the encoded subtree that starts at byte `i` of a face's bytes.
 pub fn skip_encoded(bytes: &[u8], mut i: usize) -> usize {
     let mut pending = 1;

@@ -106,6 +106,19 @@ impl PointShader {
         self.shade_all(lights, vis).2
     }
 
+    /// The radiance from `lights` through `vis`, and per light the diffuse and the specular
+    /// lobe's (shadowed, unshadowed) integrals: what per-pixel shading carries from the
+    /// vertices, a pixel's visible fraction of a lobe being the ratio of the two interpolated.
+    pub fn lobe_pairs(&self, lights: &[FlatLight], vis: Visibility) -> (Vec3, Vec<[[f32; 2]; 2]>) {
+        let (radiance, shut) = self.shade_with_lobes(lights, vis);
+        let open = match vis {
+            Visibility::Unshadowed => shut.clone(),
+            _ => self.lobe_integrals(lights, Visibility::Unshadowed),
+        };
+        let pair = |s: f64, o: f64| [s as f32, o as f32];
+        (radiance, shut.iter().zip(&open).map(|(s, o)| [pair(s[0], o[0]), pair(s[1], o[1])]).collect())
+    }
+
     /// Radiance, LTC pieces integrated, and per light the lobes' integrals.
     fn shade_all(&self, lights: &[FlatLight], vis: Visibility) -> (Vec3, usize, Vec<[f64; 2]>) {
         let mut total = DVec3::ZERO;

@@ -1,13 +1,16 @@
 //! Asset packs as a reader at run time sees them: the GLB container ([`glb`]), the
 //! `KAGE_baked_shadows` extension's records ([`schema`], spec: `docs/KAGE_baked_shadows.md`),
 //! their integrity ([`integrity`]: a blake3 digest per buffer view and of the JSON) and the
-//! ranges every number must lie in ([`ranges`]). `kage-bake-db` writes packs and reads them
-//! into kage's scene through these.
+//! ranges every number must lie in ([`ranges`]); [`Pack::read`] reads all of it into plain
+//! data. `kage-bake-db` writes packs and reads them into kage's scene through these.
 
 pub mod glb;
 pub mod integrity;
 pub mod ranges;
+mod read;
 pub mod schema;
+
+pub use read::{Camera, Checked, Environment, Group, Instance, Light, Mesh, Pack, Projection, Texture};
 
 /// The extension's name.
 pub const EXTENSION: &str = "KAGE_baked_shadows";

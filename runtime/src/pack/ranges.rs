@@ -3,17 +3,48 @@
 //! whose numbers would shade as infinities or NaNs.
 
 use super::schema;
+use crate::bspvt::layout::FACE_RESOLUTIONS;
 use std::f64::consts::PI;
 
 type Checked = Result<(), String>;
 
-/// The root record: the preview's exposure, the PRT lighting and regions, the environment.
+/// The SH orders kage bakes and reads.
+pub const ORDERS: std::ops::RangeInclusive<usize> = 1..=16;
+/// The environment region counts kage bakes and reads.
+pub const REGION_COUNTS: std::ops::RangeInclusive<usize> = 1..=256;
+/// The transfer direction counts kage bakes and reads.
+pub const DIRECTION_COUNTS: std::ops::RangeInclusive<usize> = 4..=65536;
+/// The silhouette resolutions kage reads (it bakes at 128).
+pub const SILHOUETTE_RESOLUTIONS: std::ops::RangeInclusive<usize> = 8..=512;
+
+/// Checks PRT's settings against their documented ranges (work and memory are sized by them).
+pub fn prt_settings(order: usize, regions: usize, directions: usize, silhouette: usize) -> Checked {
+    let ranges = [
+        ("SH order", order, &ORDERS),
+        ("region count", regions, &REGION_COUNTS),
+        ("direction count", directions, &DIRECTION_COUNTS),
+        ("silhouette resolution", silhouette, &SILHOUETTE_RESOLUTIONS),
+    ];
+    match ranges.into_iter().find(|(_, v, r)| !r.contains(v)) {
+        Some((what, v, r)) => Err(format!("PRT: {what} {v} is outside {r:?}")),
+        None => Ok(()),
+    }
+}
+
+/// The root record: the bakes' settings, the preview's exposure, the PRT lighting and
+/// regions, the environment.
 pub fn root(r: &schema::Root) -> Checked {
     finite("previewExposure", &[r.preview_exposure as f64])?;
     if let Some(b) = &r.bspvt {
         finite("bspvt.epsilon", &[b.epsilon])?;
+        let res = usize::try_from(b.face_resolution).unwrap_or(usize::MAX);
+        if !FACE_RESOLUTIONS.contains(&res) {
+            return Err(format!("BSPVT: face resolution {res} is outside {FACE_RESOLUTIONS:?}"));
+        }
     }
     if let Some(p) = &r.prt {
+        let count = |n: u64| usize::try_from(n).unwrap_or(usize::MAX);
+        prt_settings(count(p.order), p.regions.len(), count(p.directions), count(p.silhouette_resolution))?;
         finite("prt.lighting", &p.lighting.concat())?;
         for (i, g) in p.regions.iter().enumerate() {
             let field = |f: &str| format!("prt.regions[{i}].{f}");

@@ -117,7 +117,7 @@ pub struct Instance {
 }
 
 /// A material's factors and texture slots.
-#[derive(Debug, Serialize, Deserialize)]
+#[derive(Clone, Debug, Serialize, Deserialize)]
 #[serde(rename_all = "camelCase")]
 pub struct Material {
     /// Linear base colour.
@@ -140,7 +140,7 @@ pub struct Material {
 }
 
 /// A cut-out: alpha = factor × the texture's alpha, absent below the cutoff.
-#[derive(Debug, Serialize, Deserialize)]
+#[derive(Clone, Debug, Serialize, Deserialize)]
 #[serde(rename_all = "camelCase")]
 pub struct Cutout {
     /// `baseColorFactor`'s alpha.
@@ -154,7 +154,7 @@ pub struct Cutout {
 }
 
 /// A texture slot: which core texture, which UV set, which UV transform.
-#[derive(Debug, Serialize, Deserialize)]
+#[derive(Clone, Debug, Serialize, Deserialize)]
 #[serde(rename_all = "camelCase")]
 pub struct TextureSlot {
     /// Index into the core `textures`.

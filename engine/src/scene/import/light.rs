@@ -2,7 +2,7 @@
 //! becomes one polygon; anything else becomes one polygon per triangle.
 
 use crate::scene::Mesh;
-use glam::{DVec3, Vec3};
+use glam::DVec3;
 use std::collections::HashMap;
 
 /// Vertex-index loops (CCW about the emitting side) of the light polygons of `mesh`.
@@ -92,20 +92,12 @@ fn drop_collinear(loop_: &[u32], p: &impl Fn(u32) -> DVec3, n: DVec3) -> Vec<u32
         .collect()
 }
 
-/// Unit normal (Newell's method) and area of a planar polygon.
-pub fn polygon_normal_area(points: &[Vec3]) -> (Vec3, f32) {
-    let mut n = DVec3::ZERO;
-    for i in 0..points.len() {
-        let (a, b) = (points[i].as_dvec3(), points[(i + 1) % points.len()].as_dvec3());
-        n += a.cross(b);
-    }
-    let area = 0.5 * n.length();
-    (n.normalize_or_zero().as_vec3(), area as f32)
-}
+pub use kage_runtime::light::normal_area as polygon_normal_area;
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use glam::Vec3;
 
     fn grid_quad(n: u32) -> Mesh {
         let mut pos = vec![];

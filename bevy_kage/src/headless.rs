@@ -1,0 +1,124 @@
+//! Rendering a pack without a window, for tests and measurements: an app with the plugin and
+//! no window, a camera at the pack's camera drawing into a linear `Rgba32Float` image (HDR, no
+//! tonemapping, no MSAA, exposure 1), and the image read back.
+
+use crate::spawn::{camera_view, exposure_ev100};
+use crate::{KagePack, KagePlugin, KageScene, ShadeOn};
+use bevy::app::PluginsState;
+use bevy::asset::LoadState;
+use bevy::camera::{Exposure, Hdr, RenderTarget};
+use bevy::core_pipeline::tonemapping::{DebandDither, Tonemapping};
+use bevy::prelude::*;
+use bevy::render::gpu_readback::{Readback, ReadbackComplete};
+use bevy::render::render_resource::{TextureFormat, TextureUsages};
+use bevy::render::view::Msaa;
+use bevy::window::ExitCondition;
+use bevy::winit::WinitPlugin;
+use std::path::Path;
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+/// A windowless app showing one pack through its camera into an image.
+pub struct Headless {
+    /// The app (update it to render a frame).
+    pub app: App,
+    /// The image the camera draws into.
+    pub target: Handle<Image>,
+}
+
+impl Headless {
+    /// Loads the pack at `path` and waits until it is spawned, its camera drawing into a
+    /// `width` × `height` image, the lights shaded as `shade_on` says; the loader's error if
+    /// it fails to load.
+    pub fn open(path: &Path, (width, height): (u32, u32), shade_on: ShadeOn) -> Result<Self, String> {
+        let (Some(folder), Some(file)) = (path.parent(), path.file_name()) else {
+            return Err(format!("{}: not a file", path.display()));
+        };
+        let (folder, file) = (folder.to_string_lossy().into_owned(), file.to_string_lossy().into_owned());
+        let mut app = App::new();
+        app.add_plugins(
+            DefaultPlugins
+                .set(AssetPlugin { file_path: folder, ..default() })
+                .set(WindowPlugin { primary_window: None, exit_condition: ExitCondition::DontExit, ..default() })
+                .disable::<WinitPlugin>(),
+        )
+        .add_plugins(KagePlugin { shade_on })
+        .insert_resource(GlobalAmbientLight::NONE)
+        .insert_resource(ClearColor(Color::NONE));
+        while app.plugins_state() == PluginsState::Adding {
+            bevy::tasks::tick_global_task_pools_on_main_thread();
+        }
+        app.finish();
+        app.cleanup();
+        let mut target = Image::new_target_texture(width, height, TextureFormat::Rgba32Float, None);
+        target.texture_descriptor.usage |= TextureUsages::COPY_SRC;
+        let target = app.world_mut().resource_mut::<Assets<Image>>().add(target);
+        let handle = app.world().resource::<AssetServer>().load::<KagePack>(file);
+        app.world_mut().spawn((
+            KageScene { pack: handle.clone(), camera: false },
+            Transform::default(),
+            Visibility::default(),
+        ));
+        let view = loop {
+            app.update();
+            if let Some(LoadState::Failed(e)) = app.world().resource::<AssetServer>().get_load_state(&handle) {
+                return Err(e.to_string());
+            }
+            if let Some(p) = app.world().resource::<Assets<KagePack>>().get(&handle) {
+                let camera =
+                    p.pack.camera.as_ref().ok_or_else(|| format!("{}: the pack has no camera", path.display()))?;
+                break camera_view(camera);
+            }
+        };
+        // The camera is spawned with its target: set afterwards, it may never draw.
+        app.world_mut().spawn((
+            Camera3d::default(),
+            view,
+            RenderTarget::Image(target.clone().into()),
+            Hdr,
+            Tonemapping::None,
+            DebandDither::Disabled,
+            Msaa::Off,
+            Exposure { ev100: exposure_ev100(0.0) },
+        ));
+        Ok(Self { app, target })
+    }
+
+    /// The image once two frames in a row show the same lit picture (Bevy compiles its
+    /// pipelines in the background: until they are ready, nothing is drawn); `None` after
+    /// `timeout`. Rows from the top, linear RGBA.
+    pub fn settled(&mut self, timeout: Duration) -> Option<Vec<Vec4>> {
+        let start = Instant::now();
+        let mut last = self.read_back()?;
+        while start.elapsed() < timeout {
+            std::thread::sleep(Duration::from_millis(20));
+            let next = self.read_back()?;
+            if next == last && next.iter().any(|p| p.max_element() > 0.0) {
+                return Some(next);
+            }
+            last = next;
+        }
+        None
+    }
+
+    /// The image after the next frames (`None` if it is never read back).
+    pub fn read_back(&mut self) -> Option<Vec<Vec4>> {
+        let data: Arc<Mutex<Option<Vec<u8>>>> = Arc::default();
+        let sink = data.clone();
+        let reader = self
+            .app
+            .world_mut()
+            .spawn(Readback::texture(self.target.clone()))
+            .observe(move |e: On<ReadbackComplete>| {
+                *sink.lock().expect("not poisoned") = Some(e.data.clone());
+            })
+            .id();
+        let bytes = (0..1000).find_map(|_| {
+            self.app.update();
+            data.lock().expect("not poisoned").take()
+        });
+        self.app.world_mut().despawn(reader);
+        let floats: Vec<f32> = bytemuck::pod_collect_to_vec(&bytes?);
+        Some(floats.chunks_exact(4).map(Vec4::from_slice).collect())
+    }
+}

@@ -1,0 +1,122 @@
+//! The Bevy plugin (`bevy_kage`) against `kage render --pack --gpu`: the same pack, view and
+//! light poses, rendered headless by Bevy on the machine's Vulkan device (Mesa's lavapipe in
+//! CI) into an `Rgba32Float` image (HDR, no tonemapping, no MSAA, exposure 1).
+
+use bevy::prelude::*;
+use bevy_kage::headless::Headless;
+use bevy_kage::{KageLight, ShadeOn};
+use std::path::Path;
+use std::time::Duration;
+
+mod common;
+
+use common::{asset, kage, scratch, stderr};
+
+/// Image size of both renders.
+const SIZE: (u32, u32) = (240, 180);
+
+/// Two packs — `cube_on_plane.gltf` (a cube on a ground under a quad light) and
+/// `teapot_quad_light.gltf` (a gold teapot: GGX highlights per pixel) — in kage and in Bevy,
+/// with the light where it was baked and moved 0.5 m: within 5 % of each other, and the move
+/// changes both images alike.
+#[test]
+fn bevy_shades_a_pack_as_kage_renders_it() {
+    for scene in ["cube_on_plane", "teapot_quad_light"] {
+        let d = scratch(&format!("bevy-{scene}"));
+        let pack = d.join(format!("{scene}.glb"));
+        let db = d.join("bake.redb");
+        let o = kage(&["export", &asset(&format!("scenes/{scene}.gltf")), "-o", p(&pack), "--db", p(&db)]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let kage_at = |moves: &[&str]| {
+            let exr = d.join(format!("kage{}.exr", moves.len()));
+            let size = format!("{}x{}", SIZE.0, SIZE.1);
+            let args = ["render", "--pack", p(&pack), "--gpu", "--indirect", "none", "--size", &size, "-o", p(&exr)];
+            let o = kage(&[&args[..], moves].concat());
+            assert!(o.status.success(), "{}", stderr(&o));
+            image::open(&exr).unwrap().to_rgba32f().pixels().map(|p| Vec3::new(p[0], p[1], p[2])).collect::<Vec<_>>()
+        };
+        let (kage_still, kage_moved) = (kage_at(&[]), kage_at(&["--move-light", "light=0.5,0,0"]));
+        let (bevy_still, bevy_moved) = render_in_bevy(&pack, Vec3::new(0.5, 0.0, 0.0));
+        // Beside kage's images, for a look when this fails.
+        for (name, pixels) in [("bevy0.exr", &bevy_still), ("bevy2.exr", &bevy_moved)] {
+            let rgb = pixels.iter().flat_map(|p| p.to_array()).collect();
+            image::Rgb32FImage::from_raw(SIZE.0, SIZE.1, rgb).unwrap().save(d.join(name)).unwrap();
+        }
+        let (still, after) = (error(&bevy_still, &kage_still), error(&bevy_moved, &kage_moved));
+        println!(
+            "{scene}: relative RMSE over surface pixels {:.2} % as baked, {:.2} % with the light moved",
+            100.0 * still,
+            100.0 * after
+        );
+        assert!(still <= 0.05 && after <= 0.05, "{scene}: {still} {after}");
+        // The move is seen: what it changes in kage's image, it changes in Bevy's.
+        let (kage_change, bevy_change) = (error(&kage_moved, &kage_still), error(&bevy_moved, &bevy_still));
+        assert!(
+            kage_change > 0.1 && (bevy_change / kage_change - 1.0).abs() < 0.2,
+            "{scene}: {kage_change} {bevy_change}"
+        );
+    }
+}
+
+/// A pack damaged after it was written fails to load with an error naming the damage; the
+/// app goes on.
+#[test]
+fn bevy_refuses_a_damaged_pack() {
+    let d = scratch("bevy-damaged");
+    let pack = d.join("cube.glb");
+    let o = kage(&["export", &asset("scenes/cube_on_plane.gltf"), "-o", p(&pack), "--db", p(&d.join("bake.redb"))]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let mut bytes = std::fs::read(&pack).unwrap();
+    let at = bytes.len() - 100;
+    bytes[at] ^= 0x40;
+    std::fs::write(&pack, bytes).unwrap();
+    let error = Headless::open(&pack, SIZE, ShadeOn::Auto).err().expect("the damaged pack is refused");
+    assert!(error.contains("cube.glb: not a kage pack") && error.contains("fails its checksum"), "{error}");
+}
+
+fn p(path: &Path) -> &str {
+    path.to_str().unwrap()
+}
+
+/// Relative RMSE of `a` against `b` over surface pixels: lit in either, with every neighbour
+/// lit too (silhouettes excluded), emitters (radiance above 5) excluded.
+fn error(a: &[Vec3], b: &[Vec3]) -> f32 {
+    let (w, h) = (SIZE.0 as usize, SIZE.1 as usize);
+    let lit = |k: usize| a[k].max_element() > 0.0 || b[k].max_element() > 0.0;
+    let inside = |x: usize, y: usize| {
+        (y.saturating_sub(1)..=(y + 1).min(h - 1))
+            .all(|j| (x.saturating_sub(1)..=(x + 1).min(w - 1)).all(|i| lit(j * w + i)))
+    };
+    let (mut num, mut den) = (0.0f64, 0.0f64);
+    for k in (0..w * h).filter(|&k| inside(k % w, k / w) && b[k].max_element() < 5.0) {
+        num += (a[k] - b[k]).length_squared() as f64;
+        den += b[k].length_squared() as f64;
+    }
+    (num / den).sqrt() as f32
+}
+
+/// Samples per pixel side: kage's `--gpu` image is drawn at 4× and averaged; so is Bevy's.
+const FINE: u32 = 4;
+
+/// Bevy's images of `pack` as baked and with its first light moved by `offset`.
+fn render_in_bevy(pack: &Path, offset: Vec3) -> (Vec<Vec3>, Vec<Vec3>) {
+    let fine = (SIZE.0 * FINE, SIZE.1 * FINE);
+    let mut bevy = Headless::open(pack, fine, ShadeOn::Pixel).expect("the pack loads, with its camera");
+    let still = bevy.settled(Duration::from_secs(300)).expect("Bevy draws the pack");
+    let world = bevy.app.world_mut();
+    let mut lights = world.query::<(&KageLight, &mut Transform)>();
+    let (_, mut t) = lights.iter_mut(world).min_by_key(|(l, _)| l.index).expect("the pack has a light");
+    t.translation += offset;
+    let moved = bevy.settled(Duration::from_secs(300)).expect("Bevy draws the pack");
+    (downsample(&still), downsample(&moved))
+}
+
+/// The mean of every `FINE`² block of a `FINE`× image.
+fn downsample(fine: &[Vec4]) -> Vec<Vec3> {
+    let (w, k) = (SIZE.0 as usize, FINE as usize);
+    let block = |x: usize, y: usize| {
+        let rows = (0..k).flat_map(|j| fine[(k * y + j) * k * w + k * x..][..k].iter());
+        rows.map(|p| p.truncate()).sum::<Vec3>() / (k * k) as f32
+    };
+    (0..w * SIZE.1 as usize).map(|p| block(p % w, p / w)).collect()
+}
