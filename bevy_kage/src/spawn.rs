@@ -11,6 +11,7 @@ use bevy::camera::visibility::ViewVisibility;
 use bevy::mesh::{Indices, PrimitiveTopology};
 use bevy::prelude::*;
 use bevy::render::storage::ShaderBuffer;
+use kage_runtime::camera::{self, Camera};
 use kage_runtime::pack::{self, Pack};
 
 /// Spawns the pack `pack` as this entity's children once it has loaded; with `camera`, the
@@ -216,7 +217,7 @@ impl Spawner<'_, '_, '_> {
 
     /// The pack's camera, its exposure the preview's; tonemapped with ACES (which needs no
     /// lookup tables, so no Bevy feature beyond the plugin's).
-    fn camera(&mut self, c: &pack::Camera, exposure_stops: f32, parent: Entity) {
+    fn camera(&mut self, c: &Camera, exposure_stops: f32, parent: Entity) {
         let exposure = bevy::camera::Exposure { ev100: exposure_ev100(exposure_stops) };
         let tonemapping = bevy::core_pipeline::tonemapping::Tonemapping::AcesFitted;
         self.commands.spawn((Camera3d::default(), camera_view(c), exposure, tonemapping, KageCamera, ChildOf(parent)));
@@ -224,12 +225,12 @@ impl Spawner<'_, '_, '_> {
 }
 
 /// A pack camera's place and projection.
-pub fn camera_view(c: &pack::Camera) -> (Transform, Projection) {
+pub fn camera_view(c: &Camera) -> (Transform, Projection) {
     let projection = match c.projection {
-        pack::Projection::Perspective { yfov } => {
+        camera::Projection::Perspective { yfov } => {
             Projection::Perspective(PerspectiveProjection { fov: yfov, near: 0.01, ..default() })
         }
-        pack::Projection::Orthographic { ymag } => Projection::Orthographic(OrthographicProjection {
+        camera::Projection::Orthographic { ymag } => Projection::Orthographic(OrthographicProjection {
             scaling_mode: bevy::camera::ScalingMode::FixedVertical { viewport_height: 2.0 * ymag },
             ..OrthographicProjection::default_3d()
         }),

@@ -2,7 +2,8 @@
 //!
 //! kage at run time: what shading baked data needs, and nothing a bake needs. The math the
 //! techniques share ([`math`]: SH, HSH, LTC, GGX, cube maps, polygons, sampling), materials
-//! ([`material`]), lights ([`light`]) and textures ([`texture`]) as the shading reads them,
+//! ([`material`]), lights ([`light`]), cameras ([`camera`]) and textures ([`texture`]) as the
+//! shading reads them,
 //! BSPVT's vertex records with their LTC shading ([`bspvt`]), and asset packs' container,
 //! records, integrity and ranges ([`pack`]).
 //!
@@ -16,6 +17,7 @@
 //!   linear RGB radiance, GGX with α = roughness², one-sided lights emitting on the CCW side.
 
 pub mod bspvt;
+pub mod camera;
 pub mod light;
 pub mod material;
 pub mod math;

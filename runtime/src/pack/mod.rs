@@ -10,7 +10,7 @@ pub mod ranges;
 mod read;
 pub mod schema;
 
-pub use read::{Camera, Checked, Environment, Group, Instance, Light, Mesh, Pack, Projection, Texture};
+pub use read::{Checked, Environment, Group, Instance, Light, Mesh, Pack, Texture};
 
 /// The extension's name.
 pub const EXTENSION: &str = "KAGE_baked_shadows";

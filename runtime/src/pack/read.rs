@@ -6,6 +6,7 @@
 
 use super::{EXTENSION, SEALED, VERSIONS, integrity, ranges, schema};
 use crate::bspvt::{BakedInstance, layout};
+use crate::camera::{Camera, Projection};
 use crate::light::FlatLight;
 use crate::texture::Wrap;
 use glam::{Affine3A, Mat4, Quat, Vec2, Vec3};
@@ -108,29 +109,6 @@ impl Light {
         flat.reach = self.reach;
         Some(flat)
     }
-}
-
-/// The scene's camera.
-pub struct Camera {
-    /// World from camera (looking down −Z, +Y up).
-    pub world: Affine3A,
-    /// Its projection.
-    pub projection: Projection,
-}
-
-/// A camera's projection.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Projection {
-    /// Vertical field of view, radians.
-    Perspective {
-        /// The field of view.
-        yfov: f32,
-    },
-    /// Half the view's height.
-    Orthographic {
-        /// The half height.
-        ymag: f32,
-    },
 }
 
 /// A core glTF texture.
