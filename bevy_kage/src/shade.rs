@@ -16,7 +16,7 @@ use bevy::render::storage::ShaderBuffer;
 use kage_runtime::bspvt::shade::{PointShader, Visibility};
 use kage_runtime::light::FlatLight;
 use kage_runtime::material::Material;
-use kage_runtime::math::{color::luminance, ltc};
+use kage_runtime::math::ltc;
 use kage_runtime::pack::Pack;
 use rayon::prelude::*;
 use std::collections::HashSet;
@@ -53,13 +53,6 @@ pub struct Rectangle {
     pub width: f32,
     /// Extent along the frame's Y.
     pub height: f32,
-}
-
-impl Rectangle {
-    /// The luminance of `radiance` (what a `RectLight`'s intensity is made of).
-    pub fn luminance(&self, radiance: glam::Vec3) -> f32 {
-        luminance(radiance)
-    }
 }
 
 /// `polygon` as a rectangle, if it is one (four corners, opposite sides equal and parallel,

@@ -184,9 +184,10 @@ impl Spawner<'_, '_, '_> {
         match shade::rectangle(&light.polygon) {
             Some(r) => {
                 let at = transform(&(light.local * r.frame));
+                let luminance = kage_runtime::math::luminance(light.radiance);
                 let rect = RectLight {
-                    color: Color::LinearRgba(radiance * (1.0 / r.luminance(light.radiance).max(f32::MIN_POSITIVE))),
-                    intensity: r.luminance(light.radiance) * r.width * r.height * std::f32::consts::PI,
+                    color: Color::LinearRgba(radiance * (1.0 / luminance.max(f32::MIN_POSITIVE))),
+                    intensity: luminance * r.width * r.height * std::f32::consts::PI,
                     range: f32::MAX,
                     width: r.width,
                     height: r.height,

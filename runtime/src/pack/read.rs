@@ -184,11 +184,6 @@ impl Pack {
         pack.header = header;
         Ok(pack)
     }
-
-    /// Instance `i`'s world transform with its group posed at `pose`.
-    pub fn world(&self, i: usize, pose: &Affine3A) -> Affine3A {
-        *pose * self.instances[i].local
-    }
 }
 
 /// The extension's records of every mesh's first primitive, by kind, in mesh order (which is
