@@ -15,6 +15,10 @@ use kage_tests::{CORNELL_POSES, LightMove, asset, move_lights};
 
 const SIZE: (usize, usize) = (96, 96);
 
+/// Samples per pixel of the look, as `kage render` draws it: with fewer, a silhouette's
+/// pixels read their coverage in quarters against the reference's hundreds of samples.
+const LOOK_SPP: u32 = 16;
+
 /// `rel` imported and its receivers refined as `kage render` refines them by default.
 fn room(rel: &str) -> Scene {
     let mut scene = import(&asset(rel), ImportOptions::default()).unwrap();
@@ -42,7 +46,7 @@ fn looks(scene: &Scene, runs: &[(LightMove, Bounces)]) -> Vec<(Vec<Vec3>, usize,
             let (indirect, bounced) = cache::bounce(&src, &records, camera.eye(), bounces);
             eprintln!("{}: {bounced}", scene.source);
             let look = Look::prepare(&moved, &r.flat, bakes, camera.eye(), &mut prt::SilhouetteMemo::default());
-            let image = look.with_indirect(indirect).render(&r, &camera, SIZE.0, SIZE.1, 4);
+            let image = look.with_indirect(indirect).render(&r, &camera, SIZE.0, SIZE.1, LOOK_SPP);
             (image, bounced.count, moved)
         })
         .collect()
@@ -51,10 +55,10 @@ fn looks(scene: &Scene, runs: &[(LightMove, Bounces)]) -> Vec<(Vec<Vec3>, usize,
 /// No move.
 const AS_BUILT: LightMove = |_| {};
 
-/// The reference's image of `scene` with `bounces` bounces at `spp`, and which pixels to
-/// compare: those whose samples, and their neighbours', all see receivers (one sample on an
-/// emitter outweighs the rest of a pixel).
-fn reference(scene: &Scene, bounces: usize, spp: u32) -> (Vec<Vec3>, Vec<bool>) {
+/// The reference's image of `scene` with `bounces` bounces at `spp`, which pixels to compare
+/// (those whose samples, and their neighbours', all see receivers: one sample on an emitter
+/// outweighs the rest of a pixel) and its relative standard error over them.
+fn reference(scene: &Scene, bounces: usize, spp: u32) -> (Vec<Vec3>, Vec<bool>, f64) {
     reference_where(scene, bounces, spp, &|_| true)
 }
 
@@ -65,7 +69,7 @@ fn reference_where(
     bounces: usize,
     spp: u32,
     keep: &(dyn Fn(&raster::SurfaceHit) -> bool + Sync),
-) -> (Vec<Vec3>, Vec<bool>) {
+) -> (Vec<Vec3>, Vec<bool>, f64) {
     let r = Renderer::new(scene);
     let camera = scene.first_camera().unwrap();
     let settings = RefSettings { spp, seed: 11, max_bounces: bounces as u32, min_bounces: 0 };
@@ -83,7 +87,7 @@ fn reference_where(
     let counted: Vec<_> = image.iter().zip(&surface).filter(|(_, s)| **s).map(|(e, _)| *e).collect();
     let noise = kage_engine::reference::relative_standard_error(&counted);
     eprintln!("{}: reference, {bounces} bounces at {spp} spp, relative standard error {noise:.4}", scene.source);
-    (image.iter().map(|e| e.mean).collect(), surface)
+    (image.iter().map(|e| e.mean).collect(), surface, noise)
 }
 
 /// Relative RMSE of `ours` against `truth` over the `surface` pixels.
@@ -100,16 +104,16 @@ fn the_cornell_box_gets_the_bounces_it_needs() {
     let scene = room("scenes/cornell_box.gltf");
     let runs = [(AS_BUILT, Bounces::default()), (AS_BUILT, Bounces::Fixed(1))];
     let [(image, count, _), (one, ..)]: [_; 2] = looks(&scene, &runs).try_into().ok().unwrap();
-    let (truth, surface) = reference(&scene, count, 512);
-    let (eight, _) = reference(&scene, 8, 512);
+    let (truth, surface, _) = reference(&scene, count, 512);
+    let (eight, ..) = reference(&scene, 8, 512);
     let (same, deep, single) =
         (over(&surface, &image, &truth), over(&surface, &image, &eight), over(&surface, &one, &eight));
     eprintln!(
         "Cornell box per pixel: {count} bounces {same:.4} from the reference's {count}, {deep:.4} from 8; one bounce {single:.4} from 8"
     );
     assert!((3..=12).contains(&count), "{count} bounces");
-    // Measured: 6 bounces, 4.57 % (the reference's own noise 3.0 %), 4.68 % from 8 bounces;
-    // one bounce 23.8 % from 8.
+    // Measured: 6 bounces, 3.66 % (the reference's own noise 3.0 %), 3.89 % from 8 bounces;
+    // one bounce 23.7 % from 8.
     assert!(same < 0.05, "{same}");
     assert!(deep < 0.08, "{deep}");
     assert!(single > 3.0 * deep, "one bounce {single}, {count} bounces {deep}");
@@ -117,7 +121,8 @@ fn the_cornell_box_gets_the_bounces_it_needs() {
 
 /// The Cornell box's light moved with no re-bake (receivers refined for it as built): 15 cm
 /// toward the red wall and turned 20° about its normal, and lowered 15 cm and tilted 20°. The
-/// look with its bounces still follows the reference.
+/// look with its bounces still follows the reference beyond the reference's own noise (an
+/// error e against a reference of relative standard error σ reads √(e² + σ²)).
 #[test]
 fn the_cornell_box_light_moves_with_no_re_bake() {
     let scene = room("scenes/cornell_box.gltf");
@@ -125,12 +130,20 @@ fn the_cornell_box_light_moves_with_no_re_bake() {
     for (k, (image, count, moved)) in
         looks(&scene, &[(turned, Bounces::default()), (tilted, Bounces::default())]).into_iter().enumerate()
     {
-        let (truth, surface) = reference(&moved, count, 512);
+        let (truth, surface, noise) = reference(&moved, count, 512);
         let error = over(&surface, &image, &truth);
-        eprintln!("Cornell box, light pose {}: {count} bounces, {error:.4} per pixel", k + 1);
-        // Measured: turned 5.21 % (the reference's own noise 3.3 %); tilted 11.5 % (the
-        // reference's noise 7.6 %). Per vertex their direct light is within 2 % (`bspvt.rs`).
-        assert!(error < [0.06, 0.14][k], "pose {}: {error}", k + 1);
+        let beyond_noise = (error * error - noise * noise).max(0.0).sqrt();
+        eprintln!(
+            "Cornell box, light pose {}: {count} bounces, {error:.4} per pixel, {beyond_noise:.4} beyond the reference's noise",
+            k + 1
+        );
+        // Measured: turned 4.74 % (the reference's noise 3.3 %), 3.39 % beyond the noise;
+        // tilted 9.00 % (its noise 7.7 %: the block's top 5 cm under the light is lit
+        // brightly, and paths off it are rare), 4.63 % beyond it. Against 8192 paths a pixel
+        // the tilted pose reads 5.44 % (noise 1.93 %): 5.09 %, just short of the 5 % goal
+        // (records beside the bright top disagree in blotches; docs/benchmarks.md).
+        assert!(error < [0.06, 0.11][k], "pose {}: {error}", k + 1);
+        assert!(beyond_noise < [0.05, 0.06][k], "pose {}: {beyond_noise} beyond the reference's noise {noise}", k + 1);
     }
 }
 
@@ -141,13 +154,13 @@ fn the_cornell_box_light_moves_with_no_re_bake() {
 fn a_face_turned_away_gets_only_its_own_bounce() {
     let scene = room("scenes/lowpoly_box.gltf");
     let [(image, count, _)] = looks(&scene, &[(AS_BUILT, Bounces::default())]).try_into().ok().unwrap();
-    let (truth, face) =
+    let (truth, face, _) =
         reference_where(&scene, count, 2048, &|h| (h.position.x + 0.5).abs() < 1e-3 && h.position.y > 1e-3);
     let pixels = face.iter().filter(|f| **f).count();
     let error = over(&face, &image, &truth);
     eprintln!("low-poly box, the face turned away ({pixels} pixels): {count} bounces, {error:.4} from the reference");
     assert!(pixels > 500, "{pixels}");
-    // Measured: 7.05 % (the reference's own noise there 5.3 %); 11.3 % without neighbour
+    // Measured: 6.85 % (the reference's own noise there 5.3 %); 11.3 % without neighbour
     // clamping at contacts, when records from higher up reached the face's foot past the dark
     // records gathered there (blotches along the edge). A record used across the 90° edge would put it
     // at 2.8×.
@@ -220,7 +233,7 @@ fn the_light_in_one_room_does_not_reach_the_next() {
 fn a_furnished_room_matches_the_reference() {
     let scene = room("scenes/furnished_room.gltf");
     let [(image, count, _)] = looks(&scene, &[(AS_BUILT, Bounces::default())]).try_into().ok().unwrap();
-    let (truth, surface) = reference(&scene, count, 512);
+    let (truth, surface, _) = reference(&scene, count, 512);
     let error = over(&surface, &image, &truth);
     eprintln!("furnished room per pixel: {count} bounces, {error:.4} from the reference's {count}");
     assert!(error < 0.06, "{error}");

@@ -212,6 +212,17 @@ impl SceneBvh {
         self.occluded_between(origin, dir, 0.0, tmax)
     }
 
+    /// True when anything blocks the segment from surface point `p` (normal `n`) to `q`, a point
+    /// on a light. The ray leaves the offset origin toward `q` itself: one parallel to `p → q`
+    /// from the lifted origin meets the plane of a light close by, seen at a grazing angle,
+    /// well before `q`, and the light would shadow itself.
+    pub fn occluded_to(&self, p: Vec3, n: Vec3, q: Vec3) -> bool {
+        let origin = offset_ray_origin(p, n, q - p);
+        let to = q - origin;
+        let dist = to.length();
+        self.occluded(origin, to / dist, dist * (1.0 - 1e-4))
+    }
+
     /// True when anything blocks a shadow ray from `origin` (a surface point's offset origin)
     /// along `dir` (unit) within `tmax`, past what touches its start ([`touching_distance`]).
     /// Unlike [`Self::closest_hit_past_touching`] it passes a touching surface it enters too:
@@ -420,6 +431,31 @@ mod tests {
             assert!(!bvh.occluded(Vec3::new(0.25, 0.5, 1.0), Vec3::NEG_Z, 0.5));
         }
         assert!(SceneBvh::new(&[]).closest_hit(Vec3::ZERO, Vec3::X, 1.0).is_none());
+    }
+
+    /// Points on a panel tilted 20°, 5–9 cm over a block's top (the Cornell box's light
+    /// lowered and tilted): the segments from the top to them are clear, though a ray parallel
+    /// to each from the lifted origin meets the panel's plane before its end.
+    #[test]
+    fn a_light_close_by_at_a_grazing_angle_does_not_shadow_itself() {
+        let panel = [
+            Vec3::new(0.343, 0.415_756_05, 0.230_166_14),
+            Vec3::new(0.343, 0.379_843_95, 0.328_833_85),
+            Vec3::new(0.213, 0.379_843_95, 0.328_833_85),
+        ];
+        let bvh = SceneBvh::new(&[panel]);
+        let (mut clear, mut parallel_clear) = (0, 0);
+        for p in [Vec3::new(0.283_375, 0.33, 0.356), Vec3::new(0.296_312_5, 0.33, 0.362_937_5)] {
+            for k in 0..64 {
+                let b = sampling::uniform_triangle(sampling::hammersley(k, 64));
+                let q = panel[0] * (1.0 - b.x - b.y) + panel[1] * b.x + panel[2] * b.y;
+                clear += usize::from(!bvh.occluded_to(p, Vec3::Y, q));
+                let (d, o) = ((q - p).normalize(), offset_ray_origin(p, Vec3::Y, q - p));
+                parallel_clear += usize::from(!bvh.occluded(o, d, (q - o).length() * (1.0 - 1e-4)));
+            }
+        }
+        assert_eq!(clear, 128);
+        assert!(parallel_clear < 64, "{parallel_clear}: the parallel ray no longer shadows itself");
     }
 
     /// A floor point under a box resting on it is inside; one beside it, or under a slab

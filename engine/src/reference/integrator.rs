@@ -243,8 +243,7 @@ impl Renderer {
         if f == Vec3::ZERO {
             return Vec3::ZERO;
         }
-        let origin = offset_ray_origin(sp.p, sp.ng, wi);
-        if self.bvh.occluded(origin, wi, (q - origin).length() * (1.0 - 1e-4)) {
+        if self.bvh.occluded_to(sp.p, sp.ng, q) {
             return Vec3::ZERO;
         }
         f * light.radiance_at(k, b) / pdf * sampling::power_heuristic(pdf, bsdf.pdf(wo_l, wi_l))

@@ -3,7 +3,6 @@
 //! the Monte Carlo ratio of shadowed to unshadowed direct light, both estimated from the same
 //! N light samples per light (area sampling). A competitor to BSPVT at equal time.
 
-use crate::accel::offset_ray_origin;
 use crate::bspvt::shade::{PointShader, Visibility};
 use crate::material::Bsdf;
 use crate::math::frame::Frame;
@@ -55,8 +54,7 @@ pub fn shade_vertices(r: &Renderer, n: u32, seed: u64, eye: Vec3) -> VertexValue
                             let contrib =
                                 (bsdf.eval(wo, wi_l) * wi_l.z * light.radiance_at(k, b) * cos_l / d2).as_dvec3();
                             open += contrib;
-                            let o = offset_ray_origin(p, normal, wi);
-                            if !r.bvh.occluded(o, wi, (q - o).length() * (1.0 - 1e-4)) {
+                            if !r.bvh.occluded_to(p, normal, q) {
                                 shadowed += contrib;
                             }
                         }
