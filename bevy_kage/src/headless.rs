@@ -26,6 +26,27 @@ pub struct Headless {
     pub target: Handle<Image>,
 }
 
+/// An app with Bevy's default plugins and the kage plugin, no window, no ambient light and a
+/// transparent clear colour, reading assets from `folder`; its plugins built.
+pub fn windowless(folder: &Path, shade_on: ShadeOn) -> App {
+    let mut app = App::new();
+    app.add_plugins(
+        DefaultPlugins
+            .set(AssetPlugin { file_path: folder.to_string_lossy().into_owned(), ..default() })
+            .set(WindowPlugin { primary_window: None, exit_condition: ExitCondition::DontExit, ..default() })
+            .disable::<WinitPlugin>(),
+    )
+    .add_plugins(KagePlugin { shade_on })
+    .insert_resource(GlobalAmbientLight::NONE)
+    .insert_resource(ClearColor(Color::NONE));
+    while app.plugins_state() == PluginsState::Adding {
+        bevy::tasks::tick_global_task_pools_on_main_thread();
+    }
+    app.finish();
+    app.cleanup();
+    app
+}
+
 impl Headless {
     /// Loads the pack at `path` and waits until it is spawned, its camera drawing into a
     /// `width` × `height` image, the lights shaded as `shade_on` says; the loader's error if
@@ -34,22 +55,8 @@ impl Headless {
         let (Some(folder), Some(file)) = (path.parent(), path.file_name()) else {
             return Err(format!("{}: not a file", path.display()));
         };
-        let (folder, file) = (folder.to_string_lossy().into_owned(), file.to_string_lossy().into_owned());
-        let mut app = App::new();
-        app.add_plugins(
-            DefaultPlugins
-                .set(AssetPlugin { file_path: folder, ..default() })
-                .set(WindowPlugin { primary_window: None, exit_condition: ExitCondition::DontExit, ..default() })
-                .disable::<WinitPlugin>(),
-        )
-        .add_plugins(KagePlugin { shade_on })
-        .insert_resource(GlobalAmbientLight::NONE)
-        .insert_resource(ClearColor(Color::NONE));
-        while app.plugins_state() == PluginsState::Adding {
-            bevy::tasks::tick_global_task_pools_on_main_thread();
-        }
-        app.finish();
-        app.cleanup();
+        let mut app = windowless(folder, shade_on);
+        let file = file.to_string_lossy().into_owned();
         let mut target = Image::new_target_texture(width, height, TextureFormat::Rgba32Float, None);
         target.texture_descriptor.usage |= TextureUsages::COPY_SRC;
         let target = app.world_mut().resource_mut::<Assets<Image>>().add(target);

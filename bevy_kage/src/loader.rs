@@ -20,7 +20,9 @@ pub struct KagePack {
     pub images: Vec<[Option<Handle<Image>>; 2]>,
 }
 
-/// Reads `*.glb` packs (load them as `KagePack`: `asset_server.load::<KagePack>(path)`).
+/// Reads packs. A pack is a `.glb`, loaded as `KagePack` (`asset_server.load::<KagePack>(path)`):
+/// the requested type picks this loader. Its own extension is only `kage.glb`, so untyped and
+/// labeled loads of `*.glb` files (`model.glb#Scene0`) keep reaching Bevy's glTF loader.
 #[derive(Default, TypePath)]
 pub struct KagePackLoader;
 
@@ -54,7 +56,7 @@ impl AssetLoader for KagePackLoader {
     }
 
     fn extensions(&self) -> &[&str] {
-        &["glb"]
+        &["kage.glb"]
     }
 }
 

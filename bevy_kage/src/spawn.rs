@@ -11,6 +11,7 @@ use bevy::camera::visibility::ViewVisibility;
 use bevy::mesh::{Indices, PrimitiveTopology};
 use bevy::prelude::*;
 use bevy::render::storage::ShaderBuffer;
+use bevy::world_serialization::{WorldAsset, WorldAssetRoot};
 use kage_runtime::camera::{self, Camera};
 use kage_runtime::pack::{self, Pack};
 
@@ -55,7 +56,8 @@ pub struct KageLight {
 #[derive(Component, Clone, Copy, Debug)]
 pub struct KageCamera;
 
-/// Marks a scene whose pack failed to load (the error was logged once).
+/// Marks a scene whose pack failed to load (the error was logged once; the file is shown as a
+/// plain glTF instead).
 #[derive(Component)]
 pub(crate) struct Failed;
 
@@ -77,8 +79,12 @@ pub(crate) fn spawn_scenes(
 ) {
     for (entity, scene) in &scenes {
         if let Some(LoadState::Failed(e)) = server.get_load_state(&scene.pack) {
-            error!("{e}: the pack is not shown");
+            error!("{e}: shown as a plain glTF, without kage's shading");
             commands.entity(entity).insert(Failed);
+            if let Some(path) = scene.pack.path() {
+                let plain = server.load::<WorldAsset>(path.clone().with_label("Scene0"));
+                commands.spawn((WorldAssetRoot(plain), ChildOf(entity)));
+            }
             continue;
         }
         let Some(loaded) = packs.get(&scene.pack) else { continue };

@@ -3,8 +3,8 @@
 //! CI) into an `Rgba32Float` image (HDR, no tonemapping, no MSAA, exposure 1).
 
 use bevy::prelude::*;
-use bevy_kage::headless::Headless;
-use bevy_kage::{KageLight, ShadeOn};
+use bevy_kage::headless::{Headless, windowless};
+use bevy_kage::{KageInstance, KageLight, KagePack, KageScene, ShadeOn};
 use std::path::Path;
 use std::time::Duration;
 
@@ -59,9 +59,9 @@ fn bevy_shades_a_pack_as_kage_renders_it() {
 }
 
 /// A pack damaged after it was written fails to load with an error naming the damage; the
-/// app goes on.
+/// app goes on and shows the file as the plain glTF it also is.
 #[test]
-fn bevy_refuses_a_damaged_pack() {
+fn bevy_refuses_a_damaged_pack_and_shows_it_as_a_plain_gltf() {
     let d = scratch("bevy-damaged");
     let pack = d.join("cube.glb");
     let o = kage(&["export", &asset("scenes/cube_on_plane.gltf"), "-o", p(&pack), "--db", p(&d.join("bake.redb"))]);
@@ -72,6 +72,19 @@ fn bevy_refuses_a_damaged_pack() {
     std::fs::write(&pack, bytes).unwrap();
     let error = Headless::open(&pack, SIZE, ShadeOn::Auto).err().expect("the damaged pack is refused");
     assert!(error.contains("cube.glb: not a kage pack") && error.contains("fails its checksum"), "{error}");
+    // In an app, the scene then shows the file through Bevy's glTF loader: its meshes, unshaded
+    // by kage.
+    let mut app = windowless(&d, ShadeOn::Auto);
+    let handle = app.world().resource::<AssetServer>().load::<KagePack>("cube.glb");
+    app.world_mut().spawn((KageScene::new(handle), Transform::default(), Visibility::default()));
+    let meshes = (0..2000).find_map(|_| {
+        app.update();
+        std::thread::sleep(Duration::from_millis(5));
+        let n = app.world_mut().query::<&Mesh3d>().iter(app.world()).count();
+        (n > 0).then_some(n)
+    });
+    assert_eq!(meshes, Some(3), "the cube, its ground and the light's panel, as plain glTF meshes");
+    assert_eq!(app.world_mut().query::<&KageInstance>().iter(app.world()).count(), 0);
 }
 
 fn p(path: &Path) -> &str {

@@ -79,7 +79,7 @@ fn encode(e: &Export) -> std::io::Result<Vec<u8>> {
         .map(|v| integrity::View { byte_offset: v.byte_offset.map_or(0, |o| o.0), byte_length: v.byte_length.0 })
         .collect();
     root.integrity = Some(integrity::unsealed(&views, &b.bin));
-    doc.extensions = Some(gj::extensions::root::Root { others: others(&root) });
+    doc.extensions = Some(root_extensions(others(&root)));
     let mut json = doc.to_vec().map_err(std::io::Error::other)?;
     integrity::seal(&mut json);
     Ok(kage_runtime::pack::glb::join(&json, &b.bin))
@@ -563,4 +563,12 @@ fn root_extension(e: &Export, b: &mut Builder) -> schema::Root {
         rotation: env.rotation,
     });
     schema::Root { version: VERSION, preview_exposure: e.exposure, bspvt, prt, environment, integrity: None }
+}
+
+/// The root's extensions holding `others`. Its other fields depend on the gltf crate's
+/// features (a build that also has Bevy's glTF loader turns on `KHR_lights_punctual`'s), so
+/// they take their defaults — an update clippy finds needless where that feature is off.
+#[allow(clippy::needless_update)]
+fn root_extensions(others: serde_json::Map<String, serde_json::Value>) -> gj::extensions::root::Root {
+    gj::extensions::root::Root { others, ..Default::default() }
 }
