@@ -491,6 +491,28 @@ fn a_cancelled_run_keeps_what_it_committed_and_the_next_run_finishes_the_rest() 
     assert_eq!(out.bspvt.unwrap().instances, bspvt::bake(&flat, &BSPVT, &|_| {}).instances);
 }
 
+/// The workers take the missing chunks largest first (in plan order, the ground's chunks, the
+/// boxes' and then PRT's alternate large and small): on one worker the chunks land in that order.
+#[test]
+fn a_run_bakes_its_largest_chunks_first() {
+    use std::sync::Mutex;
+    use std::sync::atomic::AtomicBool;
+    let store = Store::open(&scratch("largest first")).unwrap();
+    let s = scene("");
+    let flat = flatten(&s);
+    let p = plan(&store, &s, &flat, Some(BSPVT), Some(prt_settings())).unwrap();
+    let sizes: Vec<usize> = p.jobs.iter().map(|j| j.vertices.len()).collect();
+    assert!(sizes.windows(2).any(|w| w[0] < w[1]), "the plan's order is not already largest first: {sizes:?}");
+    let landed: Mutex<Vec<usize>> = Mutex::default();
+    let record = |c: kage_bake_db::Chunk| landed.lock().unwrap().push(c.job.vertices.len());
+    let hooks = Hooks { progress: &|_| {}, cancel: &AtomicBool::new(false), chunk: Some(&record) };
+    let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+    one.install(|| kage_bake_db::run_cancellable(&store, &s, &flat, &p, hooks)).unwrap();
+    let landed = landed.into_inner().unwrap();
+    assert_eq!(landed.len(), p.jobs.len());
+    assert!(landed.windows(2).all(|w| w[0] >= w[1]), "largest first: {landed:?}");
+}
+
 #[test]
 fn every_chunk_streams_once_cached_first_and_the_chunks_assemble_into_the_outcome() {
     use kage_bake_db::plan::Kind;

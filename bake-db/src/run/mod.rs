@@ -233,7 +233,10 @@ fn bake_misses(
             f(Chunk { job, bytes: &store.get::<u8>(&job.key)?.unwrap_or_default() });
         }
     }
-    let misses: Vec<&Job> = plan.misses().collect();
+    let mut misses: Vec<&Job> = plan.misses().collect();
+    // Largest first, each worker taking the next as it frees (greedy list scheduling): a
+    // large chunk started last would leave the other cores idle while one bakes it.
+    misses.sort_by_key(|j| std::cmp::Reverse(j.vertices.len()));
     let tools = Tools::for_jobs(store, scene, flat, plan, &misses)?;
     let ctx = tools.context(store, flat, plan);
     let done = AtomicUsize::new(0);
@@ -243,7 +246,7 @@ fn bake_misses(
     let mut stats = RunStats { cached: plan.jobs.len() - misses.len(), ..RunStats::default() };
     let written = std::thread::scope(|scope| -> Result<()> {
         let writer = scope.spawn(|| write_batches(store, rx, chunk, keep));
-        let baking = misses.par_iter().try_for_each_with(tx, |tx, job| -> Result<()> {
+        let baking = misses.iter().par_bridge().try_for_each_with(tx, |tx, job| -> Result<()> {
             if cancel.load(Ordering::Relaxed) {
                 return Err(DbError::Cancelled { done: 0 });
             }

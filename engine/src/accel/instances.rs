@@ -153,13 +153,17 @@ impl Occluders {
     }
 
     /// The closest hit on the segment [`Self::occluded`] asks about. Of hits at the same
-    /// distance on several pieces, the one with the least normal bits, so the answer depends on
-    /// the triangles alone, not on the order the pieces are visited in.
+    /// distance on several pieces, the one on the piece the top-level walk lists first (wide
+    /// pieces, then the tree's leaves in order), so the answer depends on the scene alone.
     pub fn closest(&self, origin: Vec3, dir: Vec3, tmax: f32) -> Option<super::PlaneHit> {
         self.closest_if(origin, dir, tmax, |_| true)
     }
 
-    /// [`Self::closest`] among the instances `keep` accepts (by index).
+    /// [`Self::closest`] among the instances `keep` accepts (by index). The pieces the segment
+    /// meets are searched nearest entry first, and none entered past the best hit so far: in a
+    /// room most walls' boxes meet a ray, and a far wall's BVH need not be searched once a near
+    /// one has answered. A piece searched after the best hit looks up to it inclusive, so a tie
+    /// goes to the piece listed first, whatever the search order.
     pub fn closest_if(
         &self,
         origin: Vec3,
@@ -168,26 +172,36 @@ impl Occluders {
         keep: impl Fn(usize) -> bool,
     ) -> Option<super::PlaneHit> {
         let ray = self.ray(origin, dir, tmax);
-        let best = std::cell::Cell::new(None::<super::PlaneHit>);
-        let key =
-            |h: super::PlaneHit| (h.t, h.normal.to_array().map(f32::to_bits), h.corner.to_array().map(f32::to_bits));
-        let visit = |i: u32| {
+        // (entry, place in the walk's list, piece)
+        let mut met: Vec<(f32, u32, u32)> = Vec::with_capacity(8);
+        let mut enter = |i: u32| {
             let piece = &self.pieces[i as usize];
-            let end = best.get().map_or(tmax, |b| b.t);
             if keep(piece.owner)
-                && slab_hits(origin, ray.inv, end, piece.lo, piece.hi)
-                && let Some(hit) = piece.bvh.closest_between(origin, dir, ray.near, end)
-                && best.get().is_none_or(|b| key(hit).partial_cmp(&key(b)) == Some(std::cmp::Ordering::Less))
+                && let Some(t) = slab_entry(origin, ray.inv, tmax, piece.lo, piece.hi)
             {
-                best.set(Some(hit));
+                met.push((t, met.len() as u32, i));
             }
             false
         };
         self.wide.iter().for_each(|&i| {
-            visit(i);
+            enter(i);
         });
-        self.tree.any_along(origin, ray.inv, tmax, &visit);
-        best.get()
+        self.tree.any_along(origin, ray.inv, tmax, &mut enter);
+        met.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        let mut best = None::<(super::PlaneHit, u32)>;
+        for (entry, listed, i) in met {
+            let end = best.map_or(tmax, |(b, _)| b.t);
+            if entry > end {
+                break;
+            }
+            let end = if best.is_some() { end.next_up() } else { end };
+            if let Some(hit) = self.pieces[i as usize].bvh.closest_between(origin, dir, ray.near, end)
+                && best.is_none_or(|(b, first)| (hit.t, listed) < (b.t, first))
+            {
+                best = Some((hit, listed));
+            }
+        }
+        best.map(|(h, _)| h)
     }
 
     /// [`SceneBvh::inside`] among the instances `keep` accepts (by index): whether most of
@@ -452,10 +466,15 @@ fn split_wide(pieces: &[Piece]) -> (Vec<u32>, Vec<u32>) {
 /// Ray–box slab test for the segment from `o` within `[0, tmax]`, `inv` the reciprocal
 /// direction (NaNs from 0·∞ are ignored by `max`/`min`).
 pub(crate) fn slab_hits(o: Vec3, inv: Vec3, tmax: f32, lo: Vec3, hi: Vec3) -> bool {
+    slab_entry(o, inv, tmax, lo, hi).is_some()
+}
+
+/// Where the segment of [`slab_hits`] enters the box (0 when it starts inside), if it meets it.
+fn slab_entry(o: Vec3, inv: Vec3, tmax: f32, lo: Vec3, hi: Vec3) -> Option<f32> {
     let (t1, t2) = ((lo - o) * inv, (hi - o) * inv);
     let near = t1.min(t2).max_element().max(0.0);
     let far = t1.max(t2).min_element().min(tmax);
-    near <= far
+    (near <= far).then_some(near)
 }
 
 #[cfg(test)]
@@ -670,6 +689,13 @@ mod tests {
             hits += usize::from(any);
             assert_eq!(occ.occluded(o, d, f32::INFINITY), any, "{o} {d}");
             assert_eq!((0..parts.len()).any(|i| occ.occluded_by(i, o, d, f32::INFINITY)), any, "{o} {d}: by instance");
+            // The closest hit, pieces searched nearest first, is the one BVH's.
+            let near = super::super::touching_distance(o);
+            let (ours, one) = (occ.closest(o, d, f32::INFINITY), all.closest_between(o, d, near, f32::INFINITY));
+            assert_eq!(ours.is_some(), any, "{o} {d}: closest");
+            if let (Some(a), Some(b)) = (ours, one) {
+                assert!((a.t - b.t).abs() <= 1e-5 * b.t.max(1.0) && a.normal == b.normal, "{o} {d}: {a:?} vs {b:?}");
+            }
         }
         assert!(hits > 0 && hits < n, "{hits} of {n} rays blocked: the test tests nothing");
     }

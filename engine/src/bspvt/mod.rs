@@ -55,8 +55,10 @@ use std::time::Instant;
 /// asked in pieces, see [`crate::accel::Occluders`] — the same texels on every level measured,
 /// but a ray grazing a piece's box may round otherwise than through the whole BVH's boxes; 8:
 /// with declared light reach, a ray ends where it leaves the farthest reach box it meets, see
-/// [`reach::Reach::ray_end`]).
-pub const ALGORITHM_VERSION: u32 = 8;
+/// [`reach::Reach::ray_end`]; 9: closest hits (rooms' depth planes) search an occluder's pieces
+/// nearest first, see [`crate::accel::Occluders::closest`] — where two pieces' triangles meet
+/// at an edge, a ray along it may now find the nearer of two hits that round apart).
+pub const ALGORITHM_VERSION: u32 = 9;
 
 /// Bake parameters.
 #[derive(Clone, Copy, Debug, PartialEq)]
