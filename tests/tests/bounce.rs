@@ -112,8 +112,8 @@ fn the_cornell_box_gets_the_bounces_it_needs() {
         "Cornell box per pixel: {count} bounces {same:.4} from the reference's {count}, {deep:.4} from 8; one bounce {single:.4} from 8"
     );
     assert!((3..=12).contains(&count), "{count} bounces");
-    // Measured: 6 bounces, 3.66 % (the reference's own noise 3.0 %), 3.89 % from 8 bounces;
-    // one bounce 23.7 % from 8.
+    // Measured: 6 bounces, 3.56 % (the reference's own noise 3.0 %), 3.83 % from 8 bounces;
+    // one bounce 23.8 % from 8.
     assert!(same < 0.05, "{same}");
     assert!(deep < 0.08, "{deep}");
     assert!(single > 3.0 * deep, "one bounce {single}, {count} bounces {deep}");
@@ -137,13 +137,14 @@ fn the_cornell_box_light_moves_with_no_re_bake() {
             "Cornell box, light pose {}: {count} bounces, {error:.4} per pixel, {beyond_noise:.4} beyond the reference's noise",
             k + 1
         );
-        // Measured: turned 4.74 % (the reference's noise 3.3 %), 3.39 % beyond the noise;
-        // tilted 9.00 % (its noise 7.7 %: the block's top 5 cm under the light is lit
-        // brightly, and paths off it are rare), 4.63 % beyond it. Against 8192 paths a pixel
-        // the tilted pose reads 5.44 % (noise 1.93 %): 5.09 %, just short of the 5 % goal
-        // (records beside the bright top disagree in blotches; docs/benchmarks.md).
-        assert!(error < [0.06, 0.11][k], "pose {}: {error}", k + 1);
-        assert!(beyond_noise < [0.05, 0.06][k], "pose {}: {beyond_noise} beyond the reference's noise {noise}", k + 1);
+        // Measured: turned 4.61 % (the reference's noise 3.3 %), 3.22 % beyond the noise;
+        // tilted 8.48 % (its noise 7.7 %: the block's top 5 cm under the light is lit
+        // brightly, and paths off it are rare), 3.51 % beyond it. Against 8192 paths a pixel
+        // the tilted pose reads 4.37 % (noise 1.93 %): 3.92 % beyond (5.09 % with every
+        // record at 256 rays: the records that read the bright top through few rays gather
+        // a denser grid, `cache::Settings::noise`; docs/benchmarks.md).
+        assert!(error < [0.06, 0.10][k], "pose {}: {error}", k + 1);
+        assert!(beyond_noise < 0.05, "pose {}: {beyond_noise} beyond the reference's noise {noise}", k + 1);
     }
 }
 

@@ -47,6 +47,8 @@ fn gradients_match_central_differences_of_regathered_records() {
         bounds: (0.0, f32::INFINITY),
         form: GradientForm::Analytic,
         min_cos_xi: MIN_COS_XI,
+        noise: f32::INFINITY,
+        noise_floor: 0.0,
     };
     let at = |p: Vec3| gather(&src, p, Vec3::Y, &analytic, 7);
     let r0 = at(Vec3::ZERO);
@@ -83,8 +85,15 @@ fn gradients_match_central_differences_of_regathered_records() {
 fn unclamped_the_numerical_and_analytic_gradients_are_the_same_derivative() {
     let (renderer, direct) = ceiling();
     let src = Source { renderer: &renderer, direct: &direct, glossy: Glossy::Reference(GLOSSY_SPP) };
-    let analytic =
-        Params { order: 4, side: 64, bounds: (0.0, f32::INFINITY), form: GradientForm::Analytic, min_cos_xi: 0.0 };
+    let analytic = Params {
+        order: 4,
+        side: 64,
+        bounds: (0.0, f32::INFINITY),
+        form: GradientForm::Analytic,
+        min_cos_xi: 0.0,
+        noise: f32::INFINITY,
+        noise_floor: 0.0,
+    };
     let numerical = Params { form: GradientForm::Numerical, ..analytic };
     // Straight under the slope, and tilted (hit normals off the record's axis): the forms agree
     // to the central difference's own error (measured 1e-6 of the largest gradient).
@@ -119,8 +128,15 @@ fn corners_clamp_the_radius_and_opposite_normals_get_their_own_record() {
     let r = Renderer::new(&s);
     let direct: Vec<Vec<Vec3>> = (0..3).map(|i| vec![Vec3::ONE; r.mesh(i).positions.len()]).collect();
     let src = Source { renderer: &r, direct: &direct, glossy: Glossy::Reference(GLOSSY_SPP) };
-    let params =
-        Params { order: 3, side: 16, bounds: (0.05, 1.0), form: GradientForm::Analytic, min_cos_xi: MIN_COS_XI };
+    let params = Params {
+        order: 3,
+        side: 16,
+        bounds: (0.05, 1.0),
+        form: GradientForm::Analytic,
+        min_cos_xi: MIN_COS_XI,
+        noise: f32::INFINITY,
+        noise_floor: 0.0,
+    };
     let rec = gather(&src, Vec3::splat(1e-3), Vec3::Y, &params, 1);
     assert_eq!(rec.radius, 0.05, "R → 0 in a corner is clamped");
     assert!(rec.coeffs.iter().chain(&rec.grad_x).chain(&rec.grad_y).all(|c| c.is_finite()));
@@ -217,7 +233,8 @@ fn the_wide_blend_averages_the_noise_of_few_ray_records() {
     let src = Source { renderer: &renderer, direct: &direct, glossy: Glossy::Reference(GLOSSY_SPP) };
     let truth = one_bounce(&renderer);
     let e_gather = rel(&gather_vertices(&src, 256, EYE), &truth);
-    let dense = Settings { rays: 64, accuracy: 0.2, ..Settings::default() };
+    // Every record keeps its 64 rays, noisy or not.
+    let dense = Settings { rays: 64, accuracy: 0.2, noise: f32::INFINITY, ..Settings::default() };
     let (ward, _) = indirect_vertices(&src, &dense, EYE);
     let (wide, cache) = indirect_vertices(&src, &Settings { blend: Blend::Wide, ..dense }, EYE);
     let (e_ward, e_wide) = (rel(&ward, &truth), rel(&wide, &truth));
@@ -350,11 +367,14 @@ fn a_refresh_relights_only_what_changed_and_equals_fresh_gathers() {
     assert!(done.relit > 0 && done.relit < n / 2, "{} of {n} records re-lit", done.relit);
 
     // The light moves: only rays crossing its old or new bounds are cast again.
+    let tinted_cache = cache.clone();
     let (after, moved_direct) = room_lit_from(Vec3::new(-1.0, 2.5, -1.0), [1.0, 0.5]);
     let moved = kage_engine::cache::moved_lights(&same.flat.lights, &after.flat.lights);
     let src = Source { renderer: &after, direct: &moved_direct, glossy: Glossy::Reference(GLOSSY_SPP) };
     let done = cache.refresh(&src, &Change { old_direct: Some(&tinted), moved: &moved });
     check(&cache, &src);
+    // Records of 64 rays that read the light noisily gather a dense grid, under either lighting.
+    assert!(tinted_cache.dense_records() > 0 && cache.dense_records() > 0);
     assert!(done.recast > 0 && done.recast * 10 < cache.rays(), "{} of {} rays re-cast", done.recast, cache.rays());
     // Record places do not depend on lighting: the refreshed cache is the cold placement
     // under the new lighting (so the editor stores it under the new lighting's key).
@@ -362,10 +382,7 @@ fn a_refresh_relights_only_what_changed_and_equals_fresh_gathers() {
 
     // Progressively, batch by batch: each landing shows the records so far re-lit; the end
     // result is the one-shot refresh's. Stopped early, the rest keep the old lighting.
-    let mut progressive = kage_engine::cache::place_at_vertices(
-        &Source { renderer: &same, direct: &tinted, glossy: Glossy::Reference(GLOSSY_SPP) },
-        &s,
-    );
+    let mut progressive = tinted_cache.clone();
     let change = Change { old_direct: Some(&tinted), moved: &moved };
     let mut landings = Vec::new();
     let total = progressive.refresh_progressively(&src, &change, 64, &mut |c, so_far| {
@@ -375,10 +392,7 @@ fn a_refresh_relights_only_what_changed_and_equals_fresh_gathers() {
     assert_eq!((total, progressive.records == cache.records), (done, true));
     assert_eq!(landings.len(), n.div_ceil(64));
     assert!(landings.iter().all(|(_, same)| *same), "{landings:?}");
-    let mut stopped = kage_engine::cache::place_at_vertices(
-        &Source { renderer: &same, direct: &tinted, glossy: Glossy::Reference(GLOSSY_SPP) },
-        &s,
-    );
+    let mut stopped = tinted_cache;
     let early = stopped.refresh_progressively(&src, &change, 64, &mut |_, _| false);
     assert_eq!(early.visited, 64.min(n));
 

@@ -17,8 +17,9 @@ use kage_engine::scene::Scene;
 /// receivers' meshes join the key, since the occluder snapshot names a flat refinement's
 /// source; 5: a gather ray that enters a surface touching its start, such as a box's foot
 /// into the floor it rests on, meets it there; 6: such a hit reads the floor's corners outside
-/// the object, as pixels do; 7: neighbour clamping of the records' radii at contacts.)
-pub const VERSION: u32 = 7;
+/// the object, as pixels do; 7: neighbour clamping of the records' radii at contacts; 8: a record
+/// that reads its light noisily gathers a denser grid, `Settings::noise`.)
+pub const VERSION: u32 = 8;
 
 /// The key of the records a cache built from `src` with `s` would hold.
 pub fn key(src: &Source, s: &Settings) -> Key {
@@ -48,7 +49,8 @@ pub fn key(src: &Source, s: &Settings) -> Key {
         .u64("gradients", s.gradients as u64)
         .f64("r_min", s.radius_bounds.0 as f64)
         .f64("r_max", s.radius_bounds.1 as f64)
-        .f64("glossy_fallback", s.glossy_fallback as f64);
+        .f64("glossy_fallback", s.glossy_fallback as f64)
+        .f64("noise", s.noise as f64);
     // Keys of records lit by the reference stay those stored before the other modes existed.
     hasher = match src.glossy {
         Glossy::Reference(spp) => hasher.u64("glossy_spp", spp as u64),

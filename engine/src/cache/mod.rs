@@ -24,7 +24,6 @@ pub mod record;
 
 pub use bounces::{Bounced, Bounces, bounce};
 
-use crate::accel::Hit;
 use crate::math::hsh;
 use crate::named::Named;
 use crate::scene::VertexValues;
@@ -40,6 +39,11 @@ pub const SMALL_ANGLE: f64 = 0.02;
 pub const GLOSSY_FALLBACK_ROUGHNESS: f32 = 0.6;
 /// Gauss–Legendre nodes in cos θ of the BRDF projection (twice as many in φ).
 const BRDF_NODES: usize = 32;
+/// Default [`Settings::noise`].
+pub const DEFAULT_NOISE: f32 = 0.06;
+/// Share of the RMS direct radiance over the receivers below which a record's light counts
+/// as that much in [`Settings::noise`]: dim places show noise less in the image.
+pub const NOISE_FLOOR: f32 = 0.25;
 
 /// How a lookup blends the records around a point.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -103,6 +107,10 @@ pub struct Settings {
     pub glossy_fallback: f32,
     /// How lookups blend records (placement always uses Ward's 1/a).
     pub blend: Blend,
+    /// A record whose irradiance's standard error exceeds this share of its irradiance (of at
+    /// least [`NOISE_FLOOR`] of the direct light's RMS) gathers again with twice the side (4× the
+    /// rays): records that read a small bright patch through few rays (`f32::INFINITY`: never).
+    pub noise: f32,
 }
 
 impl Default for Settings {
@@ -116,6 +124,7 @@ impl Default for Settings {
             radius_bounds: (0.01, 0.2),
             glossy_fallback: GLOSSY_FALLBACK_ROUGHNESS,
             blend: Blend::Ward,
+            noise: DEFAULT_NOISE,
         }
     }
 }
@@ -138,6 +147,8 @@ pub struct Refresh {
     pub gathered: usize,
     /// Rays cast again because they crossed moved geometry.
     pub recast: usize,
+    /// Rays cast for dense grids that records kept but now need ([`Settings::noise`]).
+    pub densified: usize,
 }
 
 /// Records with a uniform grid over their areas of influence.
@@ -146,8 +157,10 @@ pub struct Cache {
     /// The records, in creation order (record `i` gathered with ray stream `i`).
     pub records: Vec<Record>,
     /// What each record's rays hit, for [`Cache::refresh`] (empty for stored records).
-    hits: Vec<Vec<Option<Hit>>>,
+    hits: Vec<record::Hits>,
     settings: Settings,
+    /// [`record::Params::noise_floor`] for the lighting last placed or refreshed under.
+    noise_floor: f32,
     bounds: (f32, f32),
     cell: f32,
     grid: HashMap<[i32; 3], Vec<u32>>,
@@ -172,6 +185,7 @@ impl Cache {
             records: Vec::new(),
             hits: Vec::new(),
             settings,
+            noise_floor: 0.0,
             bounds,
             cell: (settings.accuracy * bounds.1).max(1e-6),
             grid: HashMap::new(),
@@ -192,7 +206,7 @@ impl Cache {
         (p / self.cell).floor().as_ivec3().to_array()
     }
 
-    fn insert(&mut self, r: Record, hits: Vec<Option<Hit>>) {
+    fn insert(&mut self, r: Record, hits: record::Hits) {
         self.records.push(r);
         self.hits.push(hits);
         self.index(self.records.len() - 1);
@@ -239,6 +253,7 @@ impl Cache {
     /// the number of records made.
     pub fn place(&mut self, src: &Source, points: &[(Vec3, Vec3)]) -> usize {
         let before = self.records.len();
+        self.noise_floor = noise_floor(src);
         loop {
             let made = self.records.len();
             for &(p, n) in points {
@@ -299,6 +314,9 @@ impl Cache {
         landed: &mut dyn FnMut(&Cache, &Refresh) -> bool,
     ) -> Refresh {
         let mut out = Refresh::default();
+        if change.old_direct.is_some() {
+            self.noise_floor = noise_floor(src);
+        }
         let mut start = 0;
         while start < self.records.len() {
             let end = start.saturating_add(batch.max(1)).min(self.records.len());
@@ -319,23 +337,21 @@ impl Cache {
         use rayon::prelude::*;
         let params = self.params();
         let first = range.start;
-        let outcomes: Vec<(Option<Record>, usize, bool)> = self.records[range.clone()]
+        let outcomes: Vec<(Option<Record>, record::Relit, bool)> = self.records[range.clone()]
             .par_iter()
             .zip(self.hits[range.clone()].par_iter_mut())
             .enumerate()
             .map(|(k, (r, hits))| {
-                let (p, n, i) = (r.p, r.frame.n, (first + k) as u64);
-                if hits.is_empty() {
-                    let (fresh, cast) = record::gather_with_hits(src, p, n, &params, i);
-                    *hits = cast;
-                    return (Some(fresh), 0, true);
-                }
-                let (fresh, relit) = record::relight(src, p, n, &params, i, hits, change);
-                (fresh, relit.recast, false)
+                let gathered = hits.is_empty();
+                let (fresh, relit) = record::relight(src, r.p, r.frame.n, &params, (first + k) as u64, hits, change);
+                (fresh, relit, gathered)
             })
             .collect();
-        for (r, (fresh, recast, gathered)) in self.records[range].iter_mut().zip(outcomes) {
-            out.recast += recast;
+        for (r, (fresh, relit, gathered)) in self.records[range].iter_mut().zip(outcomes) {
+            if !gathered {
+                out.recast += relit.recast;
+                out.densified += relit.densified;
+            }
             out.gathered += usize::from(gathered);
             out.relit += usize::from(fresh.is_some() && !gathered);
             // A record keeps its place and its radius as placed (neighbour-clamped): a
@@ -356,12 +372,18 @@ impl Cache {
     pub fn params(&self) -> record::Params {
         let s = &self.settings;
         let form = s.gradient_form;
-        record::Params { order: s.order, side: s.side(), bounds: self.bounds, form, min_cos_xi: record::MIN_COS_XI }
+        let (side, bounds, noise, noise_floor) = (s.side(), self.bounds, s.noise, self.noise_floor);
+        record::Params { order: s.order, side, bounds, form, min_cos_xi: record::MIN_COS_XI, noise, noise_floor }
     }
 
-    /// Rays cast so far.
+    /// Rays cast so far (a stored record counts as its grid).
     pub fn rays(&self) -> usize {
-        self.records.len() * self.settings.side().pow(2)
+        self.records.len() * self.settings.side().pow(2) + self.hits.iter().map(record::Hits::dense_rays).sum::<usize>()
+    }
+
+    /// Records whose values come from the denser grid ([`Settings::noise`]).
+    pub fn dense_records(&self) -> usize {
+        self.hits.iter().filter(|h| h.dense_rays() > 0).count()
     }
 
     /// Incoming radiance at `p` (normal `n`) as HSH coefficients in the frame of
@@ -501,6 +523,14 @@ fn extrapolate(c: &mut [DVec3], r: &Record, d: DVec3) {
     c.iter_mut().zip(&delta).for_each(|(c, d)| *c += *d * scale);
 }
 
+/// [`NOISE_FLOOR`] of the RMS over the receivers' vertices of their direct radiance (mean of
+/// the channels) under `src`'s lighting.
+fn noise_floor(src: &Source) -> f32 {
+    let vertices = src.direct.iter().flatten();
+    let (sum, count) = vertices.fold((0.0f64, 0usize), |(a, n), v| (a + (v.element_sum() as f64 / 3.0).powi(2), n + 1));
+    NOISE_FLOOR * (sum / count.max(1) as f64).sqrt() as f32
+}
+
 /// The receivers' bounding diagonal.
 fn diagonal(src: &Source) -> f32 {
     let flat = &src.renderer.flat;
@@ -544,7 +574,8 @@ pub fn place_at_vertices(src: &Source, s: &Settings) -> Cache {
 /// A cache from stored records (e.g. the bake database's), as [`place_at_vertices`] made them.
 pub fn from_records(src: &Source, s: &Settings, records: Vec<Record>) -> Cache {
     let mut cache = Cache::new(*s, diagonal(src));
-    records.into_iter().for_each(|r| cache.insert(r, Vec::new()));
+    cache.noise_floor = noise_floor(src);
+    records.into_iter().for_each(|r| cache.insert(r, record::Hits::default()));
     cache
 }
 
@@ -644,7 +675,7 @@ mod tests {
                 grad_x: vec![DVec3::splat(0.1); 9],
                 grad_y: vec![DVec3::splat(-0.05); 9],
             };
-            cache.insert(record, Vec::new());
+            cache.insert(record, record::Hits::default());
         }
         let mut compared = 0;
         for (a, b) in (0..6).flat_map(|a| (0..6).map(move |b| (a, b))) {

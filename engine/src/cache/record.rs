@@ -20,6 +20,7 @@ use crate::math::{hsh, rng};
 use crate::reference::Renderer;
 use glam::{DVec3, Vec3};
 use rand::Rng;
+use std::f64::consts::PI;
 
 /// Smallest cos ξ the solid-angle gradient uses by default.
 pub const MIN_COS_XI: f32 = 0.1;
@@ -281,7 +282,8 @@ impl crate::named::Named for GradientForm {
     }
 }
 
-/// What a gather computes: HSH order, `side²` rays, the clamp of R_i and the gradient form.
+/// What a gather computes: HSH order, `side²` rays, the clamp of R_i, the gradient form and
+/// when a record's rays are too few.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Params {
     /// HSH order.
@@ -294,6 +296,48 @@ pub struct Params {
     pub form: GradientForm,
     /// Smallest cos ξ the gradients use ([`MIN_COS_XI`]; 0 for the exact derivative).
     pub min_cos_xi: f32,
+    /// Share of its light (irradiance over π) that a record's standard error may reach before
+    /// it gathers again with a grid of twice the side ([`Hits`]); `f32::INFINITY`: never.
+    pub noise: f32,
+    /// Least light (as radiance) the share is taken of: where less arrives, noise shows less.
+    pub noise_floor: f32,
+}
+
+/// What a record's rays hit, kept for [`relight`]: the `side²` grid every record casts, and,
+/// for a record whose grid reads its light too noisily, the denser grid (`(2·side)²` rays) its
+/// values come from. Its radius is always the first grid's: record places follow the
+/// receivers' geometry alone, never the lighting.
+#[derive(Clone, Debug, Default)]
+pub struct Hits {
+    /// The `side²` grid's hits.
+    coarse: Vec<Option<Hit>>,
+    /// The `(2·side)²` grid's hits once cast (kept when a later lighting needs them no more).
+    dense: Vec<Option<Hit>>,
+    /// The coarse grid's noise under the lighting it was last integrated with.
+    noise: Noise,
+    /// Whether the record's values come from the dense grid.
+    uses_dense: bool,
+}
+
+/// A grid's irradiance over π (as radiance) and its standard error, estimated from the
+/// differences between neighbouring strata: a horizon or a lit wall spanning many strata adds
+/// little, a small bright patch that few rays meet adds much.
+#[derive(Clone, Copy, Debug, Default)]
+struct Noise {
+    error: f32,
+    light: f32,
+}
+
+impl Hits {
+    /// Whether rays were kept (stored records have none).
+    pub fn is_empty(&self) -> bool {
+        self.coarse.is_empty()
+    }
+
+    /// Rays cast for the denser grid.
+    pub fn dense_rays(&self) -> usize {
+        self.dense.len()
+    }
 }
 
 /// Gathers a record at `p` (unit normal `n`) with ray stream `index`.
@@ -301,24 +345,20 @@ pub fn gather(src: &Source, p: Vec3, n: Vec3, params: &Params, index: u64) -> Re
     gather_with_hits(src, p, n, params, index).0
 }
 
-/// [`gather`], also returning what each ray hit (for [`relight`]).
-pub fn gather_with_hits(src: &Source, p: Vec3, n: Vec3, params: &Params, index: u64) -> (Record, Vec<Option<Hit>>) {
-    let frame = Frame::from_normal(n);
-    let dirs = directions(params.side, index);
-    let hits: Vec<Option<Hit>> = dirs
-        .iter()
-        .map(|l| {
-            let d = frame.to_world(*l);
-            src.renderer.bvh.closest_hit_past_touching(offset_ray_origin(p, n, d), d, f32::INFINITY)
-        })
-        .collect();
-    (integrate(src, p, frame, params, &dirs, &hits, index), hits)
+/// [`gather`], also returning what its rays hit (for [`relight`]).
+pub fn gather_with_hits(src: &Source, p: Vec3, n: Vec3, params: &Params, index: u64) -> (Record, Hits) {
+    let mut hits = Hits::default();
+    let record = relight(src, p, n, params, index, &mut hits, &Change { old_direct: None, moved: &[] }).0;
+    (record.expect("a record without rays is gathered"), hits)
 }
 
+/// The grids' stream keys: the coarse grid's is the one records have always used.
+const GRID_STREAMS: [u64; 2] = [0xCAC4E, 0xDE45E];
+
 /// A record's gather directions in its frame: `side²` rays stratified uniformly in solid angle,
-/// jittered by stream `index`.
-fn directions(side: usize, index: u64) -> Vec<Vec3> {
-    let mut r = rng::stream(0xCAC4E, index);
+/// jittered by stream `index` of the grid's `key`.
+fn directions(side: usize, key: u64, index: u64) -> Vec<Vec3> {
+    let mut r = rng::stream(key, index);
     (0..side * side)
         .map(|j| {
             let (u, v) = (
@@ -332,35 +372,42 @@ fn directions(side: usize, index: u64) -> Vec<Vec3> {
         .collect()
 }
 
-/// The record at `p` from its rays' local directions `dirs` and `hits`: coefficients,
-/// gradients and the clamped harmonic mean distance.
+/// The harmonic mean distance of the receivers `hits` met, clamped to `bounds`. Lights move at
+/// run time: record spacing follows the receivers' geometry alone, so a refresh after a light
+/// moves keeps the places a cold placement would choose.
+fn radius(src: &Source, hits: &[Option<Hit>], bounds: (f32, f32)) -> f32 {
+    let receivers =
+        hits.iter().flatten().filter(|h| src.renderer.flat.refs[h.triangle as usize].light == crate::scene::NO_LIGHT);
+    let inverse_distance: f64 = receivers.map(|h| 1.0 / h.t.max(1e-6) as f64).sum();
+    let harmonic = if inverse_distance > 0.0 { (hits.len() as f64 / inverse_distance) as f32 } else { f32::INFINITY };
+    harmonic.clamp(bounds.0, bounds.1)
+}
+
+/// The record at `p` from its rays' local directions `dirs` and `hits`, with `radius`:
+/// coefficients and gradients; and its [`Noise`].
 fn integrate(
     src: &Source,
     p: Vec3,
     frame: Frame,
     params: &Params,
-    dirs: &[Vec3],
-    hits: &[Option<Hit>],
+    (dirs, hits): (&[Vec3], &[Option<Hit>]),
+    radius: f32,
     index: u64,
-) -> Record {
-    let omega = 2.0 * std::f64::consts::PI / dirs.len() as f64;
+) -> (Record, Noise) {
+    let omega = 2.0 * PI / dirs.len() as f64;
     let k = hsh::num_coeffs(params.order);
     let (mut c, mut gx, mut gy) = (vec![DVec3::ZERO; k], vec![DVec3::ZERO; k], vec![DVec3::ZERO; k]);
-    let mut inverse_distance = 0.0f64;
+    let mut strata = vec![0.0f64; dirs.len()];
     let mut outside = Outside::default();
     for (j, (&local, hit)) in dirs.iter().zip(hits).enumerate() {
         let Some(hit) = hit else { continue };
         let d = frame.to_world(local);
-        // Lights move at run time: record spacing follows the receivers' geometry alone, so
-        // a refresh after a light moves keeps the places a cold placement would choose.
-        if src.renderer.flat.refs[hit.triangle as usize].light == crate::scene::NO_LIGHT {
-            inverse_distance += 1.0 / hit.t.max(1e-6) as f64;
-        }
         let hit = src.light(p, *hit, d, rng::mix64(index) ^ j as u64, &mut outside);
         if hit.radiance == Vec3::ZERO {
             continue;
         }
         let l = hit.radiance.as_dvec3();
+        strata[j] = l.element_sum() / 3.0 * local.z as f64;
         let ray = Ray {
             min_cos_xi: params.min_cos_xi as f64,
             dir: local.as_dvec3(),
@@ -379,9 +426,20 @@ fn integrate(
             gy[i] += l * dy[i];
         }
     }
-    let harmonic = if inverse_distance > 0.0 { (dirs.len() as f64 / inverse_distance) as f32 } else { f32::INFINITY };
-    let radius = harmonic.clamp(params.bounds.0, params.bounds.1);
-    Record { p, frame, radius, coeffs: c, grad_x: gx, grad_y: gy }
+    let noise = Noise {
+        error: (omega * paired_spread(&strata) / PI) as f32,
+        light: (omega * strata.iter().sum::<f64>() / PI) as f32,
+    };
+    (Record { p, frame, radius, coeffs: c, grad_x: gx, grad_y: gy }, noise)
+}
+
+/// √Σ (x_a − x_b)² over pairs of strata neighbouring in cos θ (row-major `side²` values, one
+/// sample each): an estimate of the standard deviation of Σ x that stratification leaves, since
+/// two strata of equal mean and variance v differ by 2v in square on average.
+fn paired_spread(strata: &[f64]) -> f64 {
+    let side = (strata.len() as f64).sqrt() as usize;
+    let rows = strata.chunks_exact(side.max(1));
+    rows.flat_map(|row| row.chunks_exact(2).map(|p| (p[0] - p[1]).powi(2))).sum::<f64>().sqrt()
 }
 
 /// One gather ray in the record's frame: direction, length, hit point and the hit's normal
@@ -447,41 +505,84 @@ pub struct Change<'a> {
 pub struct Relit {
     /// Rays cast again (they crossed moved geometry).
     pub recast: usize,
+    /// Rays cast for a dense grid the record needs now and had not cast.
+    pub densified: usize,
     /// The record's radiance may have changed, and it was integrated again.
     pub changed: bool,
 }
 
-/// Re-lights the record at `p` (normal `n`, stream `index`) whose rays found `hits`, after
-/// `change`: rays crossing moved geometry are cast again, and when any
-/// ray's radiance may differ the record is integrated again — equal to a fresh
-/// [`gather`] at the same place under the new lighting. `None`: nothing it sees changed.
+/// Re-lights the record at `p` (normal `n`, stream `index`) whose rays found `hits` (none
+/// yet: gathers it), after `change`: rays crossing moved geometry are cast again, and when any
+/// ray's radiance may differ the record is integrated again. The coarse grid's noise under the
+/// new lighting chooses the grid the values come from (the dense one cast when first needed),
+/// so the result equals a fresh [`gather`] at the same place under the new lighting. `None`:
+/// nothing it sees changed.
 pub fn relight(
     src: &Source,
     p: Vec3,
     n: Vec3,
     params: &Params,
     index: u64,
-    hits: &mut [Option<Hit>],
+    hits: &mut Hits,
     change: &Change,
 ) -> (Option<Record>, Relit) {
     let frame = Frame::from_normal(n);
-    let dirs = directions(params.side, index);
     let mut relit = Relit::default();
+    let coarse = directions(params.side, GRID_STREAMS[0], index);
+    let mut changed = recast(src, p, n, frame, &coarse, &mut hits.coarse, change, &mut relit.recast);
+    let r = radius(src, &hits.coarse, params.bounds);
+    let mut record = None;
+    if changed {
+        let (fresh, noise) = integrate(src, p, frame, params, (&coarse, &hits.coarse), r, index);
+        (record, hits.noise) = (Some(fresh), noise);
+    }
+    let dense = hits.noise.error > params.noise * hits.noise.light.max(params.noise_floor);
+    if dense {
+        let dirs = directions(2 * params.side, GRID_STREAMS[1], index);
+        let cast = if hits.dense.is_empty() { &mut relit.densified } else { &mut relit.recast };
+        // The coarse grid's change may be its radius's: integrate again whenever it changed.
+        changed = recast(src, p, n, frame, &dirs, &mut hits.dense, change, cast) || !hits.uses_dense || changed;
+        record = changed.then(|| integrate(src, p, frame, params, (&dirs, &hits.dense), r, index).0);
+    } else if hits.uses_dense && record.is_none() {
+        record = Some(integrate(src, p, frame, params, (&coarse, &hits.coarse), r, index).0);
+    }
+    hits.uses_dense = dense;
+    relit.changed = record.is_some();
+    (record, relit)
+}
+
+/// Brings `hits` of rays along local `dirs` up to date after `change` (all cast when there are
+/// none yet; those crossing moved geometry cast again, counted in `cast`): whether any ray's
+/// radiance may differ.
+#[allow(clippy::too_many_arguments)]
+fn recast(
+    src: &Source,
+    p: Vec3,
+    n: Vec3,
+    frame: Frame,
+    dirs: &[Vec3],
+    hits: &mut Vec<Option<Hit>>,
+    change: &Change,
+    cast: &mut usize,
+) -> bool {
+    let fresh = hits.is_empty();
+    if fresh {
+        hits.resize(dirs.len(), None);
+    }
+    let mut changed = fresh;
     for (local, hit) in dirs.iter().zip(hits.iter_mut()) {
         let d = frame.to_world(*local);
         let o = offset_ray_origin(p, n, d);
         let reach = hit.map_or(f32::INFINITY, |h| h.t);
-        let crosses = change.moved.iter().any(|&(lo, hi)| slab_hits(o, d.recip(), reach, lo, hi));
-        if crosses {
+        if fresh || change.moved.iter().any(|&(lo, hi)| slab_hits(o, d.recip(), reach, lo, hi)) {
             let again = src.renderer.bvh.closest_hit_past_touching(o, d, f32::INFINITY);
-            relit.recast += 1;
-            relit.changed |= again != *hit;
+            *cast += 1;
+            changed |= again != *hit;
             *hit = again;
         }
-        relit.changed |= hit.is_some_and(|h| change.old_direct.is_none_or(|old| src.changed(h, old)));
+        changed |= hit.is_some_and(|h| change.old_direct.is_none_or(|old| src.changed(h, old)));
     }
-    let record = relit.changed.then(|| integrate(src, p, frame, params, &dirs, hits, index));
-    (record, relit)
+    changed
 }
 
 /// Radiance leaving `p` toward local `wo` from one bounce, by `side²` BSDF-sampled gather rays
@@ -520,6 +621,20 @@ pub fn gather_bsdf(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The strata's spread: nothing for a constant, little for a smooth ramp across the grid
+    /// (what independent samples' variance would count in full), much for one bright stratum.
+    #[test]
+    fn the_paired_spread_sees_small_bright_patches_not_smooth_change() {
+        let side = 16;
+        assert_eq!(paired_spread(&[0.5; 256]), 0.0);
+        let ramp: Vec<f64> = (0..side * side).map(|j| (j % side) as f64 / side as f64).collect();
+        let patch: Vec<f64> = (0..side * side).map(|j| if j == 37 { 8.0 } else { 0.0 }).collect();
+        let (sum, squares) = ramp.iter().fold((0.0, 0.0), |(a, b), x| (a + x, b + x * x));
+        let independent = (squares - sum * sum / 256.0).sqrt();
+        assert!(paired_spread(&ramp) < 0.25 * independent, "{} vs {independent}", paired_spread(&ramp));
+        assert_eq!(paired_spread(&patch), 8.0);
+    }
 
     #[test]
     fn records_round_trip_through_f64s_bit_for_bit() {

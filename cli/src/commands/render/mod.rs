@@ -110,6 +110,10 @@ pub struct Args {
     /// How lookups blend the records.
     #[arg(long, default_value = "ward", value_parser = named::<Blend>())]
     cache_blend: Blend,
+    /// A cache record whose irradiance's standard error exceeds this share of the direct
+    /// light's RMS over the receivers gathers again with 4× the rays (`inf`: never).
+    #[arg(long, default_value_t = kage_engine::cache::DEFAULT_NOISE)]
+    cache_noise: f32,
     /// Interpolate without the records' translational gradients.
     #[arg(long)]
     no_gradients: bool,
@@ -524,6 +528,7 @@ fn indirect(
         gradients: !args.no_gradients,
         gradient_form: args.gradient,
         blend: args.cache_blend,
+        noise: args.cache_noise,
         ..Default::default()
     };
     let src = Source { renderer, direct, glossy };
