@@ -174,6 +174,10 @@ pub fn environment_system(ed: &mut Editor) {
 pub fn bake_system(ed: &mut Editor) {
     if ed.dirty.geometry && !ed.dragging {
         ed.dirty.geometry = false;
+        // A gather still running lights the old geometry: what it would land is stale, and
+        // its rays would take the cores refinement and the bake need. One starts again once
+        // the bake has landed.
+        ed.backend.workers.indirect = None;
         refine_receivers(ed);
         start_bake(ed);
     }

@@ -372,6 +372,30 @@ fn the_indirect_term_waits_for_the_bakes() {
     assert_eq!(gathers, 1, "{:#?}", ed.log);
 }
 
+/// A geometry edit stops a gather still lighting the old geometry (its rays would take the
+/// cores the re-bake needs, and what it landed would be stale); a fresh one runs once the
+/// re-bake has landed, and its term fits the moved scene.
+#[test]
+fn a_geometry_edit_stops_the_running_gather() {
+    use kage_editor::systems::gathering;
+    let dir = scratch("indirect-edit");
+    let mut o = options(&dir, None, None);
+    o.indirect = true;
+    let mut h = harness(default_scene(), o);
+    step_until(&mut h, "the bakes and a gather", |ed| settled(ed) && gathering(ed));
+    let sphere = h.state().editor.doc.scene.find_group("sphere").unwrap();
+    h.state_mut().editor.move_group(sphere, Vec3::new(-0.8, 0.0, 0.3), Quat::IDENTITY);
+    h.step();
+    let ed = &h.state().editor;
+    assert!(ed.backend.job.is_some() && !gathering(ed), "the edit's bake runs, the old gather stopped");
+    let landed = |ed: &Editor| settled(ed) && !ed.results.indirect.is_empty() && !gathering(ed);
+    step_until(&mut h, "the re-bake and its indirect term", landed);
+    let ed = &h.state().editor;
+    assert!(errors(ed).is_empty(), "{:?}", errors(ed));
+    let counts = |v: &[Vec<Vec3>]| v.iter().map(Vec::len).collect::<Vec<_>>();
+    assert_eq!(counts(&ed.results.indirect), counts(&ed.results.direct), "the term is the moved scene's");
+}
+
 /// The baked look's bounces light glossy hits as `kage render` does, the environment's diffuse
 /// term, reflection and sun included: on an imported scene (every material glossy) under a sky,
 /// the editor's bounces equal those gathered with the baked look's `Look::toward`, and lighting
