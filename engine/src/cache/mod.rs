@@ -381,7 +381,7 @@ impl Cache {
         self.records.len() * self.settings.side().pow(2) + self.hits.iter().map(record::Hits::dense_rays).sum::<usize>()
     }
 
-    /// Records whose values come from the denser grid ([`Settings::noise`]).
+    /// Records that have cast the denser grid ([`Settings::noise`]), used now or not.
     pub fn dense_records(&self) -> usize {
         self.hits.iter().filter(|h| h.dense_rays() > 0).count()
     }
