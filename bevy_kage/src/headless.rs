@@ -61,11 +61,10 @@ impl Headless {
         target.texture_descriptor.usage |= TextureUsages::COPY_SRC;
         let target = app.world_mut().resource_mut::<Assets<Image>>().add(target);
         let handle = app.world().resource::<AssetServer>().load::<KagePack>(file);
-        app.world_mut().spawn((
-            KageScene { pack: handle.clone(), camera: false },
-            Transform::default(),
-            Visibility::default(),
-        ));
+        let scene = app
+            .world_mut()
+            .spawn((KageScene { pack: handle.clone(), camera: false }, Transform::default(), Visibility::default()))
+            .id();
         let view = loop {
             app.update();
             if let Some(LoadState::Failed(e)) = app.world().resource::<AssetServer>().get_load_state(&handle) {
@@ -77,17 +76,28 @@ impl Headless {
                 break camera_view(camera);
             }
         };
+        // The pack's environment as the background, once the scene has spawned.
+        while !app.world().entity(scene).contains::<crate::shade::Shading>() {
+            app.update();
+        }
+        let skybox = app.world().entity(scene).get::<crate::KageEnvironment>().map(|e| e.skybox());
         // The camera is spawned with its target: set afterwards, it may never draw.
-        app.world_mut().spawn((
-            Camera3d::default(),
-            view,
-            RenderTarget::Image(target.clone().into()),
-            Hdr,
-            Tonemapping::None,
-            DebandDither::Disabled,
-            Msaa::Off,
-            Exposure { ev100: exposure_ev100(0.0) },
-        ));
+        let camera = app
+            .world_mut()
+            .spawn((
+                Camera3d::default(),
+                view,
+                RenderTarget::Image(target.clone().into()),
+                Hdr,
+                Tonemapping::None,
+                DebandDither::Disabled,
+                Msaa::Off,
+                Exposure { ev100: exposure_ev100(0.0) },
+            ))
+            .id();
+        if let Some(s) = skybox {
+            app.world_mut().entity_mut(camera).insert(s);
+        }
         Ok(Self { app, target })
     }
 

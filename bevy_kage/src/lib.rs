@@ -32,12 +32,14 @@
 // Bevy systems take their queries and resources as arguments: long signatures are the idiom.
 #![allow(clippy::type_complexity, clippy::too_many_arguments)]
 
+pub mod environment;
 pub mod headless;
 pub mod loader;
 pub mod material;
 pub mod shade;
 pub mod spawn;
 
+pub use environment::KageEnvironment;
 pub use loader::{KagePack, KagePackLoader};
 pub use material::KageMaterial;
 pub use shade::{KageStats, ShadeOn};
@@ -61,7 +63,7 @@ impl Plugin for KagePlugin {
             .init_resource::<shade::KageStats>()
             .init_asset_loader::<KagePackLoader>()
             .add_plugins(MaterialPlugin::<KageMaterial>::default())
-            .add_systems(Update, (spawn::spawn_scenes, spawn::warn_unbaked_lights))
+            .add_systems(Update, (spawn::spawn_scenes, spawn::warn_unbaked_lights, environment::sync_skyboxes))
             .add_systems(PostUpdate, shade::shade_lights.after(TransformSystems::Propagate))
             .add_systems(
                 PostUpdate,

@@ -7,6 +7,7 @@
 //! moved group keeps its own shadows exactly, and what other groups cast stays where it was
 //! baked. Recomputed only when the eye, a group or a light moved.
 
+use crate::environment::{EnvironmentShading, KageEnvironment};
 use crate::material::{KageMaterial, tables};
 use crate::spawn::KageLight;
 use bevy::asset::RenderAssetUsages;
@@ -26,8 +27,9 @@ use std::sync::Arc;
 /// per vertex.
 pub const PIXEL_LIGHTS: usize = 4;
 
-/// 4-float slots per vertex: the per-vertex lights' radiance, then one per pixel light.
-const SLOTS: usize = 1 + PIXEL_LIGHTS;
+/// 4-float slots per vertex: the per-vertex lights' radiance, the diffuse environment light
+/// (albedo not applied), then one per pixel light.
+const SLOTS: usize = 2 + PIXEL_LIGHTS;
 
 /// A Bevy vector as kage's.
 pub fn kage_vec(v: Vec3) -> glam::Vec3 {
@@ -148,6 +150,8 @@ pub struct Shading {
     last: Option<Vec<u32>>,
     /// Lights already warned about leaving their declared reach.
     warned: HashSet<usize>,
+    /// The environment's shading, when the pack has an environment.
+    environment: Option<EnvironmentShading>,
 }
 
 impl Shading {
@@ -171,7 +175,8 @@ impl Shading {
                 inst.mesh.positions.iter().zip(&inst.mesh.normals).map(at).collect()
             })
             .collect();
-        Self { pack, groups, instances, lights, terms, baked, last: None, warned: HashSet::new() }
+        let environment = EnvironmentShading::new(&pack);
+        Self { pack, groups, instances, lights, terms, baked, last: None, warned: HashSet::new(), environment }
     }
 }
 
@@ -239,8 +244,11 @@ pub struct KageStats {
 }
 
 /// The bits of everything the terms depend on.
-fn key(eye: glam::Vec3, poses: &[glam::Affine3A], lights: &[FlatLight]) -> Vec<u32> {
+fn key(eye: glam::Vec3, poses: &[glam::Affine3A], lights: &[FlatLight], env: Option<&KageEnvironment>) -> Vec<u32> {
     let mut k: Vec<u32> = eye.to_array().map(f32::to_bits).to_vec();
+    if let Some(e) = env {
+        k.extend(e.rotation.to_array().into_iter().chain([e.intensity]).map(f32::to_bits));
+    }
     k.extend(poses.iter().flat_map(|p| p.to_cols_array()).map(f32::to_bits));
     for l in lights {
         k.extend(l.points.iter().flat_map(|p| p.to_array()).chain(l.radiance.to_array()).map(f32::to_bits));
@@ -251,7 +259,7 @@ fn key(eye: glam::Vec3, poses: &[glam::Affine3A], lights: &[FlatLight]) -> Vec<u
 /// Shades every spawned pack whose eye, groups or lights moved: its per-vertex terms and its
 /// per-pixel lights, into the buffers its materials read.
 pub(crate) fn shade_lights(
-    mut scenes: Query<&mut Shading>,
+    mut scenes: Query<(&mut Shading, Option<&KageEnvironment>)>,
     globals: Query<&GlobalTransform>,
     lights: Query<(&KageLight, &GlobalTransform, Option<&RectLight>, &InheritedVisibility)>,
     cameras: Query<(&Camera, &GlobalTransform), With<Camera3d>>,
@@ -273,16 +281,24 @@ pub(crate) fn shade_lights(
         cameras.iter().filter(|(c, _)| c.is_active).map(|(c, t)| (c.order, kage_vec(t.translation()))).collect();
     active.sort_by_key(|c| c.0);
     let Some(&(_, eye)) = active.last() else { return };
-    for mut s in &mut scenes {
+    for (mut s, env) in &mut scenes {
         let poses: Vec<glam::Affine3A> =
             s.groups.iter().map(|g| globals.get(*g).map_or(glam::Affine3A::IDENTITY, kage_affine)).collect();
         let placed = placed_lights(&mut s, &lights);
-        let key = key(eye, &poses, &placed);
+        let key = key(eye, &poses, &placed, env);
         if s.last.as_ref() == Some(&key) {
             continue;
         }
         let pixel_lights = if per_pixel { placed.len().min(PIXEL_LIGHTS) } else { 0 };
-        let terms = vertex_terms(&s, &poses, &placed, pixel_lights, eye);
+        let mut terms = vertex_terms(&s, &poses, &placed, pixel_lights, eye);
+        let s = &mut *s;
+        if let Some(e) = s.environment.as_mut() {
+            let (rotation, intensity) = env.map_or((Quat::IDENTITY, 1.0), |e| (e.rotation, e.intensity));
+            let light = e.light(&s.pack, &poses, rotation, intensity);
+            for (row, l) in terms.chunks_exact_mut(SLOTS * 4).zip(light.iter().flatten()) {
+                row[4..7].copy_from_slice(&l.to_array());
+            }
+        }
         vertices += terms.len() / (SLOTS * 4);
         let _ = buffers.insert(s.terms.vertices.id(), buffer("kage vertices", &terms));
         let pixel: Vec<u32> = placed.iter().take(pixel_lights).flat_map(light_words).collect();
@@ -337,7 +353,7 @@ fn vertex_terms(
                 row[..3].copy_from_slice(&shader.shade(per_vertex, vis).to_array());
                 let (_, pairs) = shader.lobe_pairs(per_pixel, vis);
                 for (k, [d, sp]) in pairs.iter().enumerate() {
-                    row[4 * (k + 1)..4 * (k + 2)].copy_from_slice(&[d[0], d[1], sp[0], sp[1]]);
+                    row[4 * (k + 2)..4 * (k + 3)].copy_from_slice(&[d[0], d[1], sp[0], sp[1]]);
                 }
                 row
             })

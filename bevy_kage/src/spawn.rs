@@ -3,6 +3,7 @@
 //! `RectLight`s (local XY plane, emitting toward −Z), other polygons a [`KageLight`] with its
 //! polygon; either way the plugin, not Bevy, lights with them ([`keep_baked_lights_out`]).
 
+use crate::environment::KageEnvironment;
 use crate::loader::KagePack;
 use crate::material::{KageLights, KageMaterial, KageParams};
 use crate::shade::{self, Shading};
@@ -76,6 +77,7 @@ pub(crate) fn spawn_scenes(
     mut materials: ResMut<Assets<KageMaterial>>,
     mut emitters: ResMut<Assets<StandardMaterial>>,
     mut buffers: ResMut<Assets<ShaderBuffer>>,
+    mut images: ResMut<Assets<Image>>,
 ) {
     for (entity, scene) in &scenes {
         if let Some(LoadState::Failed(e)) = server.get_load_state(&scene.pack) {
@@ -89,11 +91,9 @@ pub(crate) fn spawn_scenes(
         }
         let Some(loaded) = packs.get(&scene.pack) else { continue };
         let pack = loaded.pack.clone();
-        if pack.environment.is_some() {
-            warn!(
-                "the pack's environment light is not shaded by bevy_kage yet: add an EnvironmentMapLight to light it"
-            );
-        }
+        let environment = pack.environment.as_ref().map(|e| {
+            KageEnvironment::new(images.add(crate::environment::skybox_image(e, crate::environment::SKYBOX_SIZE)))
+        });
         let terms = shade::Terms::new(&pack, &mut buffers);
         let mut spawner = Spawner { commands: &mut commands, meshes: &mut meshes, emitters: &mut emitters };
         let groups: Vec<Entity> = pack
@@ -116,9 +116,12 @@ pub(crate) fn spawn_scenes(
         if scene.camera
             && let Some(c) = &pack.camera
         {
-            spawner.camera(c, pack.header.preview_exposure, entity);
+            spawner.camera(c, pack.header.preview_exposure, entity, environment.as_ref());
         }
         commands.entity(entity).insert(Shading::new(pack, groups, instances, lights, terms));
+        if let Some(e) = environment {
+            commands.entity(entity).insert(e);
+        }
     }
 }
 
@@ -224,10 +227,14 @@ impl Spawner<'_, '_, '_> {
 
     /// The pack's camera, its exposure the preview's; tonemapped with ACES (which needs no
     /// lookup tables, so no Bevy feature beyond the plugin's).
-    fn camera(&mut self, c: &Camera, exposure_stops: f32, parent: Entity) {
+    fn camera(&mut self, c: &Camera, exposure_stops: f32, parent: Entity, env: Option<&KageEnvironment>) {
         let exposure = bevy::camera::Exposure { ev100: exposure_ev100(exposure_stops) };
         let tonemapping = bevy::core_pipeline::tonemapping::Tonemapping::AcesFitted;
-        self.commands.spawn((Camera3d::default(), camera_view(c), exposure, tonemapping, KageCamera, ChildOf(parent)));
+        let camera = (Camera3d::default(), camera_view(c), exposure, tonemapping, KageCamera, ChildOf(parent));
+        let mut camera = self.commands.spawn(camera);
+        if let Some(e) = env {
+            camera.insert(e.skybox());
+        }
     }
 }
 

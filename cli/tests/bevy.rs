@@ -4,7 +4,7 @@
 
 use bevy::prelude::*;
 use bevy_kage::headless::{Headless, windowless};
-use bevy_kage::{KageInstance, KageLight, KagePack, KageScene, ShadeOn};
+use bevy_kage::{KageGroup, KageInstance, KageLight, KagePack, KageScene, ShadeOn};
 use std::path::Path;
 use std::time::Duration;
 
@@ -22,40 +22,72 @@ const SIZE: (u32, u32) = (240, 180);
 #[test]
 fn bevy_shades_a_pack_as_kage_renders_it() {
     for scene in ["cube_on_plane", "teapot_quad_light"] {
-        let d = scratch(&format!("bevy-{scene}"));
-        let pack = d.join(format!("{scene}.glb"));
-        let db = d.join("bake.redb");
-        let o = kage(&["export", &asset(&format!("scenes/{scene}.gltf")), "-o", p(&pack), "--db", p(&db)]);
-        assert!(o.status.success(), "{}", stderr(&o));
-        let kage_at = |moves: &[&str]| {
-            let exr = d.join(format!("kage{}.exr", moves.len()));
-            let size = format!("{}x{}", SIZE.0, SIZE.1);
-            let args = ["render", "--pack", p(&pack), "--gpu", "--indirect", "none", "--size", &size, "-o", p(&exr)];
-            let o = kage(&[&args[..], moves].concat());
-            assert!(o.status.success(), "{}", stderr(&o));
-            image::open(&exr).unwrap().to_rgba32f().pixels().map(|p| Vec3::new(p[0], p[1], p[2])).collect::<Vec<_>>()
+        let move_light = |world: &mut World| {
+            let mut lights = world.query::<(&KageLight, &mut Transform)>();
+            let (_, mut t) = lights.iter_mut(world).min_by_key(|(l, _)| l.index).expect("the pack has a light");
+            t.translation += Vec3::new(0.5, 0.0, 0.0);
         };
-        let (kage_still, kage_moved) = (kage_at(&[]), kage_at(&["--move-light", "light=0.5,0,0"]));
-        let (bevy_still, bevy_moved) = render_in_bevy(&pack, Vec3::new(0.5, 0.0, 0.0));
-        // Beside kage's images, for a look when this fails.
-        for (name, pixels) in [("bevy0.exr", &bevy_still), ("bevy2.exr", &bevy_moved)] {
-            let rgb = pixels.iter().flat_map(|p| p.to_array()).collect();
-            image::Rgb32FImage::from_raw(SIZE.0, SIZE.1, rgb).unwrap().save(d.join(name)).unwrap();
-        }
-        let (still, after) = (error(&bevy_still, &kage_still), error(&bevy_moved, &kage_moved));
-        println!(
-            "{scene}: relative RMSE over surface pixels {:.2} % as baked, {:.2} % with the light moved",
-            100.0 * still,
-            100.0 * after
-        );
-        assert!(still <= 0.05 && after <= 0.05, "{scene}: {still} {after}");
-        // The move is seen: what it changes in kage's image, it changes in Bevy's.
-        let (kage_change, bevy_change) = (error(&kage_moved, &kage_still), error(&bevy_moved, &bevy_still));
-        assert!(
-            kage_change > 0.1 && (bevy_change / kage_change - 1.0).abs() < 0.2,
-            "{scene}: {kage_change} {bevy_change}"
-        );
+        compare(scene, &[], &["--move-light", "light=0.5,0,0"], move_light);
     }
+}
+
+/// `cube_on_plane.gltf` under an environment (`city.hdr`: a sky without a sun) in kage and in
+/// Bevy, with the cube where it was baked and moved 0.3 m: the environment's light, its
+/// self-shadowing and the shadow the cube casts on the ground (another rigid group) within 5 %
+/// of each other, and the move changes both images alike.
+#[test]
+fn bevy_shades_a_packs_environment_as_kage_renders_it() {
+    let move_cube = |world: &mut World| {
+        let mut groups = world.query_filtered::<(&Name, &mut Transform), With<KageGroup>>();
+        let (_, mut t) = groups.iter_mut(world).find(|(n, _)| n.as_str() == "cube").expect("the pack has a cube");
+        t.translation += Vec3::new(0.3, 0.0, 0.0);
+    };
+    compare("cube_on_plane", &["--env", &asset("envmaps/city.hdr")], &["--move", "cube=0.3,0,0"], move_cube);
+}
+
+/// Exports `scene` (with `export_args`), renders it in kage and in Bevy as baked and after a
+/// change (kage's `change` arguments, Bevy's `change_world`), and checks both within 5 % of
+/// each other and the change seen alike.
+fn compare(scene: &str, export_args: &[&str], change: &[&str], change_world: impl FnOnce(&mut World)) {
+    let d = scratch(&format!("bevy-{scene}{}", export_args.len()));
+    let pack = d.join(format!("{scene}.glb"));
+    let db = d.join("bake.redb");
+    let args = ["export", &asset(&format!("scenes/{scene}.gltf")), "-o", p(&pack), "--db", p(&db)];
+    let o = kage(&[&args[..], export_args].concat());
+    assert!(o.status.success(), "{}", stderr(&o));
+    let kage_at = |moves: &[&str]| {
+        let exr = d.join(format!("kage{}.exr", moves.len()));
+        let size = format!("{}x{}", SIZE.0, SIZE.1);
+        let args = ["render", "--pack", p(&pack), "--gpu", "--indirect", "none", "--size", &size, "-o", p(&exr)];
+        let o = kage(&[&args[..], moves].concat());
+        assert!(o.status.success(), "{}", stderr(&o));
+        image::open(&exr).unwrap().to_rgba32f().pixels().map(|p| Vec3::new(p[0], p[1], p[2])).collect::<Vec<_>>()
+    };
+    let (kage_still, kage_moved) = (kage_at(&[]), kage_at(change));
+    let (bevy_still, bevy_moved) = render_in_bevy(&pack, change_world);
+    // Beside kage's images, for a look when this fails.
+    for (name, pixels) in [("bevy0.exr", &bevy_still), ("bevy2.exr", &bevy_moved)] {
+        let rgb = pixels.iter().flat_map(|p| p.to_array()).collect();
+        image::Rgb32FImage::from_raw(SIZE.0, SIZE.1, rgb).unwrap().save(d.join(name)).unwrap();
+    }
+    let (still, after) = (error(&bevy_still, &kage_still), error(&bevy_moved, &kage_moved));
+    println!(
+        "{scene} {export_args:?}: relative RMSE over surface pixels {:.2} % as baked, {:.2} % after {change:?}",
+        100.0 * still,
+        100.0 * after
+    );
+    assert!(still <= 0.05 && after <= 0.05, "{scene}: {still} {after}");
+    // The change is seen: what it changes in kage's image, it changes in Bevy's.
+    let (kage_change, bevy_change) = (error(&kage_moved, &kage_still), error(&bevy_moved, &bevy_still));
+    println!(
+        "{scene}: the change alters {:.1} % of kage's image, {:.1} % of Bevy's",
+        100.0 * kage_change,
+        100.0 * bevy_change
+    );
+    assert!(
+        kage_change > 0.05 && (bevy_change / kage_change - 1.0).abs() < 0.2,
+        "{scene}: {kage_change} {bevy_change}"
+    );
 }
 
 /// A pack damaged after it was written fails to load with an error naming the damage; the
@@ -111,15 +143,12 @@ fn error(a: &[Vec3], b: &[Vec3]) -> f32 {
 /// Samples per pixel side: kage's `--gpu` image is drawn at 4× and averaged; so is Bevy's.
 const FINE: u32 = 4;
 
-/// Bevy's images of `pack` as baked and with its first light moved by `offset`.
-fn render_in_bevy(pack: &Path, offset: Vec3) -> (Vec<Vec3>, Vec<Vec3>) {
+/// Bevy's images of `pack` as baked and after `change`.
+fn render_in_bevy(pack: &Path, change: impl FnOnce(&mut World)) -> (Vec<Vec3>, Vec<Vec3>) {
     let fine = (SIZE.0 * FINE, SIZE.1 * FINE);
     let mut bevy = Headless::open(pack, fine, ShadeOn::Pixel).expect("the pack loads, with its camera");
     let still = bevy.settled(Duration::from_secs(300)).expect("Bevy draws the pack");
-    let world = bevy.app.world_mut();
-    let mut lights = world.query::<(&KageLight, &mut Transform)>();
-    let (_, mut t) = lights.iter_mut(world).min_by_key(|(l, _)| l.index).expect("the pack has a light");
-    t.translation += offset;
+    change(bevy.app.world_mut());
     let moved = bevy.settled(Duration::from_secs(300)).expect("Bevy draws the pack");
     (downsample(&still), downsample(&moved))
 }

@@ -842,7 +842,7 @@ fn prt_gpu(ed: &mut Editor, eye: Vec3) -> VertexValues {
         return ed.flat.zeros();
     }
     let shadows = ed.view.method.prt_shadows().unwrap_or(prt::Shadows::SelfOnly);
-    let posed = prt::Posed::new(
+    let posed = prt::pose(
         &ed.doc.scene,
         &ed.flat,
         bake.order,

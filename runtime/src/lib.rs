@@ -22,6 +22,7 @@ pub mod light;
 pub mod material;
 pub mod math;
 pub mod pack;
+pub mod prt;
 pub mod texture;
 
 #[cfg(test)]

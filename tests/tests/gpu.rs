@@ -104,7 +104,7 @@ fn prt_with_moving_groups_on_the_gpu_matches_the_cpu() {
         )
         .vertex_values(&flat);
         let posed =
-            prt::Posed::new(scene, &flat, bake.order, &light, Shadows::WithOthers, &s, &mut SilhouetteMemo::default());
+            prt::pose(scene, &flat, bake.order, &light, Shadows::WithOthers, &s, &mut SilhouetteMemo::default());
         assert!(posed.silhouettes.len() > 1, "the scene has several groups");
         let on_gpu = gpu_prt::shade_vertices(&gpu, &shader, &flat, &posed, eye).unwrap();
         let w = worst(&on_gpu, &cpu);

@@ -151,16 +151,7 @@ fn prt(
         silhouette_res: count(h.silhouette_resolution),
     };
     let coeffs: Vec<DVec3> = h.lighting.iter().map(|c| DVec3::from_array(*c)).collect();
-    let regions: Vec<Region> = h
-        .regions
-        .iter()
-        .map(|r| Region {
-            power: DVec3::from_array(r.power),
-            dir: Vec3::from_array(r.direction),
-            solid_angle: r.solid_angle,
-            spread: r.spread,
-        })
-        .collect();
+    let regions: Vec<Region> = h.regions.iter().map(Region::from).collect();
     let instances = instances.iter_mut().map(|i| i.transfer.take().expect("read with the header")).collect();
     let lobes = prt::lighting::negative_lobes(&coeffs, settings.window);
     let bake = prt::Bake { order: settings.order, instances, stats: prt::Stats::default() };

@@ -1,28 +1,18 @@
 //! Environment lighting in spherical harmonics: projection of an equirectangular map with exact
-//! per-texel solid angles, windowing against ringing, and the rotation of the coefficients into
-//! a rigid group's frame (the transfer never moves; the light does).
+//! per-texel solid angles and the ringing a window leaves. The window and the rotation of the
+//! coefficients into a rigid group's frame (the transfer never moves; the light does) are the
+//! run time's ([`kage_runtime::prt`]), re-exported here.
 
 use crate::math::sh;
 use crate::scene::EnvironmentLight;
 use crate::scene::environment::uv_to_dir;
-use glam::{DMat3, DVec3, Quat, Vec2};
-use kage_runtime::pack::schema;
+use glam::{DVec3, Quat, Vec2};
+pub use kage_runtime::prt::{Window, to_group_frame};
 use rayon::prelude::*;
 use std::f64::consts::PI;
 
 /// RGB SH coefficients: `coeffs[k]` is the colour of basis function k.
 pub type RgbCoeffs = Vec<DVec3>;
-
-/// A band-wise window `h_l` applied to reconstructions to tame Gibbs ringing.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Window {
-    /// No windowing (h_l = 1).
-    None,
-    /// Hanning: h_l = (1 + cos(π l / n)) / 2 for order n.
-    Hanning,
-    /// Lanczos σ factors: h_l = sinc(l / n).
-    Lanczos,
-}
 
 impl crate::named::Named for Window {
     const ALL: &'static [Window] = &[Window::None, Window::Hanning, Window::Lanczos];
@@ -41,24 +31,6 @@ impl crate::named::Named for Window {
             Self::Hanning => "Hanning window",
             Self::Lanczos => "Lanczos σ factors",
         }
-    }
-}
-
-impl Window {
-    /// The factor of band `l` at order `order`.
-    pub fn factor(self, l: usize, order: usize) -> f64 {
-        let x = l as f64 / order as f64;
-        match self {
-            Window::None => 1.0,
-            Window::Hanning => 0.5 * (1.0 + (PI * x).cos()),
-            Window::Lanczos if l == 0 => 1.0,
-            Window::Lanczos => (PI * x).sin() / (PI * x),
-        }
-    }
-
-    /// One factor per coefficient (n² entries).
-    pub fn per_coeff(self, order: usize) -> Vec<f64> {
-        (0..order).flat_map(|l| std::iter::repeat_n(self.factor(l, order), 2 * l + 1)).collect()
     }
 }
 
@@ -134,54 +106,6 @@ pub fn fibonacci_direction(i: usize, n: usize) -> DVec3 {
     DVec3::new(r * phi.cos(), r * phi.sin(), z)
 }
 
-/// Coefficients of `f(A d)` given those of `f`, for `A = rotation · mirror` (the world-from-
-/// local linear part of a rigid group, scale removed): the lighting seen in the group's frame.
-pub fn to_group_frame(coeffs: &[DVec3], rotation: DMat3, mirrored: bool) -> RgbCoeffs {
-    let order = (coeffs.len() as f64).sqrt() as usize;
-    // f(R d) has coefficients Rot(Rᵀ)·c (Rotation::new(r) maps f(d) to f(r⁻¹ d)).
-    let rot = sh::Rotation::new(order, rotation.transpose());
-    let mut out = vec![DVec3::ZERO; coeffs.len()];
-    for c in 0..3 {
-        let channel: Vec<f64> = coeffs.iter().map(|v| v[c]).collect();
-        for (o, v) in out.iter_mut().zip(rot.apply(&channel)) {
-            o[c] = v;
-        }
-    }
-    if mirrored {
-        // The mirror flips local z: Y_lm(x, y, −z) = (−1)^(l+|m|) Y_lm(x, y, z).
-        for l in 0..order {
-            for m in -(l as i32)..=l as i32 {
-                if (l + m.unsigned_abs() as usize) % 2 == 1 {
-                    out[sh::index(l, m)] = -out[sh::index(l, m)];
-                }
-            }
-        }
-    }
-    out
-}
-
-/// The window as a pack records it.
-impl From<Window> for schema::Window {
-    fn from(w: Window) -> Self {
-        match w {
-            Window::None => Self::None,
-            Window::Hanning => Self::Hanning,
-            Window::Lanczos => Self::Lanczos,
-        }
-    }
-}
-
-/// The window a pack records.
-impl From<schema::Window> for Window {
-    fn from(w: schema::Window) -> Self {
-        match w {
-            schema::Window::None => Self::None,
-            schema::Window::Hanning => Self::Hanning,
-            schema::Window::Lanczos => Self::Lanczos,
-        }
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -230,25 +154,6 @@ mod tests {
             let got: f64 = sh::eval(3, d).iter().zip(&c).map(|(y, c)| y * c.y).sum();
             let want = f((glam::Quat::from_rotation_y(-0.9) * d.as_vec3()).normalize()) as f64;
             assert!((got - want).abs() < 2e-3, "{got} vs {want}");
-        }
-    }
-
-    #[test]
-    fn group_frame_rotation_matches_reprojection_with_and_without_mirror() {
-        let env = sky();
-        let order = 6;
-        let world = project(&env, order);
-        let q = glam::DQuat::from_euler(glam::EulerRot::YXZ, 0.7, -0.4, 1.9);
-        let r = DMat3::from_quat(q);
-        for mirrored in [false, true] {
-            let got = to_group_frame(&world, r, mirrored);
-            let a = if mirrored { r * DMat3::from_diagonal(DVec3::new(1.0, 1.0, -1.0)) } else { r };
-            // Reference: reconstruct the world coefficients at A·d.
-            let want =
-                sh::project(order, 24, |d| sh::reconstruct(&world.iter().map(|c| c.x).collect::<Vec<_>>(), a * d));
-            for (g, w) in got.iter().zip(&want) {
-                assert!((g.x - w).abs() < 1e-9, "mirrored {mirrored}: {} vs {w}", g.x);
-            }
         }
     }
 

@@ -7,7 +7,8 @@
 //! - [`lighting`]: the environment's SH coefficients (exact texel solid angles), the window
 //!   against ringing, and their rotation into each group's frame every frame;
 //! - [`regions`]: the environment as q area lights (power `B_i`, direction `w_i`, `Ω_i`);
-//! - [`silhouette`]: each other group's silhouette along `w_i`, box-filtered per receiver;
+//! - [`silhouette`]: each other group's silhouette along `w_i`, box-filtered per receiver
+//!   (the run time's, as is [`Posed`]: the lighting posed into the groups, and Eq. 15);
 //! - [`budget`]: SH order, region count and window chosen from an error budget.
 //!
 //! Per frame ([`Frame::prepare`]): `L(p) = ρ · max(0, Ls(p) − Σ_i B_i T(p, w_i) V_o(p, w_i))`
@@ -20,9 +21,10 @@ pub mod glossy;
 pub mod lighting;
 pub mod prefilter;
 pub mod regions;
-pub mod silhouette;
 pub mod sun;
 pub mod transfer;
+
+pub use kage_runtime::prt::{Posed, group_silhouettes, silhouette};
 
 use crate::accel::SceneBvh;
 use crate::material::albedo;
@@ -30,7 +32,7 @@ use crate::math::sh;
 use crate::raster::{self, Primary, SurfaceHit};
 use crate::scene::VertexValues;
 use crate::scene::{FlatScene, Holes, InGroup, PrimitiveId, RigidGroup, Scene, Transform, group_triangles};
-use glam::{Affine3A, DMat3, DVec3, Vec3};
+use glam::{Affine3A, DMat3, Vec3};
 use lighting::{NegativeLobes, RgbCoeffs, Window};
 use rayon::prelude::*;
 use regions::Region;
@@ -244,68 +246,24 @@ pub enum Shadows {
     WithOthers,
 }
 
-/// The lighting posed into every group for one frame: what per-vertex shading needs besides
-/// the bake and the albedo. The CPU path ([`Frame`]) and the GPU shaders share it.
-pub struct Posed {
-    /// SH order used (the bake's, at most the lighting's).
-    pub order: usize,
-    /// Per group index: the windowed SH lighting in the group's frame (n² RGB coefficients).
-    pub lighting: Vec<Vec<DVec3>>,
-    /// Per group index: per region, the windowed SH basis at `w_i` in the group's frame
-    /// (q × n², region-major).
-    pub region_basis: Vec<Vec<f64>>,
-    /// Group index of every instance.
-    pub group_of: Vec<usize>,
-    /// The environment's regions (empty without shadows between groups).
-    pub regions: Vec<Region>,
-    /// Angular width √spread of each region: the box filter's size per unit distance.
-    pub widths: Vec<f32>,
-    /// Per group index: one silhouette per region.
-    pub silhouettes: Vec<Arc<Vec<Silhouette>>>,
-    /// Per group index: the world-from-group rotation (scale removed) and mirror flag.
-    pub frames: Vec<(DMat3, bool)>,
-}
-
-impl Posed {
-    /// Poses `light` into every group of the snapshot; rasterises (or reuses from `memo`) the
-    /// silhouettes for [`Shadows::WithOthers`] in a scene with several groups.
-    pub fn new(
-        scene: &Scene,
-        flat: &FlatScene,
-        bake_order: usize,
-        light: &Lighting,
-        shadows: Shadows,
-        s: &Settings,
-        memo: &mut SilhouetteMemo,
-    ) -> Self {
-        let order = bake_order.min((light.coeffs.len() as f64).sqrt() as usize);
-        let window = light.window.per_coeff(order);
-        let (groups, poses) = group_poses(scene, flat);
-        let group_of: Vec<usize> =
-            flat.instances.iter().map(|i| groups.iter().position(|g| *g == i.group).expect("listed")).collect();
-        let others = shadows == Shadows::WithOthers && groups.len() > 1;
-        let regions = if others { light.regions.clone() } else { Vec::new() };
-        let (lighting, region_basis) = poses
-            .iter()
-            .map(|&(rot, mirrored)| {
-                let local = lighting::to_group_frame(&light.coeffs[..sh::num_coeffs(order)], rot, mirrored);
-                let lw = local.iter().zip(&window).map(|(c, h)| *c * *h).collect();
-                let mirror = if mirrored { DVec3::new(1.0, 1.0, -1.0) } else { DVec3::ONE };
-                let yh = regions
-                    .iter()
-                    .flat_map(|r| {
-                        let d = mirror * (rot.transpose() * r.dir.as_dvec3());
-                        sh::eval(order, d).into_iter().zip(&window).map(|(y, h)| y * h).collect::<Vec<_>>()
-                    })
-                    .collect();
-                (lw, yh)
-            })
-            .unzip();
-        let silhouettes =
-            if others { memo.silhouettes(flat, &group_of, groups.len(), &regions, s) } else { Vec::new() };
-        let widths = regions.iter().map(|r| r.spread.sqrt() as f32).collect();
-        Self { order, lighting, region_basis, group_of, regions, widths, silhouettes, frames: poses }
-    }
+/// Poses `light` into every group of the snapshot; rasterises (or reuses from `memo`) the
+/// silhouettes for [`Shadows::WithOthers`] in a scene with several groups.
+pub fn pose(
+    scene: &Scene,
+    flat: &FlatScene,
+    bake_order: usize,
+    light: &Lighting,
+    shadows: Shadows,
+    s: &Settings,
+    memo: &mut SilhouetteMemo,
+) -> Posed {
+    let (groups, frames) = group_poses(scene, flat);
+    let group_of: Vec<usize> =
+        flat.instances.iter().map(|i| groups.iter().position(|g| *g == i.group).expect("listed")).collect();
+    let others = shadows == Shadows::WithOthers && groups.len() > 1;
+    let regions = if others { light.regions.clone() } else { Vec::new() };
+    let silhouettes = if others { memo.silhouettes(flat, &group_of, groups.len(), &regions, s) } else { Vec::new() };
+    Posed::new(bake_order, &light.coeffs, light.window, regions, frames, group_of, silhouettes)
 }
 
 /// Per instance and vertex, the terms per-pixel PRT shading interpolates (see [`Frame::vertex_terms`]).
@@ -377,7 +335,7 @@ impl Frame {
         memo: &mut SilhouetteMemo,
     ) -> Self {
         let Parts { bake, lighting, settings } = parts;
-        let posed = Posed::new(scene, flat, bake.order, lighting, shadows, settings, memo);
+        let posed = pose(scene, flat, bake.order, lighting, shadows, settings, memo);
         Self::from_posed(flat, bake, posed, eye)
     }
 
@@ -391,7 +349,7 @@ impl Frame {
         shadows: Shadows,
         s: &Settings,
     ) -> Self {
-        let posed = Posed::new(scene, flat, bake.order, light, shadows, s, &mut SilhouetteMemo::default());
+        let posed = pose(scene, flat, bake.order, light, shadows, s, &mut SilhouetteMemo::default());
         let albedo = albedo::head_on(flat);
         Self::from_posed_with(flat, bake, posed, &|i, _| albedo[i])
     }
@@ -408,30 +366,17 @@ impl Frame {
         posed: Posed,
         albedo_of: &(dyn Fn(usize, usize) -> Vec3 + Sync),
     ) -> Self {
-        let (order, q) = (posed.order, posed.regions.len());
+        let q = posed.regions.len();
         let (mut ls, mut albedo, mut shadow_t) = (Vec::new(), Vec::new(), Vec::new());
         for i in 0..flat.instances.len() {
-            let (lw, yh) = (&posed.lighting[posed.group_of[i]], &posed.region_basis[posed.group_of[i]]);
             let count = flat.vertex_count(i);
-            let transfer = |v: usize| &bake.vertex(i, v)[..sh::num_coeffs(order)];
-            let rows: Vec<(Vec3, Vec3)> = (0..count)
-                .into_par_iter()
-                .map(|v| {
-                    let l: DVec3 = transfer(v).iter().zip(lw).map(|(t, c)| *c * *t as f64).sum();
-                    (l.as_vec3(), albedo_of(i, v))
-                })
-                .collect();
+            let rows: Vec<(Vec3, Vec3)> =
+                (0..count).into_par_iter().map(|v| (posed.diffuse(i, bake.vertex(i, v)), albedo_of(i, v))).collect();
             ls.push(rows.iter().map(|r| r.0).collect());
             albedo.push(rows.iter().map(|r| r.1).collect());
             // Vertex-major, one element per (vertex, region): no allocation per vertex.
-            let ts: Vec<f32> = (0..count * q)
-                .into_par_iter()
-                .map(|k| {
-                    let (t, r) = (transfer(k / q), k % q);
-                    let y = &yh[r * t.len()..(r + 1) * t.len()];
-                    (t.iter().zip(y).map(|(t, y)| *t as f64 * y).sum::<f64>()).max(0.0) as f32
-                })
-                .collect();
+            let ts: Vec<f32> =
+                (0..count * q).into_par_iter().map(|k| posed.toward_region(i, bake.vertex(i, k / q), k % q)).collect();
             shadow_t.push(ts);
         }
         Self { ls, albedo, shadow_t, posed }
@@ -446,51 +391,6 @@ impl Frame {
     /// eye, and `T(v, w_i)` (q per vertex, vertex-major) — what per-pixel shading interpolates.
     pub fn vertex_terms(&self) -> VertexTerms<'_> {
         VertexTerms { ls: &self.ls, albedo: &self.albedo, shadow_t: &self.shadow_t }
-    }
-
-    /// `max(0, Ls − Σ_i B_i T_i V_o)` (the albedo multiplies it) at `p` from interpolated `ls`
-    /// and `t`, with `V_o = 1 − Π (1 − V_g)` over the (region, group) `pairs` (sorted by
-    /// region) that are not in group `own`; and the fraction of `Ls` (by luminance) the other
-    /// groups leave, which the specular term ([`glossy`]) is dimmed by.
-    fn radiance(&self, own: usize, ls: Vec3, t: impl Fn(usize) -> f32, p: Vec3, pairs: &[(u16, u16)]) -> (Vec3, f32) {
-        let mut l = ls.as_dvec3();
-        for run in pairs.chunk_by(|a, b| a.0 == b.0) {
-            let r = run[0].0 as usize;
-            let tr = t(r);
-            if tr <= 0.0 {
-                continue;
-            }
-            let width = self.posed.widths[r];
-            let open: f32 = run
-                .iter()
-                .filter(|(_, g)| *g as usize != own)
-                .map(|&(_, g)| 1.0 - self.posed.silhouettes[g as usize][r].occlusion(p, width))
-                .product();
-            if open < 1.0 {
-                l -= self.posed.regions[r].power * (tr * (1.0 - open)) as f64;
-            }
-        }
-        let l = l.max(DVec3::ZERO).as_vec3();
-        let lit = crate::math::luminance(ls.max(Vec3::ZERO));
-        let open = if lit > 0.0 { (crate::math::luminance(l) / lit).clamp(0.0, 1.0) } else { 1.0 };
-        (l, open)
-    }
-
-    /// Every (region, group) pair, sorted by region.
-    fn all_pairs(&self) -> Vec<(u16, u16)> {
-        (0..self.posed.regions.len())
-            .flat_map(|r| (0..self.posed.silhouettes.len()).map(move |g| (r as u16, g as u16)))
-            .collect()
-    }
-
-    /// The pairs whose shadow can reach a sphere (a tile's points).
-    fn pairs_reaching(&self, centre: Vec3, radius: f32) -> Vec<(u16, u16)> {
-        self.all_pairs()
-            .into_iter()
-            .filter(|&(r, g)| {
-                self.posed.silhouettes[g as usize][r as usize].reaches(centre, radius, self.posed.widths[r as usize])
-            })
-            .collect()
     }
 
     /// Per-vertex radiance toward the eye, per instance.
@@ -514,13 +414,13 @@ impl Frame {
                 let (lo, hi) = (0..flat.vertex_count(i))
                     .map(|v| flat.vertex(i, v).0)
                     .fold((Vec3::MAX, Vec3::MIN), |(lo, hi), p| (lo.min(p), hi.max(p)));
-                let pairs = self.pairs_reaching(0.5 * (lo + hi), 0.5 * (hi - lo).length());
+                let pairs = self.posed.pairs_reaching(0.5 * (lo + hi), 0.5 * (hi - lo).length());
                 (0..self.ls[i].len())
                     .into_par_iter()
                     .map(|v| {
                         let (p, _) = flat.vertex(i, v);
                         let t = &self.shadow_t[i][v * q..(v + 1) * q];
-                        let (l, open) = self.radiance(own, self.ls[i][v], |r| t[r], p, &pairs);
+                        let (l, open) = self.posed.radiance(own, self.ls[i][v], |r| t[r], p, &pairs);
                         pick((self.albedo[i][v] * l, open))
                     })
                     .collect()
@@ -530,7 +430,7 @@ impl Frame {
 
     /// Radiance at one primary-ray hit, with the other groups' shadows evaluated there.
     pub fn shade_hit(&self, hit: &SurfaceHit) -> Vec3 {
-        hit.interpolate(&self.albedo[hit.instance]) * self.shade_hit_with(hit, &self.all_pairs()).0
+        hit.interpolate(&self.albedo[hit.instance]) * self.shade_hit_with(hit, &self.posed.all_pairs()).0
     }
 
     /// Diffuse light at `hit` (albedo not applied) and the open fraction (see
@@ -539,7 +439,7 @@ impl Frame {
         let i = hit.instance;
         let q = self.posed.regions.len();
         let t = |r: usize| (0..3).map(|c| self.shadow_t[i][hit.corners[c] * q + r] * hit.weights[c]).sum::<f32>();
-        self.radiance(self.posed.group_of[i], hit.interpolate(&self.ls[i]), t, hit.position, pairs)
+        self.posed.radiance(self.posed.group_of[i], hit.interpolate(&self.ls[i]), t, hit.position, pairs)
     }
 
     /// A `width × height` image with `spp` samples per pixel, the other groups' shadows
@@ -590,7 +490,7 @@ impl Frame {
                 let pairs = if hits.is_empty() {
                     Vec::new()
                 } else {
-                    self.pairs_reaching(0.5 * (lo + hi), 0.5 * (hi - lo).length())
+                    self.posed.pairs_reaching(0.5 * (lo + hi), 0.5 * (hi - lo).length())
                 };
                 cells
                     .iter()
@@ -654,19 +554,11 @@ impl SilhouetteMemo {
             .into_par_iter()
             .map(|g| match self.entries.get(&g) {
                 Some((k, h, sil)) if *k == keys[g] && h.same(&holes[g]) => sil.clone(),
-                _ => Arc::new(group_silhouettes(&tris[g], &holes[g], regions, s)),
+                _ => Arc::new(group_silhouettes(&tris[g], &holes[g], regions, s.silhouette_res)),
             })
             .collect();
         self.entries =
             built.iter().zip(holes).enumerate().map(|(g, (sil, h))| (g, (keys[g], h, sil.clone()))).collect();
         built
     }
-}
-
-/// One silhouette per region of a group's world triangles (open where `holes` says).
-fn group_silhouettes(t: &[[Vec3; 3]], holes: &Holes, regions: &[Region], s: &Settings) -> Vec<Silhouette> {
-    let (lo, hi) = t.iter().flatten().fold((Vec3::MAX, Vec3::MIN), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
-    let centre = 0.5 * (lo + hi);
-    let radius = t.iter().flatten().map(|p| p.distance(centre)).fold(0.0f32, f32::max);
-    regions.par_iter().map(|r| Silhouette::build(t, holes, centre, radius, r.dir, s.silhouette_res)).collect()
 }

@@ -7,22 +7,9 @@
 
 use super::lighting::texels;
 use crate::scene::EnvironmentLight;
-use glam::{DVec3, Vec3};
+use glam::DVec3;
 
-/// One region of the environment.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Region {
-    /// Power `B_i = ∫_{U_i} L dω` (RGB).
-    pub power: DVec3,
-    /// Power-weighted centroid direction `w_i` (world, unit).
-    pub dir: Vec3,
-    /// Solid angle `Ω_i` of the Voronoi region.
-    pub solid_angle: f64,
-    /// Angular extent of the region's power, `2π · E_power[|d − w_i|²]`, as a solid angle: the
-    /// size of the area light it stands for (a sun inside a big sky region is still small).
-    /// Equals the solid angle for a uniformly bright disc-shaped region.
-    pub spread: f64,
-}
+pub use kage_runtime::prt::Region;
 
 /// Lloyd iterations of the relaxation.
 const LLOYD_ITERATIONS: usize = 16;
@@ -140,6 +127,7 @@ fn initial_seeds(cells: &[(DVec3, f64)], q: usize) -> Vec<DVec3> {
 mod tests {
     use super::*;
     use crate::scene::EnvMap;
+    use glam::Vec3;
 
     fn sun_sky(ratio: f32) -> EnvironmentLight {
         let (w, h) = (256, 128);

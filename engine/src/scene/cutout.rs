@@ -82,6 +82,17 @@ pub struct Holes {
     masks: Vec<Mask>,
 }
 
+/// The silhouettes of shadows between groups leave a cut-out's holes uncovered.
+impl kage_runtime::prt::silhouette::Openings for Holes {
+    fn cuts(&self, t: usize) -> bool {
+        Holes::cuts(self, t)
+    }
+
+    fn open(&self, t: usize, b: Vec2) -> bool {
+        Holes::open(self, t, b)
+    }
+}
+
 impl Holes {
     /// The holes of one instance's triangles, in mesh order: none without a cut-out.
     /// `mirrored` swaps corners 1 and 2 as [`crate::scene::flatten`] does.

@@ -5,6 +5,7 @@
 pub mod color;
 pub mod cubemap;
 pub mod distribution;
+pub mod equirect;
 pub mod frame;
 pub mod ggx;
 pub mod hsh;

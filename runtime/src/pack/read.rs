@@ -8,6 +8,7 @@ use super::{EXTENSION, SEALED, VERSIONS, integrity, ranges, schema};
 use crate::bspvt::{BakedInstance, layout};
 use crate::camera::{Camera, Projection};
 use crate::light::FlatLight;
+use crate::math::equirect;
 use crate::texture::Wrap;
 use glam::{Affine3A, Mat4, Quat, Vec2, Vec3};
 use serde::Deserialize;
@@ -133,6 +134,15 @@ pub struct Environment {
     pub intensity: f32,
     /// Rotation about +Y, radians.
     pub rotation: f32,
+}
+
+impl Environment {
+    /// What a camera sees along world direction `dir`: the map filtered bilinearly, turned
+    /// and scaled as the light is.
+    pub fn background(&self, dir: Vec3) -> Vec3 {
+        let uv = equirect::dir_to_uv(Quat::from_rotation_y(-self.rotation) * dir);
+        equirect::bilinear(self.width, self.height, &self.texels, uv) * self.intensity
+    }
 }
 
 impl Pack {

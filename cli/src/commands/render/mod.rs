@@ -455,7 +455,7 @@ fn prt_gpu(job: &Job, prt::Parts { bake, lighting, settings }: prt::Parts, shado
     let gpu = gpu_device()?;
     let flat = &renderer.flat;
     let mut memo = prt::SilhouetteMemo::default();
-    let posed = prt::Posed::new(scene, flat, bake.order, lighting, shadows, settings, &mut memo);
+    let posed = prt::pose(scene, flat, bake.order, lighting, shadows, settings, &mut memo);
     let shader = kage_gpu::prt::PrtShader::new(&gpu, &kage_gpu::Shaders::embedded(), bake, posed.order)?;
     let start = Instant::now();
     let values = kage_gpu::prt::shade_vertices(&gpu, &shader, flat, &posed, camera.eye())?;

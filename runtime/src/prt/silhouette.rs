@@ -12,9 +12,30 @@
 //! along `w`. At `R → 0⁺` the box shrinks to one texel, so the two cases meet continuously.
 
 use crate::math::frame::Frame;
-use crate::scene::Holes;
 use glam::{Vec2, Vec3};
 use wide::f32x8;
+
+/// Where a list of triangles is open (cut out by a mask): the silhouette leaves those texels
+/// uncovered, as rays pass there.
+pub trait Openings: Sync {
+    /// Whether triangle `t` has openings at all (most are solid: one branch).
+    fn cuts(&self, t: usize) -> bool;
+    /// Whether triangle `t` is open at barycentrics `b` = (b1, b2) of its corners.
+    fn open(&self, t: usize, b: Vec2) -> bool;
+}
+
+/// Triangles without openings.
+pub struct Solid;
+
+impl Openings for Solid {
+    fn cuts(&self, _: usize) -> bool {
+        false
+    }
+
+    fn open(&self, _: usize, _: Vec2) -> bool {
+        false
+    }
+}
 
 /// A silhouette's lookup parameters (see [`Silhouette::params`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -64,7 +85,14 @@ pub struct Silhouette {
 impl Silhouette {
     /// Rasterises `triangles` (world; open where `holes` says) seen along unit `w`, on a `res²`
     /// grid covering the bounding sphere (`centre`, `radius`).
-    pub fn build(triangles: &[[Vec3; 3]], holes: &Holes, centre: Vec3, radius: f32, w: Vec3, res: usize) -> Self {
+    pub fn build(
+        triangles: &[[Vec3; 3]],
+        holes: &dyn Openings,
+        centre: Vec3,
+        radius: f32,
+        w: Vec3,
+        res: usize,
+    ) -> Self {
         let frame = Frame::from_normal(w);
         let radius = radius.max(1e-6);
         let res = res.clamp(2, 4096);
@@ -124,7 +152,7 @@ impl Silhouette {
     /// coordinates all ≥ 0) and where it is not open (`cut`: its holes and index), eight
     /// texels of a row at a time. The projection is affine, so the plane's barycentrics are
     /// the triangle's.
-    fn rasterise(&mut self, t: &[Vec3; 3], cut: Option<(&Holes, usize)>) {
+    fn rasterise(&mut self, t: &[Vec3; 3], cut: Option<(&dyn Openings, usize)>) {
         let q = t.map(|p| self.texel_coords(p));
         let z = t.map(|p| f32x8::splat(p.dot(self.frame.n)));
         let area = (q[1] - q[0]).perp_dot(q[2] - q[0]);
@@ -276,7 +304,7 @@ mod tests {
 
     fn sil(w: Vec3) -> Silhouette {
         // Radius 1 at 128² puts the square's edges on texel boundaries.
-        Silhouette::build(&square(), &Holes::default(), Vec3::new(0.0, 1.0, 0.0), 1.0, w, 128)
+        Silhouette::build(&square(), &Solid, Vec3::new(0.0, 1.0, 0.0), 1.0, w, 128)
     }
 
     #[test]
@@ -359,8 +387,8 @@ mod tests {
         }));
         tris.push([Vec3::ZERO, Vec3::X, 2.0 * Vec3::X]);
         for (w, res) in [(Vec3::Y, 128), (Vec3::new(0.3, 1.0, -0.2).normalize(), 61)] {
-            let fast = Silhouette::build(&tris, &Holes::default(), Vec3::ZERO, 1.5, w, res);
-            let mut slow = Silhouette::build(&[], &Holes::default(), Vec3::ZERO, 1.5, w, res);
+            let fast = Silhouette::build(&tris, &Solid, Vec3::ZERO, 1.5, w, res);
+            let mut slow = Silhouette::build(&[], &Solid, Vec3::ZERO, 1.5, w, res);
             for t in &tris {
                 rasterise_scalar(&mut slow, t);
             }
@@ -373,7 +401,7 @@ mod tests {
     #[test]
     fn the_covered_bounds_are_those_of_the_covered_texels() {
         let tilted = sil(Vec3::new(0.3, 1.0, -0.2).normalize());
-        let empty = Silhouette::build(&[], &Holes::default(), Vec3::ZERO, 1.0, Vec3::Y, 16);
+        let empty = Silhouette::build(&[], &Solid, Vec3::ZERO, 1.0, Vec3::Y, 16);
         assert_eq!(empty.covered, (Vec2::MAX, Vec2::MIN), "nothing covered: an empty box");
         for s in [sil(Vec3::Y), tilted] {
             let n = s.res;
@@ -393,7 +421,7 @@ mod tests {
         // inside the bounding slab (R ≤ 0) and still shadowed by the top.
         let mut tris = square();
         tris.extend(square().iter().map(|t| t.map(|p| p + Vec3::Y)));
-        let s = Silhouette::build(&tris, &Holes::default(), Vec3::new(0.0, 1.5, 0.0), 0.9, Vec3::Y, 64);
+        let s = Silhouette::build(&tris, &Solid, Vec3::new(0.0, 1.5, 0.0), 0.9, Vec3::Y, 64);
         assert_eq!(s.occlusion(Vec3::new(0.0, 1.5, 0.0), 0.3), 1.0);
         assert_eq!(s.occlusion(Vec3::new(0.0, 2.2, 0.0), 0.3), 0.0, "above every occluder");
         assert_eq!(s.occlusion(Vec3::new(0.8, 1.5, 0.0), 0.3), 0.0, "beside it");
