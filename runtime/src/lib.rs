@@ -4,7 +4,8 @@
 //! techniques share ([`math`]: SH, HSH, LTC, GGX, cube maps, polygons, sampling), materials
 //! ([`material`]), lights ([`light`]), cameras ([`camera`]) and textures ([`texture`]) as the
 //! shading reads them,
-//! BSPVT's vertex records with their LTC shading ([`bspvt`]), and asset packs' container,
+//! BSPVT's vertex records with their LTC shading ([`bspvt`]), PRT's per-frame shading between
+//! rigid groups ([`prt`]), and asset packs' container,
 //! records, integrity and ranges ([`pack`]).
 //!
 //! ## Design and guarantees
