@@ -1,10 +1,12 @@
-//! The pack's environment light at run time: PRT's diffuse term per vertex, with the
-//! self-shadowing its transfer holds and the shadows that rigid groups cast on each other
-//! (`kage_runtime::prt`, the code `kage render` runs). Each frame the environment's SH
-//! lighting is rotated into every group's frame as the group entity is posed now, and the
-//! other groups' silhouettes are rasterised along the environment's regions again for the
-//! groups that moved; a vertex's light is the PRT paper's Eq. 15 at its current position.
-//! The albedo is applied per pixel (textures and the view's Fresnel as the pixel sees them).
+//! The pack's environment light at run time, per vertex (`kage_runtime::prt`, the code
+//! `kage render` runs):
+//! - the diffuse term: the environment's SH lighting rotated into every group's frame as the
+//!   group entity is posed now, less what the other groups' silhouettes along the
+//!   environment's regions take (the PRT paper's Eq. 15); silhouettes are rasterised again for
+//!   the groups that moved, and the albedo is applied per pixel;
+//! - the specular term on glossy and metal surfaces: the map's reflection in the GGX lobe
+//!   (filtered importance sampling of its mip chain) times the lobe's visible fraction from
+//!   the vertex's transfer and the share of the diffuse light the other groups leave.
 
 use bevy::asset::RenderAssetUsages;
 use bevy::light::Skybox;
@@ -13,7 +15,11 @@ use bevy::render::render_resource::{
     Extent3d, TextureDimension, TextureFormat, TextureViewDescriptor, TextureViewDimension,
 };
 use glam::{DMat3, DVec3, Vec3 as KVec3};
+use kage_runtime::material::{Bsdf, Material};
+use kage_runtime::math::ggx;
 use kage_runtime::pack::Pack;
+use kage_runtime::prt::glossy::{Lobe, dominant_direction};
+use kage_runtime::prt::prefilter::Prefiltered;
 use kage_runtime::prt::silhouette::{Silhouette, Solid};
 use kage_runtime::prt::{Posed, Region, Window, group_silhouettes, to_group_frame};
 use rayon::prelude::*;
@@ -113,14 +119,29 @@ pub(crate) struct EnvironmentShading {
     triangles: Vec<Vec<[KVec3; 3]>>,
     /// Per group: the pose and environment its silhouettes were rasterised for, and them.
     silhouettes: Vec<Option<(Vec<u32>, Arc<Vec<Silhouette>>)>>,
-    /// The inputs of [`Self::light`], and per instance and vertex its diffuse light.
-    last: Option<(Vec<u32>, Vec<Vec<KVec3>>)>,
+    /// The map's mip chain as baked (placed at baked rotation and intensity).
+    chain: Prefiltered,
+    /// The lobe's visible fraction at the transfer's order.
+    lobe: Lobe,
+    /// The groups' and the environment's placement the diffuse light was computed for, and it.
+    last: Option<(Vec<u32>, Lit)>,
+    /// The same and the eye the specular term was computed for, and the light toward it.
+    shaded: Option<(Vec<u32>, Vec<Vec<(KVec3, KVec3)>>)>,
+}
+
+/// The diffuse environment light of the groups as last posed.
+struct Lit {
+    /// Per instance and vertex: the diffuse light (albedo not applied) and the share of it
+    /// the other groups leave.
+    vertices: Vec<Vec<(KVec3, f32)>>,
+    /// Per group: world-from-group rotation and mirror flag.
+    frames: Vec<(DMat3, bool)>,
 }
 
 impl EnvironmentShading {
     /// The environment of `pack`, if it has one with a transfer.
     pub(crate) fn new(pack: &Pack) -> Option<Self> {
-        let h = pack.header.prt.as_ref()?;
+        let (h, env) = (pack.header.prt.as_ref()?, pack.environment.as_ref()?);
         if pack.instances.iter().any(|i| i.transfer.is_none()) {
             return None;
         }
@@ -130,7 +151,10 @@ impl EnvironmentShading {
             triangles[inst.group].extend(inst.mesh.triangles.iter().map(|t| t.map(at)));
         }
         let regions = if pack.groups.len() > 1 { h.regions.iter().map(Region::from).collect() } else { Vec::new() };
+        let chain = Prefiltered::new(env.width, env.height, env.texels.clone(), env.intensity, env.rotation);
         Some(Self {
+            lobe: Lobe::new(h.order as usize, h.window.into()),
+            chain,
             order: h.order as usize,
             coeffs: h.lighting.iter().map(|c| DVec3::from_array(*c)).collect(),
             window: h.window.into(),
@@ -139,32 +163,53 @@ impl EnvironmentShading {
             silhouettes: vec![None; triangles.len()],
             triangles,
             last: None,
+            shaded: None,
         })
     }
 
-    /// Per instance and vertex, the diffuse environment light (albedo not applied) with the
-    /// groups posed at `poses` (world from group) and the environment turned by `rotation` and
-    /// scaled by `intensity` from where it was baked.
+    /// Per instance and vertex, the environment's light toward `eye`: the diffuse light
+    /// (albedo not applied: the pixel's multiplies it) and the specular term (radiance), with
+    /// the groups posed at `poses` (world from group) and the environment turned by `rotation`
+    /// and scaled by `intensity` from where it was baked.
     pub(crate) fn light(
         &mut self,
         pack: &Pack,
         poses: &[glam::Affine3A],
+        eye: KVec3,
         rotation: Quat,
         intensity: f32,
-    ) -> &[Vec<KVec3>] {
+    ) -> &[Vec<(KVec3, KVec3)>] {
         let env = Placement { rotation, intensity };
         let key = key(poses, env);
+        let toward: Vec<u32> = key.iter().copied().chain(eye.to_array().map(f32::to_bits)).collect();
+        if self.shaded.as_ref().is_some_and(|(k, _)| *k == toward) {
+            return &self.shaded.as_ref().expect("just checked").1;
+        }
         if self.last.as_ref().is_none_or(|(k, _)| *k != key) {
             let posed = self.pose(pack, poses, env);
-            let light = pack
+            let vertices = pack
                 .instances
                 .iter()
                 .enumerate()
                 .map(|(i, inst)| instance_light(&posed, i, inst, &(poses[inst.group] * inst.local)))
                 .collect();
-            self.last = Some((key, light));
+            self.last = Some((key, Lit { vertices, frames: posed.frames }));
         }
-        &self.last.as_ref().expect("just computed").1
+        let lit = &self.last.as_ref().expect("just computed").1;
+        let (to_map, baked) = self.chain.placement();
+        let turn = glam::Quat::from_array(rotation.normalize().to_array());
+        let chain = self.chain.placed(to_map * turn.inverse(), baked * intensity);
+        let specular = Specular { chain: &chain, lobe: &self.lobe, eye };
+        let shaded = pack
+            .instances
+            .iter()
+            .zip(&lit.vertices)
+            .map(|(inst, diffuse)| {
+                let frame = lit.frames[inst.group];
+                specular.instance(inst, &(poses[inst.group] * inst.local), frame, diffuse)
+            })
+            .collect();
+        &self.shaded.insert((toward, shaded)).1
     }
 
     /// The lighting posed into every group, the silhouettes of the groups that moved
@@ -227,8 +272,13 @@ fn key(poses: &[glam::Affine3A], env: Placement) -> Vec<u32> {
 }
 
 /// The diffuse environment light at every vertex of instance `i`, placed at `world` (world
-/// from instance).
-fn instance_light(posed: &Posed, i: usize, inst: &kage_runtime::pack::Instance, world: &glam::Affine3A) -> Vec<KVec3> {
+/// from instance), and the share of it the other groups leave.
+fn instance_light(
+    posed: &Posed,
+    i: usize,
+    inst: &kage_runtime::pack::Instance,
+    world: &glam::Affine3A,
+) -> Vec<(KVec3, f32)> {
     let transfer = inst.transfer.as_deref().expect("checked when the shading was made");
     let n2 = transfer.len() / inst.mesh.positions.len().max(1);
     let points: Vec<KVec3> = inst.mesh.positions.iter().map(|p| world.transform_point3(*p)).collect();
@@ -241,9 +291,63 @@ fn instance_light(posed: &Posed, i: usize, inst: &kage_runtime::pack::Instance, 
         .map(|(v, p)| {
             let t = &transfer[v * n2..(v + 1) * n2];
             let ls = posed.diffuse(i, t);
-            posed.radiance(own, ls, |r| posed.toward_region(i, t, r), *p, &pairs).0
+            posed.radiance(own, ls, |r| posed.toward_region(i, t, r), *p, &pairs)
         })
         .collect()
+}
+
+/// The environment's specular term toward an eye.
+struct Specular<'a> {
+    /// The map's chain, placed as the environment is now.
+    chain: &'a Prefiltered,
+    lobe: &'a Lobe,
+    eye: KVec3,
+}
+
+impl Specular<'_> {
+    /// Every vertex of `inst` placed at `world`, its group's frame `frame`: its `diffuse`
+    /// light and that light's radiance toward the eye with the specular term added.
+    fn instance(
+        &self,
+        inst: &kage_runtime::pack::Instance,
+        world: &glam::Affine3A,
+        (rot, mirrored): (DMat3, bool),
+        diffuse: &[(KVec3, f32)],
+    ) -> Vec<(KVec3, KVec3)> {
+        let m = &inst.material;
+        let material = Material {
+            base_color: KVec3::from_array(m.base_color),
+            metallic: m.metallic,
+            roughness: m.roughness,
+            specular: m.specular,
+        };
+        let alpha = ggx::alpha_from_roughness(material.roughness);
+        let normals = world.matrix3.inverse().transpose();
+        let transfer = inst.transfer.as_deref().expect("checked when the shading was made");
+        let n2 = transfer.len() / inst.mesh.positions.len().max(1);
+        let local = |w: KVec3| {
+            let g = rot.transpose() * w.as_dvec3();
+            if mirrored { DVec3::new(g.x, g.y, -g.z) } else { g }
+        };
+        (0..inst.mesh.positions.len())
+            .into_par_iter()
+            .map(|v| {
+                let (light, open) = diffuse[v];
+                let p = world.transform_point3(inst.mesh.positions[v]);
+                let n = KVec3::from(normals * glam::Vec3A::from(inst.mesh.normals[v])).normalize_or_zero();
+                let wo = (self.eye - p).normalize_or_zero();
+                let mu = n.dot(wo);
+                let bsdf = Bsdf::new(&material, KVec3::new(0.0, 0.0, mu));
+                if mu <= 0.0 || !bsdf.has_specular() {
+                    return (light, KVec3::ZERO);
+                }
+                let d = dominant_direction(n, 2.0 * mu * n - wo, alpha);
+                let t: Vec<f64> = transfer[v * n2..][..self.lobe.coeffs()].iter().map(|c| *c as f64).collect();
+                let visible = self.lobe.visible_fraction(&t, local(n), local(d), alpha);
+                (light, self.chain.reflect(n, wo, alpha, bsdf.f0(), bsdf.f90()) * visible * open)
+            })
+            .collect()
+    }
 }
 
 /// The rotation (scale removed) and mirror flag of a world-from-group linear map, as kage's

@@ -294,9 +294,12 @@ pub(crate) fn shade_lights(
         let s = &mut *s;
         if let Some(e) = s.environment.as_mut() {
             let (rotation, intensity) = env.map_or((Quat::IDENTITY, 1.0), |e| (e.rotation, e.intensity));
-            let light = e.light(&s.pack, &poses, rotation, intensity);
-            for (row, l) in terms.chunks_exact_mut(SLOTS * 4).zip(light.iter().flatten()) {
-                row[4..7].copy_from_slice(&l.to_array());
+            let light = e.light(&s.pack, &poses, eye, rotation, intensity);
+            for (row, (diffuse, specular)) in terms.chunks_exact_mut(SLOTS * 4).zip(light.iter().flatten()) {
+                for c in 0..3 {
+                    row[c] += specular[c];
+                }
+                row[4..7].copy_from_slice(&diffuse.to_array());
             }
         }
         vertices += terms.len() / (SLOTS * 4);

@@ -4,7 +4,7 @@
 
 use bevy::prelude::*;
 use bevy_kage::headless::{Headless, windowless};
-use bevy_kage::{KageGroup, KageInstance, KageLight, KagePack, KageScene, ShadeOn};
+use bevy_kage::{KageEnvironment, KageGroup, KageInstance, KageLight, KagePack, KageScene, ShadeOn};
 use std::path::Path;
 use std::time::Duration;
 
@@ -31,18 +31,27 @@ fn bevy_shades_a_pack_as_kage_renders_it() {
     }
 }
 
-/// `cube_on_plane.gltf` under an environment (`city.hdr`: a sky without a sun) in kage and in
-/// Bevy, with the cube where it was baked and moved 0.3 m: the environment's light, its
-/// self-shadowing and the shadow the cube casts on the ground (another rigid group) within 5 %
-/// of each other, and the move changes both images alike.
+/// Packs under an environment (`city.hdr`: a sky without a sun) in kage and in Bevy:
+/// `cube_on_plane.gltf` with the cube where it was baked and moved 0.3 m (the environment's
+/// light, its self-shadowing and the shadow the cube casts on the ground, another rigid
+/// group), and `teapot_quad_light.gltf` with the environment as baked and turned 90° (the
+/// gold teapot's reflections of it): within 5 % of each other, and the change alters both
+/// images alike.
 #[test]
 fn bevy_shades_a_packs_environment_as_kage_renders_it() {
+    let city = asset("envmaps/city.hdr");
     let move_cube = |world: &mut World| {
         let mut groups = world.query_filtered::<(&Name, &mut Transform), With<KageGroup>>();
         let (_, mut t) = groups.iter_mut(world).find(|(n, _)| n.as_str() == "cube").expect("the pack has a cube");
         t.translation += Vec3::new(0.3, 0.0, 0.0);
     };
-    compare("cube_on_plane", &["--env", &asset("envmaps/city.hdr")], &["--move", "cube=0.3,0,0"], move_cube);
+    compare("cube_on_plane", &["--env", &city], &["--move", "cube=0.3,0,0"], move_cube);
+    let turn = |world: &mut World| {
+        let mut envs = world.query::<&mut KageEnvironment>();
+        let mut env = envs.single_mut(world).expect("the pack has an environment");
+        env.rotation = Quat::from_rotation_y(90f32.to_radians());
+    };
+    compare("teapot_quad_light", &["--env", &city], &["--env-rotation", "90"], turn);
 }
 
 /// Exports `scene` (with `export_args`), renders it in kage and in Bevy as baked and after a

@@ -7,9 +7,8 @@ use crate::math::sh;
 use crate::scene::EnvironmentLight;
 use crate::scene::environment::uv_to_dir;
 use glam::{DVec3, Quat, Vec2};
-pub use kage_runtime::prt::{Window, to_group_frame};
+pub use kage_runtime::prt::{Window, fibonacci_direction, to_group_frame};
 use rayon::prelude::*;
-use std::f64::consts::PI;
 
 /// RGB SH coefficients: `coeffs[k]` is the colour of basis function k.
 pub type RgbCoeffs = Vec<DVec3>;
@@ -98,19 +97,12 @@ pub fn negative_lobes(coeffs: &[DVec3], window: Window) -> NegativeLobes {
     NegativeLobes { min_relative, fraction: negative as f64 / N as f64 }
 }
 
-/// Point `i` of `n` on the Fibonacci spiral (well spread, deterministic).
-pub fn fibonacci_direction(i: usize, n: usize) -> DVec3 {
-    let z = 1.0 - (2.0 * i as f64 + 1.0) / n as f64;
-    let phi = i as f64 * PI * (3.0 - 5f64.sqrt());
-    let r = (1.0 - z * z).max(0.0).sqrt();
-    DVec3::new(r * phi.cos(), r * phi.sin(), z)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::scene::EnvMap;
     use glam::Vec3;
+    use std::f64::consts::PI;
 
     fn sky() -> EnvironmentLight {
         let mut env = EnvironmentLight::new(EnvMap::procedural_sky(128, 64, Vec3::new(0.4, 0.5, -0.3)));

@@ -110,6 +110,14 @@ pub fn to_group_frame(coeffs: &[DVec3], rotation: DMat3, mirrored: bool) -> Vec<
     out
 }
 
+/// Point `i` of `n` on the Fibonacci spiral (well spread, deterministic).
+pub fn fibonacci_direction(i: usize, n: usize) -> DVec3 {
+    let z = 1.0 - (2.0 * i as f64 + 1.0) / n as f64;
+    let phi = i as f64 * PI * (3.0 - 5f64.sqrt());
+    let r = (1.0 - z * z).max(0.0).sqrt();
+    DVec3::new(r * phi.cos(), r * phi.sin(), z)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

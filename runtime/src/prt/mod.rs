@@ -5,9 +5,11 @@
 //! are rasterised ([`silhouette`]), and a vertex's light is the PRT paper's Eq. 15,
 //! `max(0, Ls − Σ_i B_i T(p, w_i) V_o(p, w_i))` ([`Posed::radiance`]).
 
+pub mod glossy;
 mod lighting;
 mod posed;
+pub mod prefilter;
 pub mod silhouette;
 
-pub use lighting::{Region, Window, to_group_frame};
+pub use lighting::{Region, Window, fibonacci_direction, to_group_frame};
 pub use posed::{Posed, group_silhouettes};
