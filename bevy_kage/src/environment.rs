@@ -314,13 +314,7 @@ impl Specular<'_> {
         (rot, mirrored): (DMat3, bool),
         diffuse: &[(KVec3, f32)],
     ) -> Vec<(KVec3, KVec3)> {
-        let m = &inst.material;
-        let material = Material {
-            base_color: KVec3::from_array(m.base_color),
-            metallic: m.metallic,
-            roughness: m.roughness,
-            specular: m.specular,
-        };
+        let material = Material::from(&inst.material);
         let alpha = ggx::alpha_from_roughness(material.roughness);
         let normals = world.matrix3.inverse().transpose();
         let transfer = inst.transfer.as_deref().expect("checked when the shading was made");

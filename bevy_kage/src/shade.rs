@@ -339,13 +339,7 @@ fn vertex_terms(
             lights.iter().filter_map(|l| FlatLight::placed(&l.points, &l.uvs, &to_baked, l.radiance)).collect();
         let (per_pixel, per_vertex) = baked.split_at(pixel_lights);
         let eye = to_baked.transform_point3(eye);
-        let m = &inst.material;
-        let material = Material {
-            base_color: glam::Vec3::from_array(m.base_color),
-            metallic: m.metallic,
-            roughness: m.roughness,
-            specular: m.specular,
-        };
+        let material = Material::from(&inst.material);
         let rows: Vec<[f32; SLOTS * 4]> = s.baked[i]
             .par_iter()
             .enumerate()

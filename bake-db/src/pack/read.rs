@@ -3,7 +3,7 @@
 //! (the real materials, the lights' exact values) and the bakes put back.
 
 use super::{Contents, schema};
-use glam::{DVec3, Vec3};
+use glam::DVec3;
 use kage_engine::bspvt;
 use kage_engine::prt::{self, Lighting, regions::Region};
 use kage_engine::scene::import::{self, Channels, ImportOptions};
@@ -58,12 +58,7 @@ fn restore_materials(scene: &mut Scene, flat: &FlatScene, pack: &Pack) -> Checke
     let mut decoded = HashMap::new();
     for (k, (inst, record)) in flat.instances.iter().zip(&pack.instances).enumerate() {
         let m = &record.material;
-        let material = Material {
-            base_color: Vec3::from_array(m.base_color),
-            metallic: m.metallic,
-            roughness: m.roughness,
-            specular: m.specular,
-        };
+        let material = Material::from(m);
         let mut slot = |s: &Option<schema::TextureSlot>, channels| {
             s.as_ref().map(|s| texture_slot(pack, s, channels, scene, &mut decoded)).transpose()
         };

@@ -31,6 +31,18 @@ impl Default for Material {
     }
 }
 
+/// A pack's material's factors (its textures apart).
+impl From<&crate::pack::schema::Material> for Material {
+    fn from(m: &crate::pack::schema::Material) -> Self {
+        Self {
+            base_color: Vec3::from_array(m.base_color),
+            metallic: m.metallic,
+            roughness: m.roughness,
+            specular: m.specular,
+        }
+    }
+}
+
 impl Material {
     /// A Lambertian material (dielectric with specularFactor 0).
     pub fn lambertian(albedo: Vec3) -> Self {
