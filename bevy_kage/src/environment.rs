@@ -53,8 +53,8 @@ impl KageEnvironment {
 /// Texels per side of a skybox face.
 pub const SKYBOX_SIZE: u32 = 256;
 
-/// `env` as a cube map for Bevy's `Skybox` (linear RGB radiance, half floats), `size` texels
-/// per face side.
+/// `env` as a cube map for Bevy's `Skybox` (linear RGB radiance, its intensity and rotation
+/// applied, half floats), `size` texels per face side.
 pub fn skybox_image(env: &kage_runtime::pack::Environment, size: u32) -> Image {
     let n = size as usize;
     let texel = |face: usize, k: usize| {
@@ -69,7 +69,7 @@ pub fn skybox_image(env: &kage_runtime::pack::Environment, size: u32) -> Image {
             4 => KVec3::new(sc, -tc, 1.0),
             _ => KVec3::new(-sc, -tc, -1.0),
         };
-        let c = env.background(KVec3::new(r.x, r.y, -r.z).normalize()) / env.intensity.max(f32::MIN_POSITIVE);
+        let c = env.background(KVec3::new(r.x, r.y, -r.z).normalize());
         [c.x, c.y, c.z, 1.0].map(half::f16::from_f32)
     };
     let halves: Vec<half::f16> =

@@ -5,7 +5,9 @@
 //! per vertex. Each instance is shaded in its group's baked frame (the lights and the eye
 //! carried there from where its group is now): the trees hold directions in that frame, so a
 //! moved group keeps its own shadows exactly, and what other groups cast stays where it was
-//! baked. Recomputed only when the eye, a group or a light moved.
+//! baked. Recomputed only when the eye, a group or a light moved; the environment's terms
+//! (the `env` slot and the specular term added to the per-vertex radiance) come from
+//! [`crate::environment`].
 
 use crate::environment::{EnvironmentShading, KageEnvironment};
 use crate::material::{KageMaterial, tables};

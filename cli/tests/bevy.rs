@@ -32,7 +32,7 @@ fn bevy_shades_a_pack_as_kage_renders_it() {
 }
 
 /// Packs under an environment (`city.hdr`: a sky without a sun) in kage and in Bevy:
-/// `cube_on_plane.gltf` with the cube where it was baked and moved 0.3 m (the environment's
+/// `cube_on_plane.gltf` (the map at 0.6 of its radiance) with the cube where it was baked and moved 0.3 m (the environment's
 /// light, its self-shadowing and the shadow the cube casts on the ground, another rigid
 /// group), and `teapot_quad_light.gltf` with the environment as baked and turned 90° (the
 /// gold teapot's reflections of it): within 5 % of each other, and the change alters both
@@ -45,7 +45,8 @@ fn bevy_shades_a_packs_environment_as_kage_renders_it() {
         let (_, mut t) = groups.iter_mut(world).find(|(n, _)| n.as_str() == "cube").expect("the pack has a cube");
         t.translation += Vec3::new(0.3, 0.0, 0.0);
     };
-    compare("cube_on_plane", &["--env", &city], &["--move", "cube=0.3,0,0"], move_cube);
+    let dim = ["--env", &city, "--env-intensity", "0.6"];
+    compare("cube_on_plane", &dim, &["--move", "cube=0.3,0,0"], move_cube);
     let turn = |world: &mut World| {
         let mut envs = world.query::<&mut KageEnvironment>();
         let mut env = envs.single_mut(world).expect("the pack has an environment");
