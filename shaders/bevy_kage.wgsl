@@ -2,7 +2,8 @@
 // polygonal lights added per pixel (pixel_lights.wgsl). The vertex stage is Bevy's mesh vertex
 // stage (bevy_pbr's mesh.wgsl, without skins and morphs) that also passes on, per vertex, what
 // the CPU computed from the bakes: the radiance of the lights shaded per vertex (`rest`), the
-// environment's diffuse light (PRT, `env`: the pixel's diffuse albedo multiplies it) and, for
+// light that the pixel's diffuse albedo multiplies (`diffuse_light`: the environment's through
+// PRT, and the pack's frozen bounces) and, for
 // each light shaded per pixel, its lobes' (shadowed, unshadowed) integrals. The
 // fragment stage is Bevy's StandardMaterial with the kage lights added to its lighting, scaled
 // by the view's exposure as Bevy's own lights are.
@@ -33,11 +34,11 @@ struct KageParams {
     pad: f32,
 }
 
-// Per vertex: rest (rgb), the diffuse environment light (rgb, albedo not applied), then
+// Per vertex: rest (rgb), the diffuse light (rgb, albedo not applied), then
 // PIXEL_LIGHTS × (diffuse shadowed, unshadowed, specular shadowed, unshadowed).
 struct KageVertex {
     rest: vec4<f32>,
-    env: vec4<f32>,
+    diffuse_light: vec4<f32>,
     lobes: array<vec4<f32>, 4>,
 }
 
@@ -93,7 +94,7 @@ struct KageOut {
     @location(10) lobes1: vec4<f32>,
     @location(11) lobes2: vec4<f32>,
     @location(12) lobes3: vec4<f32>,
-    @location(13) env: vec3<f32>,
+    @location(13) diffuse_light: vec3<f32>,
 }
 
 @vertex
@@ -123,7 +124,7 @@ fn vertex(v: Vertex) -> KageOut {
     let k = kage.first + v.index - mesh[v.instance_index].first_vertex_index;
     let terms = kage_vertices[k];
     out.rest = terms.rest.xyz;
-    out.env = terms.env.xyz;
+    out.diffuse_light = terms.diffuse_light.xyz;
     out.lobes0 = terms.lobes[0];
     out.lobes1 = terms.lobes[1];
     out.lobes2 = terms.lobes[2];
@@ -166,7 +167,7 @@ fn fragment(k: KageOut, @builtin(front_facing) is_front: bool) -> FragmentOutput
         m.metallic, m.perceptual_roughness, kage.specular);
     let lobe = specular_lobe(s);
     var lobes = array<vec4<f32>, 4>(k.lobes0, k.lobes1, k.lobes2, k.lobes3);
-    var total = k.rest + k.env * s.diffuse;
+    var total = k.rest + k.diffuse_light * s.diffuse;
     for (var l = 0u; l < min(kage.lights, PIXEL_LIGHTS); l = l + 1u) {
         total = total + light_at(s, lobe, kage_lights[l], lobes[l]);
     }

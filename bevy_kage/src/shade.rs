@@ -6,8 +6,9 @@
 //! carried there from where its group is now): the trees hold directions in that frame, so a
 //! moved group keeps its own shadows exactly, and what other groups cast stays where it was
 //! baked. Recomputed only when the eye, a group or a light moved; the environment's terms
-//! (the `env` slot and the specular term added to the per-vertex radiance) come from
-//! [`crate::environment`].
+//! (the `diffuse_light` slot and the specular term added to the per-vertex radiance) come from
+//! [`crate::environment`]. The pack's bounces, frozen where its lights and groups were baked,
+//! start the `diffuse_light` slot: they move with their vertices and nothing relights them.
 
 use crate::environment::{EnvironmentShading, KageEnvironment};
 use crate::material::{KageMaterial, tables};
@@ -29,8 +30,8 @@ use std::sync::Arc;
 /// per vertex.
 pub const PIXEL_LIGHTS: usize = 4;
 
-/// 4-float slots per vertex: the per-vertex lights' radiance, the diffuse environment light
-/// (albedo not applied), then one per pixel light.
+/// 4-float slots per vertex: the per-vertex lights' radiance, the diffuse light of the
+/// environment and the pack's bounces (albedo not applied), then one per pixel light.
 const SLOTS: usize = 2 + PIXEL_LIGHTS;
 
 /// A Bevy vector as kage's.
@@ -300,8 +301,8 @@ pub(crate) fn shade_lights(
             for (row, (diffuse, specular)) in terms.chunks_exact_mut(SLOTS * 4).zip(light.iter().flatten()) {
                 for c in 0..3 {
                     row[c] += specular[c];
+                    row[4 + c] += diffuse[c];
                 }
-                row[4..7].copy_from_slice(&diffuse.to_array());
             }
         }
         vertices += terms.len() / (SLOTS * 4);
@@ -350,6 +351,9 @@ fn vertex_terms(
                 let vis = inst.bspvt.as_ref().map_or(Visibility::Unshadowed, |b| Visibility::Tree(b.record(v), res));
                 let mut row = [0.0; SLOTS * 4];
                 row[..3].copy_from_slice(&shader.shade(per_vertex, vis).to_array());
+                if let Some(bounce) = &inst.bounce {
+                    row[4..7].copy_from_slice(&bounce[v].to_array());
+                }
                 let (_, pairs) = shader.lobe_pairs(per_pixel, vis);
                 for (k, [d, sp]) in pairs.iter().enumerate() {
                     row[4 * (k + 2)..4 * (k + 3)].copy_from_slice(&[d[0], d[1], sp[0], sp[1]]);

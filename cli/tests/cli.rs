@@ -854,7 +854,8 @@ fn sealed_glb(doc: serde_json::Value, bin: &[u8]) -> Vec<u8> {
 
 /// A pack whose data was damaged after kage wrote it, or that was written wrong, is refused
 /// with the field named: a flipped bit in a PRT transfer (checksum; sealed anyway: the
-/// transfer's bound), a light radiance beyond f32, a JSON edit, an unknown version.
+/// transfer's bound), a negative bounce, a light radiance beyond f32, a JSON edit, an unknown
+/// version.
 #[test]
 fn damaged_or_out_of_range_packs_are_refused_naming_the_field() {
     let d = scratch("pack-integrity");
@@ -912,6 +913,13 @@ fn damaged_or_out_of_range_packs_are_refused_naming_the_field() {
     assert!(e.contains("prt.transfer (buffer view") && e.contains("fails its checksum"), "{e}");
     let e = render(sealed_glb(doc.clone(), &flipped));
     assert!(e.contains("prt.transfer: vertex 0, coefficient 0"), "{e}");
+    // A negative light in the bounces the pack carries (sealed anyway).
+    let bounce = doc["meshes"][0]["primitives"][0]["extensions"]["KAGE_baked_shadows"]["bounce"].as_u64().unwrap();
+    let at = doc["bufferViews"][bounce as usize]["byteOffset"].as_u64().unwrap_or(0) as usize;
+    let mut negative = bin.clone();
+    negative[at..at + 4].copy_from_slice(&(-1.0f32).to_le_bytes());
+    let e = render(sealed_glb(doc.clone(), &negative));
+    assert!(e.contains("bounce: not") && e.contains("≥ 0"), "{e}");
     // A light radiance beyond f32.
     let mut hot = doc.clone();
     let light = hot["meshes"]

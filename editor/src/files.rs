@@ -44,6 +44,7 @@ impl Editor {
             bspvt: self.bakes.bspvt.as_deref().filter(|_| with_bakes && !self.bakes.bspvt_stale),
             prt,
             radiance: &radiance,
+            bounce: self.bounce_light().filter(|_| with_bakes),
             exposure: self.view.exposure,
         };
         let message = match pack::write(&path, &export) {
@@ -75,6 +76,15 @@ impl Editor {
                 }
             })
             .collect()
+    }
+
+    /// The light of the bounces the preview shows, when it fits the snapshot (an export's
+    /// meshes) and the indirect term is on.
+    fn bounce_light(&self) -> Option<&[Vec<Vec3>]> {
+        let light = &self.results.bounce_light;
+        let fits = light.len() == self.flat.instances.len()
+            && light.iter().enumerate().all(|(i, l)| l.len() == self.flat.vertex_count(i));
+        (fits && self.indirect && self.view.method.direct()).then_some(light.as_slice())
     }
 
     /// Saves the edits into the scene file that was opened ([`super::source::save`]); the built-in

@@ -23,6 +23,9 @@ use std::time::Instant;
 pub struct Indirect {
     /// Per instance and vertex.
     pub values: VertexValues,
+    /// Per instance and vertex: the light the bounces bring (irradiance over π, what an
+    /// exported pack carries); `None` for a refresh's intermediate landing.
+    pub light: Option<VertexValues>,
     /// For the log.
     pub what: String,
     /// The cache and what lit it; `None` for a refresh's intermediate landing.
@@ -140,7 +143,8 @@ impl Job {
                 (Some(_), Some(cache)) => (cache, "from the bake database".to_string()),
                 (Some(b), None) => {
                     let partial = |c: &cache::Cache| {
-                        send(Indirect { values: cache::shade_vertices(&src, c, eye), what: String::new(), base: None })
+                        let values = cache::shade_vertices(&src, c, eye);
+                        send(Indirect { values, light: None, what: String::new(), base: None })
                     };
                     let (cache, note) = refreshed(*b, &src, stop, &partial)?;
                     let stored = match store
@@ -160,10 +164,10 @@ impl Job {
                     None => (cache::place_at_vertices(&src, &s), "gathered".to_string()),
                 },
             };
-            let (values, bounced) = cache::bounce(&src, &cache, eye, cache::Bounces::default());
-            Some((cache, format!("{note}, {bounced}"), values, key))
+            let (values, light, bounced) = cache::bounce_with_light(&src, &cache, eye, cache::Bounces::default());
+            Some((cache, format!("{note}, {bounced}"), values, light, key))
         });
-        let Some((cache, note, values, key)) = landed else { return };
+        let Some((cache, note, values, light, key)) = landed else { return };
         let what = format!("{} records {note}, {:.2} s", cache.records.len(), start.elapsed().as_secs_f64());
         let base = IndirectBase {
             cache,
@@ -173,7 +177,7 @@ impl Job {
             receivers: receivers(&renderer, &s),
             key,
         };
-        send(Indirect { values, what, base: Some(Box::new(base)) });
+        send(Indirect { values, light: Some(light), what, base: Some(Box::new(base)) });
     }
 }
 

@@ -67,6 +67,9 @@ pub struct Results {
     /// Per instance and vertex: the last indirect term (lit by an earlier direct result while a
     /// new one is gathered).
     pub indirect: VertexValues,
+    /// Per instance and vertex: the light of the last complete indirect term (irradiance over
+    /// π), which an exported pack carries.
+    pub bounce_light: VertexValues,
     /// The progressive reference: running sums and passes.
     pub reference: ReferenceSum,
     /// PRT's per-vertex terms when the viewport shades PRT per pixel (method `prt`, no overlay).

@@ -606,6 +606,7 @@ pub fn indirect_system(ed: &mut Editor) {
         ed.backend.workers.indirect = None;
         if !ed.results.indirect.is_empty() {
             ed.results.indirect.clear();
+            ed.results.bounce_light.clear();
             compose(ed);
         }
         return;
@@ -613,6 +614,9 @@ pub fn indirect_system(ed: &mut Editor) {
     let landed = ed.backend.workers.indirect.as_ref().map(|w| w.results()).unwrap_or_default();
     if let Some(last) = landed.into_iter().last() {
         ed.results.indirect = last.values;
+        if let Some(light) = last.light {
+            ed.results.bounce_light = light;
+        }
         if let Some(base) = last.base {
             ed.backend.workers.indirect = None;
             ed.backend.workers.indirect_base = Some(base);

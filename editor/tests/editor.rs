@@ -372,6 +372,37 @@ fn the_indirect_term_waits_for_the_bakes() {
     assert_eq!(gathers, 1, "{:#?}", ed.log);
 }
 
+/// An exported pack carries the light of the bounces the editor shows (what `bevy_kage` adds):
+/// read back, it is the editor's, and on the Lambertian cube and ground the editor's bounces
+/// are it times the diffuse albedo at every vertex, every bounce counted.
+#[test]
+fn an_exported_pack_carries_the_bounces_light() {
+    use kage_editor::systems::gathering;
+    let dir = scratch("export-bounce");
+    let path = dir.join("cube_on_plane.gltf");
+    std::fs::copy(asset("scenes/cube_on_plane.gltf"), &path).unwrap();
+    let mut o = options(&dir, Some(path.clone()), None);
+    o.cache.rays = 64;
+    o.indirect = true;
+    let mut h = harness(import::import(&path, Default::default()).unwrap(), o);
+    let landed = |ed: &Editor| settled(ed) && !ed.results.bounce_light.is_empty() && !gathering(ed);
+    step_until(&mut h, "the bakes and the indirect term", landed);
+    let message = h.state_mut().editor.export_pack();
+    assert!(message.starts_with("wrote"), "{message}");
+    let (scene, contents) = kage_bake_db::pack::read(&dir.join("cube_on_plane.pack.glb")).unwrap();
+    let ed = &h.state().editor;
+    assert_eq!(contents.bounce.as_ref(), Some(&ed.results.bounce_light));
+    let flat = kage_engine::scene::flatten(&scene);
+    let albedo = kage_engine::material::albedo::at_vertices(&flat, ed.view.orbit.eye());
+    let light = ed.results.bounce_light.iter().flatten();
+    let (mut worst, mut total) = (0.0f32, 0.0f32);
+    for ((l, a), b) in light.zip(albedo.iter().flatten()).zip(ed.results.indirect.iter().flatten()) {
+        worst = worst.max((*l * *a - *b).abs().max_element());
+        total += b.element_sum();
+    }
+    assert!(total > 0.0 && worst <= 1e-5 * total, "off by {worst} (the bounces sum to {total})");
+}
+
 /// A geometry edit stops a gather still lighting the old geometry (its rays would take the
 /// cores the re-bake needs, and what it landed would be stale); a fresh one runs once the
 /// re-bake has landed, and its term fits the moved scene.

@@ -149,6 +149,7 @@ fn baked(dir: &Path) -> (Vec<u8>, Vec<u8>) {
         bspvt: Some(&trees),
         prt: Some(prt::Parts { bake: &transfer, lighting: &lighting, settings: &p }),
         radiance: &flat.zeros(),
+        bounce: Some(&flat.zeros()),
         exposure: 0.0,
     };
     let path = dir.join("seed.pack.glb");

@@ -28,6 +28,9 @@ pub struct Contents {
     pub bspvt: Option<bspvt::Bake>,
     /// PRT bake with its lighting and settings, if the pack has one.
     pub prt: Option<(prt::Bake, Lighting, prt::Settings)>,
+    /// Per instance and vertex: the bounces' light at the bake's placement (irradiance over
+    /// π), if the pack has it.
+    pub bounce: Option<kage_engine::scene::VertexValues>,
     /// What a reader should tell the user about the pack (it still shades).
     pub warnings: Vec<String>,
 }
@@ -44,6 +47,8 @@ pub struct Export<'a> {
     pub prt: Option<prt::Parts<'a>>,
     /// Per instance and vertex: the baked radiance for the preview (linear).
     pub radiance: &'a [Vec<Vec3>],
+    /// Per instance and vertex: the bounces' light (irradiance over π), if the look has them.
+    pub bounce: Option<&'a [Vec<Vec3>]>,
     /// Preview exposure in stops (COLOR_0 = clamp(radiance · 2^exposure, 0, 1)).
     pub exposure: f32,
 }
@@ -88,7 +93,8 @@ mod tests {
     fn write_unbaked(path: &Path, scene: &kage_engine::scene::Scene) {
         let flat = kage_engine::scene::flatten(scene);
         let radiance = flat.zeros();
-        let export = Export { scene, flat: &flat, bspvt: None, prt: None, radiance: &radiance, exposure: 0.0 };
+        let export =
+            Export { scene, flat: &flat, bspvt: None, prt: None, radiance: &radiance, bounce: None, exposure: 0.0 };
         write(path, &export).unwrap();
     }
 
@@ -139,8 +145,9 @@ mod tests {
                 "format": bspvt::layout::FORMAT_VERSION})
         });
         assert!(e.contains("face resolution 1099511627776 is outside"), "{e}");
-        let e = error_after("version", |d| d["extensions"][EXTENSION]["version"] = 5.into());
-        assert!(e.contains("version 5 (this kage reads 1..=4)"), "{e}");
+        let newer = VERSION + 1;
+        let e = error_after("version", |d| d["extensions"][EXTENSION]["version"] = newer.into());
+        assert!(e.contains(&format!("version {newer} (this kage reads 1..={VERSION})")), "{e}");
         let e = error_after("field", |d| {
             let record = &mut d["meshes"][0]["primitives"][0]["extensions"][EXTENSION]["material"];
             record.as_object_mut().unwrap().remove("roughness");

@@ -45,7 +45,8 @@ pub fn read(path: &Path) -> Result<(Scene, Contents)> {
     let prt =
         pack.header.prt.as_ref().map(|h| prt(h, &mut pack.instances, &flat)).transpose().map_err(|e| bad(path, e))?;
     let warnings = pack.warnings.iter().map(|w| format!("{}: {w}", path.display())).collect();
-    Ok((scene, Contents { bspvt, prt, warnings }))
+    let bounce = pack.instances.iter_mut().map(|i| i.bounce.take()).collect();
+    Ok((scene, Contents { bspvt, prt, bounce, warnings }))
 }
 
 type Checked<T> = std::result::Result<T, String>;

@@ -243,6 +243,7 @@ impl Builder {
             instance: k as u64,
             material,
             radiance: self.raw(bytemuck::cast_slice(&e.radiance[k])),
+            bounce: e.bounce.map(|b| self.raw(bytemuck::cast_slice(&b[k]))),
             bspvt: e.bspvt.map(|b| {
                 let rec = &b.instances[k];
                 schema::BspvtData {

@@ -49,13 +49,14 @@ pub fn run(args: &Args) -> Result<()> {
     let lighting = plan.prt.and_then(|s| prt::Lighting::new(&scene, &s).map(|l| (l, s)));
     let parts = out.prt.as_ref().zip(lighting.as_ref());
     let parts = parts.map(|(bake, (lighting, settings))| prt::Parts { bake, lighting, settings });
-    let radiance = preview(&scene, out.bspvt.as_ref(), parts, eye);
+    let (radiance, bounce) = preview(&scene, out.bspvt.as_ref(), parts, eye);
     let export = Export {
         scene: &scene,
         flat: &flat,
         bspvt: out.bspvt.as_ref(),
         prt: parts,
         radiance: &radiance,
+        bounce: Some(&bounce),
         exposure: args.exposure.stops(radiance.iter().flatten().copied()),
     };
     pack::write(&args.output, &export).with_context(|| format!("writing {}", args.output.display()))?;
@@ -64,25 +65,22 @@ pub fn run(args: &Args) -> Result<()> {
     Ok(())
 }
 
-/// The preview: the baked look toward `eye`, with the radiance cache's bounces.
+/// The preview: the baked look toward `eye`, with the radiance cache's bounces; and the light
+/// those bounces bring (irradiance over π).
 fn preview(
     scene: &kage_engine::scene::Scene,
     trees: Option<&bspvt::Bake>,
     prt: Option<prt::Parts>,
     eye: Vec3,
-) -> VertexValues {
+) -> (VertexValues, VertexValues) {
     let renderer = kage_engine::reference::Renderer::new(scene);
     let flat = &renderer.flat;
     let prefiltered = flat.environment.as_ref().map(prt::prefilter::Prefiltered::new);
     let bakes = Bakes { bspvt: trees, prt, prefiltered: prefiltered.as_ref() };
     let look = Look::prepare(scene, flat, bakes, eye, &mut prt::SilhouetteMemo::default());
-    let bounce = crate::commands::render::baked::bounce(
-        &look,
-        &renderer,
-        &cache::Settings::default(),
-        eye,
-        cache::Bounces::default(),
-    )
-    .0;
-    look.with_indirect(bounce).vertex_values()
+    let (values, light, _) =
+        crate::commands::render::baked::with_cache(&look, &renderer, &cache::Settings::default(), |src, c| {
+            cache::bounce_with_light(src, c, eye, cache::Bounces::default())
+        });
+    (look.with_indirect(values).vertex_values(), light)
 }

@@ -13,7 +13,7 @@
 //! ones are mostly diffuse interreflection.
 
 use super::record::{Change, Glossy, Source};
-use super::{Cache, gather_one, shade_vertices, vertices};
+use super::{Cache, gather_one, light_vertices, shade_vertices, vertices};
 use crate::scene::VertexValues;
 use glam::Vec3;
 
@@ -93,6 +93,34 @@ impl std::fmt::Display for Bounced {
 /// from `cache` (placed and gathered under `src`), each further one from a copy of its records
 /// re-lit by the previous bounce. `cache` itself is left as it was.
 pub fn bounce(src: &Source, cache: &Cache, eye: Vec3, bounces: Bounces) -> (VertexValues, Bounced) {
+    bounce_each(src, cache, eye, bounces, |_, _| {})
+}
+
+/// [`bounce`], and the light the same bounces bring to every receiver vertex: irradiance over
+/// π ([`light_vertices`]), view-independent — what an asset pack carries to run time.
+pub fn bounce_with_light(
+    src: &Source,
+    cache: &Cache,
+    eye: Vec3,
+    bounces: Bounces,
+) -> (VertexValues, VertexValues, Bounced) {
+    let mut light = src.renderer.flat.zeros();
+    let (values, bounced) = bounce_each(src, cache, eye, bounces, |src, records| {
+        let more = light_vertices(src, records);
+        light.iter_mut().flatten().zip(more.iter().flatten()).for_each(|(t, m)| *t += *m);
+    });
+    (values, light, bounced)
+}
+
+/// [`bounce`], calling `each(source, records)` with every bounce's lighting and records.
+fn bounce_each(
+    src: &Source,
+    cache: &Cache,
+    eye: Vec3,
+    bounces: Bounces,
+    mut each: impl FnMut(&Source, &Cache),
+) -> (VertexValues, Bounced) {
+    each(src, cache);
     let mut last = shade_vertices(src, cache, eye);
     let mut total = last.clone();
     let mut relit: Option<Cache> = None;
@@ -117,6 +145,7 @@ pub fn bounce(src: &Source, cache: &Cache, eye: Vec3, bounces: Bounces) -> (Vert
         // toward the record, the next ones by their per-vertex value, so an unchanged corner
         // does not mean an unchanged hit.
         records.refresh(&next_src, &Change { old_direct: None, moved: &[] });
+        each(&next_src, records);
         let next = shade_vertices(&next_src, records, eye);
         total.iter_mut().flatten().zip(next.iter().flatten()).for_each(|(t, n)| *t += *n);
         last = next;

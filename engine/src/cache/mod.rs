@@ -22,7 +22,7 @@
 pub mod bounces;
 pub mod record;
 
-pub use bounces::{Bounced, Bounces, bounce};
+pub use bounces::{Bounced, Bounces, bounce, bounce_with_light};
 
 use crate::math::hsh;
 use crate::named::Named;
@@ -582,6 +582,25 @@ pub fn from_records(src: &Source, s: &Settings, records: Vec<Record>) -> Cache {
 /// One bounce of indirect light toward `eye` at every receiver vertex from `cache`, or by a
 /// direct BSDF-sampled gather for glossy receivers smoother than [`Settings::glossy_fallback`].
 pub fn shade_vertices(src: &Source, cache: &Cache, eye: Vec3) -> VertexValues {
+    shade_as(src, cache, Some(eye), &|i, v| src.renderer.flat.vertex_material(i, v))
+}
+
+/// The light one bounce brings to every receiver vertex from `cache`: irradiance over π, the
+/// radiance a white Lambertian surface there would reflect (view-independent; where
+/// [`shade_vertices`] gathers directly, so does this).
+pub fn light_vertices(src: &Source, cache: &Cache) -> VertexValues {
+    let white = crate::scene::Material::lambertian(Vec3::ONE);
+    shade_as(src, cache, None, &|_, _| white)
+}
+
+/// [`shade_vertices`] with `material(instance, vertex)` at the receivers in place of theirs,
+/// toward `eye` (`None`: along each vertex's normal).
+fn shade_as(
+    src: &Source,
+    cache: &Cache,
+    eye: Option<Vec3>,
+    material: &(dyn Fn(usize, usize) -> crate::scene::Material + Sync),
+) -> VertexValues {
     use rayon::prelude::*;
     let s = &cache.settings;
     let back = fallbacks(src.renderer, s);
@@ -590,8 +609,8 @@ pub fn shade_vertices(src: &Source, cache: &Cache, eye: Vec3) -> VertexValues {
         .enumerate()
         .map(|(k, &(i, v, p, n))| {
             let frame = crate::math::frame::Frame::from_normal(n);
-            let wo = frame.to_local((eye - p).normalize_or(n));
-            let bsdf = crate::material::Bsdf::new(&src.renderer.flat.vertex_material(i, v), wo);
+            let wo = eye.map_or(Vec3::Z, |eye| frame.to_local((eye - p).normalize_or(n)));
+            let bsdf = crate::material::Bsdf::new(&material(i, v), wo);
             if back[i] {
                 return record::gather_bsdf(src, p, n, &bsdf, wo, s.side(), k as u64);
             }

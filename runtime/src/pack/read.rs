@@ -77,6 +77,8 @@ pub struct Instance {
     pub material: schema::Material,
     /// The baked look per vertex (linear radiance): the preview before its exposure.
     pub radiance: Vec<Vec3>,
+    /// The bounces' light per vertex at the bake's placement (irradiance over π), if stored.
+    pub bounce: Option<Vec<Vec3>>,
     /// BSPVT's vertex records.
     pub bspvt: Option<BakedInstance>,
     /// PRT's transfer, n² per vertex.
@@ -263,6 +265,8 @@ impl Reader<'_> {
         for (k, r) in records.instances.iter().enumerate() {
             let field = if is(r.radiance) {
                 "radiance"
+            } else if r.bounce.is_some_and(is) {
+                "bounce"
             } else if r.bspvt.as_ref().is_some_and(|b| is(b.offsets)) {
                 "bspvt.offsets"
             } else if r.bspvt.as_ref().is_some_and(|b| is(b.records)) {
@@ -372,6 +376,11 @@ impl Reader<'_> {
         if radiance.len() != n || radiance.iter().any(|r| !r.is_finite()) {
             return Err(format!("{EXTENSION} radiance: not {n} finite RGB triples"));
         }
+        let bounce = record.bounce.map(|v| self.view(v as usize)).transpose()?;
+        let bounce = bounce.map(|view| vec3s(&words(view, f32::from_le_bytes)));
+        if bounce.as_ref().is_some_and(|b| b.len() != n || b.iter().any(|l| !l.is_finite() || l.min_element() < 0.0)) {
+            return Err(format!("{EXTENSION} bounce: not {n} finite RGB triples ≥ 0"));
+        }
         let material = record.material.clone();
         Ok(Instance {
             name: at.name,
@@ -380,6 +389,7 @@ impl Reader<'_> {
             mesh,
             material,
             radiance,
+            bounce,
             bspvt: None,
             transfer: None,
         })

@@ -108,6 +108,10 @@ pub struct Instance {
     pub material: Material,
     /// Buffer view of the preview's linear radiance (f32 × 3 per vertex).
     pub radiance: u32,
+    /// Buffer view of the bounces' light at the bake's placement: irradiance over π (f32 × 3
+    /// per vertex; version 5 on).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub bounce: Option<u32>,
     /// The instance's visibility trees.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub bspvt: Option<BspvtData>,

@@ -45,7 +45,7 @@ pub(super) fn run(job: &Job) -> Result<Outputs> {
     if args.indirect() != super::Indirect::None {
         let direct = look.direct_vertices();
         let toward = |i, corners, bary, to| look.toward(i, corners, bary, to);
-        let extra = indirect(args, scene, renderer, direct, Glossy::Toward(&toward), eye)?;
+        let extra = indirect(job, direct, Glossy::Toward(&toward))?;
         look = look.with_indirect(extra);
     }
     let values = look.vertex_values();
@@ -145,16 +145,15 @@ fn bake(args: &Args, scene: &Scene, renderer: &Renderer) -> Result<Loaded> {
     Ok(Loaded { bspvt: out.bspvt, prt })
 }
 
-/// `bounces` bounces per vertex from an in-memory radiance cache with `settings`, lit by
-/// `look`'s direct light (glossy hits reflect it toward the records), and how many.
-pub(crate) fn bounce(
+/// `f` of the radiance cache's source lit by `look`'s direct light (glossy hits reflect it
+/// toward the records) and of an in-memory cache with `settings` placed under it.
+pub(crate) fn with_cache<R>(
     look: &Look,
     renderer: &Renderer,
     settings: &cache::Settings,
-    eye: glam::Vec3,
-    bounces: cache::Bounces,
-) -> (VertexValues, cache::Bounced) {
+    f: impl FnOnce(&Source, &cache::Cache) -> R,
+) -> R {
     let toward = |i, corners, bary, to| look.toward(i, corners, bary, to);
     let src = Source { renderer, direct: look.direct_vertices(), glossy: Glossy::Toward(&toward) };
-    cache::bounce(&src, &cache::place_at_vertices(&src, settings), eye, bounces)
+    f(&src, &cache::place_at_vertices(&src, settings))
 }

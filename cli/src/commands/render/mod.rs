@@ -35,6 +35,9 @@ pub enum Indirect {
     Gather,
     /// The reference integrator's one-bounce term (--spp paths per vertex).
     Reference,
+    /// The bounces a pack carries (--pack), frozen where its lights and groups were baked: its
+    /// light per vertex times the diffuse albedo, as bevy_kage shades them.
+    Pack,
 }
 
 /// Arguments of `kage render`.
@@ -222,6 +225,9 @@ pub fn run(args: &Args) -> Result<()> {
     if args.method == Method::Reference && args.indirect.is_some_and(|i| i != Indirect::None) {
         bail!("--indirect is for the per-vertex methods; the reference takes --bounces N");
     }
+    if args.indirect() == Indirect::Pack && pack.is_none() {
+        bail!("--indirect pack reads the bounces a pack carries: give --pack PACK.glb");
+    }
     let job = Job {
         args,
         scene: &scene,
@@ -238,7 +244,7 @@ pub fn run(args: &Args) -> Result<()> {
     };
     let later = args.method != Method::Baked && args.indirect() != Indirect::None;
     if let Some(direct) = vertices.as_mut().filter(|_| later) {
-        let extra = glossy.with(&renderer.flat, |g| indirect(args, &scene, &renderer, direct, g, camera.eye()))?;
+        let extra = glossy.with(&renderer.flat, |g| indirect(&job, direct, g))?;
         if let (Some(pixels), Some(more)) = (image.as_mut(), job.vertex_image(&extra)) {
             pixels.iter_mut().zip(more).for_each(|(p, m)| *p += m);
         }
@@ -508,14 +514,12 @@ fn run_plan(
 /// One bounce of indirect light per vertex, lit by the per-vertex `direct` values (glossy hits
 /// as `glossy` says). With a bake database in use, the cache's records come from it (or are
 /// stored in it).
-fn indirect(
-    args: &Args,
-    scene: &Scene,
-    renderer: &Renderer,
-    direct: &[Vec<Vec3>],
-    glossy: Glossy<'_>,
-    eye: Vec3,
-) -> Result<VertexValues> {
+fn indirect(job: &Job, direct: &[Vec<Vec3>], glossy: Glossy<'_>) -> Result<VertexValues> {
+    let Job { args, scene, renderer, camera, pack, .. } = *job;
+    let eye = camera.eye();
+    if args.indirect() == Indirect::Pack {
+        return frozen(pack.expect("--indirect pack is refused without --pack"), &renderer.flat, eye);
+    }
     if renderer.flat.unlit().is_some() {
         crate::emit("indirect: skipped, nothing lights the scene\n");
         return Ok(direct.iter().map(|v| vec![Vec3::ZERO; v.len()]).collect());
@@ -547,7 +551,8 @@ fn indirect(
             let v = kage_engine::cache::gather_vertices(&src, s.rays, eye);
             (v, format!("{} rays", renderer.vertex_count() * s.side().pow(2)))
         }
-        _ => {
+        Indirect::None | Indirect::Pack => unreachable!("no bounce, or the pack's, gathers nothing"),
+        Indirect::Reference => {
             let settings =
                 Settings { spp: args.spp, seed: args.seed, max_bounces: args.bounces.unwrap_or(1), min_bounces: 1 };
             let est = renderer.render_vertices(eye, &settings, &|_| {});
@@ -557,6 +562,16 @@ fn indirect(
     };
     crate::emit(&format!("indirect ({:?}): {what} in {:.2} s\n", args.indirect(), start.elapsed().as_secs_f64()));
     Ok(values)
+}
+
+/// The bounces `pack` carries as radiance toward `eye`: their light per vertex times the
+/// vertex's diffuse albedo (the image's samples rescale it by theirs).
+fn frozen(pack: &Contents, flat: &kage_engine::scene::FlatScene, eye: Vec3) -> Result<VertexValues> {
+    let light =
+        pack.bounce.as_ref().context("the pack carries no bounces (packs from kage export, version 5 on, do)")?;
+    let albedo = kage_engine::material::albedo::at_vertices(flat, eye);
+    crate::emit("indirect (Pack): the bounces the pack carries\n");
+    Ok(light.iter().zip(albedo).map(|(l, a)| l.iter().zip(a).map(|(l, a)| *l * a).collect()).collect())
 }
 
 fn camera(args: &Args, scene_camera: Option<Camera>, flat: &kage_engine::scene::FlatScene) -> Result<Camera> {

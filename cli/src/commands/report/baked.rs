@@ -89,8 +89,9 @@ fn measure(args: &Args, scene: &Scene, renderer: &Renderer, camera: &Camera, par
     let mut bounces = 0;
     if part == Part::Whole {
         let s = cache::Settings::default();
-        let (bounce, bounced) =
-            crate::commands::render::baked::bounce(&look, renderer, &s, eye, cache::Bounces::default());
+        let (bounce, bounced) = crate::commands::render::baked::with_cache(&look, renderer, &s, |src, c| {
+            cache::bounce(src, c, eye, cache::Bounces::default())
+        });
         bounces = bounced.count as u32;
         config = format!("{config}; cache order {}, accuracy {}, {bounced}", s.order, s.accuracy);
         look = look.with_indirect(bounce);
