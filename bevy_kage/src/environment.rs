@@ -6,7 +6,11 @@
 //!   the groups that moved, and the albedo is applied per pixel;
 //! - the specular term on glossy and metal surfaces: the map's reflection in the GGX lobe
 //!   (filtered importance sampling of its mip chain) times the lobe's visible fraction from
-//!   the vertex's transfer and the share of the diffuse light the other groups leave.
+//!   the vertex's transfer and the share of the diffuse light the other groups leave;
+//! - a map's sun apart, as kage's look shades it: both terms above then carry the rest of the
+//!   sky (the pack's `sunless` lighting and regions, the map without the sun's texels), and
+//!   the sun is a `DirectionalLight` with shadow maps ([`KageSun`], turned and scaled with the
+//!   environment by [`sync_suns`]).
 
 use bevy::asset::RenderAssetUsages;
 use bevy::light::Skybox;
@@ -21,6 +25,7 @@ use kage_runtime::pack::Pack;
 use kage_runtime::prt::glossy::{Lobe, dominant_direction};
 use kage_runtime::prt::prefilter::Prefiltered;
 use kage_runtime::prt::silhouette::{Silhouette, Solid};
+use kage_runtime::prt::sun::Sun;
 use kage_runtime::prt::{Posed, Region, Window, group_silhouettes, to_group_frame};
 use rayon::prelude::*;
 use std::sync::Arc;
@@ -47,6 +52,41 @@ impl KageEnvironment {
     /// A camera's skybox showing this environment.
     pub fn skybox(&self) -> Skybox {
         Skybox { image: Some(self.skybox.clone()), brightness: self.intensity, rotation: self.rotation }
+    }
+}
+
+/// A pack environment's sun, lit by Bevy as a `DirectionalLight` (with shadow maps) on this
+/// entity, a child of the scene entity: where the environment was baked, in the pack's world.
+#[derive(Component, Clone, Copy, Debug)]
+pub struct KageSun(pub Sun);
+
+impl KageSun {
+    /// The light and its orientation as the scene's environment (`env`) turns and scales it.
+    pub fn light(&self, env: &KageEnvironment) -> (DirectionalLight, Transform) {
+        let sun = self.0.placed(glam::Quat::from_array(env.rotation.normalize().to_array()), env.intensity);
+        let lux = kage_runtime::math::color::luminance(sun.irradiance);
+        let c = sun.irradiance / lux.max(f32::MIN_POSITIVE);
+        let light = DirectionalLight {
+            color: Color::linear_rgb(c.x, c.y, c.z),
+            illuminance: lux,
+            shadow_maps_enabled: true,
+            ..default()
+        };
+        let toward = crate::shade::bevy_vec(sun.direction);
+        let up = if toward.y.abs() > 0.99 { Vec3::Z } else { Vec3::Y };
+        (light, Transform::default().looking_to(-toward, up))
+    }
+}
+
+/// Turns and scales every scene's sun with its environment.
+pub(crate) fn sync_suns(
+    scenes: Query<&KageEnvironment, Changed<KageEnvironment>>,
+    mut suns: Query<(&KageSun, &ChildOf, &mut DirectionalLight, &mut Transform)>,
+) {
+    for (sun, parent, mut light, mut place) in &mut suns {
+        if let Ok(env) = scenes.get(parent.parent()) {
+            (*light, *place) = sun.light(env);
+        }
     }
 }
 
@@ -123,6 +163,8 @@ pub(crate) struct EnvironmentShading {
     chain: Prefiltered,
     /// The lobe's visible fraction at the transfer's order.
     lobe: Lobe,
+    /// The map's sun where it was baked, when the pack shades it apart.
+    pub(crate) sun: Option<Sun>,
     /// The groups' and the environment's placement the diffuse light was computed for, and it.
     last: Option<(Vec<u32>, Lit)>,
     /// The same and the eye the specular term was computed for, and the light toward it.
@@ -150,13 +192,22 @@ impl EnvironmentShading {
             let at = |k: u32| inst.local.transform_point3(inst.mesh.positions[k as usize]);
             triangles[inst.group].extend(inst.mesh.triangles.iter().map(|t| t.map(at)));
         }
-        let regions = if pack.groups.len() > 1 { h.regions.iter().map(Region::from).collect() } else { Vec::new() };
-        let chain = Prefiltered::new(env.width, env.height, env.texels.clone(), env.intensity, env.rotation);
+        // A pack that records the sky without its sun has it split off as kage's look does.
+        let split = h.sunless.as_ref().and_then(|_| kage_runtime::prt::sun::split(env.width, env.height, &env.texels));
+        let (lighting, regions) = match (&h.sunless, &split) {
+            (Some(rest), Some(_)) => (&rest.lighting, &rest.regions),
+            _ => (&h.lighting, &h.regions),
+        };
+        let regions = if pack.groups.len() > 1 { regions.iter().map(Region::from).collect() } else { Vec::new() };
+        let texels = split.as_ref().map_or_else(|| env.texels.clone(), |(_, rest)| rest.clone());
+        let chain = Prefiltered::new(env.width, env.height, texels, env.intensity, env.rotation);
+        let baked = glam::Quat::from_rotation_y(env.rotation);
         Some(Self {
             lobe: Lobe::new(h.order as usize, h.window.into()),
             chain,
+            sun: split.map(|(sun, _)| sun.placed(baked, env.intensity)),
             order: h.order as usize,
-            coeffs: h.lighting.iter().map(|c| DVec3::from_array(*c)).collect(),
+            coeffs: lighting.iter().map(|c| DVec3::from_array(*c)).collect(),
             window: h.window.into(),
             regions,
             resolution: h.silhouette_resolution as usize,

@@ -39,7 +39,7 @@ pub mod material;
 pub mod shade;
 pub mod spawn;
 
-pub use environment::KageEnvironment;
+pub use environment::{KageEnvironment, KageSun};
 pub use loader::{KagePack, KagePackLoader};
 pub use material::KageMaterial;
 pub use shade::{KageStats, ShadeOn};
@@ -63,7 +63,10 @@ impl Plugin for KagePlugin {
             .init_resource::<shade::KageStats>()
             .init_asset_loader::<KagePackLoader>()
             .add_plugins(MaterialPlugin::<KageMaterial>::default())
-            .add_systems(Update, (spawn::spawn_scenes, spawn::warn_unbaked_lights, environment::sync_skyboxes))
+            .add_systems(
+                Update,
+                (spawn::spawn_scenes, spawn::warn_unbaked_lights, environment::sync_skyboxes, environment::sync_suns),
+            )
             .add_systems(PostUpdate, shade::shade_lights.after(TransformSystems::Propagate))
             .add_systems(
                 PostUpdate,

@@ -181,6 +181,11 @@ impl Shading {
         let environment = EnvironmentShading::new(&pack);
         Self { pack, groups, instances, lights, terms, baked, last: None, warned: HashSet::new(), environment }
     }
+
+    /// The environment's sun where it was baked, when the pack shades it apart.
+    pub(crate) fn sun(&self) -> Option<kage_runtime::prt::sun::Sun> {
+        self.environment.as_ref().and_then(|e| e.sun)
+    }
 }
 
 /// The lights as their entities place them now (hidden lights are off).

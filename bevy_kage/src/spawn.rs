@@ -3,7 +3,7 @@
 //! `RectLight`s (local XY plane, emitting toward −Z), other polygons a [`KageLight`] with its
 //! polygon; either way the plugin, not Bevy, lights with them ([`keep_baked_lights_out`]).
 
-use crate::environment::KageEnvironment;
+use crate::environment::{KageEnvironment, KageSun};
 use crate::loader::KagePack;
 use crate::material::{KageLights, KageMaterial, KageParams};
 use crate::shade::{self, Shading};
@@ -118,11 +118,38 @@ pub(crate) fn spawn_scenes(
         {
             spawner.camera(c, pack.header.preview_exposure, entity, environment.as_ref());
         }
-        commands.entity(entity).insert(Shading::new(pack, groups, instances, lights, terms));
+        let shading = Shading::new(pack.clone(), groups, instances, lights, terms);
+        if let (Some(sun), Some(env)) = (shading.sun(), &environment) {
+            let sun = KageSun(sun);
+            let (light, place) = sun.light(env);
+            commands.spawn((sun, light, place, sun_cascades(&pack), ChildOf(entity)));
+        }
+        commands.entity(entity).insert(shading);
         if let Some(e) = environment {
             commands.entity(entity).insert(e);
         }
     }
+}
+
+/// One shadow cascade over the whole pack, seen from its camera (or from anywhere near it):
+/// a scene kage bakes is small enough for one map, and one map keeps shadows alike across
+/// the view.
+fn sun_cascades(pack: &Pack) -> bevy::light::CascadeShadowConfig {
+    let points = pack.instances.iter().flat_map(|i| {
+        let world = pack.groups[i.group].pose * i.local;
+        i.mesh.positions.iter().map(move |p| world.transform_point3(*p))
+    });
+    let (lo, hi) = points.fold((glam::Vec3::MAX, glam::Vec3::MIN), |(lo, hi), p| (lo.min(p), hi.max(p)));
+    let (centre, radius) = (0.5 * (lo + hi), (0.5 * (hi - lo).length()).max(1e-3));
+    let eye = pack.camera.as_ref().map_or(centre, |c| c.world.translation.into());
+    let reach = (eye - centre).length() + radius;
+    bevy::light::CascadeShadowConfigBuilder {
+        num_cascades: 1,
+        minimum_distance: 0.01 * reach,
+        maximum_distance: reach,
+        ..default()
+    }
+    .build()
 }
 
 /// Instance `i`'s material: its real material's factors and textures, kage's lights added.

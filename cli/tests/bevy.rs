@@ -35,8 +35,10 @@ fn bevy_shades_a_pack_as_kage_renders_it() {
 /// Packs under an environment (`city.hdr`: a sky without a sun) in kage and in Bevy:
 /// `cube_on_plane.gltf` (the map at 0.6 of its radiance) with the cube where it was baked and moved 0.3 m (the environment's
 /// light, its self-shadowing and the shadow the cube casts on the ground, another rigid
-/// group), and `teapot_quad_light.gltf` with the environment as baked and turned 90° (the
-/// gold teapot's reflections of it): within 5 % of each other, and the change alters both
+/// group), `teapot_quad_light.gltf` with the environment as baked and turned 90° (the
+/// gold teapot's reflections of it), and `cube_on_plane.gltf` under `sky.hdr`, whose sun both
+/// shade apart (kage with its shadow map on the GPU, Bevy as a `DirectionalLight`), turned
+/// 90° (the sun's shadow swings round): within 5 % of each other, and the change alters both
 /// images alike.
 #[test]
 fn bevy_shades_a_packs_environment_as_kage_renders_it() {
@@ -54,6 +56,7 @@ fn bevy_shades_a_packs_environment_as_kage_renders_it() {
         env.rotation = Quat::from_rotation_y(90f32.to_radians());
     };
     compare("teapot_quad_light", &["--env", &city], &["--env-rotation", "90"], turn);
+    compare("cube_on_plane", &["--env", &asset("envmaps/sky.hdr")], &["--env-rotation", "90"], turn);
 }
 
 /// The Cornell box, a light inside a closed room whose walls light each other: the pack's

@@ -544,16 +544,11 @@ fn root_extension(e: &Export, b: &mut Builder) -> schema::Root {
         window: light.window.into(),
         silhouette_resolution: s.silhouette_res as u64,
         lighting: light.coeffs.iter().map(|c| c.to_array()).collect(),
-        regions: light
-            .regions
-            .iter()
-            .map(|r| schema::Region {
-                power: r.power.to_array(),
-                direction: r.dir.to_array(),
-                solid_angle: r.solid_angle,
-                spread: r.spread,
-            })
-            .collect(),
+        regions: regions(&light.regions),
+        sunless: light.sunless.as_ref().map(|(_, rest)| schema::Sunless {
+            lighting: rest.coeffs.iter().map(|c| c.to_array()).collect(),
+            regions: regions(&rest.regions),
+        }),
     });
     // Exact texels (f32 RGB, row 0 = +Y): the specular term prefilters them on load.
     let environment = e.scene.world.query::<&EnvironmentLight>().iter().next().map(|env| schema::Environment {
@@ -572,4 +567,15 @@ fn root_extension(e: &Export, b: &mut Builder) -> schema::Root {
 #[allow(clippy::needless_update)]
 fn root_extensions(others: serde_json::Map<String, serde_json::Value>) -> gj::extensions::root::Root {
     gj::extensions::root::Root { others, ..Default::default() }
+}
+
+/// An environment's regions as the pack records them.
+fn regions(regions: &[prt::regions::Region]) -> Vec<schema::Region> {
+    let record = |r: &prt::regions::Region| schema::Region {
+        power: r.power.to_array(),
+        direction: r.dir.to_array(),
+        solid_angle: r.solid_angle,
+        spread: r.spread,
+    };
+    regions.iter().map(record).collect()
 }

@@ -1,46 +1,12 @@
-//! The sun: a small, very bright source in an environment map, split off so that the baked
-//! look shades it as a directional light with a shadow ray, while PRT and the prefiltered
-//! specular carry the rest of the sky. Low-order SH cannot hold a source 10⁵ times its sky —
-//! it rings, and its shadows blur into copies per region — and 32 lobe samples miss it.
-//!
-//! The split is exact: the residual map plus the sun's texels is the map. The sun is the
-//! brightest texel's 8-connected neighbourhood of texels at least 1/100 of its luminance; it
-//! counts as a sun when that patch is small (under [`MAX_SOLID_ANGLE`]) and holds at least
-//! [`MIN_SHARE`] of the map's power. Its texels are replaced in the residual by the mean of the
-//! texels around the patch.
+//! The environment map's sun at bake and render time: the runtime's split
+//! ([`kage_runtime::prt::sun`]) over kage's maps and lights, and how many shadow rays the
+//! baked look casts toward a soft one.
 
-use crate::math::luminance;
-use crate::scene::{EnvMap, EnvironmentLight, environment::uv_to_dir};
-use glam::{Quat, Vec2, Vec3};
-use std::f32::consts::PI;
+use crate::scene::{EnvMap, EnvironmentLight};
+use glam::Quat;
+pub use kage_runtime::prt::sun::{MAX_SOLID_ANGLE, MIN_SHARE, SOFT_RADIUS, Sun};
 use std::sync::Arc;
 
-/// Largest patch that is split off as a sun (steradians; a cap of ≈ 6.5° radius).
-pub const MAX_SOLID_ANGLE: f32 = 0.04;
-/// Smallest share of the map's power a patch needs to be split off.
-pub const MIN_SHARE: f32 = 0.2;
-/// A texel belongs to the patch when its luminance is at least this fraction of the peak's.
-const PATCH_FRACTION: f32 = 0.01;
-
-/// A sun: in the map's frame as [`split`] finds it, in world space after [`Sun::in_world`].
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Sun {
-    /// Unit direction toward the sun (power-weighted mean of its texels).
-    pub direction: Vec3,
-    /// Irradiance it gives a surface facing it (radiance × solid angle, summed; RGB).
-    pub irradiance: Vec3,
-    /// Angular radius of a disc of the patch's solid angle (radians).
-    pub angular_radius: f32,
-    /// Angular radius of a uniform disc whose power spreads about the direction as the
-    /// patch's does (radians; √2 × the power-weighted RMS angle): what its shadows' penumbrae
-    /// follow. Less than [`Sun::angular_radius`] when the patch's dim rim holds little power.
-    pub spread: f32,
-}
-
-/// Below this spread ([`Sun::spread`], radians, 2°) one ray through the sun's centre decides its shadow:
-/// its penumbra is narrow (`sky.hdr`'s sun, 1.1°: 4 cm at 1 m). Above it the penumbra shows
-/// (`studio.hdr`'s brightest lamp, 6.2°: a panel 3 m up casts a 30 cm one).
-pub const SOFT_RADIUS: f32 = 0.0349;
 /// Shadow rays toward a sun wider than [`SOFT_RADIUS`] per vertex.
 pub const VERTEX_RAYS: usize = 16;
 /// Shadow rays toward a sun wider than [`SOFT_RADIUS`] per image sample or gather hit: a
@@ -48,130 +14,25 @@ pub const VERTEX_RAYS: usize = 16;
 /// their own way, and average.
 pub const SAMPLE_RAYS: usize = 4;
 
-impl Sun {
-    /// The tangent of the angle the sun's shadow widens by on each side of its edge, per unit
-    /// of distance to the occluder: 0 for a sun under [`SOFT_RADIUS`], shadowed hard.
-    pub fn softness(&self) -> f32 {
-        if self.spread > SOFT_RADIUS { self.spread.tan() } else { 0.0 }
-    }
-
-    /// The directions a point's shadow rays take toward the sun: its centre for a hard sun,
-    /// else `rays` over its disc at equal areas (a Vogel spiral), the spiral turned by `turn`
-    /// (a fraction of a full turn, 0 to 1; chosen per point, the pattern's offsets average into
-    /// a penumbra instead of drawing `rays` copies of the shadow).
-    pub fn shadow_directions(&self, rays: usize, turn: f32) -> impl Iterator<Item = Vec3> + use<> {
-        let softness = self.softness();
-        let rays = if softness > 0.0 { rays } else { 1 };
-        let (direction, frame) = (self.direction, crate::math::frame::Frame::from_normal(self.direction));
-        (0..rays).map(move |k| {
-            if rays == 1 {
-                return direction;
-            }
-            let (r, angle) = vogel(k, rays, turn);
-            let offset = Vec3::new(angle.cos(), angle.sin(), 0.0) * (r * softness);
-            frame.to_world(Vec3::Z + offset).normalize()
-        })
-    }
-
-    /// This map-frame sun under `env`'s rotation and intensity.
-    pub fn in_world(self, env: &EnvironmentLight) -> Self {
-        Self {
-            direction: Quat::from_rotation_y(env.rotation) * self.direction,
-            irradiance: self.irradiance * env.intensity,
-            ..self
-        }
-    }
-}
-
-/// Point `k` of an `n`-point Vogel spiral on the unit disc turned by `turn` turns: its radius
-/// and angle. Point `k` sits at the radius halving the area of its ring (`√((k + ½) / n)`), so
-/// each holds an equal area.
-fn vogel(k: usize, n: usize, turn: f32) -> (f32, f32) {
-    const GOLDEN_ANGLE: f32 = 2.399_963;
-    (((k as f32 + 0.5) / n as f32).sqrt(), k as f32 * GOLDEN_ANGLE + turn * 2.0 * PI)
-}
-
-fn texel_solid_angle(y: usize, w: usize, h: usize) -> f32 {
-    crate::scene::environment::texel_solid_angle(y, w, h) as f32
-}
-
-/// The 8-connected neighbours of texel `i` (wrapping in longitude).
-fn neighbours(i: usize, w: usize, h: usize) -> impl Iterator<Item = usize> {
-    let (x, y) = ((i % w) as isize, (i / w) as isize);
-    (-1..=1isize).flat_map(move |dy| (-1..=1isize).map(move |dx| (dx, dy))).filter_map(move |(dx, dy)| {
-        let ny = y + dy;
-        ((dx, dy) != (0, 0) && (0..h as isize).contains(&ny))
-            .then(|| ny as usize * w + (x + dx).rem_euclid(w as isize) as usize)
-    })
-}
-
 /// Splits `map` into its sun and the residual map (`None`: no patch qualifies as a sun).
 pub fn split(map: &EnvMap) -> Option<(Sun, EnvMap)> {
-    let (w, h) = (map.width, map.height);
-    let lum: Vec<f32> = map.texels.iter().map(|t| luminance(*t)).collect();
-    let peak = (0..lum.len()).max_by(|a, b| lum[*a].total_cmp(&lum[*b]))?;
-    let threshold = lum[peak] * PATCH_FRACTION;
-    let mut inside = vec![false; lum.len()];
-    let (mut patch, mut stack) = (Vec::new(), vec![peak]);
-    inside[peak] = true;
-    while let Some(i) = stack.pop() {
-        patch.push(i);
-        for n in neighbours(i, w, h) {
-            if !inside[n] && lum[n] >= threshold {
-                inside[n] = true;
-                stack.push(n);
-            }
-        }
-    }
-    patch.sort_unstable();
-    let omega: f32 = patch.iter().map(|&i| texel_solid_angle(i / w, w, h)).sum();
-    // The fill: the mean radiance of the texels bordering the patch.
-    let mut ring: Vec<usize> = patch.iter().flat_map(|&i| neighbours(i, w, h)).filter(|&n| !inside[n]).collect();
-    ring.sort_unstable();
-    ring.dedup();
-    let fill = ring.iter().map(|&i| map.texels[i]).sum::<Vec3>() / ring.len().max(1) as f32;
-    let power = |i: usize, l: f32| l * texel_solid_angle(i / w, w, h);
-    let total: f32 = (0..lum.len()).map(|i| power(i, lum[i])).sum();
-    let (mut irradiance, mut weighted) = (Vec3::ZERO, Vec3::ZERO);
-    for &i in &patch {
-        let excess = (map.texels[i] - fill).max(Vec3::ZERO) * texel_solid_angle(i / w, w, h);
-        let uv = Vec2::new(((i % w) as f32 + 0.5) / w as f32, ((i / w) as f32 + 0.5) / h as f32);
-        irradiance += excess;
-        weighted += uv_to_dir(uv) * luminance(excess);
-    }
-    if omega > MAX_SOLID_ANGLE || luminance(irradiance) < MIN_SHARE * total {
-        return None;
-    }
-    let mut texels = map.texels.clone();
-    patch.iter().for_each(|&i| texels[i] = texels[i].min(fill));
-    let residual = EnvMap::new(w, h, texels, map.source.clone()).ok()?;
-    let angular_radius = (1.0 - omega / (2.0 * PI)).clamp(-1.0, 1.0).acos();
-    let direction = weighted.normalize();
-    // Each texel's power about the direction: its centre's angle, plus a square texel's own
-    // second moment (Ω/6).
-    let (mut moment, mut weight) = (0.0, 0.0);
-    for &i in &patch {
-        let omega_i = texel_solid_angle(i / w, w, h);
-        let p = luminance((map.texels[i] - fill).max(Vec3::ZERO) * omega_i);
-        let uv = Vec2::new(((i % w) as f32 + 0.5) / w as f32, ((i / w) as f32 + 0.5) / h as f32);
-        moment += p * (uv_to_dir(uv).angle_between(direction).powi(2) + omega_i / 6.0);
-        weight += p;
-    }
-    let spread = (2.0 * moment / weight.max(f32::MIN_POSITIVE)).sqrt();
-    Some((Sun { direction, irradiance, angular_radius, spread }, residual))
+    let (sun, texels) = kage_runtime::prt::sun::split(map.width, map.height, &map.texels)?;
+    Some((sun, EnvMap::new(map.width, map.height, texels, map.source.clone()).ok()?))
 }
 
 /// `env` without its sun (a light of the residual map), and the sun in world space.
 pub fn split_light(env: &EnvironmentLight) -> Option<(Sun, EnvironmentLight)> {
     let (sun, residual) = split(&env.map)?;
     let rest = EnvironmentLight { map: Arc::new(residual), ..env.clone() };
-    Some((sun.in_world(env), rest))
+    Some((sun.placed(Quat::from_rotation_y(env.rotation), env.intensity), rest))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::math::luminance;
     use crate::scene::environment::dir_to_uv;
+    use glam::Vec3;
 
     /// A dim sky with a bright 3×3-texel sun toward `dir`.
     fn sky_with_sun(dir: Vec3, radiance: f32) -> EnvMap {
@@ -189,7 +50,13 @@ mod tests {
     }
 
     fn power(map: &EnvMap) -> Vec3 {
-        map.texels.iter().enumerate().map(|(i, t)| *t * texel_solid_angle(i / map.width, map.width, map.height)).sum()
+        map.texels
+            .iter()
+            .enumerate()
+            .map(|(i, t)| {
+                *t * crate::scene::environment::texel_solid_angle(i / map.width, map.width, map.height) as f32
+            })
+            .sum()
     }
 
     #[test]
@@ -232,40 +99,5 @@ mod tests {
         assert!(split(&sky_with_sun(Vec3::Y, 0.5)).is_none(), "a faint patch is no sun");
         let uniform = EnvMap::new(8, 4, vec![Vec3::ONE; 32], "uniform".into()).unwrap();
         assert!(split(&uniform).is_none(), "a patch covering the sky is no sun");
-    }
-
-    #[test]
-    fn shadow_rays_cover_a_wide_suns_disc_and_a_narrow_ones_centre() {
-        let sun = |degrees: f32| Sun {
-            direction: Vec3::new(0.3, 0.9, -0.2).normalize(),
-            irradiance: Vec3::ONE,
-            angular_radius: degrees.to_radians(),
-            spread: degrees.to_radians(),
-        };
-        let hard = sun(1.1);
-        assert_eq!(hard.softness(), 0.0);
-        assert_eq!(hard.shadow_directions(VERTEX_RAYS, 0.37).collect::<Vec<_>>(), vec![hard.direction]);
-        let wide = sun(6.2);
-        for turn in [0.0, 0.25, 0.9] {
-            let dirs: Vec<Vec3> = wide.shadow_directions(VERTEX_RAYS, turn).collect();
-            assert_eq!(dirs.len(), VERTEX_RAYS);
-            let within = dirs.iter().all(|d| d.angle_between(wide.direction) <= wide.spread * 1.0001);
-            let mean = dirs.iter().sum::<Vec3>().normalize();
-            assert!(within && mean.angle_between(wide.direction) < 0.1 * wide.spread, "{turn}");
-            // Equal areas: an edge through the centre hides half of the rays, give or take one.
-            let side = wide.direction.any_orthonormal_vector();
-            let hidden = dirs.iter().filter(|d| d.dot(side) > 0.0).count() as i64;
-            assert!((hidden - VERTEX_RAYS as i64 / 2).abs() <= 1, "{turn}: {hidden}");
-        }
-    }
-
-    #[test]
-    fn the_light_turns_and_scales_its_sun() {
-        let map = sky_with_sun(Vec3::new(0.0, 0.6, -0.8), 5e4);
-        let env = EnvironmentLight { map: Arc::new(map), intensity: 2.0, rotation: 0.5 };
-        let (sun, _) = split_light(&env).unwrap();
-        let (plain, _) = split(&env.map).unwrap();
-        assert!((sun.irradiance - plain.irradiance * 2.0).abs().max_element() < 1e-3);
-        assert!(sun.direction.dot(Quat::from_rotation_y(0.5) * plain.direction) > 0.99999);
     }
 }

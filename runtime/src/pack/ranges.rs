@@ -45,22 +45,32 @@ pub fn root(r: &schema::Root) -> Checked {
     if let Some(p) = &r.prt {
         let count = |n: u64| usize::try_from(n).unwrap_or(usize::MAX);
         prt_settings(count(p.order), p.regions.len(), count(p.directions), count(p.silhouette_resolution))?;
-        finite("prt.lighting", &p.lighting.concat())?;
-        for (i, g) in p.regions.iter().enumerate() {
-            let field = |f: &str| format!("prt.regions[{i}].{f}");
-            within(&field("power"), &g.power, 0.0, f64::MAX)?;
-            let d = g.direction.map(f64::from);
-            finite(&field("direction"), &d)?;
-            if ((d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt() - 1.0).abs() > 1e-3 {
-                return Err(format!("{} is not a unit vector", field("direction")));
-            }
-            within(&field("solidAngle"), &[g.solid_angle], f64::MIN_POSITIVE, SPHERE)?;
-            within(&field("spread"), &[g.spread], 0.0, SPHERE)?;
+        lighting("prt.", &p.lighting, &p.regions)?;
+        if let Some(s) = &p.sunless {
+            prt_settings(count(p.order), s.regions.len(), count(p.directions), count(p.silhouette_resolution))?;
+            lighting("prt.sunless.", &s.lighting, &s.regions)?;
         }
     }
     if let Some(e) = &r.environment {
         within("environment.intensity", &[e.intensity as f64], 0.0, f64::MAX)?;
         finite("environment.rotation", &[e.rotation as f64])?;
+    }
+    Ok(())
+}
+
+/// An environment's SH `light` and `regions`, their fields named after `prefix`.
+fn lighting(prefix: &str, light: &[[f64; 3]], regions: &[schema::Region]) -> Checked {
+    finite(&format!("{prefix}lighting"), &light.concat())?;
+    for (i, g) in regions.iter().enumerate() {
+        let field = |f: &str| format!("{prefix}regions[{i}].{f}");
+        within(&field("power"), &g.power, 0.0, f64::MAX)?;
+        let d = g.direction.map(f64::from);
+        finite(&field("direction"), &d)?;
+        if ((d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt() - 1.0).abs() > 1e-3 {
+            return Err(format!("{} is not a unit vector", field("direction")));
+        }
+        within(&field("solidAngle"), &[g.solid_angle], f64::MIN_POSITIVE, SPHERE)?;
+        within(&field("spread"), &[g.spread], 0.0, SPHERE)?;
     }
     Ok(())
 }

@@ -531,8 +531,11 @@ impl Reader<'_> {
     /// Every instance's PRT transfer: n² floats per vertex, each within its band's bound.
     fn prt(&self, h: &schema::PrtHeader, records: &[schema::Instance], into: &mut [Instance]) -> Checked<()> {
         let order = count(h.order);
-        if order == 0 || order.checked_mul(order) != Some(h.lighting.len()) {
-            return Err(format!("PRT: {} lighting coefficients for order {order}", h.lighting.len()));
+        let sunless = h.sunless.as_ref().map(|s| &s.lighting);
+        for light in std::iter::once(&h.lighting).chain(sunless) {
+            if order == 0 || order.checked_mul(order) != Some(light.len()) {
+                return Err(format!("PRT: {} lighting coefficients for order {order}", light.len()));
+            }
         }
         for (k, (inst, r)) in into.iter_mut().zip(records).enumerate() {
             let data = r.prt.as_ref().ok_or_else(|| format!("mesh {k}: no PRT transfer"))?;

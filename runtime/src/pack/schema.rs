@@ -56,6 +56,19 @@ pub struct PrtHeader {
     pub lighting: Vec<[f64; 3]>,
     /// The environment's regions.
     pub regions: Vec<Region>,
+    /// The same of the environment without its sun, when its map has one (version 5 on): what
+    /// a reader that lights the sun apart shades the rest with.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sunless: Option<Sunless>,
+}
+
+/// An environment's lighting and regions without its sun.
+#[derive(Debug, Serialize, Deserialize)]
+pub struct Sunless {
+    /// The radiance in SH (n² RGB triples, world frame).
+    pub lighting: Vec<[f64; 3]>,
+    /// The regions.
+    pub regions: Vec<Region>,
 }
 
 /// A window against SH ringing, by name.

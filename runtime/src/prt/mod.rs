@@ -10,6 +10,7 @@ mod lighting;
 mod posed;
 pub mod prefilter;
 pub mod silhouette;
+pub mod sun;
 
 pub use lighting::{Region, Window, fibonacci_direction, to_group_frame};
 pub use posed::{Posed, group_silhouettes};
