@@ -80,11 +80,11 @@ impl KageSun {
 
 /// Turns and scales every scene's sun with its environment.
 pub(crate) fn sync_suns(
-    scenes: Query<&KageEnvironment, Changed<KageEnvironment>>,
+    scenes: Query<(Entity, &KageEnvironment), Changed<KageEnvironment>>,
     mut suns: Query<(&KageSun, &ChildOf, &mut DirectionalLight, &mut Transform)>,
 ) {
-    for (sun, parent, mut light, mut place) in &mut suns {
-        if let Ok(env) = scenes.get(parent.parent()) {
+    for (scene, env) in &scenes {
+        for (sun, _, mut light, mut place) in suns.iter_mut().filter(|s| s.1.parent() == scene) {
             (*light, *place) = sun.light(env);
         }
     }

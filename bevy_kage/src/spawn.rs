@@ -8,6 +8,7 @@ use crate::loader::KagePack;
 use crate::material::{KageLights, KageMaterial, KageParams};
 use crate::shade::{self, Shading};
 use bevy::asset::{LoadState, RenderAssetUsages};
+use bevy::camera::primitives::{Aabb, MeshAabb};
 use bevy::camera::visibility::ViewVisibility;
 use bevy::mesh::{Indices, PrimitiveTopology};
 use bevy::prelude::*;
@@ -205,17 +206,26 @@ impl Spawner<'_, '_, '_> {
     /// Instance `i` under `group`.
     fn instance(&mut self, pack: &Pack, i: usize, group: Entity, material: Handle<KageMaterial>) -> Entity {
         let inst = &pack.instances[i];
-        let mesh = self.meshes.add(mesh(&inst.mesh));
+        let (mesh, bounds) = self.add(mesh(&inst.mesh));
         let parts = (Name::new(inst.name.clone()), KageInstance(i), transform(&inst.local));
-        self.commands.spawn((parts, Mesh3d(mesh), MeshMaterial3d(material))).insert(ChildOf(group)).id()
+        self.commands.spawn((parts, Mesh3d(mesh), MeshMaterial3d(material), bounds)).insert(ChildOf(group)).id()
+    }
+
+    /// `mesh` added to the assets, with its box: its data lives in the render world only, where
+    /// Bevy cannot measure it, and without a box a mesh casts no directional shadow.
+    fn add(&mut self, mesh: Mesh) -> (Handle<Mesh>, Aabb) {
+        let bounds = mesh.compute_aabb().unwrap_or_default();
+        (self.meshes.add(mesh), bounds)
     }
 
     /// Light `l` under `group`: a `RectLight` when it is a rectangle, its polygon otherwise;
-    /// either with its emitting polygon drawn.
+    /// either with its emitting polygon drawn, and its back black as kage draws it (a panel
+    /// that also casts the sun's shadow, as kage's shadow rays meet either side).
     fn light(&mut self, pack: &Pack, l: usize, group: Entity) -> Entity {
         let light = &pack.lights[l];
         let radiance = LinearRgba::rgb(light.radiance.x, light.radiance.y, light.radiance.z);
         let emitter = self.emitters.add(StandardMaterial { base_color: Color::BLACK, emissive: radiance, ..default() });
+        let back = self.emitters.add(StandardMaterial { base_color: Color::BLACK, unlit: true, ..default() });
         let name = Name::new(light.name.clone());
         match shade::rectangle(&light.polygon) {
             Some(r) => {
@@ -234,18 +244,21 @@ impl Spawner<'_, '_, '_> {
                 let face = Transform::from_rotation(Quat::from_rotation_y(std::f32::consts::PI));
                 self.commands
                     .spawn((name, rect, marker, at))
-                    .with_child((Mesh3d(quad), MeshMaterial3d(emitter), face))
+                    .with_child((Mesh3d(quad.clone()), MeshMaterial3d(emitter), face))
+                    .with_child((Mesh3d(quad), MeshMaterial3d(back), Transform::IDENTITY))
                     .insert(ChildOf(group))
                     .id()
             }
             None => {
                 let polygon: Vec<Vec3> = light.polygon.iter().map(|p| Vec3::from_array(p.to_array())).collect();
-                let fan = self.meshes.add(fan(&polygon));
+                let (front, bounds) = self.add(fan(&polygon));
+                let (behind, _) = self.add(fan(&polygon.iter().rev().copied().collect::<Vec<_>>()));
                 let marker = KageLight { index: l, polygon, radiance };
                 let parts = (name, marker, transform(&light.local), Visibility::default());
                 self.commands
                     .spawn(parts)
-                    .with_child((Mesh3d(fan), MeshMaterial3d(emitter), Transform::IDENTITY))
+                    .with_child((Mesh3d(front), MeshMaterial3d(emitter), Transform::IDENTITY, bounds))
+                    .with_child((Mesh3d(behind), MeshMaterial3d(back), Transform::IDENTITY, bounds))
                     .insert(ChildOf(group))
                     .id()
             }

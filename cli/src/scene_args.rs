@@ -124,6 +124,11 @@ impl SceneArgs {
         self.load_refined(false, None)
     }
 
+    /// Whether the environment's intensity or rotation is given.
+    pub fn poses_environment(&self) -> bool {
+        self.env_intensity.is_some() || self.env_rotation.is_some()
+    }
+
     /// Applies the run-time changes asked for — the environment's intensity and rotation,
     /// groups turned and moved, lights turned and moved — to a loaded scene or a pack's.
     pub fn pose(&self, scene: &mut Scene) -> Result<()> {

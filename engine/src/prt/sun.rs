@@ -100,4 +100,14 @@ mod tests {
         let uniform = EnvMap::new(8, 4, vec![Vec3::ONE; 32], "uniform".into()).unwrap();
         assert!(split(&uniform).is_none(), "a patch covering the sky is no sun");
     }
+
+    #[test]
+    fn the_light_turns_and_scales_its_sun() {
+        let map = sky_with_sun(Vec3::new(0.0, 0.6, -0.8), 5e4);
+        let env = EnvironmentLight { map: Arc::new(map), intensity: 2.0, rotation: 0.5 };
+        let (sun, _) = split_light(&env).unwrap();
+        let (plain, _) = split(&env.map).unwrap();
+        assert!((sun.irradiance - plain.irradiance * 2.0).abs().max_element() < 1e-3);
+        assert!(sun.direction.dot(Quat::from_rotation_y(0.5) * plain.direction) > 0.99999);
+    }
 }

@@ -176,17 +176,7 @@ mod tests {
             // Equal areas: an edge through the centre hides half of the rays, give or take one.
             let side = wide.direction.any_orthonormal_vector();
             let hidden = dirs.iter().filter(|d| d.dot(side) > 0.0).count() as i64;
-            assert!((hidden - 16 as i64 / 2).abs() <= 1, "{turn}: {hidden}");
+            assert!((hidden - 8).abs() <= 1, "{turn}: {hidden}");
         }
-    }
-
-    #[test]
-    fn the_light_turns_and_scales_its_sun() {
-        let map = sky_with_sun(Vec3::new(0.0, 0.6, -0.8), 5e4);
-        let env = EnvironmentLight { map: Arc::new(map), intensity: 2.0, rotation: 0.5 };
-        let (sun, _) = split_light(&env).unwrap();
-        let (plain, _) = split(&env.map).unwrap();
-        assert!((sun.irradiance - plain.irradiance * 2.0).abs().max_element() < 1e-3);
-        assert!(sun.direction.dot(Quat::from_rotation_y(0.5) * plain.direction) > 0.99999);
     }
 }

@@ -188,9 +188,14 @@ pub fn run(args: &Args) -> Result<()> {
     let (mut scene, pack) = match &args.pack {
         Some(path) => {
             args.scene.check_for_pack()?;
-            let (mut scene, contents) = kage_bake_db::pack::read(path)?;
+            let (mut scene, mut contents) = kage_bake_db::pack::read(path)?;
             contents.warnings.iter().for_each(|w| eprintln!("warning: {w}"));
             args.scene.pose(&mut scene)?;
+            // The pack's lighting is the environment as baked; turned or scaled, it is
+            // projected again from the map the pack holds (its sun split off anew).
+            if let Some((_, lighting, settings)) = contents.prt.as_mut().filter(|_| args.scene.poses_environment()) {
+                *lighting = prt::Lighting::new(&scene, settings).context("the pack's PRT data has no environment")?;
+            }
             (scene, Some(contents))
         }
         None => {
