@@ -2,9 +2,11 @@
 //!
 //! kage's baked shadows in Bevy 0.19: a pack (`kage export SCENE -o PACK.glb`) loads as an
 //! asset ([`KagePack`]), and a [`KageScene`] entity spawns it — its rigid groups, mesh instances
-//! with their real materials, lights and camera. Every frame the plugin shades the pack's
-//! polygonal lights from the baked BSPVT visibility trees wherever the light entities are now:
-//! moving or resizing a light moves its shadows, with no bake.
+//! with their real materials, lights, camera and environment. Every frame the plugin shades
+//! the pack's polygonal lights from the baked BSPVT visibility trees wherever the light
+//! entities are now, and its environment from the baked PRT transfer wherever the groups are
+//! and however the environment is turned: moving or resizing a light moves its shadows,
+//! moving a group moves the environment's shadows it casts, with no bake.
 //!
 //! ## Design
 //! - **Reading** is `kage-runtime`'s ([`kage_runtime::pack::Pack::read`]): integrity verified,
@@ -19,6 +21,12 @@
 //!   vertices — the WGSL is kage's viewport's (`shaders/pixel_lights.wgsl`, `ltc.wgsl`), so
 //!   highlights are as sharp as the lobe. Bevy's own lights, ambient light and environment
 //!   maps light the same materials as usual.
+//! - **The environment** ([`environment`]): PRT's diffuse light with the shadows groups cast
+//!   on each other, and the reflection on glossy and metal surfaces, per vertex
+//!   (`kage_runtime::prt`, the code `kage render` runs); a map's sun split off and lit by Bevy
+//!   as a shadowed `DirectionalLight` ([`KageSun`]); the map as the camera's skybox.
+//! - **The bounce** is the pack's, frozen where the lights and groups were baked: its light
+//!   per vertex times the pixel's diffuse albedo.
 //!
 //! ## Guarantees
 //! - A baked light is lit once, by the plugin: its `RectLight` is kept out of Bevy's
