@@ -9,8 +9,9 @@ use bevy::asset::LoadState;
 use bevy::camera::{Exposure, Hdr, RenderTarget};
 use bevy::core_pipeline::tonemapping::{DebandDither, Tonemapping};
 use bevy::prelude::*;
+use bevy::render::RenderApp;
 use bevy::render::gpu_readback::{Readback, ReadbackComplete};
-use bevy::render::render_resource::{TextureFormat, TextureUsages};
+use bevy::render::render_resource::{PipelineCache, TextureFormat, TextureUsages};
 use bevy::render::view::Msaa;
 use bevy::window::ExitCondition;
 use bevy::winit::WinitPlugin;
@@ -101,8 +102,9 @@ impl Headless {
         Ok(Self { app, target })
     }
 
-    /// The image once two frames in a row show the same lit picture (Bevy compiles its
-    /// pipelines in the background: until they are ready, nothing is drawn); `None` after
+    /// The image once no pipeline is still being compiled and two frames in a row show the
+    /// same lit picture (Bevy compiles its pipelines in the background: until they are ready,
+    /// what needs them is not drawn — the skybox may show without the meshes); `None` after
     /// `timeout`. Rows from the top, linear RGBA.
     pub fn settled(&mut self, timeout: Duration) -> Option<Vec<Vec4>> {
         let start = Instant::now();
@@ -110,12 +112,18 @@ impl Headless {
         while start.elapsed() < timeout {
             std::thread::sleep(Duration::from_millis(20));
             let next = self.read_back()?;
-            if next == last && next.iter().any(|p| p.max_element() > 0.0) {
+            if next == last && next.iter().any(|p| p.max_element() > 0.0) && self.pipelines_ready() {
                 return Some(next);
             }
             last = next;
         }
         None
+    }
+
+    /// Whether the render world has no pipeline waiting to be compiled.
+    fn pipelines_ready(&self) -> bool {
+        let cache = self.app.get_sub_app(RenderApp).and_then(|r| r.world().get_resource::<PipelineCache>());
+        cache.is_none_or(|c| c.waiting_pipelines().next().is_none())
     }
 
     /// The image after the next frames (`None` if it is never read back).

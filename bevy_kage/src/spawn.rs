@@ -141,6 +141,8 @@ fn sun_cascades(pack: &Pack) -> bevy::light::CascadeShadowConfig {
         i.mesh.positions.iter().map(move |p| world.transform_point3(*p))
     });
     let (lo, hi) = points.fold((glam::Vec3::MAX, glam::Vec3::MIN), |(lo, hi), p| (lo.min(p), hi.max(p)));
+    // A pack without meshes casts nothing: any cascade will do.
+    let (lo, hi) = if lo.cmple(hi).all() { (lo, hi) } else { (glam::Vec3::ZERO, glam::Vec3::ZERO) };
     let (centre, radius) = (0.5 * (lo + hi), (0.5 * (hi - lo).length()).max(1e-3));
     let eye = pack.camera.as_ref().map_or(centre, |c| c.world.translation.into());
     let reach = (eye - centre).length() + radius;
