@@ -11,6 +11,8 @@ use bevy::core_pipeline::tonemapping::{DebandDither, Tonemapping};
 use bevy::prelude::*;
 use bevy::render::RenderApp;
 use bevy::render::gpu_readback::{Readback, ReadbackComplete};
+use bevy::render::mesh::RenderMesh;
+use bevy::render::render_asset::RenderAssets;
 use bevy::render::render_resource::{PipelineCache, TextureFormat, TextureUsages};
 use bevy::render::view::Msaa;
 use bevy::window::ExitCondition;
@@ -102,17 +104,20 @@ impl Headless {
         Ok(Self { app, target })
     }
 
-    /// The image once no pipeline is still being compiled and two frames in a row show the
-    /// same lit picture (Bevy compiles its pipelines in the background: until they are ready,
-    /// what needs them is not drawn — the skybox may show without the meshes); `None` after
-    /// `timeout`. Rows from the top, linear RGBA.
+    /// The image once every mesh is on the GPU, no pipeline is still being compiled, and
+    /// three frames in a row show the same lit picture (Bevy uploads meshes and compiles their
+    /// pipelines in the background: until both are done, what needs them is not drawn — the
+    /// skybox may show without the meshes); `None` after `timeout`. Rows from the top, linear
+    /// RGBA.
     pub fn settled(&mut self, timeout: Duration) -> Option<Vec<Vec4>> {
         let start = Instant::now();
-        let mut last = self.read_back()?;
+        let (mut last, mut same) = (self.read_back()?, 0);
         while start.elapsed() < timeout {
             std::thread::sleep(Duration::from_millis(20));
             let next = self.read_back()?;
-            if next == last && next.iter().any(|p| p.max_element() > 0.0) && self.pipelines_ready() {
+            let lit = next.iter().any(|p| p.max_element() > 0.0);
+            same = if next == last && lit && self.ready() { same + 1 } else { 0 };
+            if same >= 2 {
                 return Some(next);
             }
             last = next;
@@ -120,10 +125,17 @@ impl Headless {
         None
     }
 
-    /// Whether the render world has no pipeline waiting to be compiled.
-    fn pipelines_ready(&self) -> bool {
-        let cache = self.app.get_sub_app(RenderApp).and_then(|r| r.world().get_resource::<PipelineCache>());
-        cache.is_none_or(|c| c.waiting_pipelines().next().is_none())
+    /// Whether the render world holds every mesh the app draws and has no pipeline waiting
+    /// to be compiled.
+    fn ready(&mut self) -> bool {
+        let world = self.app.world_mut();
+        let meshes: Vec<AssetId<Mesh>> = world.query::<&Mesh3d>().iter(world).map(|m| m.id()).collect();
+        let Some(render) = self.app.get_sub_app(RenderApp).map(|r| r.world()) else { return true };
+        let uploaded = render
+            .get_resource::<RenderAssets<RenderMesh>>()
+            .is_some_and(|r| meshes.iter().all(|m| r.get(*m).is_some()));
+        let idle = render.get_resource::<PipelineCache>().is_none_or(|c| c.waiting_pipelines().next().is_none());
+        uploaded && idle
     }
 
     /// The image after the next frames (`None` if it is never read back).
