@@ -5,7 +5,7 @@
 
 use glam::Vec3;
 use kage_bake_db::Key;
-use kage_bake_db::memo::records::{self, load_or_place, store_refreshed};
+use kage_bake_db::memo::records::{self, load_or_place_unless, store_refreshed};
 use kage_engine::bspvt;
 use kage_engine::cache::{
     self,
@@ -119,13 +119,16 @@ pub struct Job {
 impl Job {
     /// Refreshes the base cache when it fits (sending each batch's landing, storing the result),
     /// else loads or gathers one; sends the final term with its base. Stops quietly when the
-    /// worker is dropped mid-refresh (the half-refreshed cache is discarded).
+    /// worker is dropped (an edit outdated it) during a refresh, a gather or the bounces: what
+    /// it made is discarded, and its rays no longer take the cores the next bake needs.
     pub fn run(self, stop: &AtomicBool, send: &dyn Fn(Indirect)) {
         let start = Instant::now();
         let Self { scene, glossy, direct, eye, settings: s, store, base } = self;
         let renderer = Renderer::new(&scene);
+        let stopped = &|| stop.load(Ordering::Relaxed);
         let landed = glossy.with(&scene, &renderer.flat, eye, |glossy| {
             let src = Source { renderer: &renderer, direct: &direct, glossy };
+            let gather = || cache::place_at_vertices_unless(&src, &s, stopped);
             let key = records::key(&src, &s);
             let base = base.and_then(|b| b.fits(&renderer, &s));
             // Stored under this lighting, loading costs less than a refresh, which would also
@@ -157,14 +160,17 @@ impl Job {
                     };
                     (cache, format!("{note}{stored}"))
                 }
-                (None, _) => match store.as_deref().map(|st| load_or_place(st, &scene, &src, &s)) {
-                    Some(Ok((cache, true))) => (cache, "from the bake database".to_string()),
-                    Some(Ok((cache, false))) => (cache, "gathered".to_string()),
-                    Some(Err(e)) => (cache::place_at_vertices(&src, &s), format!("gathered (not stored: {e})")),
-                    None => (cache::place_at_vertices(&src, &s), "gathered".to_string()),
+                (None, _) => match store.as_deref().map(|st| load_or_place_unless(st, &scene, &src, &s, stopped)) {
+                    Some(Ok(placed)) => {
+                        let (cache, stored) = placed?;
+                        (cache, if stored { "from the bake database" } else { "gathered" }.to_string())
+                    }
+                    Some(Err(e)) => (gather()?, format!("gathered (not stored: {e})")),
+                    None => (gather()?, "gathered".to_string()),
                 },
             };
-            let (values, light, bounced) = cache::bounce_with_light(&src, &cache, eye, cache::Bounces::default());
+            let (values, light, bounced) =
+                cache::bounce_with_light(&src, &cache, (eye, cache::Bounces::default()), stopped)?;
             Some((cache, format!("{note}, {bounced}"), values, light, key))
         });
         let Some((cache, note, values, light, key)) = landed else { return };

@@ -402,3 +402,39 @@ fn a_refresh_relights_only_what_changed_and_equals_fresh_gathers() {
     assert_eq!(done.gathered, n);
     check(&stored, &src);
 }
+
+/// A placement or its bounces stop when asked (an editor's gather outdated by an edit): a
+/// placement asked to stop after k records has made k records and gives nothing; bounces
+/// asked to stop give nothing; never asked, both equal the plain calls.
+#[test]
+fn placement_and_bounces_stop_when_asked() {
+    use kage_engine::cache::{Bounces, bounce, bounce_with_light, place_at_vertices, place_at_vertices_unless};
+    use std::cell::Cell;
+    let s = Settings { rays: 64, ..Settings::default() };
+    let (r, direct) = room_lit_from(Vec3::new(1.5, 3.0, 0.5), [1.0, 1.0]);
+    let src = Source { renderer: &r, direct: &direct, glossy: Glossy::Reference(GLOSSY_SPP) };
+    let whole = place_at_vertices(&src, &s);
+    assert!(whole.records.len() > 10, "{} records", whole.records.len());
+    let asked = &Cell::new(0);
+    let stop_after = |k: usize| {
+        move || {
+            asked.set(asked.get() + 1);
+            asked.get() > k
+        }
+    };
+    let mut cache = Cache::new(s, 10.0);
+    let points: Vec<(Vec3, Vec3)> = (0..r.flat.instances.len())
+        .flat_map(|i| (0..r.mesh(i).positions.len()).map(move |v| (i, v)))
+        .map(|(i, v)| r.vertex(i, v))
+        .collect();
+    assert_eq!(cache.place_unless(&src, &points, &stop_after(7)), None, "stopped");
+    assert_eq!(cache.records.len(), 7, "a record per answer before the stop");
+    asked.set(0);
+    assert!(place_at_vertices_unless(&src, &s, &stop_after(7)).is_none());
+    assert!(place_at_vertices_unless(&src, &s, &|| false).is_some_and(|c| c.records == whole.records));
+
+    let bounces = (EYE, Bounces::Fixed(2));
+    assert!(bounce_with_light(&src, &whole, bounces, &|| true).is_none(), "stopped before the first bounce");
+    let (values, _, bounced) = bounce_with_light(&src, &whole, bounces, &|| false).expect("never stopped");
+    assert_eq!((values, bounced), bounce(&src, &whole, EYE, Bounces::Fixed(2)));
+}

@@ -70,14 +70,26 @@ pub fn key(src: &Source, s: &Settings) -> Key {
 /// The cache from the store when its records are there, else placed now and stored; and
 /// whether it came from the store. The scene's extras gain the key (kept by `gc`).
 pub fn load_or_place(store: &Store, scene: &Scene, src: &Source, s: &Settings) -> Result<(Cache, bool)> {
+    Ok(load_or_place_unless(store, scene, src, s, &|| false)?.expect("never stopped"))
+}
+
+/// [`load_or_place`], `Ok(None)` (nothing stored) once `stopped()` answers true during the
+/// placement ([`cache::place_at_vertices_unless`]).
+pub fn load_or_place_unless(
+    store: &Store,
+    scene: &Scene,
+    src: &Source,
+    s: &Settings,
+    stopped: &dyn Fn() -> bool,
+) -> Result<Option<(Cache, bool)>> {
     let key = key(src, s);
     if let Some(cache) = load(store, scene, src, s, &key)? {
-        return Ok((cache, true));
+        return Ok(Some((cache, true)));
     }
     let start = std::time::Instant::now();
-    let cache = cache::place_at_vertices(src, s);
+    let Some(cache) = cache::place_at_vertices_unless(src, s, stopped) else { return Ok(None) };
     put(store, key, &cache, start.elapsed().as_secs_f64())?;
-    Ok((cache, false))
+    Ok(Some((cache, false)))
 }
 
 /// The cache from the store when its records, under `key` = [`key`]`(src, s)`, are there

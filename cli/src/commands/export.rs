@@ -80,7 +80,7 @@ fn preview(
     let look = Look::prepare(scene, flat, bakes, eye, &mut prt::SilhouetteMemo::default());
     let (values, light, _) =
         crate::commands::render::baked::with_cache(&look, &renderer, &cache::Settings::default(), |src, c| {
-            cache::bounce_with_light(src, c, eye, cache::Bounces::default())
+            cache::bounce_with_light(src, c, (eye, cache::Bounces::default()), &|| false).expect("never stopped")
         });
     (look.with_indirect(values).vertex_values(), light)
 }

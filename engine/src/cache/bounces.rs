@@ -93,39 +93,44 @@ impl std::fmt::Display for Bounced {
 /// from `cache` (placed and gathered under `src`), each further one from a copy of its records
 /// re-lit by the previous bounce. `cache` itself is left as it was.
 pub fn bounce(src: &Source, cache: &Cache, eye: Vec3, bounces: Bounces) -> (VertexValues, Bounced) {
-    bounce_each(src, cache, eye, bounces, |_, _| {})
+    bounce_each(src, cache, (eye, bounces), &|| false, |_, _| {}).expect("never stopped")
 }
 
 /// [`bounce`], and the light the same bounces bring to every receiver vertex: irradiance over
-/// π ([`light_vertices`]), view-independent — what an asset pack carries to run time.
+/// π ([`light_vertices`]), view-independent — what an asset pack carries to run time. `None`
+/// once `stopped()` answers true, which it is asked before each bounce.
 pub fn bounce_with_light(
     src: &Source,
     cache: &Cache,
-    eye: Vec3,
-    bounces: Bounces,
-) -> (VertexValues, VertexValues, Bounced) {
+    (eye, bounces): (Vec3, Bounces),
+    stopped: &dyn Fn() -> bool,
+) -> Option<(VertexValues, VertexValues, Bounced)> {
     let mut light = src.renderer.flat.zeros();
-    let (values, bounced) = bounce_each(src, cache, eye, bounces, |src, records| {
+    let (values, bounced) = bounce_each(src, cache, (eye, bounces), stopped, |src, records| {
         let more = light_vertices(src, records);
         light.iter_mut().flatten().zip(more.iter().flatten()).for_each(|(t, m)| *t += *m);
-    });
-    (values, light, bounced)
+    })?;
+    Some((values, light, bounced))
 }
 
-/// [`bounce`], calling `each(source, records)` with every bounce's lighting and records.
+/// [`bounce`], calling `each(source, records)` with every bounce's lighting and records; `None`
+/// once `stopped()` answers true before a bounce.
 fn bounce_each(
     src: &Source,
     cache: &Cache,
-    eye: Vec3,
-    bounces: Bounces,
+    (eye, bounces): (Vec3, Bounces),
+    stopped: &dyn Fn() -> bool,
     mut each: impl FnMut(&Source, &Cache),
-) -> (VertexValues, Bounced) {
+) -> Option<(VertexValues, Bounced)> {
     each(src, cache);
     let mut last = shade_vertices(src, cache, eye);
     let mut total = last.clone();
     let mut relit: Option<Cache> = None;
     let mut count = 1;
     let stop = loop {
+        if stopped() {
+            return None;
+        }
         match bounces {
             Bounces::Fixed(n) if count >= n => break Stop::Fixed,
             Bounces::Fixed(_) => {}
@@ -151,7 +156,7 @@ fn bounce_each(
         last = next;
         count += 1;
     };
-    (total, Bounced { count, stop })
+    Some((total, Bounced { count, stop }))
 }
 
 /// The estimated share of the look the bounces after `last` would add, over a sample of

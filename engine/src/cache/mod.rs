@@ -252,12 +252,22 @@ impl Cache {
     /// every point has a usable record (a clamp can uncover a point placed before it). Returns
     /// the number of records made.
     pub fn place(&mut self, src: &Source, points: &[(Vec3, Vec3)]) -> usize {
+        self.place_unless(src, points, &|| false).expect("never stopped")
+    }
+
+    /// [`Self::place`], giving up (`None`, the records made so far kept) once `stopped()`
+    /// answers true, which it is asked before each record: an editor drops a gather the scene
+    /// has outgrown instead of letting it take the cores its next bake needs.
+    pub fn place_unless(&mut self, src: &Source, points: &[(Vec3, Vec3)], stopped: &dyn Fn() -> bool) -> Option<usize> {
         let before = self.records.len();
         self.noise_floor = noise_floor(src);
         loop {
             let made = self.records.len();
             for &(p, n) in points {
                 if self.usable(p, n).is_empty() {
+                    if stopped() {
+                        return None;
+                    }
                     let index = self.records.len() as u64;
                     let (r, hits) = record::gather_with_hits(src, p, n, &self.params(), index);
                     self.insert(r, hits);
@@ -265,7 +275,7 @@ impl Cache {
                 }
             }
             if self.records.len() == made {
-                return self.records.len() - before;
+                return Some(self.records.len() - before);
             }
         }
     }
@@ -564,11 +574,16 @@ fn fallbacks(renderer: &crate::reference::Renderer, s: &Settings) -> Vec<bool> {
 /// A cache with records placed at the receiver vertices (in order) that read it (not the
 /// glossy receivers that gather directly).
 pub fn place_at_vertices(src: &Source, s: &Settings) -> Cache {
+    place_at_vertices_unless(src, s, &|| false).expect("never stopped")
+}
+
+/// [`place_at_vertices`], `None` once `stopped()` answers true (see [`Cache::place_unless`]).
+pub fn place_at_vertices_unless(src: &Source, s: &Settings, stopped: &dyn Fn() -> bool) -> Option<Cache> {
     let mut cache = Cache::new(*s, diagonal(src));
     let back = fallbacks(src.renderer, s);
     let points: Vec<(Vec3, Vec3)> = vertices(src).iter().filter(|v| !back[v.0]).map(|&(_, _, p, n)| (p, n)).collect();
-    cache.place(src, &points);
-    cache
+    cache.place_unless(src, &points, stopped)?;
+    Some(cache)
 }
 
 /// A cache from stored records (e.g. the bake database's), as [`place_at_vertices`] made them.
