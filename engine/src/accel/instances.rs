@@ -176,10 +176,8 @@ impl Occluders {
         let mut met: Vec<(f32, u32, u32)> = Vec::with_capacity(8);
         let mut enter = |i: u32| {
             let piece = &self.pieces[i as usize];
-            if keep(piece.owner)
-                && let Some(t) = slab_entry(origin, ray.inv, tmax, piece.lo, piece.hi)
-            {
-                met.push((t, met.len() as u32, i));
+            if keep(piece.owner) {
+                self.enter(&ray, i, &mut met);
             }
             false
         };
@@ -187,15 +185,41 @@ impl Occluders {
             enter(i);
         });
         self.tree.any_along(origin, ray.inv, tmax, &mut enter);
+        self.nearest(&ray, met)
+    }
+
+    /// [`Self::closest`] for a ray from `view`'s apex whose direction lies inside the pyramid
+    /// `view` was made for: the same answer, from the pieces `view` lists. They include every
+    /// piece whose box the segment meets, and list them in the top-level walk's order, so ties
+    /// go as [`Self::closest`] breaks them; no walk of the tree per ray.
+    pub fn closest_among(&self, view: &Frustum, dir: Vec3, tmax: f32) -> Option<super::PlaneHit> {
+        let ray = self.ray(view.apex, dir, tmax);
+        let mut met: Vec<(f32, u32, u32)> = Vec::with_capacity(8);
+        view.ids.iter().for_each(|&i| self.enter(&ray, i, &mut met));
+        self.nearest(&ray, met)
+    }
+
+    /// Lists piece `i` in `met` as (entry, place in the list, piece) when `ray` meets its box.
+    #[inline]
+    fn enter(&self, ray: &Ray, i: u32, met: &mut Vec<(f32, u32, u32)>) {
+        let piece = &self.pieces[i as usize];
+        if let Some(t) = slab_entry(ray.origin, ray.inv, ray.tmax, piece.lo, piece.hi) {
+            met.push((t, met.len() as u32, i));
+        }
+    }
+
+    /// The closest hit of `ray` on the pieces `met` lists, searched nearest entry first (ties
+    /// to the one listed first; see [`Self::closest_if`]).
+    fn nearest(&self, ray: &Ray, mut met: Vec<(f32, u32, u32)>) -> Option<super::PlaneHit> {
         met.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
         let mut best = None::<(super::PlaneHit, u32)>;
         for (entry, listed, i) in met {
-            let end = best.map_or(tmax, |(b, _)| b.t);
+            let end = best.map_or(ray.tmax, |(b, _)| b.t);
             if entry > end {
                 break;
             }
             let end = if best.is_some() { end.next_up() } else { end };
-            if let Some(hit) = self.pieces[i as usize].bvh.closest_between(origin, dir, ray.near, end)
+            if let Some(hit) = self.pieces[i as usize].bvh.closest_between(ray.origin, ray.dir, ray.near, end)
                 && best.is_none_or(|(b, first)| (hit.t, listed) < (b.t, first))
             {
                 best = Some((hit, listed));
@@ -551,8 +575,8 @@ mod tests {
         assert!(pieces_of(&[]).is_empty());
     }
 
-    /// Rays from one point inside a pyramid (or within its slack) get the same answers from the
-    /// pieces its view lists as from every instance, whether the view is made for the pyramid
+    /// Rays from one point inside a pyramid (or within its slack) get the same answers (any hit
+    /// and closest hit) from the pieces its view lists as from every instance, whether the view is made for the pyramid
     /// ([`Occluders::view`]) or cut from a wider one ([`Frustum::narrow`]); the lists hold every
     /// piece the scalar test keeps and leave most pieces out.
     #[test]
@@ -600,6 +624,9 @@ mod tests {
                 let all = occ.occluded(apex, d, f32::INFINITY);
                 assert_eq!(occ.occluded_among(&made, d, f32::INFINITY), all, "{apex} {d} {slack}");
                 assert_eq!(occ.occluded_among(&cut, d, f32::INFINITY), all, "{apex} {d} {slack}: cut");
+                let closest = occ.closest(apex, d, f32::INFINITY);
+                assert_eq!(occ.closest_among(&made, d, f32::INFINITY), closest, "{apex} {d} {slack}: closest");
+                assert_eq!(occ.closest_among(&cut, d, f32::INFINITY), closest, "{apex} {d} {slack}: closest, cut");
                 (hits, n) = (hits + usize::from(all), n + 1);
             }
         }

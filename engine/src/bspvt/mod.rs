@@ -57,8 +57,11 @@ use std::time::Instant;
 /// with declared light reach, a ray ends where it leaves the farthest reach box it meets, see
 /// [`reach::Reach::ray_end`]; 9: closest hits (rooms' depth planes) search an occluder's pieces
 /// nearest first, see [`crate::accel::Occluders::closest`] — where two pieces' triangles meet
-/// at an edge, a ray along it may now find the nearer of two hits that round apart).
-pub const ALGORITHM_VERSION: u32 = 9;
+/// at an edge, a ray along it may now find the nearer of two hits that round apart); 10: a ray
+/// lifted above the horizon asks its tile's pieces listed for lifted rays (the list made for
+/// the tile's centred rays could leave out a piece such a ray meets), and closest hits ask the
+/// tile's pieces too, see [`visibility`].
+pub const ALGORITHM_VERSION: u32 = 10;
 
 /// Bake parameters.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -56,6 +56,7 @@ pub fn rebake_vertex(
     let kept_depths = if cold { [&[][..]; 6] } else { layout::vertex_depths(&old.record) };
     let mut out = VertexBake::default();
     let hemisphere = std::cell::OnceCell::new();
+    let view = || hemisphere.get_or_init(|| visibility::hemisphere(occluders, p, n, s.res));
     let faces: [(Vec<u8>, Vec<u8>); 6] = std::array::from_fn(|f| {
         let range = (f * per_face) as u32..((f + 1) * per_face) as u32;
         // The masks are by tile index: the face's are one run of them.
@@ -74,8 +75,7 @@ pub fn rebake_vertex(
         };
         let reached = edit.reached.as_deref().map(|r| &r[f * per_face..(f + 1) * per_face]);
         let bits = if cold {
-            let hemisphere = hemisphere.get_or_init(|| visibility::hemisphere(occluders, p, n, s.res));
-            let bits = visibility::cast_face_tiles(occluders, hemisphere, (p, n), f, s.res, (reached, reach));
+            let bits = visibility::cast_face_tiles(occluders, view(), (p, n), f, s.res, (reached, reach));
             out.rays += bits.iter().map(|b| b.live.count_ones() as usize).sum::<usize>();
             bits
         } else {
@@ -87,7 +87,7 @@ pub fn rebake_vertex(
         let recast: Vec<bool> = (0..per_face).map(|t| dirty[t] && reached.is_none_or(|r| r[t])).collect();
         let depth = face.nodes.as_ref().filter(|_| reach.depth).map_or_else(Vec::new, |nodes| {
             let occluded = occluded_texels((nodes, &face.masks), &bits, (n, f, s.res), (&recast, reached));
-            let new = visibility::cast_depth(occluders, (p, n), f, s.res, (&occluded, reach));
+            let new = visibility::cast_depth(occluders, (view(), p, n), f, s.res, (&occluded, reach));
             out.rays += occluded.iter().map(|m| m.count_ones() as usize).sum::<usize>();
             let old = depth::split_tiles(kept_depths[f], s.res);
             let tiles: Vec<Option<&[u8]>> =

@@ -27,12 +27,15 @@ pub fn cast(occluders: &Occluders, p: Vec3, n: Vec3, res: usize) -> CubeVisibili
 /// [`cast`] with every occluded texel's first hit, for exact visibility with depth.
 pub fn cast_with_hits(occluders: &Occluders, p: Vec3, n: Vec3, res: usize) -> CubeVisibility {
     let mut cube = cast(occluders, p, n, res);
+    let view = hemisphere(occluders, p, n, res);
     let k = res.div_ceil(TILE);
     cube.hits = vec![None; cube.texels.len()];
     for f in 0..cubemap::FACES {
         let tiles = TileBits::from_face(cube.face(f), res);
         let occluded: Vec<u64> = tiles.iter().map(|t| t.live & !t.visible & !t.skipped).collect();
-        for (t, hits) in first_hits(occluders, (p, n), f, res, (&occluded, &Reach::ANYWHERE)).into_iter().enumerate() {
+        for (t, hits) in
+            first_hits(occluders, (&view, p, n), f, res, (&occluded, &Reach::ANYWHERE)).into_iter().enumerate()
+        {
             for (b, hit) in hits.into_iter().enumerate().filter(|(_, h)| h.is_some()) {
                 let (i, j) = ((t % k) * TILE + b % TILE, (t / k) * TILE + b / TILE);
                 cube.hits[(f * res + j) * res + i] = hit;
@@ -76,53 +79,81 @@ pub fn cast_face_tiles(
     let looks: Vec<Look> = (0..res.div_ceil(TILE).pow(2))
         .map(|t| if reached.is_none_or(|r| r[t]) { Look::Cast } else { Look::Unreached })
         .collect();
-    let above = horizon_origin(p, n);
     let every = |_| Ask { ask: u64::MAX, occluded: 0 };
-    // The pieces the rays through this face may meet, and of them those the rays through the
-    // current tile may meet. A tile's texel centres lie inside its pyramid; where some are
-    // below the horizon, rays lifted above it lie within about a texel of it, inside the
-    // pyramids widened by `lifted` (checked ray by ray).
-    let (lifted, k) = (lifted(res), res.div_ceil(TILE));
     let horizon = Horizon::new(n, f, res);
     if horizon.below() {
-        return vec![TileBits::default(); k * k];
+        return vec![TileBits::default(); res.div_ceil(TILE).pow(2)];
     }
-    let block = |columns, rows| grid::with_grids(res, |g| g[f].block_sides(columns, rows, k)).map(|m| m.as_vec3());
-    let face = block(0..k, 0..k);
-    let view = hemisphere.narrow(&face, lifted);
-    let mut seen: Option<(usize, Frustum, [Vec3; 4])> = None;
+    let mut pyramids = Pyramids::new(hemisphere, (p, n), f, res);
     cast_tiles(&horizon, &looks, every, |t, _, d, centred| {
-        let o = ray_origin(above, p, n, d);
-        let slack = if centred { 0.0 } else { lifted };
-        let (_, among, tile) = match &mut seen {
-            Some(s) if s.0 == t => s,
-            s => {
-                let tile = block(t % k..t % k + 1, t / k..t / k + 1);
-                s.insert((t, view.narrow(&tile, slack), tile))
-            }
-        };
-        let within = |planes: &[Vec3]| planes.iter().all(|m| m.dot(d) >= -slack);
+        let o = ray_origin(pyramids.above, p, n, d);
         let end = reach.ray_end(o, d);
-        if o == above && (centred || within(tile) && within(&face)) {
-            if occluders.occluded_among(among, d, end) { OCCLUDED } else { VISIBLE }
-        } else {
-            cast_ray(occluders, o, d, end)
+        match pyramids.among(t, o, d, centred) {
+            Some(among) if occluders.occluded_among(among, d, end) => OCCLUDED,
+            Some(_) => VISIBLE,
+            None => cast_ray(occluders, o, d, end),
         }
     })
 }
 
+/// The pieces the rays through one face of a vertex's cube map may meet, narrowed tile by tile
+/// from its [`hemisphere`]: a ray from the horizon origin whose direction lies inside its
+/// tile's pyramid asks only its tile's list. A tile's texel centres lie inside its pyramid;
+/// where some are below the horizon, rays lifted above it lie within about a texel of it,
+/// inside the pyramids widened by [`lifted`] (checked ray by ray).
+struct Pyramids {
+    /// Where the rays above the horizon start ([`horizon_origin`]).
+    above: Vec3,
+    f: usize,
+    res: usize,
+    /// The face's pyramid's sides and the pieces it may meet.
+    face: ([Vec3; 4], Frustum),
+    /// The last tile asked for: its index, the slack its pieces were listed with, its pieces
+    /// and its sides.
+    tile: Option<(usize, f32, Frustum, [Vec3; 4])>,
+}
+
+impl Pyramids {
+    /// Face `f` (at resolution `res`) of the vertex at `p` (unit normal `n`) whose
+    /// [`hemisphere`] is `hemisphere`.
+    fn new(hemisphere: &Frustum, (p, n): (Vec3, Vec3), f: usize, res: usize) -> Self {
+        let k = res.div_ceil(TILE);
+        let sides = grid::with_grids(res, |g| g[f].block_sides(0..k, 0..k, k)).map(|m| m.as_vec3());
+        Self { above: horizon_origin(p, n), f, res, face: (sides, hemisphere.narrow(&sides, lifted(res))), tile: None }
+    }
+
+    /// The pieces a ray from `o` along `d` through a texel of tile `t` may meet, when it
+    /// starts at the horizon origin and lies inside the tile's pyramid (`centred`: `d` is the
+    /// texel centre's); `None` when it must ask every piece.
+    fn among(&mut self, t: usize, o: Vec3, d: Vec3, centred: bool) -> Option<&Frustum> {
+        let (res, k) = (self.res, self.res.div_ceil(TILE));
+        let slack = if centred { 0.0 } else { lifted(res) };
+        // A list narrowed for centred rays would miss what a lifted ray may meet: a lifted ray
+        // widens its tile's list.
+        if self.tile.as_ref().is_none_or(|s| s.0 != t || s.1 < slack) {
+            let f = self.f;
+            let sides = grid::with_grids(res, |g| g[f].block_sides(t % k..t % k + 1, t / k..t / k + 1, k));
+            let sides = sides.map(|m| m.as_vec3());
+            self.tile = Some((t, slack, self.face.1.narrow(&sides, slack), sides));
+        }
+        let (_, _, view, sides) = self.tile.as_ref().expect("set above");
+        let within = |planes: &[Vec3]| planes.iter().all(|m| m.dot(d) >= -slack);
+        (o == self.above && (centred || within(sides) && within(&self.face.0))).then_some(view)
+    }
+}
+
 /// Each tile's depth subtree ([`depth::encode_tile`]) of face `f` for a vertex at `p` (unit
-/// normal `n`) from its `occluded` texels' first hits, rays as the coverage cast them, ending
-/// where `reach` ends them; `None` for tiles with no occluded texel.
+/// normal `n`, [`hemisphere`] `hemisphere`) from its `occluded` texels' first hits, rays as the
+/// coverage cast them, ending where `reach` ends them; `None` for tiles with no occluded texel.
 pub fn cast_depth(
     occluders: &Occluders,
-    (p, n): (Vec3, Vec3),
+    (hemisphere, p, n): (&Frustum, Vec3, Vec3),
     f: usize,
     res: usize,
     (occluded, reach): (&[u64], &Reach),
 ) -> Vec<Option<Vec<u8>>> {
     let k = res.div_ceil(TILE);
-    let hits = first_hits(occluders, (p, n), f, res, (occluded, reach));
+    let hits = first_hits(occluders, (hemisphere, p, n), f, res, (occluded, reach));
     hits.iter().enumerate().map(|(t, h)| depth::encode_tile(h, tile_size(t, k, res))).collect()
 }
 
@@ -133,48 +164,39 @@ fn tile_size(t: usize, k: usize, res: usize) -> (usize, usize) {
 }
 
 /// Per tile of face `f` (row-major), the first hits of the `occluded` texels (masks as in
-/// [`TileBits`], bits as their index) of a vertex at `p` (unit normal `n`), rays as the
-/// coverage cast them, ending where `reach` ends them.
+/// [`TileBits`], bits as their index) of a vertex at `p` (unit normal `n`, [`hemisphere`]
+/// `hemisphere`), rays as the coverage cast them, ending where `reach` ends them.
 pub fn first_hits(
     occluders: &Occluders,
-    (p, n): (Vec3, Vec3),
+    (hemisphere, p, n): (&Frustum, Vec3, Vec3),
     f: usize,
     res: usize,
     (occluded, reach): (&[u64], &Reach),
 ) -> Vec<[Option<depth::Hit>; TILE * TILE]> {
     let mut hits = vec![[None; TILE * TILE]; occluded.len()];
-    cast_occluded((p, n), f, res, occluded, |t, bit, o, d| {
-        hits[t][bit.trailing_zeros() as usize] = Some(first_hit(occluders, (o, d), reach.ray_end(o, d), p));
+    let looks: Vec<Look> = occluded.iter().map(|&m| if m != 0 { Look::Cast } else { Look::Unreached }).collect();
+    let asks = |t: usize| Ask { ask: occluded[t], occluded: 0 };
+    let mut pyramids = Pyramids::new(hemisphere, (p, n), f, res);
+    cast_tiles(&Horizon::new(n, f, res), &looks, asks, |t, bit, d, centred| {
+        if occluded[t] & bit != 0 {
+            let o = ray_origin(pyramids.above, p, n, d);
+            let end = reach.ray_end(o, d);
+            let met = match pyramids.among(t, o, d, centred) {
+                Some(among) => occluders.closest_among(among, d, end),
+                None => occluders.closest(o, d, end),
+            };
+            hits[t][bit.trailing_zeros() as usize] = Some(first_hit(met, (o, d), p));
+        }
+        SKIPPED
     });
     hits
 }
 
-/// Calls `ray(tile, bit, origin, direction)` for each `occluded` texel of face `f` of the
-/// vertex at `p` (unit normal `n`), tile by tile, in bit order within a tile, with the rays
-/// the coverage cast.
-fn cast_occluded(
-    (p, n): (Vec3, Vec3),
-    f: usize,
-    res: usize,
-    occluded: &[u64],
-    mut ray: impl FnMut(usize, u64, Vec3, Vec3),
-) {
-    let looks: Vec<Look> = occluded.iter().map(|&m| if m != 0 { Look::Cast } else { Look::Unreached }).collect();
-    let above = horizon_origin(p, n);
-    let asks = |t: usize| Ask { ask: occluded[t], occluded: 0 };
-    cast_tiles(&Horizon::new(n, f, res), &looks, asks, |t, bit, d, _| {
-        if occluded[t] & bit != 0 {
-            ray(t, bit, ray_origin(above, p, n, d), d);
-        }
-        SKIPPED
-    });
-}
-
-/// The first hit of the ray from `o` along `d` within `end`, relative to the vertex at `p`; a
-/// ray the coverage found blocked but no closest hit confirms (rounding at a grazing edge) is
-/// met at its start, so that nothing shows in front of it.
-fn first_hit(occluders: &Occluders, (o, d): (Vec3, Vec3), end: f32, p: Vec3) -> depth::Hit {
-    let met = occluders.closest(o, d, end).unwrap_or(crate::accel::PlaneHit { t: 0.0, normal: d, corner: o });
+/// The first hit `met` of the ray from `o` along `d`, relative to the vertex at `p`; a ray the
+/// coverage found blocked but no closest hit confirms (rounding at a grazing edge) is met at
+/// its start, so that nothing shows in front of it.
+fn first_hit(met: Option<crate::accel::PlaneHit>, (o, d): (Vec3, Vec3), p: Vec3) -> depth::Hit {
+    let met = met.unwrap_or(crate::accel::PlaneHit { t: 0.0, normal: d, corner: o });
     depth::Hit::new(o + d * met.t - p, met.normal, met.corner - p)
 }
 
