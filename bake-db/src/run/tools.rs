@@ -129,9 +129,13 @@ impl Context<'_> {
         let (old, changed) = self.lineage_of(job)?.unwrap_or_else(|| (vec![None; job.vertices.len()], Vec::new()));
         let warm = old.iter().any(Option::is_some);
         let cold = bspvt::VertexBake::default();
+        // The vertices in parallel too: a worker that runs out of chunks helps with the ones
+        // still baking, so a large chunk (the moved object's own, baked cold) does not end a
+        // run on one core. Collected in order: the same bytes on any thread count.
         let baked = job
             .vertices
             .clone()
+            .into_par_iter()
             .zip(&old)
             .map(|(v, old)| {
                 let (p, n) = vertex(v);

@@ -516,19 +516,14 @@ fn run_plan(
     Ok(out)
 }
 
-/// One bounce of indirect light per vertex, lit by the per-vertex `direct` values (glossy hits
-/// as `glossy` says). With a bake database in use, the cache's records come from it (or are
-/// stored in it).
+/// The indirect light per vertex `--indirect` asks for: none, the pack's frozen bounces, or
+/// bounces lit by the per-vertex `direct` values (glossy hits as `glossy` says) from the
+/// radiance cache, a brute-force gather or the reference. With a bake database in use, the
+/// cache's records come from it (or are stored in it).
 fn indirect(job: &Job, direct: &[Vec<Vec3>], glossy: Glossy<'_>) -> Result<VertexValues> {
     let Job { args, scene, renderer, camera, pack, .. } = *job;
     let eye = camera.eye();
-    if args.indirect() == Indirect::Pack {
-        return frozen(pack.expect("--indirect pack is refused without --pack"), &renderer.flat, eye);
-    }
-    if renderer.flat.unlit().is_some() {
-        crate::emit("indirect: skipped, nothing lights the scene\n");
-        return Ok(direct.iter().map(|v| vec![Vec3::ZERO; v.len()]).collect());
-    }
+    let zeros = || direct.iter().map(|v| vec![Vec3::ZERO; v.len()]).collect();
     let start = Instant::now();
     let s = kage_engine::cache::Settings {
         order: args.hsh_order as usize,
@@ -542,6 +537,14 @@ fn indirect(job: &Job, direct: &[Vec<Vec3>], glossy: Glossy<'_>) -> Result<Verte
     };
     let src = Source { renderer, direct, glossy };
     let (values, what) = match args.indirect() {
+        Indirect::None => return Ok(zeros()),
+        Indirect::Pack => {
+            return frozen(pack.expect("--indirect pack is refused without --pack"), &renderer.flat, eye);
+        }
+        _ if renderer.flat.unlit().is_some() => {
+            crate::emit("indirect: skipped, nothing lights the scene\n");
+            return Ok(zeros());
+        }
         Indirect::Cache => {
             let store = if args.pack.is_none() { args.db.open_if_used(&args.scene)? } else { None };
             let (cache, stored) = match &store {
@@ -556,7 +559,6 @@ fn indirect(job: &Job, direct: &[Vec<Vec3>], glossy: Glossy<'_>) -> Result<Verte
             let v = kage_engine::cache::gather_vertices(&src, s.rays, eye);
             (v, format!("{} rays", renderer.vertex_count() * s.side().pow(2)))
         }
-        Indirect::None | Indirect::Pack => unreachable!("no bounce, or the pack's, gathers nothing"),
         Indirect::Reference => {
             let settings =
                 Settings { spp: args.spp, seed: args.seed, max_bounces: args.bounces.unwrap_or(1), min_bounces: 1 };
