@@ -7,6 +7,11 @@
 // each light shaded per pixel, its lobes' (shadowed, unshadowed) integrals. The
 // fragment stage is Bevy's StandardMaterial with the kage lights added to its lighting, scaled
 // by the view's exposure as Bevy's own lights are.
+//
+// Specialised by two defs (bevy_kage/src/material.rs, `Variant`): KAGE_PIXEL_LIGHTS compiles in
+// the per-pixel lights, KAGE_BEVY_LIGHTING Bevy's own lighting (without it, only the emission
+// Bevy's lighting would add): on a CPU device a fragment stage pays for code a uniform branch
+// skips.
 
 #import bevy_pbr::{
     mesh_bindings::mesh,
@@ -16,6 +21,7 @@
     forward_io::{VertexOutput, FragmentOutput},
     pbr_fragment::pbr_input_from_standard_material,
     pbr_functions::{alpha_discard, apply_pbr_lighting, main_pass_post_lighting_processing},
+    pbr_types::PbrInput,
 }
 
 // #include "ltc.wgsl"
@@ -90,11 +96,13 @@ struct KageOut {
     @location(7) @interpolate(flat) visibility_range_dither: i32,
 #endif
     @location(8) rest: vec3<f32>,
-    @location(9) lobes0: vec4<f32>,
-    @location(10) lobes1: vec4<f32>,
-    @location(11) lobes2: vec4<f32>,
-    @location(12) lobes3: vec4<f32>,
-    @location(13) diffuse_light: vec3<f32>,
+    @location(9) diffuse_light: vec3<f32>,
+#ifdef KAGE_PIXEL_LIGHTS
+    @location(10) lobes0: vec4<f32>,
+    @location(11) lobes1: vec4<f32>,
+    @location(12) lobes2: vec4<f32>,
+    @location(13) lobes3: vec4<f32>,
+#endif
 }
 
 @vertex
@@ -125,10 +133,12 @@ fn vertex(v: Vertex) -> KageOut {
     let terms = kage_vertices[k];
     out.rest = terms.rest.xyz;
     out.diffuse_light = terms.diffuse_light.xyz;
+#ifdef KAGE_PIXEL_LIGHTS
     out.lobes0 = terms.lobes[0];
     out.lobes1 = terms.lobes[1];
     out.lobes2 = terms.lobes[2];
     out.lobes3 = terms.lobes[3];
+#endif
     return out;
 }
 
@@ -156,21 +166,35 @@ fn bevy_input(k: KageOut) -> VertexOutput {
     return out;
 }
 
+// What apply_pbr_lighting gives with no light to shade with: the emission (bevy_pbr's
+// pbr_functions.wgsl, without clearcoat), and the base colour's alpha.
+fn emission(pbr_input: PbrInput) -> vec4<f32> {
+    let e = pbr_input.material.emissive;
+    let a = pbr_input.material.base_color.a;
+    return vec4<f32>(e.rgb * a * mix(1.0, view.exposure, e.a), a);
+}
+
 @fragment
 fn fragment(k: KageOut, @builtin(front_facing) is_front: bool) -> FragmentOutput {
     var pbr_input = pbr_input_from_standard_material(bevy_input(k), is_front);
     pbr_input.material.base_color = alpha_discard(pbr_input.material, pbr_input.material.base_color);
     var out: FragmentOutput;
+#ifdef KAGE_BEVY_LIGHTING
     out.color = apply_pbr_lighting(pbr_input);
+#else
+    out.color = emission(pbr_input);
+#endif
     let m = pbr_input.material;
     let s = surface_at(k.world_position.xyz, normalize(pbr_input.N), view.world_position, m.base_color.rgb,
         m.metallic, m.perceptual_roughness, kage.specular);
+    var total = k.rest + k.diffuse_light * s.diffuse;
+#ifdef KAGE_PIXEL_LIGHTS
     let lobe = specular_lobe(s);
     var lobes = array<vec4<f32>, 4>(k.lobes0, k.lobes1, k.lobes2, k.lobes3);
-    var total = k.rest + k.diffuse_light * s.diffuse;
     for (var l = 0u; l < min(kage.lights, PIXEL_LIGHTS); l = l + 1u) {
         total = total + light_at(s, lobe, kage_lights[l], lobes[l]);
     }
+#endif
     out.color = vec4<f32>(out.color.rgb + total * view.exposure, out.color.a);
     out.color = main_pass_post_lighting_processing(pbr_input, out.color);
     return out;

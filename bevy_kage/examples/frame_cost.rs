@@ -1,8 +1,10 @@
 //! The frame cost of a pack in Bevy without a window: `cargo run --release -p bevy_kage
-//! --example frame_cost -- PACK.glb [WIDTHxHEIGHT]` (default 800x600). The pack's first light
-//! circles 0.2 m about where it was baked, so every frame shades again; after the pipelines are
-//! ready, 60 frames are timed: the whole frame, and the plugin's per-vertex shading on the CPU.
-//! `KAGE_SHADE_ON=pixel|vertex` overrides where the lights are shaded (`ShadeOn::Auto`).
+//! --example frame_cost -- PACK.glb [WIDTHxHEIGHT] [--bevy-light]` (default 800x600). The
+//! pack's first light circles 0.2 m about where it was baked, so every frame shades again;
+//! after the pipelines are ready, 60 frames are timed: the whole frame, and the plugin's
+//! per-vertex shading on the CPU. `--bevy-light` adds a dim Bevy point light, so that the
+//! materials run Bevy's own lighting too. `KAGE_SHADE_ON=pixel|vertex` overrides where the
+//! lights are shaded (`ShadeOn::Auto`).
 
 use bevy::prelude::*;
 use bevy_kage::headless::Headless;
@@ -11,9 +13,12 @@ use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 fn main() {
-    let mut args = std::env::args().skip(1);
+    let mut args: Vec<String> = std::env::args().skip(1).collect();
+    let bevy_light = args.iter().any(|a| a == "--bevy-light");
+    args.retain(|a| a != "--bevy-light");
+    let mut args = args.into_iter();
     let Some(path) = args.next().map(PathBuf::from) else {
-        eprintln!("usage: frame_cost PACK.glb [WIDTHxHEIGHT]");
+        eprintln!("usage: frame_cost PACK.glb [WIDTHxHEIGHT] [--bevy-light]");
         std::process::exit(2);
     };
     let size = args.next().and_then(|s| s.split_once('x').and_then(|(w, h)| Some((w.parse().ok()?, h.parse().ok()?))));
@@ -28,6 +33,10 @@ fn main() {
         eprintln!("{e}");
         std::process::exit(1);
     });
+    if bevy_light {
+        let lamp = PointLight { intensity: 10.0, shadow_maps_enabled: false, ..default() };
+        bevy.app.world_mut().spawn((lamp, Transform::from_xyz(0.0, 3.0, 0.0)));
+    }
     bevy.settled(Duration::from_secs(300)).expect("the pack is drawn");
     let world = bevy.app.world_mut();
     let mut lights = world.query::<(&KageLight, &Transform)>();
@@ -50,10 +59,11 @@ fn main() {
     let stats = *bevy.app.world().resource::<KageStats>();
     let ms = |d: Duration| 1000.0 * d.as_secs_f64() / frames as f64;
     println!(
-        "{}: {}x{}, {shade_on:?}, {} vertices: frame {:.1} ms ({:.1} fps), of it per-vertex shading {:.1} ms",
+        "{}: {}x{}, {shade_on:?}{}, {} vertices: frame {:.1} ms ({:.1} fps), of it per-vertex shading {:.1} ms",
         path.display(),
         size.0,
         size.1,
+        if bevy_light { ", with a Bevy light" } else { "" },
         stats.vertices,
         ms(total),
         frames as f64 / total.as_secs_f64(),

@@ -76,6 +76,7 @@ impl Plugin for KagePlugin {
                 (spawn::spawn_scenes, spawn::warn_unbaked_lights, environment::sync_skyboxes, environment::sync_suns),
             )
             .add_systems(PostUpdate, shade::shade_lights.after(TransformSystems::Propagate))
+            .add_systems(PostUpdate, material::choose_variant.after(VisibilitySystems::VisibilityPropagate))
             .add_systems(
                 PostUpdate,
                 spawn::keep_baked_lights_out.after(VisibilitySystems::MarkNewlyHiddenEntitiesInvisible),

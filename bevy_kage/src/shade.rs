@@ -278,11 +278,7 @@ pub(crate) fn shade_lights(
     shade_on: Res<ShadeOn>,
     adapter: Option<Res<RenderAdapterInfo>>,
 ) {
-    let per_pixel = match *shade_on {
-        ShadeOn::Pixel => true,
-        ShadeOn::Vertex => false,
-        ShadeOn::Auto => adapter.is_none_or(|a| a.device_type != wgpu_types::DeviceType::Cpu),
-    };
+    let per_pixel = crate::material::per_pixel(*shade_on, adapter.as_deref());
     let start = std::time::Instant::now();
     let mut vertices = 0;
     let mut active: Vec<(isize, glam::Vec3)> =

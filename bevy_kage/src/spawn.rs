@@ -5,7 +5,7 @@
 
 use crate::environment::{KageEnvironment, KageSun};
 use crate::loader::KagePack;
-use crate::material::{KageLights, KageMaterial, KageParams};
+use crate::material::{KageLights, KageMaterial, KageParams, Variant};
 use crate::shade::{self, Shading};
 use bevy::asset::{LoadState, RenderAssetUsages};
 use bevy::camera::primitives::{Aabb, MeshAabb};
@@ -193,6 +193,7 @@ fn material(loaded: &KagePack, i: usize, terms: &shade::Terms) -> KageMaterial {
         vertices: terms.vertices.clone(),
         lights: terms.lights.clone(),
         tables: terms.tables.clone(),
+        variant: Variant::default(),
     };
     KageMaterial { base, extension }
 }

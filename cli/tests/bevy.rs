@@ -78,6 +78,32 @@ fn bevy_shows_a_rooms_bounces_as_the_pack_carries_them() {
     assert!(frozen < 0.15, "{frozen}");
 }
 
+/// Bevy's own lights light a pack beside kage's: a point light added over the cube brightens
+/// the image (the materials take Bevy's lighting back in), and despawned leaves the image as it
+/// was (they drop it again, with nothing of it left).
+#[test]
+fn bevy_lights_a_pack_with_its_own_lights_too() {
+    let pack = export("cube_on_plane", &["--refine-receivers", "0"]);
+    let mut bevy = Headless::open(&pack, SIZE, ShadeOn::Auto).expect("the pack loads, with its camera");
+    let settled = |bevy: &mut Headless| bevy.settled(Duration::from_secs(300)).expect("Bevy draws the pack");
+    let plain = settled(&mut bevy);
+    let lamp = PointLight { intensity: 200.0, range: 20.0, shadow_maps_enabled: false, ..default() };
+    let lamp = bevy.app.world_mut().spawn((lamp, Transform::from_xyz(0.0, 2.5, 0.0))).id();
+    let lit = settled(&mut bevy);
+    bevy.app.world_mut().despawn(lamp);
+    let back = settled(&mut bevy);
+    let mean = |image: &[Vec4]| image.iter().map(|p| p.truncate().element_sum()).sum::<f32>() / image.len() as f32;
+    println!(
+        "mean pixel: {} plain, {} with Bevy's point light, {} without it again",
+        mean(&plain),
+        mean(&lit),
+        mean(&back)
+    );
+    assert!(mean(&lit) > 1.2 * mean(&plain), "{} {}", mean(&lit), mean(&plain));
+    let rgb = |image: &[Vec4]| image.iter().map(|p| p.truncate()).collect::<Vec<_>>();
+    assert!(error(&rgb(&back), &rgb(&plain)) < 1e-4);
+}
+
 /// Exports `scene` (with `export_args`), renders it in kage and in Bevy as baked and after a
 /// change (kage's `change` arguments, Bevy's `change_world`), and checks both within 5 % of
 /// each other and the change seen alike; the pack, and Bevy's image after the change.
@@ -87,12 +113,8 @@ fn compare(
     change: &[&str],
     change_world: impl FnOnce(&mut World),
 ) -> (PathBuf, Vec<Vec3>) {
-    let d = scratch(&format!("bevy-{scene}{}", export_args.len()));
-    let pack = d.join(format!("{scene}.glb"));
-    let db = d.join("bake.redb");
-    let args = ["export", &asset(&format!("scenes/{scene}.gltf")), "-o", p(&pack), "--db", p(&db)];
-    let o = kage(&[&args[..], export_args].concat());
-    assert!(o.status.success(), "{}", stderr(&o));
+    let pack = export(scene, export_args);
+    let d = pack.parent().expect("in its scratch folder");
     let kage_at = |moves: &[&str]| kage_image(&pack, &[moves, &["--indirect", "pack"]].concat());
     let (kage_still, kage_moved) = (kage_at(&[]), kage_at(change));
     let (bevy_still, bevy_moved) = render_in_bevy(&pack, change_world);
@@ -120,6 +142,17 @@ fn compare(
         "{scene}: {kage_change} {bevy_change}"
     );
     (pack, bevy_moved)
+}
+
+/// `scene` exported with `export_args` into a scratch folder of its own: the pack's path.
+fn export(scene: &str, export_args: &[&str]) -> PathBuf {
+    let d = scratch(&format!("bevy-{scene}{}", export_args.len()));
+    let pack = d.join(format!("{scene}.glb"));
+    let db = d.join("bake.redb");
+    let args = ["export", &asset(&format!("scenes/{scene}.gltf")), "-o", p(&pack), "--db", p(&db)];
+    let o = kage(&[&args[..], export_args].concat());
+    assert!(o.status.success(), "{}", stderr(&o));
+    pack
 }
 
 /// `kage render --pack PACK --gpu` with `args` at [`SIZE`], beside the pack.
