@@ -7,7 +7,7 @@
 //! lights are shaded (`ShadeOn::Auto`).
 
 use bevy::prelude::*;
-use bevy_kage::headless::Headless;
+use bevy_kage::headless::{Headless, Rendering};
 use bevy_kage::{KageLight, KageStats, ShadeOn};
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
@@ -29,7 +29,7 @@ fn main() {
         Ok("vertex") => ShadeOn::Vertex,
         _ => ShadeOn::Auto,
     };
-    let mut bevy = Headless::open(&path, size, shade_on).unwrap_or_else(|e| {
+    let mut bevy = Headless::open(&path, size, shade_on, Rendering::Pipelined).unwrap_or_else(|e| {
         eprintln!("{e}");
         std::process::exit(1);
     });

@@ -12,6 +12,7 @@ use bevy::prelude::*;
 use bevy::render::RenderApp;
 use bevy::render::gpu_readback::{Readback, ReadbackComplete};
 use bevy::render::mesh::RenderMesh;
+use bevy::render::pipelined_rendering::PipelinedRenderingPlugin;
 use bevy::render::render_asset::RenderAssets;
 use bevy::render::render_resource::{PipelineCache, TextureFormat, TextureUsages};
 use bevy::render::view::Msaa;
@@ -29,19 +30,34 @@ pub struct Headless {
     pub target: Handle<Image>,
 }
 
+/// How a windowless app renders its frames.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Rendering {
+    /// On the app's thread, in step with its updates: a frame shows the world as just updated,
+    /// and [`Headless::settled`] also waits for Bevy's pipelines and mesh uploads (for tests).
+    InStep,
+    /// On a thread of its own, overlapping the next update, as a windowed app renders (for
+    /// timing); the render world is then out of reach, and `settled` waits for the image alone.
+    Pipelined,
+}
+
 /// An app with Bevy's default plugins and the kage plugin, no window, no ambient light and a
-/// transparent clear colour, reading assets from `folder`; its plugins built.
-pub fn windowless(folder: &Path, shade_on: ShadeOn) -> App {
+/// transparent clear colour, reading assets from `folder`, rendering as `rendering` says; its
+/// plugins built.
+pub fn windowless(folder: &Path, shade_on: ShadeOn, rendering: Rendering) -> App {
+    let plugins = DefaultPlugins
+        .set(AssetPlugin { file_path: folder.to_string_lossy().into_owned(), ..default() })
+        .set(WindowPlugin { primary_window: None, exit_condition: ExitCondition::DontExit, ..default() })
+        .disable::<WinitPlugin>();
+    let plugins = match rendering {
+        Rendering::InStep => plugins.disable::<PipelinedRenderingPlugin>(),
+        Rendering::Pipelined => plugins,
+    };
     let mut app = App::new();
-    app.add_plugins(
-        DefaultPlugins
-            .set(AssetPlugin { file_path: folder.to_string_lossy().into_owned(), ..default() })
-            .set(WindowPlugin { primary_window: None, exit_condition: ExitCondition::DontExit, ..default() })
-            .disable::<WinitPlugin>(),
-    )
-    .add_plugins(KagePlugin { shade_on })
-    .insert_resource(GlobalAmbientLight::NONE)
-    .insert_resource(ClearColor(Color::NONE));
+    app.add_plugins(plugins)
+        .add_plugins(KagePlugin { shade_on })
+        .insert_resource(GlobalAmbientLight::NONE)
+        .insert_resource(ClearColor(Color::NONE));
     while app.plugins_state() == PluginsState::Adding {
         bevy::tasks::tick_global_task_pools_on_main_thread();
     }
@@ -52,13 +68,18 @@ pub fn windowless(folder: &Path, shade_on: ShadeOn) -> App {
 
 impl Headless {
     /// Loads the pack at `path` and waits until it is spawned, its camera drawing into a
-    /// `width` × `height` image, the lights shaded as `shade_on` says; the loader's error if
-    /// it fails to load.
-    pub fn open(path: &Path, (width, height): (u32, u32), shade_on: ShadeOn) -> Result<Self, String> {
+    /// `width` × `height` image, the lights shaded as `shade_on` says, frames rendered as
+    /// `rendering` says; the loader's error if it fails to load.
+    pub fn open(
+        path: &Path,
+        (width, height): (u32, u32),
+        shade_on: ShadeOn,
+        rendering: Rendering,
+    ) -> Result<Self, String> {
         let (Some(folder), Some(file)) = (path.parent(), path.file_name()) else {
             return Err(format!("{}: not a file", path.display()));
         };
-        let mut app = windowless(folder, shade_on);
+        let mut app = windowless(folder, shade_on, rendering);
         let file = file.to_string_lossy().into_owned();
         let mut target = Image::new_target_texture(width, height, TextureFormat::Rgba32Float, None);
         target.texture_descriptor.usage |= TextureUsages::COPY_SRC;
@@ -126,7 +147,7 @@ impl Headless {
     }
 
     /// Whether the render world holds every mesh the app draws and has no pipeline waiting
-    /// to be compiled.
+    /// to be compiled (true when rendering is pipelined: its world is on its own thread).
     fn ready(&mut self) -> bool {
         let world = self.app.world_mut();
         let meshes: Vec<AssetId<Mesh>> = world.query::<&Mesh3d>().iter(world).map(|m| m.id()).collect();

@@ -4,7 +4,7 @@
 //! `Rgba32Float` image (HDR, no tonemapping, no MSAA, exposure 1).
 
 use bevy::prelude::*;
-use bevy_kage::headless::{Headless, windowless};
+use bevy_kage::headless::{Headless, Rendering, windowless};
 use bevy_kage::{KageEnvironment, KageGroup, KageInstance, KageLight, KagePack, KageScene, ShadeOn};
 use std::path::{Path, PathBuf};
 use std::time::Duration;
@@ -84,7 +84,8 @@ fn bevy_shows_a_rooms_bounces_as_the_pack_carries_them() {
 #[test]
 fn bevy_lights_a_pack_with_its_own_lights_too() {
     let pack = export("cube_on_plane", &["--refine-receivers", "0"]);
-    let mut bevy = Headless::open(&pack, SIZE, ShadeOn::Auto).expect("the pack loads, with its camera");
+    let mut bevy =
+        Headless::open(&pack, SIZE, ShadeOn::Auto, Rendering::InStep).expect("the pack loads, with its camera");
     let settled = |bevy: &mut Headless| bevy.settled(Duration::from_secs(300)).expect("Bevy draws the pack");
     let plain = settled(&mut bevy);
     let lamp = PointLight { intensity: 200.0, range: 20.0, shadow_maps_enabled: false, ..default() };
@@ -178,11 +179,12 @@ fn bevy_refuses_a_damaged_pack_and_shows_it_as_a_plain_gltf() {
     let at = bytes.len() - 100;
     bytes[at] ^= 0x40;
     std::fs::write(&pack, bytes).unwrap();
-    let error = Headless::open(&pack, SIZE, ShadeOn::Auto).err().expect("the damaged pack is refused");
+    let error =
+        Headless::open(&pack, SIZE, ShadeOn::Auto, Rendering::InStep).err().expect("the damaged pack is refused");
     assert!(error.contains("cube.glb: not a kage pack") && error.contains("fails its checksum"), "{error}");
     // In an app, the scene then shows the file through Bevy's glTF loader: its meshes, unshaded
     // by kage.
-    let mut app = windowless(&d, ShadeOn::Auto);
+    let mut app = windowless(&d, ShadeOn::Auto, Rendering::InStep);
     let handle = app.world().resource::<AssetServer>().load::<KagePack>("cube.glb");
     app.world_mut().spawn((KageScene::new(handle), Transform::default(), Visibility::default()));
     let meshes = (0..2000).find_map(|_| {
@@ -224,7 +226,8 @@ const FINE: u32 = 4;
 /// Bevy's images of `pack` as baked and after `change`.
 fn render_in_bevy(pack: &Path, change: impl FnOnce(&mut World)) -> (Vec<Vec3>, Vec<Vec3>) {
     let fine = (SIZE.0 * FINE, SIZE.1 * FINE);
-    let mut bevy = Headless::open(pack, fine, ShadeOn::Pixel).expect("the pack loads, with its camera");
+    let mut bevy =
+        Headless::open(pack, fine, ShadeOn::Pixel, Rendering::InStep).expect("the pack loads, with its camera");
     let still = bevy.settled(Duration::from_secs(300)).expect("Bevy draws the pack");
     change(bevy.app.world_mut());
     let moved = bevy.settled(Duration::from_secs(300)).expect("Bevy draws the pack");
