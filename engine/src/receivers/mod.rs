@@ -7,8 +7,10 @@
 //! 1. **Seed**: edges longer than the seed length are split, so that no shadow fits inside a
 //!    triangle unseen. The seed length is half the smallest footprint among what can shadow
 //!    the instance (its shadows are about that size) and at most a sixteenth of its diagonal
-//!    (the bounce across a plain wall needs vertices too), but no shorter than seeding a
-//!    quarter of the instance's cap would make it (spacing ∝ √(area / cap)).
+//!    (the bounce across a plain wall needs vertices too) — a sixteenth no shorter than the
+//!    scene's size over 32, as the bounce varies over the distances between surfaces —, but no
+//!    shorter than seeding a quarter of the instance's cap would make it (spacing ∝
+//!    √(area / cap)).
 //! 2. **Refine**: each edge's ends and midpoint are tested for the visibility `V` of every
 //!    view of what lights the scene ([`probe`]): a light where it is (the share of 49 fixed
 //!    points spread over it that the point sees in front of both), every cell of a light's
@@ -102,10 +104,11 @@ pub fn refine_reporting(
 
 /// Bumped whenever refinement would refine the same scene differently: it names kept
 /// refinements ([`keys`]).
-pub const VERSION: u32 = 7;
+pub const VERSION: u32 = 8;
 
 /// Per instance (snapshot order), what its refinement reads of `scene` (its source meshes, as
-/// [`Scene::restore_source_meshes`] leaves it) and `settings`, hashed: its mesh and placement,
+/// [`Scene::restore_source_meshes`] leaves it) and `settings`, hashed: the scene's size step,
+/// its mesh and placement,
 /// the occluding meshes and placements of the instances that can shadow it, and the views of
 /// the lights and the environment it probes (a light moved within its reach box keeps its
 /// views, so its keys). Equal keys refine to the same mesh.
@@ -119,6 +122,7 @@ pub fn keys(scene: &Scene, settings: &Settings) -> Vec<blake3::Hash> {
     common.update(&(settings.budget as u64).to_le_bytes());
     common.update(&settings.tolerance.to_le_bytes());
     common.update(&(settings.rounds as u64).to_le_bytes());
+    common.update(&scope.size.to_le_bytes());
     hash_views(&mut common, &scope.views);
     (0..flat.instances.len())
         .into_par_iter()
@@ -278,7 +282,9 @@ fn refined(
 /// The seed length of receiver `i`, shadowed by `near`: half the smallest footprint (the
 /// middle side of the bounds) of what can shadow it, itself included — its shadows are about
 /// that size — and at most a sixteenth of its own diagonal, so that light that varies over it
-/// without a shadow's edge (the bounce across a wall) has vertices to vary between.
+/// without a shadow's edge (the bounce across a wall) has vertices to vary between; that
+/// sixteenth no shorter than the scene's size over [`SCENE_DIVISIONS`]: the bounce varies over
+/// the distances between surfaces, so an object much smaller than the scene needs fewer.
 fn seed_length(scope: &Scope, i: usize, near: &Near) -> f32 {
     let middle = |(lo, hi): (Vec3, Vec3)| {
         let mut s = (hi - lo).to_array();
@@ -287,11 +293,14 @@ fn seed_length(scope: &Scope, i: usize, near: &Near) -> f32 {
     };
     let sides = near.lights.iter().chain(&near.environment).filter_map(|&j| scope.bounds[j as usize].map(middle));
     let own = scope.bounds[i].map_or(f32::INFINITY, |(lo, hi)| (hi - lo).length() / SEED_DIVISIONS);
-    (0.5 * sides.fold(f32::INFINITY, f32::min)).min(own)
+    (0.5 * sides.fold(f32::INFINITY, f32::min)).min(own.max(scope.size / SCENE_DIVISIONS))
 }
 
 /// Seed edges across an instance's diagonal at least (see [`seed_length`]).
 const SEED_DIVISIONS: f32 = 16.0;
+
+/// Seed edges across the scene's size at most (see [`seed_length`]).
+const SCENE_DIVISIONS: f32 = 32.0;
 
 /// The mesh seeded: every edge longer than the seed length split, so that no shadow fits
 /// inside a triangle unseen by the midpoint test. The length starts at `length`, or where

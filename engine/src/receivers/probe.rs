@@ -52,6 +52,9 @@ pub(super) struct Scope {
     pub lights: usize,
     /// Per instance, the world bounds of its occluding triangles (`None`: it has none).
     pub bounds: Vec<Option<(Vec3, Vec3)>>,
+    /// The scene's size: the diagonal of all the instances' bounds, rounded down to a power of
+    /// two (so that an edit changes it only when the size crosses a step).
+    pub size: f32,
     /// Per instance, its group's rank among the groups (for the environment's lists).
     group_of: Vec<usize>,
     /// Per instance, the plane its triangles lie in (unit normal, offset), if they do: then
@@ -78,7 +81,9 @@ impl Scope {
         let bounds: Vec<_> = triangles.iter().map(|t| bounds(t.iter().flatten())).collect();
         let plane = triangles.iter().map(|t| plane(t)).collect();
         let tree = box_tree(&bounds);
-        Self { views, lights, bounds, group_of, plane, tree }
+        let all = bounds.iter().flatten().copied().reduce(|a, b| (a.0.min(b.0), a.1.max(b.1)));
+        let size = all.map_or(0.0, |(lo, hi)| power_of_two_below((hi - lo).length()));
+        Self { views, lights, bounds, size, group_of, plane, tree }
     }
 
     /// The instances that can shadow instance `i`.
@@ -219,6 +224,11 @@ fn among(list: &[u32]) -> impl Fn(usize) -> bool + '_ {
     move |j| list.binary_search(&(j as u32)).is_ok()
 }
 
+/// The largest power of two not above `x`, for a positive normal `x` (its exponent alone: exact).
+fn power_of_two_below(x: f32) -> f32 {
+    f32::from_bits(x.to_bits() & 0x7f80_0000)
+}
+
 /// The bounds of `points` (`None` when there are none).
 fn bounds<'p>(points: impl Iterator<Item = &'p Vec3>) -> Option<(Vec3, Vec3)> {
     points.fold(None, |b, &p| Some(b.map_or((p, p), |(lo, hi): (Vec3, Vec3)| (lo.min(p), hi.max(p)))))
@@ -319,6 +329,17 @@ fn spread_points(polygon: &[Vec3], n: u32) -> Vec<Vec3> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The scene's size step is exact: powers of two map to themselves, and everything
+    /// between two of them to the lower.
+    #[test]
+    fn the_size_step_is_the_power_of_two_below() {
+        for (x, step) in [(1.0, 1.0), (1.5, 1.0), (14.2, 8.0), (0.96, 0.5), (0.125, 0.125), (16.0, 16.0), (17.2, 16.0)]
+        {
+            assert_eq!(power_of_two_below(x), step, "{x}");
+        }
+        assert_eq!(power_of_two_below(f32::from_bits(2f32.to_bits() - 1)), 1.0, "just under 2");
+    }
 
     /// A light's probe points lie on it, and no straight edge parallel to one of its sides hides
     /// two of them at once: along each side's direction, the points' projections all differ.
