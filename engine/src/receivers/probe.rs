@@ -384,7 +384,7 @@ mod tests {
             vec![tile(0.0, 0.0), tile(1.5, 0.0), tile(3.0, 0.01), tile(0.0, 0.0).map(|(lo, hi)| (lo, hi + Vec3::Y))];
         let tree = box_tree(&bounds);
         let plane = vec![Some((Vec3::Y, 0.0)), Some((Vec3::Y, 0.0)), Some((Vec3::Y, 0.01)), None];
-        let scope = Scope { views: Vec::new(), lights: 0, bounds, group_of: vec![0; 4], plane, tree };
+        let scope = Scope { views: Vec::new(), lights: 0, bounds, size: 0.0, group_of: vec![0; 4], plane, tree };
         let [a, b, c, d] = [0, 1, 2, 3].map(|j| scope.in_plane_of(0, j));
         assert!(a && b && !c && !d, "itself and the tile beside it, not the raised tile or the box");
         assert!(!scope.in_plane_of(3, 0), "a box has no plane");
@@ -398,7 +398,8 @@ mod tests {
             (0..300).map(|k| (k % 29 != 0).then(|| (at(k), at(k) + Vec3::splat(0.5 + (k % 4) as f32)))).collect();
         let tree = box_tree(&bounds);
         let n = bounds.len();
-        let scope = Scope { views: Vec::new(), lights: 0, bounds, group_of: vec![0; n], plane: vec![None; n], tree };
+        let scope =
+            Scope { views: Vec::new(), lights: 0, bounds, size: 0.0, group_of: vec![0; n], plane: vec![None; n], tree };
         let mut found = 0;
         for k in 0..40 {
             let b = (at(k) - Vec3::splat(2.0), at(k) + Vec3::splat(2.0));
