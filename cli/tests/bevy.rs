@@ -145,9 +145,13 @@ fn compare(
     (pack, bevy_moved)
 }
 
-/// `scene` exported with `export_args` into a scratch folder of its own: the pack's path.
+/// `scene` exported with `export_args` into a scratch folder of its own (named by both, so
+/// that tests running side by side never share one): the pack's path.
 fn export(scene: &str, export_args: &[&str]) -> PathBuf {
-    let d = scratch(&format!("bevy-{scene}{}", export_args.len()));
+    use std::hash::{Hash, Hasher};
+    let mut h = std::hash::DefaultHasher::new();
+    export_args.hash(&mut h);
+    let d = scratch(&format!("bevy-{scene}-{:016x}", h.finish()));
     let pack = d.join(format!("{scene}.glb"));
     let db = d.join("bake.redb");
     let args = ["export", &asset(&format!("scenes/{scene}.gltf")), "-o", p(&pack), "--db", p(&db)];
