@@ -132,6 +132,57 @@ fn the_refinement_keys_follow_what_refinement_reads() {
     assert_eq!(pushed.last(), free.last(), "a moved box changed the far object's key");
 }
 
+/// A box much smaller than its scene is seeded coarsely (the scene's size over 32), except near
+/// what it stands on, where the bounce falls off towards the contact: seeded alone (no
+/// rounds), the lowest quarter of its sides gets at least twice the vertices of the highest;
+/// lifted 2 m off the floor, both quarters alike. Its key follows the floor's bounds, which its
+/// seed reads; the floor's does not follow the box (its own sixteenth is coarser than the
+/// scene's floor, so it is seeded alike everywhere).
+#[test]
+fn a_small_box_is_seeded_finer_where_it_stands() {
+    let scene = |lift: f32, floor_at: Vec3| {
+        let mut s = Scene::new("test:box-on-a-big-floor");
+        let h = 8.0;
+        let floor = vec![Vec3::new(-h, 0.0, -h), Vec3::new(-h, 0.0, h), Vec3::new(h, 0.0, h), Vec3::new(h, 0.0, -h)];
+        let (floor, _) = Mesh::new(floor, None, vec![], vec![[0, 1, 2], [0, 2, 3]], false).unwrap();
+        s.add_object("floor", floor, Material::lambertian(Vec3::splat(0.8)), Affine3A::from_translation(floor_at));
+        let at = Affine3A::from_translation(Vec3::new(0.0, 0.5 + lift, 0.0));
+        s.add_object("box", shapes::cuboid(Vec3::splat(0.5)), Material::lambertian(Vec3::ONE), at);
+        let q = 0.5;
+        let quad = vec![Vec3::new(-q, 0.0, -q), Vec3::new(q, 0.0, -q), Vec3::new(q, 0.0, q), Vec3::new(-q, 0.0, q)];
+        s.add_light("light", quad, Vec3::splat(10.0), Affine3A::from_translation(Vec3::new(2.0, 4.0, 0.0)));
+        s
+    };
+    let settings = Settings { rounds: 0, ..Settings::default() };
+    let sides = |lift: f32| {
+        let mut s = scene(lift, Vec3::ZERO);
+        receivers::refine(&mut s, &settings).unwrap();
+        let flat = flatten(&s);
+        let group = s.find_group("box").unwrap();
+        let inst = flat.instances.iter().find(|i| i.group == group).unwrap();
+        let mesh = &flat.meshes[inst.mesh as usize];
+        let height = |k: usize| inst.world.transform_point3(mesh.positions[k]).y - lift;
+        let side = |k: usize| mesh.normals[k].y.abs() < 0.5;
+        let count = |lo: f32, hi: f32| {
+            (0..mesh.positions.len()).filter(|&k| side(k) && (lo - 1e-4..=hi + 1e-4).contains(&height(k))).count()
+        };
+        (count(0.0, 0.25), count(0.75, 1.0))
+    };
+    let (low, high) = sides(0.0);
+    let (low_up, high_up) = sides(2.0);
+    eprintln!("box on the floor: {low} vertices low on its sides, {high} high; lifted 2 m: {low_up}, {high_up}");
+    assert!(low >= 2 * high, "standing: {low} low against {high} high");
+    assert!(low_up.abs_diff(high_up) * 5 <= high_up, "lifted: {low_up} low against {high_up} high");
+    let keys = |floor_at: Vec3| {
+        let s = scene(0.0, floor_at);
+        let group = s.find_group("box").unwrap();
+        let boxed = flatten(&s).instances.iter().position(|i| i.group == group).unwrap();
+        (boxed, receivers::keys(&s, &settings))
+    };
+    let ((boxed, here), (_, pushed)) = (keys(Vec3::ZERO), keys(Vec3::new(0.1, 0.0, 0.0)));
+    assert_ne!(here[boxed], pushed[boxed], "the box's key did not follow the floor it stands on");
+}
+
 /// `s` with a small block far from its objects and its light (on the floor's far corner).
 fn with_far_object(mut s: Scene) -> Scene {
     let far = Affine3A::from_translation(Vec3::new(40.0, 0.1, -40.0));

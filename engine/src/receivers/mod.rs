@@ -8,8 +8,9 @@
 //!    triangle unseen. The seed length is half the smallest footprint among what can shadow
 //!    the instance (its shadows are about that size) and at most a sixteenth of its diagonal
 //!    (the bounce across a plain wall needs vertices too) — a sixteenth no shorter than the
-//!    scene's size over 32, as the bounce varies over the distances between surfaces —, but no
-//!    shorter than seeding a quarter of the instance's cap would make it (spacing ∝
+//!    scene's size over 32 away from other instances, as the bounce varies over the distances
+//!    between surfaces, and no longer than the distance to them near them ([`Seed::at`]) —,
+//!    but no shorter than seeding a quarter of the instance's cap would make it (spacing ∝
 //!    √(area / cap)).
 //! 2. **Refine**: each edge's ends and midpoint are tested for the visibility `V` of every
 //!    view of what lights the scene ([`probe`]): a light where it is (the share of 49 fixed
@@ -25,7 +26,8 @@
 //!
 //! **Local**: an instance's refinement is a pure function of its own mesh and placement, the
 //! lights' views and the instances that can shadow it ([`probe::Near`]: those between it and
-//! a light, and of its group nearby for the environment), probed against those alone. So an
+//! a light, and of its group nearby for the environment), probed against those alone, and the
+//! bounds of the instances its seed is finer near. So an
 //! edit re-refines only the receivers whose shadows it can change, each named by its own
 //! [`keys`] entry, and the result is a cold refinement's, byte for byte, on any thread count.
 //!
@@ -104,11 +106,11 @@ pub fn refine_reporting(
 
 /// Bumped whenever refinement would refine the same scene differently: it names kept
 /// refinements ([`keys`]).
-pub const VERSION: u32 = 8;
+pub const VERSION: u32 = 9;
 
 /// Per instance (snapshot order), what its refinement reads of `scene` (its source meshes, as
 /// [`Scene::restore_source_meshes`] leaves it) and `settings`, hashed: the scene's size step,
-/// its mesh and placement,
+/// its mesh and placement, the bounds of the instances its seed is finer near,
 /// the occluding meshes and placements of the instances that can shadow it, and the views of
 /// the lights and the environment it probes (a light moved within its reach box keeps its
 /// views, so its keys). Equal keys refine to the same mesh.
@@ -138,6 +140,11 @@ pub fn keys(scene: &Scene, settings: &Settings) -> Vec<blake3::Hash> {
                     h.update(&flat.occluder_hash(j as usize));
                     h.update(bytemuck::cast_slice(&flat.instances[j as usize].world.to_cols_array()));
                 }
+            }
+            let close = seed(&scope, i, &near).close;
+            h.update(&(close.len() as u64).to_le_bytes());
+            for (lo, hi) in &close {
+                h.update(bytemuck::cast_slice(&[lo.to_array(), hi.to_array()]));
             }
             h.finalize()
         })
@@ -255,7 +262,7 @@ fn refined(
     let before = source.vertices();
     let near = probe.scope.near(i);
     let total = before + settings.budget;
-    let mut mesh = seeded(&source, &inst.world, settings.budget / 4, seed_length(probe.scope, i, &near));
+    let mut mesh = seeded(&source, &inst.world, settings.budget / 4, &seed(probe.scope, i, &near));
     // A vertex keeps its place and normal, and an edge its ends, from round to round: what
     // was probed once is looked up, so a round probes only what the last one added.
     let mut memo = Memo::default();
@@ -279,42 +286,81 @@ fn refined(
     Ok(Receiver { before, refined })
 }
 
-/// The seed length of receiver `i`, shadowed by `near`: half the smallest footprint (the
-/// middle side of the bounds) of what can shadow it, itself included — its shadows are about
-/// that size — and at most a sixteenth of its own diagonal, so that light that varies over it
-/// without a shadow's edge (the bounce across a wall) has vertices to vary between; that
-/// sixteenth no shorter than the scene's size over [`SCENE_DIVISIONS`]: the bounce varies over
-/// the distances between surfaces, so an object much smaller than the scene needs fewer.
-fn seed_length(scope: &Scope, i: usize, near: &Near) -> f32 {
+/// How long the seed's edges may be on one receiver (see [`seed`]).
+#[derive(Clone, Debug, PartialEq)]
+struct Seed {
+    /// The shortest: the shadow cap, and a sixteenth of the receiver's diagonal.
+    fine: f32,
+    /// The longest: the shadow cap, and that sixteenth no shorter than the scene's size over
+    /// [`SCENE_DIVISIONS`].
+    coarse: f32,
+    /// The bounds of the other instances within `coarse` of the receiver's, where `fine` is
+    /// shorter than `coarse` (empty otherwise).
+    close: Vec<(Vec3, Vec3)>,
+}
+
+impl Seed {
+    /// The longest seed edge with its midpoint at `p`: `coarse`, but `d` (never below `fine`)
+    /// at a distance `0 < d < coarse` from another instance's bounds — the bounce varies over
+    /// the distance to the surfaces nearby, and falls off towards where two meet (a box's foot
+    /// on a floor). A point on or inside another's bounds (a face resting on a floor, an
+    /// object inside a room's bounds) keeps `coarse`: a resting face is hidden, and inside
+    /// bounds the distance says nothing about the surfaces.
+    fn at(&self, p: Vec3) -> f32 {
+        let gap = |(lo, hi): &(Vec3, Vec3)| (*lo - p).max(p - *hi).max(Vec3::ZERO).length();
+        let d = self.close.iter().map(gap).fold(f32::INFINITY, f32::min);
+        if d > 0.0 && d < self.coarse { d.max(self.fine) } else { self.coarse }
+    }
+}
+
+/// The seed of receiver `i`, shadowed by `near`. Its edges are at most half the smallest
+/// footprint (the middle side of the bounds) of what can shadow it, itself included — its
+/// shadows are about that size — and at most a sixteenth of its own diagonal, so that light
+/// that varies over it without a shadow's edge (the bounce across a wall) has vertices to vary
+/// between. Away from other instances that sixteenth is no shorter than the scene's size over
+/// [`SCENE_DIVISIONS`], as the bounce varies over the distances between surfaces: an object
+/// much smaller than the scene needs fewer, except near what it stands on ([`Seed::at`]).
+fn seed(scope: &Scope, i: usize, near: &Near) -> Seed {
     let middle = |(lo, hi): (Vec3, Vec3)| {
         let mut s = (hi - lo).to_array();
         s.sort_by(f32::total_cmp);
         s[1]
     };
     let sides = near.lights.iter().chain(&near.environment).filter_map(|&j| scope.bounds[j as usize].map(middle));
+    let cap = 0.5 * sides.fold(f32::INFINITY, f32::min);
     let own = scope.bounds[i].map_or(f32::INFINITY, |(lo, hi)| (hi - lo).length() / SEED_DIVISIONS);
-    (0.5 * sides.fold(f32::INFINITY, f32::min)).min(own.max(scope.size / SCENE_DIVISIONS))
+    let (fine, coarse) = (cap.min(own), cap.min(own.max(scope.size / SCENE_DIVISIONS)));
+    let close = if fine < coarse { scope.close(i, coarse) } else { Vec::new() };
+    Seed { fine, coarse, close: close.iter().filter_map(|&j| scope.bounds[j as usize]).collect() }
 }
 
-/// Seed edges across an instance's diagonal at least (see [`seed_length`]).
+/// Seed edges across an instance's diagonal at least (see [`seed`]).
 const SEED_DIVISIONS: f32 = 16.0;
 
-/// Seed edges across the scene's size at most (see [`seed_length`]).
+/// Seed edges across the scene's size at most, away from other instances (see [`seed`]).
 const SCENE_DIVISIONS: f32 = 32.0;
 
-/// The mesh seeded: every edge longer than the seed length split, so that no shadow fits
-/// inside a triangle unseen by the midpoint test. The length starts at `length`, or where
-/// seeding costs about `share` vertices if that is longer, and grows by √2 until seeding costs
-/// at most `share` (bisection halves a triangle's area per level, so the vertices a length
-/// costs jump by about 2× between levels), so the rounds keep the rest of the cap.
-fn seeded(source: &Adaptive, world: &glam::Affine3A, share: usize, length: f32) -> Adaptive {
+/// The mesh seeded: every edge longer than the seed allows at its midpoint split, so that no
+/// shadow fits inside a triangle unseen by the midpoint test. The lengths are `seed`'s, or
+/// where seeding costs about `share` vertices if that is longer, and grow by √2 until seeding
+/// costs at most `share` (bisection halves a triangle's area per level, so the vertices a
+/// length costs jump by about 2× between levels), so the rounds keep the rest of the cap.
+fn seeded(source: &Adaptive, world: &glam::Affine3A, share: usize, seed: &Seed) -> Adaptive {
     // Bisection leaves right triangles whose legs are ~1/√2 of the longest edge allowed.
-    let mut seed = (2.0 * world_area(source, world) / share.max(1) as f32).sqrt().max(length);
+    let spread = (2.0 * world_area(source, world) / share.max(1) as f32).sqrt();
+    let mut growth = 1.0;
     loop {
         let mut mesh = source.clone();
         loop {
+            let p = mesh.positions();
+            let long = |e: &[u32; 2]| {
+                let (a, b) = (world.transform_point3(p[e[0] as usize]), world.transform_point3(p[e[1] as usize]));
+                a.distance(b) > growth * spread.max(seed.at(0.5 * (a + b)))
+            };
+            // The longest edge of each triangle around a long one (Rivara's bisection): a
+            // length that varies over the mesh would otherwise split short legs into slivers.
             let long: Vec<[u32; 2]> =
-                mesh.edges().into_iter().filter(|e| world_length(&mesh, world, e) > seed).collect();
+                mesh.edges().into_iter().filter(long).flat_map(|e| mesh.longest_around(e)).collect();
             if long.is_empty() || mesh.split(&long, usize::MAX) == 0 {
                 break;
             }
@@ -322,7 +368,7 @@ fn seeded(source: &Adaptive, world: &glam::Affine3A, share: usize, length: f32) 
         if mesh.vertices() - source.vertices() <= share {
             return mesh;
         }
-        seed *= std::f32::consts::SQRT_2;
+        growth *= std::f32::consts::SQRT_2;
     }
 }
 
@@ -355,12 +401,6 @@ fn world_area(mesh: &Adaptive, world: &glam::Affine3A) -> f32 {
             0.5 * (b - a).cross(c - a).length()
         })
         .sum()
-}
-
-/// World-space length of edge `e` of `mesh`.
-fn world_length(mesh: &Adaptive, world: &glam::Affine3A, e: &[u32; 2]) -> f32 {
-    let p = mesh.positions();
-    world.transform_point3(p[e[0] as usize]).distance(world.transform_point3(p[e[1] as usize]))
 }
 
 #[cfg(test)]

@@ -110,6 +110,13 @@ impl Scope {
         Near { lights, environment }
     }
 
+    /// The instances other than `i` whose bounds come within `reach` of `i`'s, ascending: what
+    /// the bounce on `i` may vary near ([`super::Seed`]).
+    pub fn close(&self, i: usize, reach: f32) -> Vec<u32> {
+        let Some((lo, hi)) = self.bounds[i] else { return Vec::new() };
+        self.meeting(&[(lo - Vec3::splat(reach), hi + Vec3::splat(reach))], |_| true, |j| j != i)
+    }
+
     /// Whether instance `j` lies in instance `i`'s plane (`i` itself, when it has one).
     fn in_plane_of(&self, i: usize, j: usize) -> bool {
         self.plane[i].is_some() && (j == i || self.bounds[j].is_some_and(|b| self.box_in_plane_of(i, b)))
