@@ -136,8 +136,7 @@ fn the_refinement_keys_follow_what_refinement_reads() {
 /// what it stands on, where the bounce falls off towards the contact: seeded alone (no
 /// rounds), the lowest quarter of its sides gets at least twice the vertices of the highest;
 /// lifted 2 m off the floor, both quarters alike. Its key follows the floor's bounds, which its
-/// seed reads; the floor's does not follow the box (its own sixteenth is coarser than the
-/// scene's floor, so it is seeded alike everywhere).
+/// seed reads.
 #[test]
 fn a_small_box_is_seeded_finer_where_it_stands() {
     let scene = |lift: f32, floor_at: Vec3| {

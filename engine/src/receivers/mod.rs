@@ -287,7 +287,7 @@ fn refined(
 }
 
 /// How long the seed's edges may be on one receiver (see [`seed`]).
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Debug)]
 struct Seed {
     /// The shortest: the shadow cap, and a sixteenth of the receiver's diagonal.
     fine: f32,
@@ -295,7 +295,7 @@ struct Seed {
     /// [`SCENE_DIVISIONS`].
     coarse: f32,
     /// The bounds of the other instances within `coarse` of the receiver's, where `fine` is
-    /// shorter than `coarse` (empty otherwise).
+    /// shorter than `coarse` and they are at most [`MOST_CLOSE`] (empty otherwise).
     close: Vec<(Vec3, Vec3)>,
 }
 
@@ -330,9 +330,14 @@ fn seed(scope: &Scope, i: usize, near: &Near) -> Seed {
     let cap = 0.5 * sides.fold(f32::INFINITY, f32::min);
     let own = scope.bounds[i].map_or(f32::INFINITY, |(lo, hi)| (hi - lo).length() / SEED_DIVISIONS);
     let (fine, coarse) = (cap.min(own), cap.min(own.max(scope.size / SCENE_DIVISIONS)));
-    let close = if fine < coarse { scope.close(i, coarse) } else { Vec::new() };
+    // Among a crowd (a heap of pebbles) the seed stays coarse: looking at every neighbour would
+    // cost each member the crowd's size.
+    let close = if fine < coarse { scope.close(i, coarse, MOST_CLOSE).unwrap_or_default() } else { Vec::new() };
     Seed { fine, coarse, close: close.iter().filter_map(|&j| scope.bounds[j as usize]).collect() }
 }
+
+/// Most other instances a seed is finer near: with more within its reach, it is coarse.
+const MOST_CLOSE: usize = 16;
 
 /// Seed edges across an instance's diagonal at least (see [`seed`]).
 const SEED_DIVISIONS: f32 = 16.0;

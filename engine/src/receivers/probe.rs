@@ -111,10 +111,24 @@ impl Scope {
     }
 
     /// The instances other than `i` whose bounds come within `reach` of `i`'s, ascending: what
-    /// the bounce on `i` may vary near ([`super::Seed`]).
-    pub fn close(&self, i: usize, reach: f32) -> Vec<u32> {
-        let Some((lo, hi)) = self.bounds[i] else { return Vec::new() };
-        self.meeting(&[(lo - Vec3::splat(reach), hi + Vec3::splat(reach))], |_| true, |j| j != i)
+    /// the bounce on `i` may vary near ([`super::Seed`]); `None` when there are more than
+    /// `most` (the search stops there, so that a crowd costs each of its members `most`).
+    pub fn close(&self, i: usize, reach: f32, most: usize) -> Option<Vec<u32>> {
+        let Some((lo, hi)) = self.bounds[i] else { return Some(Vec::new()) };
+        let grown = (lo - Vec3::splat(reach), hi + Vec3::splat(reach));
+        let mut found = Vec::new();
+        let meets = |j: &&u32| **j as usize != i && self.bounds[**j as usize].is_some_and(|o| overlap(o, grown));
+        let whole = self.tree.each_within(
+            |lo, hi| overlap((lo, hi), grown),
+            |leaf| {
+                found.extend(leaf.iter().filter(meets));
+                found.len() > most
+            },
+        );
+        whole.then(|| {
+            found.sort_unstable();
+            found
+        })
     }
 
     /// Whether instance `j` lies in instance `i`'s plane (`i` itself, when it has one).
