@@ -161,7 +161,7 @@ fn a_face_turned_away_gets_only_its_own_bounce() {
     let error = over(&face, &image, &truth);
     eprintln!("low-poly box, the face turned away ({pixels} pixels): {count} bounces, {error:.4} from the reference");
     assert!(pixels > 500, "{pixels}");
-    // Measured: 7.36 % (the reference's own noise there 5.3 %); 11.3 % without neighbour
+    // Measured: 6.72 % (the reference's own noise there 5.3 %); 11.3 % without neighbour
     // clamping at contacts, when records from higher up reached the face's foot past the dark
     // records gathered there (blotches along the edge). A record used across the 90° edge would put it
     // at 2.8×.

@@ -116,19 +116,7 @@ impl Scope {
     pub fn close(&self, i: usize, reach: f32, most: usize) -> Option<Vec<u32>> {
         let Some((lo, hi)) = self.bounds[i] else { return Some(Vec::new()) };
         let grown = (lo - Vec3::splat(reach), hi + Vec3::splat(reach));
-        let mut found = Vec::new();
-        let meets = |j: &&u32| **j as usize != i && self.bounds[**j as usize].is_some_and(|o| overlap(o, grown));
-        let whole = self.tree.each_within(
-            |lo, hi| overlap((lo, hi), grown),
-            |leaf| {
-                found.extend(leaf.iter().filter(meets));
-                found.len() > most
-            },
-        );
-        whole.then(|| {
-            found.sort_unstable();
-            found
-        })
+        self.meeting_at_most(&[grown], |_| true, |j| j != i, most)
     }
 
     /// Whether instance `j` lies in instance `i`'s plane (`i` itself, when it has one).
@@ -154,20 +142,34 @@ impl Scope {
         descend: impl Fn((Vec3, Vec3)) -> bool,
         keep: impl Fn(usize) -> bool,
     ) -> Vec<u32> {
+        self.meeting_at_most(boxes, descend, keep, usize::MAX).expect("no limit to pass")
+    }
+
+    /// [`Self::meeting`], or `None` once more than `most` are found (the search stops there).
+    fn meeting_at_most(
+        &self,
+        boxes: &[(Vec3, Vec3)],
+        descend: impl Fn((Vec3, Vec3)) -> bool,
+        keep: impl Fn(usize) -> bool,
+        most: usize,
+    ) -> Option<Vec<u32>> {
         let mut found = Vec::new();
         for &b in boxes {
-            self.tree.each_within(
+            let whole = self.tree.each_within(
                 |lo, hi| overlap((lo, hi), b) && descend((lo, hi)),
                 |leaf| {
                     let meets = |j: &&u32| self.bounds[**j as usize].is_some_and(|o| overlap(o, b));
                     found.extend(leaf.iter().filter(meets).filter(|&&j| keep(j as usize)));
-                    false
+                    found.len() > most
                 },
             );
+            if !whole {
+                return None;
+            }
         }
         found.sort_unstable();
         found.dedup();
-        found
+        Some(found)
     }
 }
 
