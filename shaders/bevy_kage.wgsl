@@ -1,9 +1,10 @@
 // The Bevy plugin's material (bevy_kage/src/material.rs): Bevy's StandardMaterial with kage's
 // polygonal lights added per pixel (pixel_lights.wgsl). The vertex stage is Bevy's mesh vertex
 // stage (bevy_pbr's mesh.wgsl, without skins and morphs) that also passes on, per vertex, what
-// the CPU computed from the bakes: the radiance of the lights shaded per vertex (`rest`), the
-// light that the pixel's diffuse albedo multiplies (`diffuse_light`: the environment's through
-// PRT, and the pack's frozen bounces) and, for
+// the CPU computed from the bakes: the specular radiance of the lights shaded per vertex and of
+// the environment (`rest`), the light that the pixel's diffuse albedo multiplies
+// (`diffuse_light`: those lights' diffuse light, the environment's through PRT, and the pack's
+// frozen bounces) and, for
 // each light shaded per pixel, its lobes' (shadowed, unshadowed) integrals. The
 // fragment stage is Bevy's StandardMaterial with the kage lights added to its lighting, scaled
 // by the view's exposure as Bevy's own lights are.
@@ -37,10 +38,11 @@ struct KageParams {
     lights: u32,
     // KHR_materials_specular's factor.
     specular: f32,
-    pad: f32,
+    // The material's perceptual roughness factor (its texture not applied).
+    roughness: f32,
 }
 
-// Per vertex: rest (rgb), the diffuse light (rgb, albedo not applied), then
+// Per vertex: rest (rgb: specular), the diffuse light (rgb, albedo not applied), then
 // PIXEL_LIGHTS × (diffuse shadowed, unshadowed, specular shadowed, unshadowed).
 struct KageVertex {
     rest: vec4<f32>,
@@ -102,6 +104,9 @@ struct KageOut {
     @location(11) lobes1: vec4<f32>,
     @location(12) lobes2: vec4<f32>,
     @location(13) lobes3: vec4<f32>,
+#else
+    // The share of the diffuse albedo the specular layer leaves (1 − its directional albedo).
+    @location(10) diffuse_kept: f32,
 #endif
 }
 
@@ -138,8 +143,21 @@ fn vertex(v: Vertex) -> KageOut {
     out.lobes1 = terms.lobes[1];
     out.lobes2 = terms.lobes[2];
     out.lobes3 = terms.lobes[3];
+#else
+    out.diffuse_kept = diffuse_kept(out.world_position.xyz, out.world_normal);
 #endif
     return out;
+}
+
+// What the diffuse albedo keeps under the dielectric specular layer (surface_at's
+// 1 − E(μ, r)), per vertex with the material's roughness factor: where the lights are shaded
+// per vertex, the table lookups per pixel were a fifth of lavapipe's frame.
+fn diffuse_kept(p: vec3<f32>, normal: vec3<f32>) -> f32 {
+    let to_eye = view.world_position - p;
+    let n = normalize(normal);
+    let mu = select(1.0, abs(dot(n, normalize(to_eye))), length(to_eye) > 0.0);
+    let s = max(kage.specular, 0.0);
+    return max(1.0 - directional_albedo(mu, kage.roughness, vec3<f32>(0.04 * s), vec3<f32>(s)).x, 0.0);
 }
 
 // Bevy's VertexOutput from ours.
@@ -185,15 +203,18 @@ fn fragment(k: KageOut, @builtin(front_facing) is_front: bool) -> FragmentOutput
     out.color = emission(pbr_input);
 #endif
     let m = pbr_input.material;
+#ifdef KAGE_PIXEL_LIGHTS
     let s = surface_at(k.world_position.xyz, normalize(pbr_input.N), view.world_position, m.base_color.rgb,
         m.metallic, m.perceptual_roughness, kage.specular);
     var total = k.rest + k.diffuse_light * s.diffuse;
-#ifdef KAGE_PIXEL_LIGHTS
     let lobe = specular_lobe(s);
     var lobes = array<vec4<f32>, 4>(k.lobes0, k.lobes1, k.lobes2, k.lobes3);
     for (var l = 0u; l < min(kage.lights, PIXEL_LIGHTS); l = l + 1u) {
         total = total + light_at(s, lobe, kage_lights[l], lobes[l]);
     }
+#else
+    let diffuse = m.base_color.rgb * (1.0 - clamp(m.metallic, 0.0, 1.0)) * k.diffuse_kept;
+    let total = k.rest + k.diffuse_light * diffuse;
 #endif
     out.color = vec4<f32>(out.color.rgb + total * view.exposure, out.color.a);
     out.color = main_pass_post_lighting_processing(pbr_input, out.color);

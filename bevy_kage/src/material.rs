@@ -71,8 +71,8 @@ pub struct KageParams {
     pub lights: u32,
     /// `KHR_materials_specular`'s factor.
     pub specular: f32,
-    /// Padding to 16 bytes.
-    pub pad: f32,
+    /// The material's perceptual roughness factor.
+    pub roughness: f32,
 }
 
 impl MaterialExtension for KageLights {

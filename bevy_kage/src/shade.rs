@@ -1,12 +1,12 @@
 //! Per-frame shading of a spawned pack's lights on the CPU, from the baked BSPVT trees.
 //!
 //! At every vertex and for each of the first [`PIXEL_LIGHTS`] lights, the diffuse and the
-//! specular lobe's (shadowed, unshadowed) LTC integrals; the radiance of any further light
-//! per vertex. Each instance is shaded in its group's baked frame (the lights and the eye
+//! specular lobe's (shadowed, unshadowed) LTC integrals; for any further light, its
+//! specular radiance and its diffuse light (the pixel's own albedo multiplies it). Each instance is shaded in its group's baked frame (the lights and the eye
 //! carried there from where its group is now): the trees hold directions in that frame, so a
 //! moved group keeps its own shadows exactly, and what other groups cast stays where it was
 //! baked. Recomputed only when the eye, a group or a light moved; the environment's terms
-//! (the `diffuse_light` slot and the specular term added to the per-vertex radiance) come from
+//! (the `diffuse_light` slot and the specular term added to the per-vertex specular radiance) come from
 //! [`crate::environment`]. The pack's bounces, frozen where its lights and groups were baked,
 //! start the `diffuse_light` slot: they move with their vertices and nothing relights them.
 
@@ -30,8 +30,9 @@ use std::sync::Arc;
 /// per vertex.
 pub const PIXEL_LIGHTS: usize = 4;
 
-/// 4-float slots per vertex: the per-vertex lights' radiance, the diffuse light of the
-/// environment and the pack's bounces (albedo not applied), then one per pixel light.
+/// 4-float slots per vertex: the per-vertex lights' and the environment's specular radiance,
+/// the diffuse light of the per-vertex lights, the environment and the pack's bounces (albedo
+/// not applied), then one per pixel light.
 const SLOTS: usize = 2 + PIXEL_LIGHTS;
 
 /// A Bevy vector as kage's.
@@ -351,11 +352,18 @@ fn vertex_terms(
                 let shader = PointShader::new(&table, p, n, eye, &material);
                 let vis = inst.bspvt.as_ref().map_or(Visibility::Unshadowed, |b| Visibility::Tree(b.record(v), res));
                 let mut row = [0.0; SLOTS * 4];
-                row[..3].copy_from_slice(&shader.shade(per_vertex, vis).to_array());
-                if let Some(bounce) = &inst.bounce {
-                    row[4..7].copy_from_slice(&bounce[v].to_array());
+                // The diffuse light meets each pixel's own albedo (its texture, its vertex
+                // colour): the vertex's, here, would spread it over the triangles around.
+                let (diffuse, specular) = shader.shade_parts(per_vertex, vis);
+                let bounce = inst.bounce.as_ref().map_or(glam::Vec3::ZERO, |b| b[v]);
+                row[..3].copy_from_slice(&specular.to_array());
+                row[4..7].copy_from_slice(&(diffuse + bounce).to_array());
+                let (_, mut pairs) = shader.lobe_pairs(per_pixel, vis);
+                // A vertex inside geometry (under a box resting on the floor) takes no part in
+                // its pixels' fractions: its zeros would darken what is seen.
+                if inst.inside[v] {
+                    pairs.iter_mut().flatten().flatten().for_each(|x| *x = 0.0);
                 }
-                let (_, pairs) = shader.lobe_pairs(per_pixel, vis);
                 for (k, [d, sp]) in pairs.iter().enumerate() {
                     row[4 * (k + 2)..4 * (k + 3)].copy_from_slice(&[d[0], d[1], sp[0], sp[1]]);
                 }

@@ -187,7 +187,7 @@ fn material(loaded: &KagePack, i: usize, terms: &shade::Terms) -> KageMaterial {
         base.alpha_mode = AlphaMode::Mask(c.cutoff);
         base.base_color.set_alpha(c.factor);
     }
-    let params = KageParams { first: terms.first[i], lights: 0, specular: m.specular, pad: 0.0 };
+    let params = KageParams { first: terms.first[i], lights: 0, specular: m.specular, roughness: m.roughness };
     let extension = KageLights {
         params,
         vertices: terms.vertices.clone(),

@@ -85,6 +85,40 @@ mod tests {
         assert_eq!(poster.uv(Vec2::ZERO, Vec2::ZERO), Vec2::new(0.5, 0.0));
     }
 
+    /// A pack with BSPVT names the vertices inside geometry (the ground's under the box of the
+    /// built-in scene), as the engine finds them, for readers without a BVH to leave out of
+    /// their pixels; one whose list is not ascending is refused, naming the field.
+    #[test]
+    fn a_pack_names_the_vertices_inside_geometry() {
+        let scene = kage_engine::scene::default_scene();
+        let flat = kage_engine::scene::flatten(&scene);
+        let bake = kage_engine::bspvt::bake(&flat, &kage_engine::bspvt::Settings { res: 8, epsilon: 2.0 }, &|_| {});
+        let radiance = flat.zeros();
+        let export = Export {
+            scene: &scene,
+            flat: &flat,
+            bspvt: Some(&bake),
+            prt: None,
+            radiance: &radiance,
+            bounce: None,
+            exposure: 0.0,
+        };
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("inside.glb");
+        write(&path, &export).unwrap();
+        let pack = kage_runtime::pack::Pack::read(&std::fs::read(&path).unwrap()).unwrap();
+        let expected = kage_engine::bspvt::pixel::Inside::default().flags(&flat).to_vec();
+        let named: Vec<Vec<bool>> = pack.instances.iter().map(|i| i.inside.clone()).collect();
+        assert_eq!(named, expected);
+        assert!(named.iter().flatten().any(|&f| f), "the ground under the box");
+        edit_json(&path, |d| {
+            let record = &mut d["meshes"][0]["primitives"][0]["extensions"][EXTENSION];
+            record["inside"] = record["radiance"].clone();
+        });
+        let e = read(&path).err().map(|e| e.to_string()).expect("the pack is refused");
+        assert!(e.contains("inside: not ascending vertex indices"), "{e}");
+    }
+
     fn textured_scene() -> std::path::PathBuf {
         Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/scenes/textured_materials.gltf")
     }

@@ -31,9 +31,12 @@ fn encode(e: &Export) -> std::io::Result<Vec<u8>> {
     // Group nodes come first (indices 0..groups), so members are numbered after them.
     let member = |b: &Builder| Index::new((b.members.len() + groups.len()) as u32);
     let locals = prt::local_transforms(e.scene, e.flat);
+    // Only pixels shaded from the trees leave such vertices out.
+    let mut inside = kage_engine::bspvt::pixel::Inside::default();
+    let inside = e.bspvt.map(|_| inside.flags(e.flat));
     for (k, inst) in e.flat.instances.iter().enumerate() {
         children[group_of(inst.group)].push(member(&b));
-        b.instance(e, k, inst, &locals[k]);
+        b.instance(e, k, (inst, &locals[k]), inside.map(|f| &f[k][..]));
     }
     for (light, m, name) in lights(e.scene) {
         children[group_of(m.group)].push(member(&b));
@@ -225,8 +228,9 @@ impl Builder {
         self.members.push(node(Some(name), local, gj::Node { mesh: Some(mesh), ..Default::default() }));
     }
 
-    /// Mesh instance `k`: geometry, the preview on an unlit material, and its bakes.
-    fn instance(&mut self, e: &Export, k: usize, inst: &Instance, local: &glam::Affine3A) {
+    /// Mesh instance `k` (placed at `local` in its group): geometry, the preview on an unlit
+    /// material, its bakes, and which of its vertices lie inside geometry (`inside`, per vertex).
+    fn instance(&mut self, e: &Export, k: usize, (inst, local): (&Instance, &glam::Affine3A), inside: Option<&[bool]>) {
         let mesh = e.flat.mesh(k);
         let scale = 2f32.powf(e.exposure);
         let preview: Vec<Vec3> = e.radiance[k].iter().map(|v| (*v * scale).clamp(Vec3::ZERO, Vec3::ONE)).collect();
@@ -244,6 +248,10 @@ impl Builder {
             material,
             radiance: self.raw(bytemuck::cast_slice(&e.radiance[k])),
             bounce: e.bounce.map(|b| self.raw(bytemuck::cast_slice(&b[k]))),
+            inside: inside
+                .map(|f| (0..f.len() as u32).filter(|&v| f[v as usize]).collect::<Vec<u32>>())
+                .filter(|v| !v.is_empty())
+                .map(|v| self.raw(bytemuck::cast_slice(&v))),
             bspvt: e.bspvt.map(|b| {
                 let rec = &b.instances[k];
                 schema::BspvtData {

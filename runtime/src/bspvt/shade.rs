@@ -73,6 +73,7 @@ impl PointShader {
         };
         let (d, colour) = lobe(&self.frame, 0);
         sum.lobes[0] += weight * d;
+        sum.light += weight * colour;
         sum.radiance[0] += weight * self.diffuse * colour;
         if self.spec != DVec3::ZERO {
             let (s, colour) = lobe(&self.spec_inv, 1);
@@ -99,6 +100,19 @@ impl PointShader {
     pub fn shade_with_lobes(&self, lights: &[FlatLight], vis: Visibility) -> (Vec3, Vec<[f64; 2]>) {
         let (total, _, lobes) = self.shade_all(lights, vis);
         (total, lobes)
+    }
+
+    /// [`Self::shade`] in two parts: the diffuse lobe's light before the diffuse albedo
+    /// multiplies it (a pixel multiplies it by its own albedo: a texture's detail between
+    /// vertices), and the specular lobe's radiance.
+    pub fn shade_parts(&self, lights: &[FlatLight], vis: Visibility) -> (Vec3, Vec3) {
+        let (mut diffuse, mut specular) = (DVec3::ZERO, DVec3::ZERO);
+        for light in lights {
+            let sum = self.light(light, vis);
+            diffuse += light.radiance.as_dvec3() * sum.light;
+            specular += light.radiance.as_dvec3() * sum.radiance[1];
+        }
+        (diffuse.as_vec3(), specular.as_vec3())
     }
 
     /// The lobes' integrals alone (see [`Self::shade_with_lobes`]).
@@ -286,6 +300,8 @@ struct Leaf<'a> {
 struct Sum {
     /// Weighted radiance of the diffuse and the specular lobe.
     radiance: [DVec3; 2],
+    /// The diffuse lobe's weighted light, before the diffuse albedo multiplies it.
+    light: DVec3,
     /// The diffuse and specular lobes' integrals (no colour).
     lobes: [f64; 2],
     pieces: usize,
@@ -386,4 +402,43 @@ fn polygon_area(poly: &[DVec3]) -> f64 {
 
 fn clip_all(poly: &[DVec3], planes: &[DVec3]) -> Vec<DVec3> {
     planes.iter().fold(poly.to_vec(), |p, n| if p.is_empty() { p } else { polygon::clip(&p, *n) })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::{Affine3A, Vec2};
+
+    /// The diffuse part times the diffuse albedo, plus the specular part, is the whole
+    /// radiance: for a glossy dielectric (both lobes), a metal (no diffuse albedo, yet the
+    /// diffuse lobe's light is there for a pixel whose texture makes it dielectric) and a
+    /// matte surface, lit by a tilted quad.
+    #[test]
+    fn the_parts_add_up_to_the_radiance() {
+        let table = ltc::table();
+        // Wound to face down, toward the point below it.
+        let quad = [
+            Vec3::new(-0.5, 0.0, -0.5),
+            Vec3::new(0.5, 0.0, -0.5),
+            Vec3::new(0.5, 0.0, 0.5),
+            Vec3::new(-0.5, 0.0, 0.5),
+        ];
+        let to = Affine3A::from_rotation_translation(glam::Quat::from_rotation_x(0.4), Vec3::new(0.3, 2.0, 0.1));
+        let uvs = [Vec2::ZERO; 4];
+        let light = FlatLight::placed(&quad, &uvs, &to, Vec3::new(4.0, 3.0, 2.0)).expect("a quad has area");
+        let lights = std::slice::from_ref(&light);
+        let materials = [
+            Material { base_color: Vec3::new(0.8, 0.5, 0.2), metallic: 0.0, roughness: 0.3, specular: 1.0 },
+            Material { base_color: Vec3::new(1.0, 0.78, 0.34), metallic: 1.0, roughness: 0.4, specular: 1.0 },
+            Material::lambertian(Vec3::splat(0.7)),
+        ];
+        for m in &materials {
+            let shader = PointShader::new(&table, Vec3::new(0.2, 0.0, -0.1), Vec3::Y, Vec3::new(1.0, 1.5, 2.0), m);
+            let whole = shader.shade(lights, Visibility::Unshadowed);
+            let (diffuse, specular) = shader.shade_parts(lights, Visibility::Unshadowed);
+            let sum = shader.diffuse.as_vec3() * diffuse + specular;
+            assert!((sum - whole).length() <= 1e-5 * whole.length(), "{m:?}: {sum} against {whole}");
+            assert!(diffuse.min_element() > 0.0, "{m:?}: the diffuse lobe sees the light");
+        }
+    }
 }

@@ -14,12 +14,12 @@ pub use read::{Checked, Environment, Group, Instance, Light, Mesh, Pack, Texture
 
 /// The extension's name.
 pub const EXTENSION: &str = "KAGE_baked_shadows";
-/// The extension's version this kage writes (5: with the bounces' light per vertex).
-pub const VERSION: u64 = 5;
+/// The extension's version this kage writes (6: with the vertices inside geometry).
+pub const VERSION: u64 = 6;
 /// The extension's versions this kage reads (2 differs from 1 in number formatting only; 1 and
 /// 2 hold BSPVT record format 1, without depth: shaded as they were, lights in closed rooms
 /// dark; 1 to 3 carry no checksums: read with their numbers range-checked only; 1 to 4 carry
-/// no bounce).
-pub const VERSIONS: std::ops::RangeInclusive<u64> = 1..=5;
+/// no bounce; 1 to 5 do not name the vertices inside geometry).
+pub const VERSIONS: std::ops::RangeInclusive<u64> = 1..=6;
 /// The first version that carries the integrity record.
 pub const SEALED: u64 = 4;

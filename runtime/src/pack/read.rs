@@ -79,6 +79,8 @@ pub struct Instance {
     pub radiance: Vec<Vec3>,
     /// The bounces' light per vertex at the bake's placement (irradiance over π), if stored.
     pub bounce: Option<Vec<Vec3>>,
+    /// Per vertex, whether it lies inside geometry (all `false` when the pack names none).
+    pub inside: Vec<bool>,
     /// BSPVT's vertex records.
     pub bspvt: Option<BakedInstance>,
     /// PRT's transfer, n² per vertex.
@@ -267,6 +269,8 @@ impl Reader<'_> {
                 "radiance"
             } else if r.bounce.is_some_and(is) {
                 "bounce"
+            } else if r.inside.is_some_and(is) {
+                "inside"
             } else if r.bspvt.as_ref().is_some_and(|b| is(b.offsets)) {
                 "bspvt.offsets"
             } else if r.bspvt.as_ref().is_some_and(|b| is(b.records)) {
@@ -381,6 +385,14 @@ impl Reader<'_> {
         if bounce.as_ref().is_some_and(|b| b.len() != n || b.iter().any(|l| !l.is_finite() || l.min_element() < 0.0)) {
             return Err(format!("{EXTENSION} bounce: not {n} finite RGB triples ≥ 0"));
         }
+        let mut inside = vec![false; n];
+        if let Some(view) = record.inside.map(|v| self.view(v as usize)).transpose()? {
+            let indices = words(view, u32::from_le_bytes);
+            if !indices.is_sorted_by(|a, b| a < b) || indices.last().is_some_and(|&v| v as usize >= n) {
+                return Err(format!("{EXTENSION} inside: not ascending vertex indices below {n}"));
+            }
+            indices.iter().for_each(|&v| inside[v as usize] = true);
+        }
         let material = record.material.clone();
         Ok(Instance {
             name: at.name,
@@ -390,6 +402,7 @@ impl Reader<'_> {
             material,
             radiance,
             bounce,
+            inside,
             bspvt: None,
             transfer: None,
         })

@@ -125,6 +125,10 @@ pub struct Instance {
     /// per vertex; version 5 on).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub bounce: Option<u32>,
+    /// Buffer view of the vertices that lie inside geometry (u32 indices, ascending; version 6
+    /// on, only when there are some): a pixel leaves them out of its lights' visible fractions.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub inside: Option<u32>,
     /// The instance's visibility trees.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub bspvt: Option<BspvtData>,
