@@ -1,12 +1,13 @@
 //! Per-frame shading of a spawned pack's lights on the CPU, from the baked BSPVT trees.
 //!
 //! At every vertex and for each of the first [`PIXEL_LIGHTS`] lights, the diffuse and the
-//! specular lobe's (shadowed, unshadowed) LTC integrals; for any further light, its
-//! specular radiance and its diffuse light (the pixel's own albedo multiplies it). Each instance is shaded in its group's baked frame (the lights and the eye
-//! carried there from where its group is now): the trees hold directions in that frame, so a
-//! moved group keeps its own shadows exactly, and what other groups cast stays where it was
-//! baked. Recomputed only when the eye, a group or a light moved; the environment's terms
-//! (the `diffuse_light` slot and the specular term added to the per-vertex specular radiance) come from
+//! specular lobe's (shadowed, unshadowed) LTC integrals; for any further light, its specular
+//! radiance and its diffuse light (the pixel's own albedo multiplies it). Each instance is
+//! shaded in its group's baked frame (the lights and the eye carried there from where its
+//! group is now): the trees hold directions in that frame, so a moved group keeps its own
+//! shadows exactly, and what other groups cast stays where it was baked. Recomputed only when
+//! the eye, a group or a light moved; the environment's terms (the `diffuse_light` slot and
+//! the specular term added to the per-vertex specular radiance) come from
 //! [`crate::environment`]. The pack's bounces, frozen where its lights and groups were baked,
 //! start the `diffuse_light` slot: they move with their vertices and nothing relights them.
 
