@@ -359,12 +359,7 @@ fn vertex_terms(
                 let bounce = inst.bounce.as_ref().map_or(glam::Vec3::ZERO, |b| b[v]);
                 row[..3].copy_from_slice(&specular.to_array());
                 row[4..7].copy_from_slice(&(diffuse + bounce).to_array());
-                let (_, mut pairs) = shader.lobe_pairs(per_pixel, vis);
-                // A vertex inside geometry (under a box resting on the floor) takes no part in
-                // its pixels' fractions: its zeros would darken what is seen.
-                if inst.inside[v] {
-                    pairs.iter_mut().flatten().flatten().for_each(|x| *x = 0.0);
-                }
+                let (_, pairs) = shader.vertex_lobe_pairs(per_pixel, vis, inst.inside[v]);
                 for (k, [d, sp]) in pairs.iter().enumerate() {
                     row[4 * (k + 2)..4 * (k + 3)].copy_from_slice(&[d[0], d[1], sp[0], sp[1]]);
                 }

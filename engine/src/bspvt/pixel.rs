@@ -44,13 +44,7 @@ impl Lobes {
                         let vis = bake.map_or(Visibility::Unshadowed, |b| {
                             Visibility::Tree(b.instances[i].record(v), b.settings.res)
                         });
-                        let (radiance, mut pairs) = shader.lobe_pairs(&flat.lights, vis);
-                        // A vertex inside geometry (under a box resting on the floor) takes no
-                        // part in its pixels' fractions: its zeros would darken what is seen.
-                        if inside[i][v] {
-                            pairs.iter_mut().flatten().flatten().for_each(|x| *x = 0.0);
-                        }
-                        (radiance, pairs)
+                        shader.vertex_lobe_pairs(&flat.lights, vis, inside[i][v])
                     })
                     .collect();
                 let values: Vec<Vec3> = rows.iter().map(|r| r.0).collect();

@@ -372,6 +372,10 @@ pub fn cast_tiles(
                     continue;
                 }
                 Look::Keep | Look::Unreached => continue,
+                // Every corner below the horizon (with a margin for rounding): so is every
+                // texel corner (the height's sign is affine over the face), and no texel is
+                // cast ([`texel_ray`]) — without asking each.
+                Look::Cast | Look::Blocked if face.corners(t).iter().all(|&h| h < -1e-9) => continue,
                 Look::Cast | Look::Blocked => {}
             }
             // Every texel centre above the horizon (the lowest is a corner texel's: height is

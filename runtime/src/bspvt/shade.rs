@@ -133,6 +133,17 @@ impl PointShader {
         (radiance, shut.iter().zip(&open).map(|(s, o)| [pair(s[0], o[0]), pair(s[1], o[1])]).collect())
     }
 
+    /// [`Self::lobe_pairs`] at a vertex: one inside geometry (under a box resting on a floor)
+    /// takes no part in its pixels' fractions, so its pairs are zero — its occluded lobes
+    /// would darken what is seen.
+    pub fn vertex_lobe_pairs(&self, lights: &[FlatLight], vis: Visibility, inside: bool) -> (Vec3, Vec<[[f32; 2]; 2]>) {
+        let (radiance, mut pairs) = self.lobe_pairs(lights, vis);
+        if inside {
+            pairs.iter_mut().flatten().flatten().for_each(|x| *x = 0.0);
+        }
+        (radiance, pairs)
+    }
+
     /// Radiance, LTC pieces integrated, and per light the lobes' integrals.
     fn shade_all(&self, lights: &[FlatLight], vis: Visibility) -> (Vec3, usize, Vec<[f64; 2]>) {
         let mut total = DVec3::ZERO;
