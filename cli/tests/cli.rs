@@ -55,6 +55,12 @@ fn metals_under_prt_are_explained() {
     assert!(noted.contains("1 of 1 instances are metals") && noted.contains("--method baked"), "{noted}");
     let o = kage(&[&args[..], &["--method", "ltc-unshadowed"]].concat());
     assert!(o.status.success() && !stderr(&o).contains("metals"), "{}", stderr(&o));
+    // A ball banded by its metallic-roughness texture is black where it is metal.
+    let banded = asset("scenes/textured_materials.gltf");
+    let args = ["render", banded.as_str(), "--env", city.as_str(), "--size", "16x9", "-o", png.to_str().unwrap()];
+    let o = kage(&[&args[..], &["--method", "prt", "--db", d.join("banded.redb").to_str().unwrap()]].concat());
+    let noted = stderr(&o);
+    assert!(o.status.success() && noted.contains("1 of 4 are metal where their metallic-roughness texture"), "{noted}");
 }
 
 /// A small object under a dark studio map: the metered exposure keeps its highlights (at most

@@ -250,19 +250,26 @@ impl FlatScene {
         unlit.then_some("nothing lights it: it has no emissive quad (polygonal light) and no environment")
     }
 
-    /// Why diffuse transfer (PRT) shows some instances black, when some are metals everywhere
-    /// (metallic 1, glTF's default, with no texture lowering it): they have no diffuse term.
-    /// Front ends note it and name the method that shows them.
+    /// Why diffuse transfer (PRT) shows some instances black, in whole or in part: metals
+    /// everywhere (metallic 1, glTF's default, with no texture lowering it), and metals where a
+    /// metallic-roughness texture says so (a banded ball): metal has no diffuse term. Front
+    /// ends note it and name the method that shows them.
     pub fn black_under_prt(&self) -> Option<String> {
-        let metal = |i: &&Instance| i.material.metallic >= 1.0 && i.maps.metallic_roughness.is_none();
-        let metals = self.instances.iter().filter(metal).count();
-        (metals > 0).then(|| {
-            format!(
-                "{metals} of {} instances are metals (metallic 1, glTF's default when a material sets no \
-                 metallicFactor): PRT transfers diffuse light only, so they show black",
-                self.instances.len()
-            )
-        })
+        let textured = |i: &Instance| i.maps.metallic_roughness.is_some();
+        let metals = self.instances.iter().filter(|i| i.material.metallic >= 1.0 && !textured(i)).count();
+        let partly = self.instances.iter().filter(|i| i.material.metallic > 0.0 && textured(i)).count();
+        let n = self.instances.len();
+        let mut which = Vec::new();
+        if metals > 0 {
+            which.push(format!(
+                "{metals} of {n} instances are metals (metallic 1, glTF's default when a material sets no metallicFactor)"
+            ));
+        }
+        if partly > 0 {
+            which.push(format!("{partly} of {n} are metal where their metallic-roughness texture says so"));
+        }
+        (!which.is_empty())
+            .then(|| format!("{}: PRT transfers diffuse light only, so their metal shows black", which.join("; ")))
     }
 
     /// Vertices of instance `inst`.
