@@ -153,7 +153,14 @@ mod tests {
             })
             .collect();
         let snapshot = crate::plan::Snapshot { occluders: Vec::new(), hash: Key::from_slice(&[0; 32]) };
-        Plan { bspvt: None, prt: None, jobs, snapshot, reach: kage_engine::bspvt::reach::Reach::ANYWHERE }
+        Plan {
+            bspvt: None,
+            prt: None,
+            jobs,
+            snapshot,
+            reach: kage_engine::bspvt::reach::Reach::ANYWHERE,
+            slot_lists: Vec::new(),
+        }
     }
 
     /// The sample is spread over the misses, inside their chunks, and within its bounds.

@@ -166,6 +166,10 @@ pub struct Plan {
     pub snapshot: Snapshot,
     /// Where the polygonal lights can be (part of BSPVT keys and slots).
     pub reach: bspvt::reach::Reach,
+    /// Per instance, where the store lists its BSPVT chunks' slots (`None` without BSPVT): its
+    /// slot without the place, so that a warm re-bake finds a vertex that another chunk of the
+    /// same instance held last time (a receiver refined again moves its chunks' cuts).
+    pub slot_lists: Vec<Option<Key>>,
 }
 
 impl Plan {
@@ -250,6 +254,7 @@ pub fn plan(
     let snapshot = Snapshot::of(flat);
     let reach = bspvt::reach::Reach::of_scene(flat);
     let mut jobs = Vec::new();
+    let mut slot_lists = vec![None; flat.instances.len()];
     if let Some(s) = bspvt {
         for (i, inst) in flat.instances.iter().enumerate() {
             let mut base = KeyHasher::new("bspvt")
@@ -263,6 +268,7 @@ pub fn plan(
                 base = base.bytes("reach", &reach.key_bytes());
             }
             let id = [inst.id.node, inst.id.mesh, inst.id.primitive];
+            slot_lists[i] = Some(base.clone().bytes("id", bytemuck::cast_slice(&id)).bytes("slot list", &[]).finish());
             for vertices in chunks(flat, i) {
                 let content = chunk_content(flat, i, &vertices);
                 let key =
@@ -297,7 +303,7 @@ pub fn plan(
     }
     let present = store.contains_all(&jobs.iter().map(|j| j.key).collect::<Vec<_>>())?;
     jobs.iter_mut().zip(present).for_each(|(j, p)| j.cached = p);
-    Ok(Plan { bspvt, prt, jobs, snapshot, reach })
+    Ok(Plan { bspvt, prt, jobs, snapshot, reach, slot_lists })
 }
 
 /// Instance `i`'s vertices cut into chunks by their content, as content-defined chunking cuts

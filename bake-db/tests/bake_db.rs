@@ -957,7 +957,9 @@ fn edits_with_refinement_on_give_a_cold_bakes_bytes() {
 /// it occludes as its source (no other receiver's key changes with it), its added vertices lie
 /// in spatial order and its chunks are cut by content, so the chunks away from the box keep
 /// their keys — PRT's stay cached, BSPVT's re-bake warm —, those near it keep their places —
-/// BSPVT re-bakes warm the vertices they still hold — and the result is a cold bake's.
+/// BSPVT re-bakes warm the vertices they still hold — and the result is a cold bake's. A
+/// chunk whose place is new re-bakes warm the vertices another chunk held, from the ground's
+/// slot list; without it (damaged) they bake cold, with the same bytes.
 #[test]
 fn a_refined_receiver_rebakes_only_near_a_moved_shadow() {
     use kage_bake_db::memo::refinement::refine;
@@ -977,8 +979,9 @@ fn a_refined_receiver_rebakes_only_near_a_moved_shadow() {
     let ground = |s: &Scene| flatten(s).instances.iter().position(|i| i.id.node == 0).unwrap();
     let flat_ground = after.world.query::<&SourceMesh>().iter().filter(|s| s.flat).count();
     assert!(flat_ground >= 1, "the ground's refinement is flat");
-    let store = Store::open(&scratch("near")).unwrap();
+    let [store, unlisted] = ["near", "near-unlisted"].map(|n| Store::open(&scratch(n)).unwrap());
     bake(&store, &before);
+    bake(&unlisted, &before);
     let flat = flatten(&after);
     let p = plan(&store, &after, &flat, Some(BSPVT), Some(prt_settings())).unwrap();
     let g = ground(&after);
@@ -999,10 +1002,16 @@ fn a_refined_receiver_rebakes_only_near_a_moved_shadow() {
         with_lineage > prt_kept,
         "BSPVT: {with_lineage} ground chunks have lineage, {prt_kept} kept their vertices"
     );
+    let list = p.slot_lists[g].unwrap();
+    assert!(store.lineage(&list).unwrap().is_some(), "the ground's slots are listed");
+    unlisted.put_batch(&[], &[(list, b"kgs1 damaged".to_vec())]).unwrap();
     let (warm, bytes, _) = bake(&store, &after);
+    let (without, unlisted_bytes, _) = bake(&unlisted, &after);
     let (_, cold_bytes, _) = bake(&Store::open(&scratch("near-fresh")).unwrap(), &after);
-    assert!(bytes == cold_bytes, "a warm re-bake must give a cold bake's bytes");
+    assert!(bytes == cold_bytes && unlisted_bytes == cold_bytes, "a warm re-bake must give a cold bake's bytes");
     assert!(warm.warm >= with_lineage, "{warm:?}");
+    // Measured: 42 % fewer rays (392K against 679K).
+    assert!(5 * warm.rays_cast < 4 * without.rays_cast, "{warm:?} vs {without:?}");
 }
 
 /// A curved receiver refined again (here for a moved light, its refinement alone swapped in)

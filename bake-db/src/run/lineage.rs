@@ -3,10 +3,29 @@
 //! and which occluders changed since.
 
 use super::*;
+use std::sync::Arc;
 
-/// A slot's previous bake of each of a chunk's vertices (`None`: the vertex is new) and the
-/// occluders that changed since.
-pub(super) type Lineage = (Vec<Option<bspvt::VertexBake>>, Vec<bspvt::Change>);
+/// The previous bake of each of a chunk's vertices (`None`: the vertex is new) with the
+/// occluders that changed since that bake.
+pub(super) type Lineage = Vec<Option<(bspvt::VertexBake, Arc<[bspvt::Change]>)>>;
+
+/// An instance's previous vertex bakes across all its slots, by their position and normal
+/// bits, each with the occluders that changed since its chunk was baked.
+pub(super) type Kept = HashMap<[u32; 6], (bspvt::VertexBake, Arc<[bspvt::Change]>)>;
+
+/// First bytes of a slot list (see [`crate::plan::Plan::slot_lists`]), then 32-byte slot keys.
+const SLOT_LIST_MAGIC: &[u8; 4] = b"kgs1";
+
+/// A slot list's entry.
+pub(super) fn encode_slot_list(slots: &[Key]) -> Vec<u8> {
+    SLOT_LIST_MAGIC.iter().copied().chain(slots.iter().flat_map(|k| *k.as_bytes())).collect()
+}
+
+/// The slots of a slot list's entry (`None` when malformed).
+pub(super) fn decode_slot_list(entry: &[u8]) -> Option<Vec<Key>> {
+    let keys = entry.strip_prefix(SLOT_LIST_MAGIC)?;
+    keys.len().is_multiple_of(32).then(|| keys.chunks_exact(32).map(Key::from_slice).collect())
+}
 
 /// First bytes of a lineage entry (its layout's version): entries of an older layout (before
 /// masks, or before vertices were kept) lack it, and their chunks bake cold once.

@@ -286,10 +286,22 @@ fn bake_misses(
     saved?;
     stats.tiles_from_memo = tools.bspvt.as_ref().map_or(0, |b| b.tiles.hits());
     store.put_scene(&scene.source, &plan.keys(), &plan.snapshot.hash)?;
+    if stats.cold + stats.warm > 0 {
+        store.put_batch(&[], &slot_lists(plan))?;
+    }
     let meshes: Vec<([u8; 32], u32, u32)> =
         scene.meshes.iter().map(|m| (m.hash.0, m.positions.len() as u32, m.triangles.len() as u32)).collect();
     store.put_meshes(&meshes)?;
     Ok((stats, fresh))
+}
+
+/// Each instance's slot list ([`Plan::slot_lists`]): its BSPVT chunks' slots, for the next
+/// warm re-bake. Written once a run has baked and committed every chunk (a cached run writes
+/// nothing); a run cancelled before keeps the last list, whose slots hold either their old bake or a newer one, both usable.
+fn slot_lists(plan: &Plan) -> Vec<(Key, Vec<u8>)> {
+    let slots =
+        |i: usize| -> Vec<Key> { plan.jobs.iter().filter(|j| j.instance == i).filter_map(|j| j.slot).collect() };
+    plan.slot_lists.iter().enumerate().filter_map(|(i, list)| Some(((*list)?, encode_slot_list(&slots(i))))).collect()
 }
 
 /// Bakes `jobs` in parallel and throws the results away; returns the workers' seconds they

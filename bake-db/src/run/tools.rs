@@ -3,6 +3,7 @@
 //! and the per-job bake ([`Context`]) that uses them.
 
 use super::*;
+use std::sync::Arc;
 
 /// What baking jobs needs beyond the plan, set up only for the kinds a set of jobs has.
 pub(crate) struct Tools {
@@ -17,6 +18,9 @@ pub(crate) struct Tools {
     /// What changed in each re-refined occluder, by (old occluder hash, instance), worked out
     /// once for every chunk that asks.
     pub(super) regions: Regions,
+    /// Each instance's previous vertex bakes across its slots, read once for every chunk that
+    /// asks ([`Context::lineage_of`]).
+    pub(super) kept: Mutex<HashMap<usize, Arc<Kept>>>,
 }
 
 /// What a BSPVT chunk bakes with: the occluders' BVHs and the tile subtree memo.
@@ -46,11 +50,19 @@ impl Tools {
         }
         let prt = plan.prt.filter(|_| baking(Kind::Prt));
         let prt = prt.map(|settings| PrtBaker { baker: prt::Baker::new(scene, flat, &settings), settings });
-        Ok(Tools { bspvt, prt, new_bvhs, new_triangles, regions: Mutex::default() })
+        Ok(Tools { bspvt, prt, new_bvhs, new_triangles, regions: Mutex::default(), kept: Mutex::default() })
     }
 
     pub(crate) fn context<'a>(&'a self, store: &'a Store, flat: &'a FlatScene, plan: &'a Plan) -> Context<'a> {
-        Context { flat, plan, store, bspvt: self.bspvt.as_ref(), prt: self.prt.as_ref(), regions: &self.regions }
+        Context {
+            flat,
+            plan,
+            store,
+            bspvt: self.bspvt.as_ref(),
+            prt: self.prt.as_ref(),
+            regions: &self.regions,
+            kept: &self.kept,
+        }
     }
 
     /// The memos worth storing: new occluder BVHs, re-refined occluders' triangles, and the
@@ -69,6 +81,7 @@ pub(crate) struct Context<'a> {
     pub(super) bspvt: Option<&'a BspvtBaker>,
     pub(super) prt: Option<&'a PrtBaker>,
     pub(super) regions: &'a Regions,
+    pub(super) kept: &'a Mutex<HashMap<usize, Arc<Kept>>>,
 }
 
 impl Context<'_> {
@@ -122,11 +135,11 @@ impl Context<'_> {
         Ok(Baked { job, key: job.key, bytes, info, lineage, warm, vertices, rays, tiles })
     }
 
-    /// The chunk's vertex bakes, and whether they were re-baked warm from the slot's lineage.
+    /// The chunk's vertex bakes, and whether any was re-baked warm from the lineage.
     pub(super) fn bake_bspvt(&self, prepared: &BspvtBaker, job: &Job) -> Result<(Vec<bspvt::VertexBake>, bool)> {
         let (occ, tiles) = (&prepared.occluders, &prepared.tiles);
         let vertex = |v: usize| self.flat.vertex(job.instance, v);
-        let (old, changed) = self.lineage_of(job)?.unwrap_or_else(|| (vec![None; job.vertices.len()], Vec::new()));
+        let old = self.lineage_of(job)?;
         let warm = old.iter().any(Option::is_some);
         let cold = bspvt::VertexBake::default();
         // The vertices in parallel too: a worker that runs out of chunks helps with the ones
@@ -140,18 +153,55 @@ impl Context<'_> {
             .map(|(v, old)| {
                 let (p, n) = vertex(v);
                 // A new vertex bakes cold: no change needs looking at.
-                let (old, changed) = old.as_ref().map_or((&cold, &[][..]), |old| (old, &changed[..]));
+                let (old, changed) = old.as_ref().map_or((&cold, &[][..]), |(old, changed)| (old, &changed[..]));
                 bspvt::rebake_vertex(occ, p, n, (tiles, &self.plan.reach), old, changed)
             })
             .collect();
         Ok((baked, warm))
     }
 
-    /// The slot's previous bake of each of the chunk's vertices that it holds (matched by
-    /// position and normal) and every occluder that changed since, when the lineage is usable.
-    pub(super) fn lineage_of(&self, job: &Job) -> Result<Option<Lineage>> {
-        let Some(slot) = job.slot else { return Ok(None) };
-        let Some(entry) = self.store.lineage(&slot)? else { return Ok(None) };
+    /// The previous bake of each of the chunk's vertices (matched by position and normal) and
+    /// the occluders that changed since: from the slot's lineage, and for the vertices it does
+    /// not hold from the instance's other slots (see [`Plan::slot_lists`]). All `None` for a
+    /// chunk without a slot (baked cold on purpose). Any previous bake of a vertex gives the
+    /// same bytes: a warm re-bake equals a cold one.
+    pub(super) fn lineage_of(&self, job: &Job) -> Result<Lineage> {
+        let mut lineage: Lineage = vec![None; job.vertices.len()];
+        let Some(slot) = job.slot else { return Ok(lineage) };
+        let bits: Vec<[u32; 6]> =
+            job.vertices.clone().map(|v| crate::plan::vertex_bits(self.flat, job.instance, v)).collect();
+        if let Some(mut own) = self.entry(&slot)? {
+            lineage.iter_mut().zip(&bits).for_each(|(l, b)| *l = own.remove(b));
+        }
+        if lineage.iter().any(Option::is_none) {
+            let kept = self.kept(job.instance)?;
+            lineage.iter_mut().zip(&bits).filter(|(l, _)| l.is_none()).for_each(|(l, b)| *l = kept.get(b).cloned());
+        }
+        Ok(lineage)
+    }
+
+    /// Instance `i`'s previous vertex bakes across the slots its list held, read once per run
+    /// (the other workers wait rather than read it again).
+    fn kept(&self, i: usize) -> Result<Arc<Kept>> {
+        let mut all = self.kept.lock().expect("no worker panics holding it");
+        if let Some(kept) = all.get(&i) {
+            return Ok(kept.clone());
+        }
+        let list = self.plan.slot_lists.get(i).copied().flatten();
+        let entry = list.map(|k| self.store.lineage(&k)).transpose()?.flatten();
+        let mut kept = Kept::new();
+        for slot in entry.as_deref().and_then(decode_slot_list).unwrap_or_default() {
+            kept.extend(self.entry(&slot)?.into_iter().flatten());
+        }
+        let kept = Arc::new(kept);
+        all.insert(i, kept.clone());
+        Ok(kept)
+    }
+
+    /// A slot's lineage entry: its vertices' previous bakes by their bits, each with every
+    /// occluder that changed since; `None` when the slot has none or it is unusable.
+    fn entry(&self, slot: &Key) -> Result<Option<Kept>> {
+        let Some(entry) = self.store.lineage(slot)? else { return Ok(None) };
         let Some(Then { key, occluders, vertices, masks }) = decode_lineage(&entry) else { return Ok(None) };
         let Some(bytes) = self.store.get::<u8>(&key)? else { return Ok(None) };
         // The warm re-bake descends the old trees: a damaged chunk bakes cold instead.
@@ -160,13 +210,13 @@ impl Context<'_> {
             r.len() == vertices.len() && r.iter().all(|rec| bspvt::layout::check_record(rec, res).is_ok())
         };
         let Some(records) = decode_records(&bytes).filter(usable) else { return Ok(None) };
-        let mut old: HashMap<[u32; 6], bspvt::VertexBake> = vertices
-            .into_iter()
-            .zip(records.into_iter().zip(masks))
-            .map(|(bits, (record, masks))| (bits, bspvt::VertexBake { record, masks, ..Default::default() }))
-            .collect();
-        let now = job.vertices.clone().map(|v| old.remove(&crate::plan::vertex_bits(self.flat, job.instance, v)));
-        Ok(Some((now.collect(), self.changes(&occluders)?)))
+        let changed: Arc<[bspvt::Change]> = self.changes(&occluders)?.into();
+        let bakes = records.into_iter().zip(masks).map(|(record, masks)| bspvt::VertexBake {
+            record,
+            masks,
+            ..Default::default()
+        });
+        Ok(Some(vertices.into_iter().zip(bakes.map(|b| (b, changed.clone()))).collect()))
     }
 
     /// Every occluder that changed since the snapshot `then`, a re-refined curved one by the
