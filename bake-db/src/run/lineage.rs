@@ -9,9 +9,12 @@ use std::sync::Arc;
 /// occluders that changed since that bake.
 pub(super) type Lineage = Vec<Option<(bspvt::VertexBake, Arc<[bspvt::Change]>)>>;
 
-/// An instance's previous vertex bakes across all its slots, by their position and normal
-/// bits, each with the occluders that changed since its chunk was baked.
-pub(super) type Kept = HashMap<[u32; 6], (bspvt::VertexBake, Arc<[bspvt::Change]>)>;
+/// A slot's previous vertex bakes by their position and normal bits, each with the occluders
+/// that changed since.
+pub(super) type Held = HashMap<[u32; 6], (bspvt::VertexBake, Arc<[bspvt::Change]>)>;
+
+/// Which slot of an instance held each of its vertices (by their bits) last time.
+pub(super) type Holders = HashMap<[u32; 6], Key>;
 
 /// First bytes of a slot list (see [`crate::plan::Plan::slot_lists`]), then 32-byte slot keys.
 const SLOT_LIST_MAGIC: &[u8; 4] = b"kgs1";

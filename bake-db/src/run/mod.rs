@@ -297,7 +297,8 @@ fn bake_misses(
 
 /// Each instance's slot list ([`Plan::slot_lists`]): its BSPVT chunks' slots, for the next
 /// warm re-bake. Written once a run has baked and committed every chunk (a cached run writes
-/// nothing); a run cancelled before keeps the last list, whose slots hold either their old bake or a newer one, both usable.
+/// nothing); a run cancelled before keeps the last list, whose slots hold either their old
+/// bake or a newer one, both usable.
 fn slot_lists(plan: &Plan) -> Vec<(Key, Vec<u8>)> {
     let slots =
         |i: usize| -> Vec<Key> { plan.jobs.iter().filter(|j| j.instance == i).filter_map(|j| j.slot).collect() };

@@ -18,9 +18,9 @@ pub(crate) struct Tools {
     /// What changed in each re-refined occluder, by (old occluder hash, instance), worked out
     /// once for every chunk that asks.
     pub(super) regions: Regions,
-    /// Each instance's previous vertex bakes across its slots, read once for every chunk that
-    /// asks ([`Context::lineage_of`]).
-    pub(super) kept: Mutex<HashMap<usize, Arc<Kept>>>,
+    /// Per instance, which listed slot held each vertex, read once for every chunk that asks
+    /// ([`Context::lineage_of`]).
+    pub(super) holders: Mutex<HashMap<usize, Arc<Holders>>>,
 }
 
 /// What a BSPVT chunk bakes with: the occluders' BVHs and the tile subtree memo.
@@ -50,7 +50,7 @@ impl Tools {
         }
         let prt = plan.prt.filter(|_| baking(Kind::Prt));
         let prt = prt.map(|settings| PrtBaker { baker: prt::Baker::new(scene, flat, &settings), settings });
-        Ok(Tools { bspvt, prt, new_bvhs, new_triangles, regions: Mutex::default(), kept: Mutex::default() })
+        Ok(Tools { bspvt, prt, new_bvhs, new_triangles, regions: Mutex::default(), holders: Mutex::default() })
     }
 
     pub(crate) fn context<'a>(&'a self, store: &'a Store, flat: &'a FlatScene, plan: &'a Plan) -> Context<'a> {
@@ -61,7 +61,7 @@ impl Tools {
             bspvt: self.bspvt.as_ref(),
             prt: self.prt.as_ref(),
             regions: &self.regions,
-            kept: &self.kept,
+            holders: &self.holders,
         }
     }
 
@@ -81,7 +81,7 @@ pub(crate) struct Context<'a> {
     pub(super) bspvt: Option<&'a BspvtBaker>,
     pub(super) prt: Option<&'a PrtBaker>,
     pub(super) regions: &'a Regions,
-    pub(super) kept: &'a Mutex<HashMap<usize, Arc<Kept>>>,
+    pub(super) holders: &'a Mutex<HashMap<usize, Arc<Holders>>>,
 }
 
 impl Context<'_> {
@@ -170,37 +170,55 @@ impl Context<'_> {
         let Some(slot) = job.slot else { return Ok(lineage) };
         let bits: Vec<[u32; 6]> =
             job.vertices.clone().map(|v| crate::plan::vertex_bits(self.flat, job.instance, v)).collect();
-        if let Some(mut own) = self.entry(&slot)? {
-            lineage.iter_mut().zip(&bits).for_each(|(l, b)| *l = own.remove(b));
-        }
+        self.fill(&mut lineage, &bits, slot)?;
         if lineage.iter().any(Option::is_none) {
-            let kept = self.kept(job.instance)?;
-            lineage.iter_mut().zip(&bits).filter(|(l, _)| l.is_none()).for_each(|(l, b)| *l = kept.get(b).cloned());
+            let holders = self.holders(job.instance)?;
+            let mut elsewhere: Vec<Key> = lineage
+                .iter()
+                .zip(&bits)
+                .filter(|(l, _)| l.is_none())
+                .filter_map(|(_, b)| holders.get(b).copied())
+                .collect();
+            elsewhere.sort_unstable_by_key(|k| *k.as_bytes());
+            elsewhere.dedup();
+            for other in elsewhere.into_iter().filter(|k| *k != slot) {
+                self.fill(&mut lineage, &bits, other)?;
+            }
         }
         Ok(lineage)
     }
 
-    /// Instance `i`'s previous vertex bakes across the slots its list held, read once per run
-    /// (the other workers wait rather than read it again).
-    fn kept(&self, i: usize) -> Result<Arc<Kept>> {
-        let mut all = self.kept.lock().expect("no worker panics holding it");
-        if let Some(kept) = all.get(&i) {
-            return Ok(kept.clone());
+    /// Fills the `None`s of `lineage` (for vertices `bits`) that `slot`'s entry holds.
+    fn fill(&self, lineage: &mut Lineage, bits: &[[u32; 6]], slot: Key) -> Result<()> {
+        if let Some(mut held) = self.entry(&slot)? {
+            lineage.iter_mut().zip(bits).filter(|(l, _)| l.is_none()).for_each(|(l, b)| *l = held.remove(b));
+        }
+        Ok(())
+    }
+
+    /// Which of instance `i`'s listed slots held each vertex (by its bits) — vertices only, not
+    /// their bakes, so that memory stays bounded by the index (56 bytes a vertex); read once
+    /// per run (the other workers wait rather than read it again).
+    fn holders(&self, i: usize) -> Result<Arc<Holders>> {
+        let mut all = self.holders.lock().expect("no worker panics holding it");
+        if let Some(holders) = all.get(&i) {
+            return Ok(holders.clone());
         }
         let list = self.plan.slot_lists.get(i).copied().flatten();
         let entry = list.map(|k| self.store.lineage(&k)).transpose()?.flatten();
-        let mut kept = Kept::new();
+        let mut holders = Holders::new();
         for slot in entry.as_deref().and_then(decode_slot_list).unwrap_or_default() {
-            kept.extend(self.entry(&slot)?.into_iter().flatten());
+            let then = self.store.lineage(&slot)?.and_then(|e| decode_lineage(&e));
+            holders.extend(then.into_iter().flat_map(|t| t.vertices).map(|b| (b, slot)));
         }
-        let kept = Arc::new(kept);
-        all.insert(i, kept.clone());
-        Ok(kept)
+        let holders = Arc::new(holders);
+        all.insert(i, holders.clone());
+        Ok(holders)
     }
 
     /// A slot's lineage entry: its vertices' previous bakes by their bits, each with every
     /// occluder that changed since; `None` when the slot has none or it is unusable.
-    fn entry(&self, slot: &Key) -> Result<Option<Kept>> {
+    fn entry(&self, slot: &Key) -> Result<Option<Held>> {
         let Some(entry) = self.store.lineage(slot)? else { return Ok(None) };
         let Some(Then { key, occluders, vertices, masks }) = decode_lineage(&entry) else { return Ok(None) };
         let Some(bytes) = self.store.get::<u8>(&key)? else { return Ok(None) };
