@@ -473,12 +473,20 @@ impl Editor {
 
     /// Logs a message.
     pub fn info(&mut self, text: String) {
-        self.log.push(LogLine { at: self.started.elapsed().as_secs_f64(), error: false, text });
+        self.log_line(false, text);
     }
 
     /// Logs an error.
     pub fn error(&mut self, text: String) {
-        self.log.push(LogLine { at: self.started.elapsed().as_secs_f64(), error: true, text });
+        self.log_line(true, text);
+    }
+
+    /// Adds a line to the log panel, and to stderr: a terminal or a script that started the
+    /// editor sees what it did, and when (`tools/editor_drag.sh` reads a drag's re-bake there).
+    fn log_line(&mut self, error: bool, text: String) {
+        let at = self.started.elapsed().as_secs_f64();
+        eprintln!("{at:8.2} s  {}{text}", if error { "error: " } else { "" });
+        self.log.push(LogLine { at, error, text });
     }
 
     /// The GPU the editor shades on.
