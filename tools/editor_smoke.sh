@@ -10,11 +10,8 @@ kage=$(realpath "$1")
 wait_s=${2:-25}
 root=$(cd "$(dirname "$0")/.." && pwd)
 work=$(mktemp -d)
-display=:$((90 + RANDOM % 100))
-Xvfb "$display" -screen 0 1280x800x24 -nolisten tcp >"$work/xvfb.log" 2>&1 &
-xvfb=$!
-trap 'kill $xvfb 2>/dev/null || true; kill $app 2>/dev/null || true' EXIT
-for _ in $(seq 50); do [ -e "/tmp/.X11-unix/X${display#:}" ] && break; sleep 0.1; done
+# shellcheck source=tools/xvfb.sh
+source "$(dirname "$0")/xvfb.sh"
 scene=()
 if [ -n "${3:-}" ]; then
   cp "$3" "$work/scene.gltf"
