@@ -72,6 +72,7 @@ fn teapot_editor() -> Harness<'static, App> {
         // The GPU path by default, so lavapipe's numbers compare across commits.
         shade_on: shade_on(ShadeOn::Gpu),
         background_shading: usize::MAX,
+        preview_spacing: kage_editor::state::PREVIEW_SPACING,
     };
     let mut h = harness(scene, options);
     while h.state().editor.backend.job.is_some() || h.state().editor.bakes.bspvt.is_none() {
@@ -104,6 +105,7 @@ fn builtin_editor() -> Harness<'static, App> {
         // As `kage edit` does: on a CPU device (lavapipe) the lights shade per vertex on the CPU.
         shade_on: shade_on(ShadeOn::Auto),
         background_shading: usize::MAX,
+        preview_spacing: kage_editor::state::PREVIEW_SPACING,
     };
     let mut h = harness(kage_engine::scene::default_scene(), options);
     settle(&mut h);

@@ -63,7 +63,8 @@ fn track(p: &Plan) -> Track {
 
 impl BakeJob {
     /// Plans on the calling thread (cheap) and starts baking a snapshot of `scene`;
-    /// `on_land` runs on the worker after each result (the editor asks for a repaint).
+    /// `on_land` runs on the worker when a technique's bake ends (the editor asks for a
+    /// repaint); chunks wait in [`BakeJob::landed`] for the next frame.
     pub fn start(
         store: Arc<Store>,
         scene: &Scene,
@@ -99,9 +100,11 @@ impl BakeJob {
                         Kind::Prt => c.prt_transfer().map(ChunkData::Transfer),
                     };
                     // A malformed chunk is reported by the assembly at the end of the run.
+                    // No repaint for a chunk: the window's progress repaints pick it up
+                    // (`Editor::progress_interval`), and a frame per chunk took a CPU device's
+                    // time from the bake.
                     if let Some(data) = data {
                         let _ = tx.send(Landed::Chunk(c.job.instance, c.job.vertices.start, data));
-                        land();
                     }
                 };
                 let hooks = Hooks { progress: &progress, cancel: &stop, chunk: Some(&chunk) };

@@ -183,13 +183,13 @@ pub fn bake_system(ed: &mut Editor) {
     }
     let Some(job) = &mut ed.backend.job else { return };
     let landed = job.landed();
-    let running = job.running();
+    let (running, started) = (job.running(), job.started);
     let mut patched = ed.bakes.unshown;
     for l in landed {
         take(ed, l, &mut patched);
     }
     ed.bakes.unshown = patched;
-    if patched.contains(&true) && (!running || preview_due(ed)) {
+    if patched.contains(&true) && (!running || preview_due(ed, started)) {
         show_patches(ed);
     }
     if !running {
@@ -197,15 +197,13 @@ pub fn bake_system(ed: &mut Editor) {
     }
 }
 
-/// While a bake runs, a preview of what landed is due once the last one is this many times its
-/// own cost (shading and drawing) ago: previews take at most a ninth of the machine from the
-/// bake. On a GPU that is tens of previews a second; on a CPU device, whose frame of per-pixel
-/// lights takes a second of both cores, one every few seconds.
-const PREVIEW_SPACING: f64 = 8.0;
-
-fn preview_due(ed: &Editor) -> bool {
+/// While a bake runs, a preview of what landed is due once the last one, or the bake's start,
+/// is [`super::state::Options::preview_spacing`] times a preview's cost (shading and drawing)
+/// ago.
+fn preview_due(ed: &Editor, started: Instant) -> bool {
     let cost = ed.stats.shading + ed.stats.draw;
-    ed.bakes.shown_at.is_none_or(|t| t.elapsed().as_secs_f64() >= PREVIEW_SPACING * cost)
+    let since = ed.bakes.shown_at.map_or(started, |t| t.max(started));
+    since.elapsed().as_secs_f64() >= ed.options.preview_spacing * cost
 }
 
 /// Puts the patched bakes on the device and re-shades from them.
@@ -362,10 +360,11 @@ fn start_bake(ed: &mut Editor) {
 }
 
 /// Takes in what landed: a chunk is patched into the preview's bakes (`patched`), a finished
-/// bake replaces them.
+/// bake replaces them. Either is shown when previews are due ([`show_patches`]): a technique
+/// that finishes while the other still bakes waits like a chunk.
 fn take(ed: &mut Editor, landed: Landed, patched: &mut [bool; 2]) {
     match landed {
-        Landed::Chunk(instance, first, data) => return patch(ed, instance, first, data, patched),
+        Landed::Chunk(instance, first, data) => patch(ed, instance, first, data, patched),
         Landed::Bspvt(Ok((bake, stats))) => {
             ed.stats.runs[0] = Some(stats);
             ed.info(format!(
@@ -391,7 +390,6 @@ fn take(ed: &mut Editor, landed: Landed, patched: &mut [bool; 2]) {
         }
         Landed::Bspvt(Err(e)) | Landed::Prt(Err(e)) => ed.error(format!("bake: {e}")),
     }
-    ed.dirty.shade = true;
 }
 
 /// Refines the reference progressively while it is shown or compared against.

@@ -139,7 +139,7 @@ impl eframe::App for App {
             self.status = self.editor.save();
         }
         if self.editor.backend.job.is_some() || self.editor.dirty.shade || super::systems::gathering(&self.editor) {
-            ui.ctx().request_repaint_after(std::time::Duration::from_millis(100));
+            ui.ctx().request_repaint_after(self.editor.progress_interval());
         }
     }
 }

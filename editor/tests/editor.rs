@@ -56,6 +56,7 @@ fn options(dir: &Path, scene_path: Option<PathBuf>, shader_dir: Option<PathBuf>)
         indirect: false,
         shade_on: SHADE_ON,
         background_shading: usize::MAX,
+        preview_spacing: kage_editor::state::PREVIEW_SPACING,
     }
 }
 
@@ -288,6 +289,9 @@ fn the_preview_refines_batch_by_batch_while_the_bakes_stream_in() {
     // Per vertex: lavapipe draws the lights per pixel at a frame a second, and the bake would
     // land before the preview could show its batches.
     o.shade_on = ShadeOn::Cpu;
+    // Every landing shown: paced by its cost on lavapipe, the bake would end before the
+    // third preview.
+    o.preview_spacing = 0.0;
     // Building the harness runs frames until the app is idle: start the bake afterwards.
     o.bake_on_start = false;
     let mut h = harness(scene, o);

@@ -68,6 +68,7 @@ impl Args {
             indirect: !self.no_indirect,
             shade_on: self.shade_on,
             background_shading: self.background_shading,
+            preview_spacing: kage_editor::state::PREVIEW_SPACING,
         })
     }
 }

@@ -239,7 +239,7 @@ impl Viewport {
         build_pipelines(gpu, shaders, layouts, target)
     }
 
-    /// Seconds the last drawn frame took to record and submit (a CPU device renders it then).
+    /// Seconds the last drawn frame took to record, submit and finish on the device.
     pub fn draw_seconds(&self) -> f64 {
         self.draw_seconds
     }
@@ -446,6 +446,11 @@ impl Viewport {
             let start = std::time::Instant::now();
             let background = wgpu::Color { r: 0.02, g: 0.02, b: 0.025, a: 1.0 };
             self.draw(gpu, &self.pipelines, &target.frame, size, orbit, output, background);
+            // Wait for the device: a CPU device (lavapipe) renders on its own threads after the
+            // submit, and the editor paces its previews by what a frame really costs. The
+            // window's next present waits for this frame anyway; a lost device shows at the
+            // next submit.
+            let _ = gpu.device.poll(wgpu::PollType::wait_indefinitely());
             self.drawn = Some(drawn);
             self.draw_seconds = start.elapsed().as_secs_f64();
             self.frames_drawn += 1;
