@@ -511,6 +511,14 @@ impl Editor {
         std::time::Duration::from_millis(if cpu { 1000 } else { 100 })
     }
 
+    /// True when this frame left work for the next one's systems (an edit's pose, its shading
+    /// unless one runs in the background, the re-bake after a drag): the next frame comes at
+    /// once, not at the next [`Self::progress_interval`].
+    pub fn due_next_frame(&self) -> bool {
+        let shade = self.dirty.shade && !super::systems::shading(self);
+        self.dirty.pose || shade || (self.dirty.geometry && !self.dragging)
+    }
+
     /// True when polygonal lights shade on the GPU.
     pub fn polygonal_on_gpu(&self) -> bool {
         match self.options.shade_on {

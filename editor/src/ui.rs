@@ -138,8 +138,11 @@ impl eframe::App for App {
         if shortcuts(ui, &mut self.editor) {
             self.status = self.editor.save();
         }
-        if self.editor.backend.job.is_some() || self.editor.dirty.shade || super::systems::gathering(&self.editor) {
-            ui.ctx().request_repaint_after(self.editor.progress_interval());
+        let ed = &self.editor;
+        if ed.due_next_frame() {
+            ui.ctx().request_repaint();
+        } else if ed.backend.job.is_some() || ed.dirty.shade || super::systems::gathering(ed) {
+            ui.ctx().request_repaint_after(ed.progress_interval());
         }
     }
 }
