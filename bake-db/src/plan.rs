@@ -106,7 +106,7 @@ impl Snapshot {
             .iter()
             .enumerate()
             .map(|(i, inst)| {
-                let mesh = &flat.meshes[inst.mesh as usize];
+                let mesh = flat.occluder_mesh(i);
                 let (lo, hi) = mesh.positions.iter().fold((Vec3::MAX, Vec3::MIN), |(lo, hi), p| {
                     let w = inst.world.transform_point3(*p);
                     (lo.min(w), hi.max(w))

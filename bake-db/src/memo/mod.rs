@@ -2,8 +2,6 @@
 //! if lost — a damaged one is ignored and computed again, and `gc` drops what no scene uses.
 //!
 //! - [`bvhs`]: the BSPVT occluders' BVHs, so that an edit rebuilds only those it touched;
-//! - [`regions`]: a re-refined curved occluder's triangles, so that the next edit re-bakes
-//!   only what sees the ones that changed;
 //! - [`pilot`]: the PRT budget's pilot transfer, read instead of baked after a rotation;
 //! - [`refinement`]: each instance's receiver refinement, under its own key;
 //! - [`records`]: radiance-cache records, keyed by geometry, materials, direct light and
@@ -17,4 +15,3 @@ pub mod codec;
 pub mod pilot;
 pub mod records;
 pub mod refinement;
-pub mod regions;

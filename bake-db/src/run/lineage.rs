@@ -36,13 +36,8 @@ pub(super) const LINEAGE_MAGIC: &[u8; 4] = b"kgl3";
 
 /// Every occluder added, removed or changed between two snapshots, with its old and new
 /// bounds (padded: rays' offset origins differ from the vertex) and its index in `now` (the
-/// flattened scene's instance order, as [`Occluders`] has it). An occluder listed in `within`
-/// (changed in place) is instead each of its boxes there, before and after alike.
-pub fn changes(
-    then: &[Occluder],
-    now: &[Occluder],
-    within: &HashMap<[u32; 3], Vec<(Vec3, Vec3)>>,
-) -> Vec<bspvt::Change> {
+/// flattened scene's instance order, as [`Occluders`] has it).
+pub fn changes(then: &[Occluder], now: &[Occluder]) -> Vec<bspvt::Change> {
     let old: HashMap<[u32; 3], &Occluder> = then.iter().map(|o| (o.id, o)).collect();
     let new: HashMap<[u32; 3], (usize, &Occluder)> = now.iter().enumerate().map(|(i, o)| (o.id, (i, o))).collect();
     let bounds = |o: &Occluder| {
@@ -54,14 +49,9 @@ pub fn changes(
     ids.dedup();
     ids.into_iter()
         .filter(|id| old.get(id).copied() != new.get(id).map(|n| n.1))
-        .flat_map(|id| match (within.get(&id), new.get(&id)) {
-            (Some(boxes), Some(&(i, _))) => {
-                boxes.iter().map(|&b| bspvt::Change { before: Some(b), after: Some((b, i)) }).collect()
-            }
-            _ => vec![bspvt::Change {
-                before: old.get(&id).map(|o| bounds(o)),
-                after: new.get(&id).map(|&(i, o)| (bounds(o), i)),
-            }],
+        .map(|id| bspvt::Change {
+            before: old.get(&id).map(|o| bounds(o)),
+            after: new.get(&id).map(|&(i, o)| (bounds(o), i)),
         })
         .collect()
 }

@@ -18,7 +18,7 @@
 use crate::key::Key;
 use crate::plan::{Job, Kind, Occluder, Plan, decode_occluders, encode_occluders};
 use crate::store::{DbError, Info, Result, Store};
-use glam::{Affine3A, Vec3};
+use glam::Vec3;
 use kage_engine::accel::Occluders;
 use kage_engine::scene::{FlatScene, Scene};
 use kage_engine::{bspvt, prt};

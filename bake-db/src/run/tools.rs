@@ -1,5 +1,5 @@
 //! What baking a plan's jobs needs beyond the plan — the occluders' BVHs, the subtree memo,
-//! PRT's baker, re-refined occluders' regions — set up once per run for the kinds it bakes,
+//! PRT's baker — set up once per run for the kinds it bakes,
 //! and the per-job bake ([`Context`]) that uses them.
 
 use super::*;
@@ -13,11 +13,6 @@ pub(crate) struct Tools {
     pub(super) prt: Option<PrtBaker>,
     /// Occluder BVHs built now, as memos to store.
     pub(super) new_bvhs: Vec<(String, Vec<u8>)>,
-    /// Re-refined curved occluders' triangles, as memos to store ([`crate::memo::regions`]).
-    pub(super) new_triangles: Vec<(String, Vec<u8>)>,
-    /// What changed in each re-refined occluder, by (old occluder hash, instance), worked out
-    /// once for every chunk that asks.
-    pub(super) regions: Regions,
     /// Per instance, which listed slot held each vertex, read once for every chunk that asks
     /// ([`Context::lineage_of`]).
     pub(super) holders: Mutex<HashMap<usize, Arc<Holders>>>,
@@ -35,42 +30,29 @@ pub(crate) struct PrtBaker {
     pub(super) settings: prt::Settings,
 }
 
-/// See [`Tools::regions`].
-pub(super) type Regions = Mutex<HashMap<([u8; 32], usize), Option<Vec<(Vec3, Vec3)>>>>;
-
 impl Tools {
     pub(crate) fn for_jobs(store: &Store, scene: &Scene, flat: &FlatScene, plan: &Plan, jobs: &[&Job]) -> Result<Self> {
         let baking = |kind: Kind| jobs.iter().any(|j| j.kind == kind);
-        let (mut new_bvhs, mut new_triangles, mut bspvt) = (Vec::new(), Vec::new(), None);
+        let (mut new_bvhs, mut bspvt) = (Vec::new(), None);
         if let Some(s) = plan.bspvt.filter(|_| baking(Kind::Bspvt)) {
             let occluders;
             (occluders, new_bvhs) = crate::memo::bvhs::occluders(store, flat)?;
-            new_triangles = crate::memo::regions::memos(store, flat)?;
             bspvt = Some(BspvtBaker { occluders, tiles: load_tiles(store, &s)? });
         }
         let prt = plan.prt.filter(|_| baking(Kind::Prt));
         let prt = prt.map(|settings| PrtBaker { baker: prt::Baker::new(scene, flat, &settings), settings });
-        Ok(Tools { bspvt, prt, new_bvhs, new_triangles, regions: Mutex::default(), holders: Mutex::default() })
+        Ok(Tools { bspvt, prt, new_bvhs, holders: Mutex::default() })
     }
 
     pub(crate) fn context<'a>(&'a self, store: &'a Store, flat: &'a FlatScene, plan: &'a Plan) -> Context<'a> {
-        Context {
-            flat,
-            plan,
-            store,
-            bspvt: self.bspvt.as_ref(),
-            prt: self.prt.as_ref(),
-            regions: &self.regions,
-            holders: &self.holders,
-        }
+        Context { flat, plan, store, bspvt: self.bspvt.as_ref(), prt: self.prt.as_ref(), holders: &self.holders }
     }
 
-    /// The memos worth storing: new occluder BVHs, re-refined occluders' triangles, and the
-    /// subtree memo when it grew.
+    /// The memos worth storing: new occluder BVHs and the subtree memo when it grew.
     pub(super) fn memos(&self) -> Vec<(String, Vec<u8>)> {
         let grown = self.bspvt.as_ref().map(|b| &b.tiles).filter(|t| t.added() > 0);
         let tiles = grown.map(|t| (tiles_name(t.settings()), t.to_bytes()));
-        self.new_bvhs.iter().chain(&self.new_triangles).cloned().chain(tiles).collect()
+        self.new_bvhs.iter().cloned().chain(tiles).collect()
     }
 }
 
@@ -80,7 +62,6 @@ pub(crate) struct Context<'a> {
     pub(super) store: &'a Store,
     pub(super) bspvt: Option<&'a BspvtBaker>,
     pub(super) prt: Option<&'a PrtBaker>,
-    pub(super) regions: &'a Regions,
     pub(super) holders: &'a Mutex<HashMap<usize, Arc<Holders>>>,
 }
 
@@ -228,7 +209,7 @@ impl Context<'_> {
             r.len() == vertices.len() && r.iter().all(|rec| bspvt::layout::check_record(rec, res).is_ok())
         };
         let Some(records) = decode_records(&bytes).filter(usable) else { return Ok(None) };
-        let changed: Arc<[bspvt::Change]> = self.changes(&occluders)?.into();
+        let changed: Arc<[bspvt::Change]> = self.changes(&occluders).into();
         let bakes = records.into_iter().zip(masks).map(|(record, masks)| bspvt::VertexBake {
             record,
             masks,
@@ -237,28 +218,9 @@ impl Context<'_> {
         Ok(Some(vertices.into_iter().zip(bakes.map(|b| (b, changed.clone()))).collect()))
     }
 
-    /// Every occluder that changed since the snapshot `then`, a re-refined curved one by the
-    /// regions whose triangles changed where the store keeps its old triangles
-    /// ([`crate::memo::regions`]).
-    pub(super) fn changes(&self, then: &[Occluder]) -> Result<Vec<bspvt::Change>> {
-        let now = &self.plan.snapshot.occluders;
-        let old: HashMap<[u32; 3], &Occluder> = then.iter().map(|o| (o.id, o)).collect();
-        let mut within: HashMap<[u32; 3], Vec<(Vec3, Vec3)>> = HashMap::new();
-        for (i, n) in now.iter().enumerate() {
-            let Some(o) = old.get(&n.id).filter(|o| o.world == n.world && o.mesh != n.mesh) else { continue };
-            let known = self.regions.lock().expect("no worker panics holding it").get(&(o.mesh, i)).cloned();
-            let boxes = match known {
-                Some(boxes) => boxes,
-                None => {
-                    let world = Affine3A::from_cols_array(&n.world);
-                    let boxes = crate::memo::regions::changed(self.store, self.flat, (&o.mesh, i), &world, padding(n))?;
-                    self.regions.lock().expect("no worker panics holding it").insert((o.mesh, i), boxes.clone());
-                    boxes
-                }
-            };
-            within.extend(boxes.map(|b| (n.id, b)));
-        }
-        Ok(changes(then, now, &within))
+    /// Every occluder that changed since the snapshot `then`.
+    pub(super) fn changes(&self, then: &[Occluder]) -> Vec<bspvt::Change> {
+        changes(then, &self.plan.snapshot.occluders)
     }
 }
 

@@ -6,12 +6,10 @@
 //! paths. Artefacts are copied in transactions of at most [`BATCH_BYTES`]; the small tables
 //! (meshes, scenes, extras, lineage, metadata) in one at the end. A merge killed at any moment
 //! leaves the target as of its last commit, and merging again completes it: merging is
-//! idempotent. Of the memos, which only save time, only the curved occluders' triangles are
-//! merged (where the target lacks them): without them the first edit after a merge would count
-//! such an occluder's whole bounds as changed ([`crate::memo::regions`]). The others (BVHs, the
-//! subtree memo) each baker rebuilds as it goes.
+//! idempotent. The memos, which only save time, are not merged: each baker rebuilds them (BVHs,
+//! the subtree memo) as it goes.
 
-use super::{ARTEFACTS, DbError, EXTRAS, INFO, Info, LINEAGE, MEMOS, MESHES, META, Result, SCENES, Store, checksum_of};
+use super::{ARTEFACTS, DbError, EXTRAS, INFO, Info, LINEAGE, MESHES, META, Result, SCENES, Store, checksum_of};
 use crate::key::Key;
 use redb::{ReadableTable, TableDefinition};
 
@@ -120,17 +118,6 @@ impl Store {
         };
         let (meshes, lineage) = (read_all(MESHES)?, read_all(LINEAGE)?);
         let (scenes, extras, meta) = (read_named(SCENES)?, read_named(EXTRAS)?, read_named(META)?);
-        // By a range of names: the other memos (a large level's BVHs) are not even read.
-        let prefix = crate::memo::regions::PREFIX;
-        let triangles: Vec<(String, Vec<u8>)> = input.read(|t| match t.open_table(MEMOS) {
-            Ok(tab) => rows(
-                tab.range(prefix..)?
-                    .map(|r| r.map(|(k, v)| (k.value().to_string(), v.value().to_vec())))
-                    .take_while(|r| r.as_ref().map_or(true, |(k, _)| k.starts_with(prefix))),
-            ),
-            Err(redb::TableError::TableDoesNotExist(_)) => Ok(Vec::new()),
-            Err(e) => Err(e.into()),
-        })?;
         let mut disagree = None;
         self.write(|t| {
             let mut m = t.open_table(MESHES)?;
@@ -145,13 +132,6 @@ impl Store {
                 l.insert(k.as_slice(), v.as_slice())?;
             }
             drop(l);
-            let mut memos = t.open_table(MEMOS)?;
-            for (name, bytes) in &triangles {
-                if memos.get(name.as_str())?.is_none() {
-                    memos.insert(name.as_str(), bytes.as_slice())?;
-                }
-            }
-            drop(memos);
             for (table, entries, width) in [(SCENES, &scenes, 32), (EXTRAS, &extras, 64)] {
                 let mut tab = t.open_table(table)?;
                 for (name, v) in entries {

@@ -294,13 +294,7 @@ impl<'a> Edit<'a> {
         };
         // The beam's origin is `o` unless rounding put `d` below the horizon.
         let beam = |b: &Seen| b.beam.as_ref().filter(|_| o == self.origin).and_then(|beam| beam.hits(d));
-        // A re-refined occluder's region boxes follow one another and share its instance: the
-        // ray is cast against the instance once, not once per box it meets.
-        let mut last = None;
-        let blocks = |b: &Seen| {
-            let fresh = b.instance.is_some() && b.instance != std::mem::replace(&mut last, b.instance);
-            fresh && b.instance.is_some_and(|i| beam(b).unwrap_or_else(|| cast(i)))
-        };
+        let blocks = |b: &Seen| b.instance.is_some_and(|i| beam(b).unwrap_or_else(|| cast(i)));
         match (after.any(blocks), was_visible) {
             (true, _) => visibility::OCCLUDED,
             (false, true) => visibility::VISIBLE,

@@ -2,7 +2,6 @@
 //! the bake database keeps it.
 
 use super::Receiver;
-use crate::scene::refine::Refined;
 
 impl Receiver {
     /// The refinement as bytes.
@@ -12,9 +11,8 @@ impl Receiver {
         word(&mut out, self.before);
         match &self.refined {
             None => word(&mut out, 0),
-            Some(Refined { mesh: m, flat }) => {
-                // 1: refined, lifted off its source; 2: refined flat.
-                word(&mut out, 1 + *flat as usize);
+            Some(m) => {
+                word(&mut out, 1);
                 for n in [m.positions.len(), m.uvs.len(), m.uvs1.len(), m.colors.len(), m.triangles.len()] {
                     word(&mut out, n);
                 }
@@ -42,7 +40,7 @@ impl Receiver {
         let (before, refined) = (r.word()?, r.word()?);
         let refined = match refined {
             0 => None,
-            1 | 2 => {
+            1 => {
                 let [p, uv, uv1, c, t] = [r.word()?, r.word()?, r.word()?, r.word()?, r.word()?];
                 let mut mesh = crate::scene::Mesh {
                     positions: r.pods(p)?,
@@ -57,7 +55,7 @@ impl Receiver {
                     return None;
                 }
                 mesh.hash = mesh.compute_hash();
-                Some(Refined { mesh, flat: refined == 2 })
+                Some(mesh)
             }
             _ => return None,
         };

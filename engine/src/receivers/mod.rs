@@ -40,8 +40,8 @@ mod bytes;
 mod marks;
 mod probe;
 
-use crate::scene::refine::{Adaptive, Refined};
-use crate::scene::{FlatScene, PrimitiveId, Scene, flatten};
+use crate::scene::refine::Adaptive;
+use crate::scene::{FlatScene, Mesh, PrimitiveId, Scene, flatten};
 use glam::Vec3;
 use marks::{Memo, Tier};
 use probe::{Near, Probe, Scope, Sources};
@@ -106,7 +106,7 @@ pub fn refine_reporting(
 
 /// Bumped whenever refinement would refine the same scene differently: it names kept
 /// refinements ([`keys`]).
-pub const VERSION: u32 = 9;
+pub const VERSION: u32 = 10;
 
 /// Per instance (snapshot order), what its refinement reads of `scene` (its source meshes, as
 /// [`Scene::restore_source_meshes`] leaves it) and `settings`, hashed: the scene's size step,
@@ -176,7 +176,7 @@ fn hash_views(h: &mut blake3::Hasher, views: &[Sources]) {
 #[derive(Clone, Debug, PartialEq)]
 pub struct Receiver {
     before: usize,
-    refined: Option<Refined>,
+    refined: Option<Mesh>,
 }
 
 /// A refinement of a scene, not yet applied: one [`Receiver`] per instance (snapshot order).
@@ -237,13 +237,13 @@ impl Refinement {
             scene.world.query::<(hecs::Entity, &PrimitiveId)>().iter().map(|(e, id)| (*id, e)).collect();
         let mut report = Vec::new();
         for (inst, Receiver { before, refined }) in flat.instances.iter().zip(self.receivers) {
-            let Some(Refined { mesh, flat }) = refined else {
+            let Some(mesh) = refined else {
                 report.push((before, before));
                 continue;
             };
             report.push((before, mesh.positions.len()));
             let entity = entities.get(&inst.id).expect("the snapshot's instances are the world's");
-            scene.set_refined_mesh(*entity, mesh, flat);
+            scene.set_refined_mesh(*entity, mesh);
         }
         report
     }

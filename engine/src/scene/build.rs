@@ -118,9 +118,8 @@ impl Scene {
     }
 
     /// Puts `mesh` in place of instance `e`'s mesh as a refinement of its source (a mesh
-    /// already held with the same content is shared, so refining again adds nothing); `flat`
-    /// as [`SourceMesh::flat`].
-    pub fn set_refined_mesh(&mut self, e: hecs::Entity, mesh: Mesh, flat: bool) {
+    /// already held with the same content is shared, so refining again adds nothing).
+    pub fn set_refined_mesh(&mut self, e: hecs::Entity, mesh: Mesh) {
         let Some(source) = self.source_mesh(e) else { return };
         let index = match self.meshes.iter().position(|m| m.hash == mesh.hash) {
             Some(i) => i,
@@ -130,7 +129,7 @@ impl Scene {
             }
         };
         let refined = MeshRef { index: index as u32, hash: self.meshes[index].hash };
-        let _ = self.world.insert(e, (refined, SourceMesh { mesh: source, flat }));
+        let _ = self.world.insert(e, (refined, SourceMesh { mesh: source }));
     }
 
     /// An independent copy with the same entity ids (a snapshot for a background bake while the

@@ -158,17 +158,15 @@ pub struct MeshRef {
 pub struct SourceMesh {
     /// The source mesh.
     pub mesh: MeshRef,
-    /// True when the refinement put every vertex on the source's flat triangles: the instance
-    /// then occludes as its source ([`SourceMesh::occluder`]), so re-refining it (another
-    /// shadow to follow) changes nothing it casts, nor any key that hashes what occludes.
-    pub flat: bool,
 }
 
 impl SourceMesh {
     /// The mesh that occludes for an instance showing `shown` and refined from `source` (if
-    /// it was): the source when the refinement is flat, else what it shows.
+    /// it was): the source. Re-refining an instance (another shadow to follow) then changes
+    /// nothing it casts, nor any key that hashes what occludes; refinement lifts vertices only
+    /// outward so that their rays start outside it (see [`crate::scene::refine`]).
     pub fn occluder(shown: MeshRef, source: Option<&SourceMesh>) -> MeshRef {
-        source.filter(|s| s.flat).map_or(shown, |s| s.mesh)
+        source.map_or(shown, |s| s.mesh)
     }
 }
 

@@ -16,6 +16,12 @@
 //! vertex per side of the seam, all at one position: no crack, no T-junction. A new vertex is
 //! lifted onto the Phong surface only where every side agrees on the ends' normals (smooth
 //! there); on a crease it stays on the flat edge, so an occluder's silhouette does not move.
+//!
+//! Lifted only outward: a refined instance occludes as its source
+//! ([`crate::scene::SourceMesh::occluder`]), so a vertex's rays must start on or outside the
+//! source's surface. Where the Phong point lies behind the flat edge (a concave part) the
+//! vertex stays on the edge — Hanika's rule against shadow-terminator artefacts (*Hacking the
+//! Shadow Terminator*, Ray Tracing Gems II ch. 4).
 
 use super::mesh::{Mesh, MeshProblem};
 use crate::math::morton;
@@ -54,8 +60,6 @@ struct Refiner {
     source_vertices: usize,
     /// The source's bounds, which places are coded over ([`Refiner::place`]).
     bounds: (Vec3, Vec3),
-    /// Whether a split put a vertex off its flat edge (onto the Phong surface).
-    lifted: bool,
 }
 
 impl Refiner {
@@ -74,7 +78,6 @@ impl Refiner {
             queue: BinaryHeap::new(),
             source_vertices: mesh.positions.len(),
             bounds: mesh.positions.iter().fold((Vec3::MAX, Vec3::MIN), |(lo, hi), p| (lo.min(*p), hi.max(*p))),
-            lifted: false,
         };
         for tri in &mesh.triangles {
             r.push_triangle(*tri);
@@ -130,8 +133,6 @@ impl Refiner {
             })
             .collect();
         let position = self.split_point(&sides);
-        let (p, q, _) = sides[0];
-        self.lifted |= position != 0.5 * (self.positions[p as usize] + self.positions[q as usize]);
         let name = self.positions.len() as u32;
         let mut mids: Vec<((u32, u32), u32)> = Vec::new();
         for (&t, &(p, q, r)) in users.iter().zip(&sides) {
@@ -198,9 +199,12 @@ impl Refiner {
         let onto = |p: Vec3, n: Vec3| mid - (mid - p).dot(n) * n;
         let curved = (1.0 - PHONG_ALPHA) * mid + PHONG_ALPHA * 0.5 * (onto(pa, na) + onto(pb, nb));
         // Normals that disagree wildly (a crease) would pull the point off: stay flat there. A
-        // lift within rounding (a flat surface) is none, so a flat mesh refines exactly flat.
+        // lift within rounding (a flat surface) is none, so a flat mesh refines exactly flat. A
+        // lift behind the edge would start the vertex's rays inside what it occludes as.
         let lifted = (curved - mid).length() > FLAT_LIFT * pa.distance(pb);
-        if lifted && na.dot(nb) > 0.0 && self.face_normal(tri).dot(na + nb) > 0.0 { curved } else { mid }
+        let outward = (curved - mid).dot(na + nb) > 0.0;
+        let smooth = na.dot(nb) > 0.0 && self.face_normal(tri).dot(na + nb) > 0.0;
+        if lifted && outward && smooth { curved } else { mid }
     }
 
     fn face_normal(&self, tri: [u32; 3]) -> Vec3 {
@@ -350,22 +354,11 @@ impl Adaptive {
 
     /// The refined mesh, the vertices splits added in spatial order after the source's (see
     /// [`Refiner::spatial_order`]).
-    pub fn finish(self) -> Result<Refined, MeshProblem> {
+    pub fn finish(self) -> Result<Mesh, MeshProblem> {
         let mut r = self.0;
-        let flat = !r.lifted;
         r.spatial_order();
-        Ok(Refined { mesh: r.finish()?, flat })
+        r.finish()
     }
-}
-
-/// An adaptively refined mesh.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Refined {
-    /// The mesh.
-    pub mesh: Mesh,
-    /// True when every added vertex lies on its source's flat triangles: the mesh then occludes
-    /// exactly as its source does (see [`crate::scene::SourceMesh`]).
-    pub flat: bool,
 }
 
 impl Refiner {
@@ -493,6 +486,21 @@ mod tests {
         assert!(fine.normals.iter().zip(&fine.positions).all(|(n, p)| n.dot(p.normalize()) > 0.98));
     }
 
+    /// Seen from inside (normals and winding reversed) the sphere is concave: its Phong points
+    /// lie behind the flat triangles, where a ray from them would meet the source, so every new
+    /// vertex stays on its flat edge (see [`crate::scene::SourceMesh`]).
+    #[test]
+    fn new_vertices_are_never_lifted_behind_the_source() {
+        let outside = icosahedron();
+        let normals = outside.normals.iter().map(|n| -*n).collect();
+        let triangles = outside.triangles.iter().map(|[a, b, c]| [*a, *c, *b]).collect();
+        let inside = Mesh::new(outside.positions.clone(), Some(normals), vec![], triangles, false).unwrap().0;
+        let fine = refine(&inside, 42).unwrap();
+        let theta = outside.positions[0].angle_between(outside.positions[11]);
+        let flat = (theta / 2.0).cos();
+        assert!(fine.positions[12..].iter().all(|p| (p.length() - flat).abs() < 1e-5));
+    }
+
     #[test]
     fn a_flat_grid_stays_flat_keeps_its_area_boundary_and_winding() {
         let grid = shapes::grid(2.0, 4);
@@ -563,7 +571,7 @@ mod tests {
             let edges = a.edges();
             a.split(&edges, usize::MAX);
         }
-        a.finish().unwrap().mesh
+        a.finish().unwrap()
     }
 
     /// A UV seam (two vertices at each position along x = 0) is split on both sides at once:
@@ -636,9 +644,9 @@ mod tests {
 
     /// Added vertices follow their place, not the order of the splits that made them: two
     /// refinements with the same splits in another order are the same mesh, vertex for vertex,
-    /// and a flat grid refines flat where a smooth sphere does not.
+    /// and a flat grid refines flat.
     #[test]
-    fn added_vertices_lie_in_spatial_order_and_flatness_is_reported() {
+    fn added_vertices_lie_in_spatial_order_and_a_flat_grid_stays_flat() {
         let grid = shapes::grid(2.0, 6);
         let edges = Adaptive::new(&grid).edges();
         let (first, last) = (edges[..4].to_vec(), edges[edges.len() - 4..].to_vec());
@@ -648,16 +656,14 @@ mod tests {
             a.finish().unwrap()
         };
         let (one, other) = (refine_in([&first, &last]), refine_in([&last, &first]));
-        assert!(one.flat && one.mesh.positions.len() > grid.positions.len());
-        assert_eq!(one.mesh.positions, other.mesh.positions);
+        assert!(one.positions.len() > grid.positions.len());
+        assert!(one.positions.iter().all(|p| p.y == 0.0), "a flat grid refines flat");
+        assert_eq!(one.positions, other.positions);
         let n0 = grid.positions.len();
         let (lo, hi) = (Vec3::new(-1.0, 0.0, -1.0), Vec3::new(1.0, 0.0, 1.0));
         let codes: Vec<u64> =
-            one.mesh.positions[n0..].iter().map(|p| morton::encode(morton::quantize(*p, lo, hi))).collect();
+            one.positions[n0..].iter().map(|p| morton::encode(morton::quantize(*p, lo, hi))).collect();
         assert!(codes.windows(2).all(|w| w[0] <= w[1]), "{codes:?}");
-        let mut sphere = Adaptive::new(&icosahedron());
-        sphere.split(&sphere.edges(), usize::MAX);
-        assert!(!sphere.finish().unwrap().flat, "a smooth surface lifts its new vertices");
     }
 
     #[test]
