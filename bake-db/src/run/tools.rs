@@ -1,6 +1,6 @@
 //! What baking a plan's jobs needs beyond the plan — the occluders' BVHs, the subtree memo,
-//! PRT's baker — set up once per run for the kinds it bakes,
-//! and the per-job bake ([`Context`]) that uses them.
+//! PRT's baker — set up once per run for the kinds it bakes, and the per-job bake
+//! ([`Context`]) that uses them.
 
 use super::*;
 use std::sync::Arc;
@@ -209,18 +209,13 @@ impl Context<'_> {
             r.len() == vertices.len() && r.iter().all(|rec| bspvt::layout::check_record(rec, res).is_ok())
         };
         let Some(records) = decode_records(&bytes).filter(usable) else { return Ok(None) };
-        let changed: Arc<[bspvt::Change]> = self.changes(&occluders).into();
+        let changed: Arc<[bspvt::Change]> = changes(&occluders, &self.plan.snapshot.occluders).into();
         let bakes = records.into_iter().zip(masks).map(|(record, masks)| bspvt::VertexBake {
             record,
             masks,
             ..Default::default()
         });
         Ok(Some(vertices.into_iter().zip(bakes.map(|b| (b, changed.clone()))).collect()))
-    }
-
-    /// Every occluder that changed since the snapshot `then`.
-    pub(super) fn changes(&self, then: &[Occluder]) -> Vec<bspvt::Change> {
-        changes(then, &self.plan.snapshot.occluders)
     }
 }
 
